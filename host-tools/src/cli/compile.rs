@@ -1,0 +1,10 @@
+//! `host-tools compile` (not built yet).
+
+/// Arguments of `host-tools compile`.
+#[derive(clap::Args, Debug)]
+pub struct Args {}
+
+/// Runs the subcommand.
+pub fn run(_args: Args) -> anyhow::Result<()> {
+    anyhow::bail!("`compile` is not built yet; see the README's table of what works")
+}

@@ -1,0 +1,6 @@
+//! Host-side tools: a compiler from procedural designs to G-code, and tools that check,
+//! preview, resample and send G-code jobs. G-code is parsed with the firmware's own parser,
+//! so the host reads exactly what the printer reads.
+#![deny(missing_docs)]
+
+pub mod cli;
