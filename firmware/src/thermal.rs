@@ -1,1 +1,762 @@
-//! (being written)
+//! Heater control and thermal protection: pure state machines fed with temperature samples and
+//! time, returning heater duty. No I/O: the board feeds ADC readings and drives PWM, the
+//! simulator feeds its heater model, the tests feed whatever they like.
+//!
+//! # Using it
+//! ```
+//! use firmware::thermal::{HeaterId, Thermal, ThermalConfig};
+//! let mut thermal = Thermal::new(&ThermalConfig::ENDER3);
+//! thermal.set_target(HeaterId::Hotend, 200.0).unwrap();           // M104 S200
+//! // Every sample period (the board: 10 Hz), per heater:
+//! let duty = thermal.update(HeaterId::Hotend, 25.0, 0);          // or update_adc(id, raw, t)
+//! assert_eq!(duty, 1.0);                                          // far below: full power
+//! assert!(!thermal.reached(HeaterId::Hotend));                    // M109 keeps waiting
+//! assert!(thermal.fault().is_none());                             // else: all heaters off
+//! ```
+//! * Duty is 0.0..=1.0 of the heater's PWM period (already limited to the heater's maximum
+//!   power). After a fault every duty is 0 until the board is reset.
+//! * [`Thermal::fault`] is latched: runaway, heating failed, min/max temperature, sensor open or
+//!   short. The executive reports it with [`Fault`]'s `Display` (Marlin's wording, after an
+//!   `Error:` prefix), stops motion, and keeps the state until reset.
+//! * M301/M304: [`Thermal::set_pid`]; M303: [`Thermal::start_autotune`] then
+//!   [`Thermal::autotune_status`]; M105: [`Thermal::write_report`]; the automatic hot-end fan:
+//!   [`Thermal::hotend_fan_on`]; pause idle cooling: [`Thermal::pause_idle_start`] /
+//!   [`Thermal::pause_idle_end`].
+//!
+//! Submodules: [`thermistor`] (ADC → °C), [`pid`], [`autotune`] (M303), [`protection`]
+//! (runaway and heating watchdogs).
+
+pub mod autotune;
+pub mod pid;
+pub mod protection;
+pub mod thermistor;
+
+use core::fmt;
+
+pub use autotune::{Autotune, AutotuneError, AutotuneStatus};
+pub use pid::{Pid, PidGains, PID_MAX};
+pub use protection::{Protection, ProtectionConfig, WatchdogTrip};
+pub use thermistor::{SensorFault, Thermistor, ThermistorTable};
+
+/// Number of heaters.
+pub const HEATERS: usize = 2;
+
+/// One heater.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum HeaterId {
+    /// The hot end (`T` in M105, Marlin heater 0).
+    Hotend = 0,
+    /// The heated bed (`B` in M105).
+    Bed = 1,
+}
+
+impl HeaterId {
+    /// Both heaters in index order.
+    pub const ALL: [HeaterId; HEATERS] = [HeaterId::Hotend, HeaterId::Bed];
+
+    /// Index into per-heater arrays.
+    pub const fn index(self) -> usize {
+        self as usize
+    }
+
+    /// Marlin's `Heater_ID` spelling in error messages (`0`, `bed`).
+    pub const fn marlin_id(self) -> &'static str {
+        match self {
+            HeaterId::Hotend => "0",
+            HeaterId::Bed => "bed",
+        }
+    }
+}
+
+/// How a heater is controlled.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Control {
+    /// PID (M301 for the hot end, M304 for the bed).
+    Pid(PidGains),
+    /// Full on below `target − hysteresis`, off above `target + hysteresis`, unchanged between.
+    BangBang {
+        /// Half-width of the dead band, °C.
+        hysteresis_c: f32,
+    },
+}
+
+/// Everything about one heater.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HeaterConfig {
+    /// Its thermistor.
+    pub thermistor: Thermistor,
+    /// Its controller.
+    pub control: Control,
+    /// Runaway and heating watchdogs.
+    pub protection: ProtectionConfig,
+    /// Below this a heating heater faults (MINTEMP: usually an open sensor), °C.
+    pub min_c: f32,
+    /// Above this the heater faults (MAXTEMP), °C. Targets are limited to `max_c − 15`.
+    pub max_c: f32,
+    /// Highest duty 0..=1 (Marlin's `MAX_BED_POWER`/`PID_MAX` as a fraction).
+    pub max_duty: f32,
+    /// M109/M190 wait until the temperature is within this of the target, °C.
+    pub window_c: f32,
+    /// ... continuously for this long, seconds (Marlin's `TEMP_RESIDENCY_TIME`).
+    pub residency_s: f32,
+}
+
+/// The optional pause idle timeout: while paused, after `timeout_s` the nozzle target is lowered
+/// to `nozzle_c` so filament does not cook in the hot end; on resume the old target comes back
+/// and the executive waits for it before moving.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IdleConfig {
+    /// Seconds paused before the nozzle is lowered.
+    pub timeout_s: u32,
+    /// Nozzle target while idle, °C (0 = off).
+    pub nozzle_c: f32,
+}
+
+/// The whole thermal configuration.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ThermalConfig {
+    /// The hot end.
+    pub hotend: HeaterConfig,
+    /// The bed.
+    pub bed: HeaterConfig,
+    /// The hot-end fan runs while the nozzle is at or above this, °C (Marlin's
+    /// `EXTRUDER_AUTO_FAN_TEMPERATURE`); it stops 2 °C below.
+    pub hotend_fan_c: f32,
+    /// Consecutive out-of-range samples before a min/max/sensor fault (filters single glitches;
+    /// at 10 Hz, 3 samples = 0.3 s).
+    pub range_fault_samples: u8,
+    /// Pause idle timeout (None = off, the default, like Marlin's `HOTEND_IDLE_TIMEOUT`).
+    pub idle: Option<IdleConfig>,
+}
+
+impl ThermalConfig {
+    /// Ender-3 class: 100k B3950 thermistors, Marlin's Ender-3 PID defaults (hot end
+    /// 21.73/1.54/76.55, bed 10.00/0.023/305.4), MAXTEMP 275 °C / 125 °C, MINTEMP 5 °C,
+    /// Marlin's protection periods, fan at 50 °C, residency 10 s within 1 °C.
+    pub const ENDER3: ThermalConfig = ThermalConfig {
+        hotend: HeaterConfig {
+            thermistor: Thermistor::NTC_100K_3950,
+            control: Control::Pid(PidGains {
+                kp: 21.73,
+                ki: 1.54,
+                kd: 76.55,
+            }),
+            protection: ProtectionConfig::HOTEND,
+            min_c: 5.0,
+            max_c: 275.0,
+            max_duty: 1.0,
+            window_c: 1.0,
+            residency_s: 10.0,
+        },
+        bed: HeaterConfig {
+            thermistor: Thermistor::NTC_100K_3950,
+            control: Control::Pid(PidGains {
+                kp: 10.0,
+                ki: 0.023,
+                kd: 305.4,
+            }),
+            protection: ProtectionConfig::BED,
+            min_c: 5.0,
+            max_c: 125.0,
+            max_duty: 1.0,
+            window_c: 1.0,
+            residency_s: 10.0,
+        },
+        hotend_fan_c: 50.0,
+        range_fault_samples: 3,
+        idle: None,
+    };
+}
+
+impl Default for ThermalConfig {
+    fn default() -> Self {
+        Self::ENDER3
+    }
+}
+
+/// What went wrong.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FaultKind {
+    /// The temperature fell away from a held target (runaway protection).
+    Runaway,
+    /// The heater did not heat fast enough (watch protection).
+    HeatingFailed,
+    /// Below the minimum temperature while heating.
+    MinTemp,
+    /// Above the maximum temperature.
+    MaxTemp,
+    /// Thermistor open circuit.
+    SensorOpen,
+    /// Thermistor short circuit.
+    SensorShort,
+    /// Heaters shut down by the executive (M112 / kill).
+    Killed,
+}
+
+/// A latched thermal fault: every heater is off until reset.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Fault {
+    /// The heater that tripped.
+    pub heater: HeaterId,
+    /// Why.
+    pub kind: FaultKind,
+    /// When, µs.
+    pub at_us: u64,
+    /// The last valid measurement of that heater, °C.
+    pub measured_c: f32,
+}
+
+impl fmt::Display for Fault {
+    /// Marlin's wording, e.g. `Thermal Runaway, system stopped! Heater_ID: 0`; print it after
+    /// `Error:`.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let what = match self.kind {
+            FaultKind::Runaway => "Thermal Runaway",
+            FaultKind::HeatingFailed => "Heating failed",
+            FaultKind::MinTemp => "MINTEMP triggered",
+            FaultKind::MaxTemp => "MAXTEMP triggered",
+            FaultKind::SensorOpen => "Thermistor open circuit",
+            FaultKind::SensorShort => "Thermistor short circuit",
+            FaultKind::Killed => "Heaters off (killed)",
+        };
+        write!(
+            f,
+            "{what}, system stopped! Heater_ID: {}",
+            self.heater.marlin_id()
+        )
+    }
+}
+
+/// Why a request was refused.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ThermalError {
+    /// A fault is latched: nothing heats until reset.
+    Faulted(Fault),
+    /// Target above the heater's limit (`max_c − 15`).
+    TooHot {
+        /// Highest allowed target, °C.
+        max_c: f32,
+    },
+    /// NaN, infinite or negative temperature, or invalid gains.
+    Invalid,
+    /// M303 on a heater whose control is bang-bang, or a tune already running elsewhere.
+    Busy,
+}
+
+impl fmt::Display for ThermalError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ThermalError::Faulted(fault) => write!(f, "heaters off after fault: {fault}"),
+            ThermalError::TooHot { max_c } => write!(f, "target above limit {max_c:.0}C"),
+            ThermalError::Invalid => f.write_str("invalid temperature or gains"),
+            ThermalError::Busy => f.write_str("heater busy (autotune)"),
+        }
+    }
+}
+
+/// Margin between MAXTEMP and the highest target (Marlin's `HOTEND_OVERSHOOT`).
+pub const TARGET_MARGIN_C: f32 = 15.0;
+
+#[derive(Clone, Debug, PartialEq)]
+struct Heater {
+    cfg: HeaterConfig,
+    table: ThermistorTable,
+    target_c: f32,
+    measured_c: f32,
+    have_sample: bool,
+    pid: Pid,
+    bang_on: bool,
+    protection: Protection,
+    duty: f32,
+    last_us: u64,
+    within_since_us: Option<u64>,
+    bad_samples: u8,
+    autotune: Option<Autotune>,
+    tune_apply: bool,
+}
+
+impl Heater {
+    fn new(cfg: &HeaterConfig) -> Self {
+        let gains = match cfg.control {
+            Control::Pid(g) => g,
+            Control::BangBang { .. } => PidGains {
+                kp: 0.0,
+                ki: 0.0,
+                kd: 0.0,
+            },
+        };
+        Heater {
+            cfg: *cfg,
+            table: ThermistorTable::new(&cfg.thermistor),
+            target_c: 0.0,
+            measured_c: 0.0,
+            have_sample: false,
+            pid: Pid::new(gains),
+            bang_on: false,
+            protection: Protection::new(cfg.protection),
+            duty: 0.0,
+            last_us: 0,
+            within_since_us: None,
+            bad_samples: 0,
+            autotune: None,
+            tune_apply: false,
+        }
+    }
+
+    fn max_target_c(&self) -> f32 {
+        self.cfg.max_c - TARGET_MARGIN_C
+    }
+
+    fn set_target(&mut self, c: f32) {
+        if c != self.target_c {
+            self.target_c = c;
+            self.protection.target_changed(c);
+            self.within_since_us = None;
+            if c <= 0.0 {
+                self.pid.reset();
+            }
+        }
+    }
+
+    fn off(&mut self) {
+        self.target_c = 0.0;
+        self.duty = 0.0;
+        self.pid.reset();
+        self.bang_on = false;
+        self.protection.target_changed(0.0);
+        if let Some(tune) = self.autotune.as_mut() {
+            tune.abort(AutotuneError::Fault);
+        }
+    }
+
+    /// One sample: Ok(duty) or the fault it shows.
+    fn sample(
+        &mut self,
+        sample: Result<f32, SensorFault>,
+        now_us: u64,
+        fault_samples: u8,
+    ) -> Result<f32, FaultKind> {
+        self.last_us = now_us;
+        let heating = self.target_c > 0.0 || self.duty > 0.0 || self.tuning();
+        // Range checks with a consecutive-sample filter. MINTEMP and an open sensor only
+        // matter while heating (Marlin does the same: a cold or unplugged idle heater is safe).
+        let range = match sample {
+            Err(SensorFault::Short) => Some(FaultKind::SensorShort),
+            Err(SensorFault::Open) if heating => Some(FaultKind::SensorOpen),
+            Err(SensorFault::Open) => None,
+            Ok(c) if c.is_nan() => heating.then_some(FaultKind::SensorOpen),
+            Ok(c) if c > self.cfg.max_c => Some(FaultKind::MaxTemp),
+            Ok(c) if c < self.cfg.min_c && heating => Some(FaultKind::MinTemp),
+            Ok(_) => None,
+        };
+        match range {
+            Some(kind) => {
+                self.bad_samples = self.bad_samples.saturating_add(1);
+                if self.bad_samples >= fault_samples.max(1) {
+                    return Err(kind);
+                }
+                // Hold the previous duty through a glitch shorter than the filter.
+                return Ok(self.duty);
+            }
+            None => self.bad_samples = 0,
+        }
+        let measured = match sample {
+            Ok(c) if c.is_finite() => c,
+            // Open sensor on an idle heater: nothing to control, nothing to measure.
+            _ => {
+                self.duty = 0.0;
+                return Ok(0.0);
+            }
+        };
+        self.measured_c = measured;
+        self.have_sample = true;
+
+        if let Some(tune) = self.autotune.as_mut() {
+            if matches!(tune.status(), AutotuneStatus::Running { .. }) {
+                let counts = tune.update(measured, now_us);
+                if let (AutotuneStatus::Done(gains), true) = (tune.status(), self.tune_apply) {
+                    self.cfg.control = Control::Pid(gains);
+                    self.pid = Pid::new(gains);
+                }
+                // During a tune the normal watchdogs are replaced by the tune's own limits
+                // (overshoot, half-cycle timeout) plus the range checks above.
+                self.duty = (counts / PID_MAX).clamp(0.0, self.cfg.max_duty);
+                return Ok(self.duty);
+            }
+        }
+
+        match self.protection.check(measured, now_us) {
+            Ok(()) => {}
+            Err(WatchdogTrip::Runaway) => return Err(FaultKind::Runaway),
+            Err(WatchdogTrip::HeatingFailed) => return Err(FaultKind::HeatingFailed),
+        }
+
+        // Residency for M109/M190.
+        if self.target_c > 0.0 && (measured - self.target_c).abs() <= self.cfg.window_c {
+            self.within_since_us.get_or_insert(now_us);
+        } else {
+            self.within_since_us = None;
+        }
+
+        let duty = match self.cfg.control {
+            Control::Pid(_) => self.pid.update(self.target_c, measured, now_us) / PID_MAX,
+            Control::BangBang { hysteresis_c } => {
+                if self.target_c <= 0.0 || measured >= self.target_c + hysteresis_c {
+                    self.bang_on = false;
+                } else if measured <= self.target_c - hysteresis_c {
+                    self.bang_on = true;
+                }
+                if self.bang_on {
+                    1.0
+                } else {
+                    0.0
+                }
+            }
+        };
+        self.duty = duty.clamp(0.0, self.cfg.max_duty);
+        Ok(self.duty)
+    }
+
+    fn tuning(&self) -> bool {
+        matches!(
+            self.autotune.map(|t| t.status()),
+            Some(AutotuneStatus::Running { .. })
+        )
+    }
+
+    fn reached(&self) -> bool {
+        if self.target_c <= 0.0 {
+            return true;
+        }
+        match self.within_since_us {
+            Some(since) => self.last_us.saturating_sub(since) as f32 * 1e-6 >= self.cfg.residency_s,
+            None => false,
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct IdleState {
+    since_us: Option<u64>,
+    saved_target_c: Option<f32>,
+}
+
+/// Both heaters, their protection, the automatic hot-end fan and the pause idle timeout.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Thermal {
+    heaters: [Heater; HEATERS],
+    fault: Option<Fault>,
+    fault_samples: u8,
+    fan_c: f32,
+    fan_on: bool,
+    idle_cfg: Option<IdleConfig>,
+    idle: IdleState,
+}
+
+impl Thermal {
+    /// Heaters off, no fault, thermistor tables built from `cfg`.
+    pub fn new(cfg: &ThermalConfig) -> Self {
+        Thermal {
+            heaters: [Heater::new(&cfg.hotend), Heater::new(&cfg.bed)],
+            fault: None,
+            fault_samples: cfg.range_fault_samples,
+            fan_c: cfg.hotend_fan_c,
+            fan_on: false,
+            idle_cfg: cfg.idle,
+            idle: IdleState {
+                since_us: None,
+                saved_target_c: None,
+            },
+        }
+    }
+
+    fn heater(&self, id: HeaterId) -> &Heater {
+        &self.heaters[id.index()]
+    }
+
+    fn heater_mut(&mut self, id: HeaterId) -> &mut Heater {
+        &mut self.heaters[id.index()]
+    }
+
+    /// Sets a target (M104/M109/M140/M190); 0 turns the heater off. Refused after a fault,
+    /// above `max_c − 15`, or for NaN/negative values; a running autotune on that heater is
+    /// cancelled.
+    pub fn set_target(&mut self, id: HeaterId, target_c: f32) -> Result<(), ThermalError> {
+        if let Some(fault) = self.fault {
+            return Err(ThermalError::Faulted(fault));
+        }
+        if !target_c.is_finite() || target_c < 0.0 {
+            return Err(ThermalError::Invalid);
+        }
+        let max_c = self.heater(id).max_target_c();
+        if target_c > max_c {
+            return Err(ThermalError::TooHot { max_c });
+        }
+        let heater = self.heater_mut(id);
+        if let Some(tune) = heater.autotune.as_mut() {
+            tune.abort(AutotuneError::Cancelled);
+        }
+        heater.set_target(target_c);
+        if id == HeaterId::Hotend {
+            // A new nozzle target during a pause supersedes the idle bookkeeping.
+            self.idle.saved_target_c = None;
+        }
+        Ok(())
+    }
+
+    /// Feeds one temperature sample in °C (NaN = unreadable sensor) and returns the heater's
+    /// duty 0..=1. Runs the protection; on a fault every heater goes off and stays off.
+    pub fn update(&mut self, id: HeaterId, measured_c: f32, now_us: u64) -> f32 {
+        self.feed(id, Ok(measured_c), now_us)
+    }
+
+    /// Feeds one raw 12-bit ADC reading of the heater's thermistor input (converted with its
+    /// table; open and short sensors detected) and returns the duty 0..=1.
+    pub fn update_adc(&mut self, id: HeaterId, raw: u16, now_us: u64) -> f32 {
+        let sample = self.heater(id).table.celsius(raw);
+        self.feed(id, sample, now_us)
+    }
+
+    fn feed(&mut self, id: HeaterId, sample: Result<f32, SensorFault>, now_us: u64) -> f32 {
+        if self.fault.is_some() {
+            let h = self.heater_mut(id);
+            h.last_us = now_us;
+            if let Ok(c) = sample {
+                if c.is_finite() {
+                    h.measured_c = c;
+                    h.have_sample = true;
+                }
+            }
+            h.duty = 0.0;
+            self.update_fan();
+            return 0.0;
+        }
+        if id == HeaterId::Hotend {
+            self.idle_tick(now_us);
+        }
+        let samples = self.fault_samples;
+        let result = self.heater_mut(id).sample(sample, now_us, samples);
+        let duty = match result {
+            Ok(duty) => duty,
+            Err(kind) => {
+                let measured_c = self.heater(id).measured_c;
+                self.latch(Fault {
+                    heater: id,
+                    kind,
+                    at_us: now_us,
+                    measured_c,
+                });
+                0.0
+            }
+        };
+        self.update_fan();
+        duty
+    }
+
+    fn latch(&mut self, fault: Fault) {
+        if self.fault.is_none() {
+            self.fault = Some(fault);
+        }
+        for h in self.heaters.iter_mut() {
+            h.off();
+        }
+    }
+
+    /// Turns every heater off and latches [`FaultKind::Killed`] (M112, a motion fault, the
+    /// panic path): nothing heats again until reset.
+    pub fn kill(&mut self, now_us: u64) {
+        let measured_c = self.heater(HeaterId::Hotend).measured_c;
+        self.latch(Fault {
+            heater: HeaterId::Hotend,
+            kind: FaultKind::Killed,
+            at_us: now_us,
+            measured_c,
+        });
+    }
+
+    /// Turns every heater off without a fault (M104 S0 + M140 S0, end of job, cancel).
+    pub fn all_off(&mut self) {
+        for id in HeaterId::ALL {
+            let h = self.heater_mut(id);
+            if let Some(tune) = h.autotune.as_mut() {
+                tune.abort(AutotuneError::Cancelled);
+            }
+            h.set_target(0.0);
+            h.duty = 0.0;
+        }
+        self.idle.saved_target_c = None;
+    }
+
+    /// The latched fault, if any.
+    pub fn fault(&self) -> Option<Fault> {
+        self.fault
+    }
+
+    /// Last valid measured temperature, °C (0 before the first sample).
+    pub fn temperature_c(&self, id: HeaterId) -> f32 {
+        self.heater(id).measured_c
+    }
+
+    /// True once a valid sample has been seen for this heater.
+    pub fn has_sample(&self, id: HeaterId) -> bool {
+        self.heater(id).have_sample
+    }
+
+    /// Current target, °C (0 = off).
+    pub fn target_c(&self, id: HeaterId) -> f32 {
+        self.heater(id).target_c
+    }
+
+    /// Last duty returned for this heater, 0..=1.
+    pub fn duty(&self, id: HeaterId) -> f32 {
+        self.heater(id).duty
+    }
+
+    /// True when the heater is off, or has been within its window of the target for its
+    /// residency time: what M109/M190 wait for. Never true after a fault (the wait must end
+    /// through the fault path instead).
+    pub fn reached(&self, id: HeaterId) -> bool {
+        self.fault.is_none() && self.heater(id).reached()
+    }
+
+    /// The heater's PID gains (M301/M304 without parameters), None for bang-bang control.
+    pub fn pid(&self, id: HeaterId) -> Option<PidGains> {
+        match self.heater(id).cfg.control {
+            Control::Pid(_) => Some(self.heater(id).pid.gains),
+            Control::BangBang { .. } => None,
+        }
+    }
+
+    /// Sets PID gains (M301 P I D for the hot end, M304 for the bed); switches a bang-bang
+    /// heater to PID.
+    pub fn set_pid(&mut self, id: HeaterId, gains: PidGains) -> Result<(), ThermalError> {
+        if !gains.is_valid() {
+            return Err(ThermalError::Invalid);
+        }
+        let h = self.heater_mut(id);
+        h.cfg.control = Control::Pid(gains);
+        h.pid = Pid::new(gains);
+        Ok(())
+    }
+
+    /// Starts M303 on `id` at `target_c` for `cycles` cycles. The tune drives the heater until
+    /// [`Thermal::autotune_status`] is `Done` or `Failed`; the heater is then off (target 0)
+    /// and, when `apply` is true (M303 U1), the result becomes the heater's gains.
+    pub fn start_autotune(
+        &mut self,
+        id: HeaterId,
+        target_c: f32,
+        cycles: u8,
+        apply: bool,
+        now_us: u64,
+    ) -> Result<(), ThermalError> {
+        if let Some(fault) = self.fault {
+            return Err(ThermalError::Faulted(fault));
+        }
+        if !target_c.is_finite() || target_c <= 0.0 {
+            return Err(ThermalError::Invalid);
+        }
+        let max_c = self.heater(id).max_target_c();
+        if target_c > max_c {
+            return Err(ThermalError::TooHot { max_c });
+        }
+        if self.heaters.iter().any(|h| h.tuning()) {
+            return Err(ThermalError::Busy);
+        }
+        let h = self.heater_mut(id);
+        h.set_target(0.0);
+        h.pid.reset();
+        let max_out = h.cfg.max_duty * PID_MAX;
+        h.autotune = Some(Autotune::new(target_c, cycles, max_out, now_us));
+        h.tune_apply = apply;
+        Ok(())
+    }
+
+    /// The heater's autotune: None if none was started since power-up.
+    pub fn autotune_status(&self, id: HeaterId) -> Option<AutotuneStatus> {
+        self.heater(id).autotune.map(|t| t.status())
+    }
+
+    /// Cancels a running autotune (M108, cancel).
+    pub fn cancel_autotune(&mut self) {
+        for h in self.heaters.iter_mut() {
+            if let Some(tune) = h.autotune.as_mut() {
+                tune.abort(AutotuneError::Cancelled);
+            }
+        }
+    }
+
+    /// True while the hot-end fan must run (nozzle at or above the configured threshold, with
+    /// 2 °C hysteresis). Stays on after a fault while the nozzle is hot.
+    pub fn hotend_fan_on(&self) -> bool {
+        self.fan_on
+    }
+
+    fn update_fan(&mut self) {
+        let c = self.heater(HeaterId::Hotend).measured_c;
+        if c >= self.fan_c {
+            self.fan_on = true;
+        } else if c < self.fan_c - 2.0 {
+            self.fan_on = false;
+        }
+    }
+
+    /// The executive entered a pause (parked): starts the idle timer if configured.
+    pub fn pause_idle_start(&mut self, now_us: u64) {
+        if self.idle_cfg.is_some() && self.idle.since_us.is_none() {
+            self.idle.since_us = Some(now_us);
+        }
+    }
+
+    /// True while the idle timeout holds the nozzle at its lowered target.
+    pub fn idle_lowered(&self) -> bool {
+        self.idle.saved_target_c.is_some()
+    }
+
+    /// The pause ends (resume): stops the idle timer and, if the nozzle had been lowered,
+    /// restores its target and returns it; the executive must then wait for
+    /// [`Thermal::reached`] on the hot end before extruding.
+    pub fn pause_idle_end(&mut self) -> Option<f32> {
+        self.idle.since_us = None;
+        let saved = self.idle.saved_target_c.take()?;
+        if self.fault.is_some() {
+            return None;
+        }
+        self.heater_mut(HeaterId::Hotend).set_target(saved);
+        Some(saved)
+    }
+
+    fn idle_tick(&mut self, now_us: u64) {
+        let (Some(cfg), Some(since)) = (self.idle_cfg, self.idle.since_us) else {
+            return;
+        };
+        if self.idle.saved_target_c.is_some() {
+            return;
+        }
+        if now_us.saturating_sub(since) >= cfg.timeout_s as u64 * 1_000_000 {
+            let h = self.heater_mut(HeaterId::Hotend);
+            let old = h.target_c;
+            if old > cfg.nozzle_c {
+                h.set_target(cfg.nozzle_c);
+                self.idle.saved_target_c = Some(old);
+            }
+        }
+    }
+
+    /// Writes the M105 temperature fields, Marlin style:
+    /// `T:201.3 /200.0 B:60.1 /60.0 @:127 B@:89` (the caller adds `ok ` in front).
+    pub fn write_report(&self, w: &mut impl fmt::Write) -> fmt::Result {
+        let t = self.heater(HeaterId::Hotend);
+        let b = self.heater(HeaterId::Bed);
+        write!(
+            w,
+            "T:{:.1} /{:.1} B:{:.1} /{:.1} @:{} B@:{}",
+            t.measured_c,
+            t.target_c,
+            b.measured_c,
+            b.target_c,
+            libm::roundf(t.duty * PID_MAX) as u32,
+            libm::roundf(b.duty * PID_MAX) as u32
+        )
+    }
+}
