@@ -130,8 +130,9 @@ pub struct ThermalConfig {
 }
 
 impl ThermalConfig {
-    /// Ender-3 class: 100k B3950 thermistors, Marlin's Ender-3 PID defaults (hot end
-    /// 21.73/1.54/76.55, bed 10.00/0.023/305.4), MAXTEMP 275 °C / 125 °C, MINTEMP 5 °C,
+    /// Ender-3 class: 100k B3950 thermistors, the PID gains of Marlin's Creality Ender-3
+    /// example configurations (hot end 21.73/1.54/76.55, bed 462.10/85.47/624.59 — run M303 on
+    /// your own printer), MAXTEMP 275 °C / 125 °C, MINTEMP 5 °C,
     /// Marlin's protection periods, fan at 50 °C, residency 10 s within 1 °C.
     pub const ENDER3: ThermalConfig = ThermalConfig {
         hotend: HeaterConfig {
@@ -151,9 +152,9 @@ impl ThermalConfig {
         bed: HeaterConfig {
             thermistor: Thermistor::NTC_100K_3950,
             control: Control::Pid(PidGains {
-                kp: 10.0,
-                ki: 0.023,
-                kd: 305.4,
+                kp: 462.1,
+                ki: 85.47,
+                kd: 624.59,
             }),
             protection: ProtectionConfig::BED,
             min_c: 5.0,

@@ -1,0 +1,360 @@
+//! Heater control and thermal protection on the simulator's heater model: the firmware's
+//! `thermal` state machine is fed 12-bit ADC samples from `sim::heater` at 10 Hz, exactly as
+//! the board feeds it, and its duty drives the model. Proves that PID holds the target, that
+//! M303 finds usable gains, and that runaway, slow heating, sensor faults and a stuck MOSFET
+//! are all caught with every heater switched off.
+
+use firmware::thermal::{AutotuneStatus, FaultKind, HeaterId, IdleConfig, Thermal, ThermalConfig};
+use sim::heater::{HeaterFault, HeaterModel, HeaterParams};
+
+const SAMPLE_US: u64 = 100_000;
+
+struct Rig {
+    thermal: Thermal,
+    hotend: HeaterModel,
+    bed: HeaterModel,
+    now_us: u64,
+}
+
+impl Rig {
+    fn new(cfg: &ThermalConfig) -> Self {
+        Rig {
+            thermal: Thermal::new(cfg),
+            hotend: HeaterModel::new(HeaterParams::ENDER3_HOTEND),
+            bed: HeaterModel::new(HeaterParams::ENDER3_BED),
+            now_us: 0,
+        }
+    }
+
+    /// One 100 ms sample period for both heaters.
+    fn tick(&mut self) {
+        let dh = self
+            .thermal
+            .update_adc(HeaterId::Hotend, self.hotend.adc(), self.now_us);
+        let db = self
+            .thermal
+            .update_adc(HeaterId::Bed, self.bed.adc(), self.now_us);
+        self.hotend.step(dh, SAMPLE_US as f32 * 1e-6);
+        self.bed.step(db, SAMPLE_US as f32 * 1e-6);
+        self.now_us += SAMPLE_US;
+    }
+
+    fn run_s(&mut self, seconds: f32) {
+        let n = (seconds * 1e6 / SAMPLE_US as f32) as u64;
+        for _ in 0..n {
+            self.tick();
+        }
+    }
+
+    /// Runs until `cond` or `limit_s`; returns the seconds it took.
+    fn run_until(&mut self, limit_s: f32, mut cond: impl FnMut(&Rig) -> bool) -> Option<f32> {
+        let start = self.now_us;
+        while ((self.now_us - start) as f32) * 1e-6 < limit_s {
+            if cond(self) {
+                return Some((self.now_us - start) as f32 * 1e-6);
+            }
+            self.tick();
+        }
+        None
+    }
+
+    fn s(&self) -> f32 {
+        self.now_us as f32 * 1e-6
+    }
+}
+
+fn heat_and_settle(rig: &mut Rig, hotend_c: f32, bed_c: f32) {
+    rig.thermal.set_target(HeaterId::Hotend, hotend_c).unwrap();
+    rig.thermal.set_target(HeaterId::Bed, bed_c).unwrap();
+    let took = rig.run_until(600.0, |r| {
+        r.thermal.reached(HeaterId::Hotend) && r.thermal.reached(HeaterId::Bed)
+    });
+    assert!(
+        took.is_some(),
+        "targets not reached: hotend {} bed {} fault {:?}",
+        rig.thermal.temperature_c(HeaterId::Hotend),
+        rig.thermal.temperature_c(HeaterId::Bed),
+        rig.thermal.fault()
+    );
+}
+
+#[test]
+fn pid_holds_hotend_and_bed_within_one_degree() {
+    let mut rig = Rig::new(&ThermalConfig::ENDER3);
+    heat_and_settle(&mut rig, 200.0, 60.0);
+    // Settle two more minutes, then watch ten minutes of holding.
+    rig.run_s(120.0);
+    let (mut worst_h, mut worst_b) = (0.0f32, 0.0f32);
+    for _ in 0..6000 {
+        rig.tick();
+        worst_h = worst_h.max((rig.hotend.temperature_c() - 200.0).abs());
+        worst_b = worst_b.max((rig.bed.temperature_c() - 60.0).abs());
+    }
+    assert!(rig.thermal.fault().is_none());
+    assert!(worst_h <= 1.0, "hot end strayed {worst_h} °C");
+    assert!(worst_b <= 1.0, "bed strayed {worst_b} °C");
+    // Holding 200 °C costs about (200 − 25) · 0.08 / 40 = 35 % duty.
+    let duty = rig.thermal.duty(HeaterId::Hotend);
+    assert!((0.2..0.5).contains(&duty), "duty {duty}");
+}
+
+#[test]
+fn heat_up_time_is_realistic_and_m109_waits_for_residency() {
+    let mut rig = Rig::new(&ThermalConfig::ENDER3);
+    rig.thermal.set_target(HeaterId::Hotend, 200.0).unwrap();
+    let reach = rig
+        .run_until(300.0, |r| {
+            r.thermal.temperature_c(HeaterId::Hotend) >= 199.0
+        })
+        .unwrap();
+    assert!(
+        (40.0..150.0).contains(&reach),
+        "reached 199 °C after {reach} s"
+    );
+    assert!(
+        !rig.thermal.reached(HeaterId::Hotend),
+        "residency not yet served"
+    );
+    let settle = rig
+        .run_until(300.0, |r| r.thermal.reached(HeaterId::Hotend))
+        .unwrap();
+    assert!(
+        settle >= 9.9,
+        "M109 released after only {settle} s in the window"
+    );
+}
+
+#[test]
+fn thermistor_falling_out_is_a_runaway() {
+    let mut rig = Rig::new(&ThermalConfig::ENDER3);
+    heat_and_settle(&mut rig, 200.0, 60.0);
+    rig.run_s(30.0);
+    let injected = rig.s();
+    rig.hotend.set_fault(Some(HeaterFault::SensorDetached));
+    rig.run_until(120.0, |r| r.thermal.fault().is_some());
+    let fault = rig.thermal.fault().expect("runaway not detected");
+    assert_eq!(fault.kind, FaultKind::Runaway);
+    assert_eq!(fault.heater, HeaterId::Hotend);
+    let after = fault.at_us as f32 * 1e-6 - injected;
+    // The sensor needs a few seconds to fall 4 °C, then the 40 s period runs.
+    assert!(
+        (40.0..55.0).contains(&after),
+        "runaway detected {after} s after the fault"
+    );
+    // Every heater is off, stays off, and new targets are refused.
+    rig.run_s(5.0);
+    assert_eq!(rig.thermal.duty(HeaterId::Hotend), 0.0);
+    assert_eq!(rig.thermal.duty(HeaterId::Bed), 0.0);
+    assert!(rig.thermal.set_target(HeaterId::Bed, 60.0).is_err());
+    assert_eq!(
+        fault.to_string(),
+        "Thermal Runaway, system stopped! Heater_ID: 0"
+    );
+}
+
+#[test]
+fn bed_runaway_is_caught_too() {
+    let mut rig = Rig::new(&ThermalConfig::ENDER3);
+    heat_and_settle(&mut rig, 0.0, 60.0);
+    rig.bed.set_fault(Some(HeaterFault::SensorDetached));
+    rig.run_until(200.0, |r| r.thermal.fault().is_some());
+    let fault = rig.thermal.fault().expect("bed runaway not detected");
+    assert_eq!(
+        (fault.heater, fault.kind),
+        (HeaterId::Bed, FaultKind::Runaway)
+    );
+}
+
+#[test]
+fn dead_heater_is_heating_failed() {
+    let mut rig = Rig::new(&ThermalConfig::ENDER3);
+    rig.hotend.set_fault(Some(HeaterFault::HeaterDead));
+    rig.thermal.set_target(HeaterId::Hotend, 200.0).unwrap();
+    rig.run_until(60.0, |r| r.thermal.fault().is_some());
+    let fault = rig.thermal.fault().expect("dead heater not detected");
+    assert_eq!(fault.kind, FaultKind::HeatingFailed);
+    let at = fault.at_us as f32 * 1e-6;
+    assert!((19.9..21.0).contains(&at), "detected at {at} s");
+}
+
+#[test]
+fn weak_heater_is_heating_failed_but_a_normal_one_is_not() {
+    // A heater at a twentieth of its power still warms, but by less than 2 °C per 20 s.
+    let mut weak = HeaterParams::ENDER3_HOTEND;
+    weak.power_w = 2.0;
+    let mut rig = Rig::new(&ThermalConfig::ENDER3);
+    rig.hotend = HeaterModel::new(weak);
+    rig.thermal.set_target(HeaterId::Hotend, 200.0).unwrap();
+    rig.run_until(120.0, |r| r.thermal.fault().is_some());
+    assert_eq!(
+        rig.thermal.fault().map(|f| f.kind),
+        Some(FaultKind::HeatingFailed)
+    );
+
+    let mut rig = Rig::new(&ThermalConfig::ENDER3);
+    rig.thermal.set_target(HeaterId::Bed, 60.0).unwrap();
+    rig.run_s(600.0);
+    assert!(rig.thermal.fault().is_none());
+}
+
+#[test]
+fn sensor_open_and_short_are_caught_within_half_a_second() {
+    for (fault_in, expected) in [
+        (HeaterFault::SensorOpen, FaultKind::SensorOpen),
+        (HeaterFault::SensorShort, FaultKind::SensorShort),
+    ] {
+        let mut rig = Rig::new(&ThermalConfig::ENDER3);
+        heat_and_settle(&mut rig, 200.0, 0.0);
+        let injected = rig.now_us;
+        rig.hotend.set_fault(Some(fault_in));
+        rig.run_until(5.0, |r| r.thermal.fault().is_some());
+        let fault = rig.thermal.fault().expect("sensor fault not detected");
+        assert_eq!(fault.kind, expected);
+        assert!(fault.at_us - injected <= 500_000);
+        assert_eq!(rig.thermal.duty(HeaterId::Hotend), 0.0);
+    }
+}
+
+#[test]
+fn idle_open_sensor_is_harmless_until_heated() {
+    let mut rig = Rig::new(&ThermalConfig::ENDER3);
+    rig.bed.set_fault(Some(HeaterFault::SensorOpen));
+    rig.run_s(5.0);
+    assert!(
+        rig.thermal.fault().is_none(),
+        "unplugged idle bed is not a fault"
+    );
+    rig.thermal.set_target(HeaterId::Bed, 60.0).unwrap();
+    rig.run_s(1.0);
+    assert_eq!(
+        rig.thermal.fault().map(|f| f.kind),
+        Some(FaultKind::SensorOpen)
+    );
+}
+
+#[test]
+fn stuck_mosfet_ends_in_maxtemp() {
+    let mut rig = Rig::new(&ThermalConfig::ENDER3);
+    rig.hotend.set_fault(Some(HeaterFault::MosfetStuckOn));
+    rig.run_until(600.0, |r| r.thermal.fault().is_some());
+    let fault = rig.thermal.fault().expect("overheat not detected");
+    assert_eq!(fault.kind, FaultKind::MaxTemp);
+    assert!(rig.hotend.temperature_c() < 290.0);
+}
+
+#[test]
+fn autotune_finds_gains_that_hold_the_target() {
+    let mut cfg = ThermalConfig::ENDER3;
+    // Start from poor gains so the tuned ones have to do the work.
+    cfg.hotend.control = firmware::thermal::Control::Pid(firmware::thermal::PidGains {
+        kp: 1.0,
+        ki: 0.0,
+        kd: 0.0,
+    });
+    let mut rig = Rig::new(&cfg);
+    let now = rig.now_us;
+    rig.thermal
+        .start_autotune(HeaterId::Hotend, 200.0, 5, true, now)
+        .unwrap();
+    rig.run_until(1800.0, |r| {
+        !matches!(
+            r.thermal.autotune_status(HeaterId::Hotend),
+            Some(AutotuneStatus::Running { .. })
+        )
+    });
+    let gains = match rig.thermal.autotune_status(HeaterId::Hotend) {
+        Some(AutotuneStatus::Done(g)) => g,
+        other => panic!(
+            "autotune did not finish: {other:?}, fault {:?}",
+            rig.thermal.fault()
+        ),
+    };
+    assert!(
+        gains.kp > 5.0 && gains.ki > 0.1 && gains.kd > 10.0,
+        "{gains:?}"
+    );
+    assert_eq!(rig.thermal.pid(HeaterId::Hotend), Some(gains), "U1 applies");
+    assert_eq!(
+        rig.thermal.target_c(HeaterId::Hotend),
+        0.0,
+        "heater off after a tune"
+    );
+
+    heat_and_settle(&mut rig, 200.0, 0.0);
+    rig.run_s(120.0);
+    let mut worst = 0.0f32;
+    for _ in 0..3000 {
+        rig.tick();
+        worst = worst.max((rig.hotend.temperature_c() - 200.0).abs());
+    }
+    assert!(worst <= 1.0, "tuned gains strayed {worst} °C ({gains:?})");
+}
+
+#[test]
+fn bang_bang_bed_holds_its_band() {
+    let mut cfg = ThermalConfig::ENDER3;
+    cfg.bed.control = firmware::thermal::Control::BangBang { hysteresis_c: 1.0 };
+    let mut rig = Rig::new(&cfg);
+    heat_and_settle(&mut rig, 0.0, 60.0);
+    let mut worst = 0.0f32;
+    for _ in 0..3000 {
+        rig.tick();
+        worst = worst.max((rig.bed.temperature_c() - 60.0).abs());
+    }
+    assert!(rig.thermal.fault().is_none());
+    assert!(worst <= 2.5, "bang-bang bed strayed {worst} °C");
+}
+
+#[test]
+fn pause_idle_timeout_lowers_and_restores_the_nozzle() {
+    let mut cfg = ThermalConfig::ENDER3;
+    cfg.idle = Some(IdleConfig {
+        timeout_s: 60,
+        nozzle_c: 150.0,
+    });
+    let mut rig = Rig::new(&cfg);
+    heat_and_settle(&mut rig, 210.0, 60.0);
+    let now = rig.now_us;
+    rig.thermal.pause_idle_start(now);
+    rig.run_s(59.0);
+    assert_eq!(rig.thermal.target_c(HeaterId::Hotend), 210.0);
+    rig.run_s(2.0);
+    assert_eq!(rig.thermal.target_c(HeaterId::Hotend), 150.0);
+    rig.run_s(120.0);
+    assert!(rig.hotend.temperature_c() < 160.0);
+    assert!(
+        rig.thermal.fault().is_none(),
+        "cooling to the idle target is no runaway"
+    );
+    assert_eq!(rig.thermal.pause_idle_end(), Some(210.0));
+    assert!(!rig.thermal.reached(HeaterId::Hotend));
+    rig.run_until(300.0, |r| r.thermal.reached(HeaterId::Hotend))
+        .expect("reheats after resume");
+    assert!(rig.thermal.fault().is_none());
+}
+
+#[test]
+fn m105_report_and_fan() {
+    let mut rig = Rig::new(&ThermalConfig::ENDER3);
+    rig.thermal.set_target(HeaterId::Hotend, 200.0).unwrap();
+    rig.run_s(1.0);
+    let mut line = String::new();
+    rig.thermal.write_report(&mut line).unwrap();
+    assert!(line.starts_with("T:2"), "{line}");
+    assert!(line.contains("/200.0 B:"), "{line}");
+    assert!(line.ends_with("@:255 B@:0"), "{line}");
+    assert!(!rig.thermal.hotend_fan_on());
+    rig.run_until(120.0, |r| r.thermal.temperature_c(HeaterId::Hotend) > 51.0);
+    assert!(rig.thermal.hotend_fan_on());
+}
+
+#[test]
+fn bad_targets_are_refused() {
+    let mut t = Thermal::new(&ThermalConfig::ENDER3);
+    assert!(t.set_target(HeaterId::Hotend, f32::NAN).is_err());
+    assert!(t.set_target(HeaterId::Hotend, -5.0).is_err());
+    assert!(t.set_target(HeaterId::Hotend, 1e30).is_err());
+    assert!(t.set_target(HeaterId::Bed, 115.0).is_err());
+    assert!(t.set_target(HeaterId::Bed, 110.0).is_ok());
+    assert_eq!(t.target_c(HeaterId::Hotend), 0.0);
+}
