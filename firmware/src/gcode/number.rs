@@ -1,0 +1,251 @@
+//! Decimal numbers as G-code writes them: `[+-]? digits [. digits]` or `[+-]? . digits`.
+//!
+//! There is no exponent (in G-code `X1E5` means X=1, E=5), no `nan`, no `inf`. A number is lexed
+//! once into an exact decimal (mantissa and count of fractional digits) and converted on demand:
+//! to `f32` with correct rounding (an exact fast path for the usual short numbers, core's
+//! correctly rounded parser otherwise) or to an integer (exact, or an error if it has a fraction).
+
+use super::ParseErrorKind;
+
+/// Largest magnitude accepted for a decimal value (mm, mm/min, °C, ms, ...): ten kilometres of
+/// filament in absolute E mode still fits, `1e30`-style garbage does not.
+pub const MAX_ABS_VALUE: f32 = 1.0e7;
+
+/// Most significant digits a number may have (exactly representable in the u64 mantissa).
+pub const MAX_SIG_DIGITS: u8 = 19;
+
+/// Longest number text accepted, sign and point included.
+pub const MAX_NUMBER_LEN: usize = 32;
+
+/// Powers of ten that are exact in `f32` (10^0 ..= 10^10).
+const POW10_F32: [f32; 11] = [1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10];
+
+/// Powers of ten that fit in `u64` (10^0 ..= 10^19).
+const POW10_U64: [u64; 20] = {
+    let mut t = [1u64; 20];
+    let mut i = 1;
+    while i < 20 {
+        t[i] = t[i - 1] * 10;
+        i += 1;
+    }
+    t
+};
+
+/// An exact decimal as written in the line: `(-1)^neg * mant / 10^scale`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(crate) struct Num {
+    /// Digits without the point.
+    pub mant: u64,
+    /// Number of digits after the point.
+    pub scale: u8,
+    /// A leading `-`.
+    pub neg: bool,
+    /// Start of the number text in the line (for the slow conversion path).
+    pub start: u16,
+    /// End (exclusive) of the number text in the line.
+    pub end: u16,
+}
+
+/// Lex a number starting at `pos` in `line`. Returns the number and the position after it, or
+/// `Ok(None)` if no number starts there (no sign, digit or point).
+pub(crate) fn lex(line: &[u8], pos: usize) -> Result<Option<(Num, usize)>, ParseErrorKind> {
+    let mut i = pos;
+    let mut neg = false;
+    match line.get(i) {
+        Some(b'-') => {
+            neg = true;
+            i += 1;
+        }
+        Some(b'+') => i += 1,
+        Some(c) if c.is_ascii_digit() || *c == b'.' => {}
+        _ => return Ok(None),
+    }
+    let mut mant: u64 = 0;
+    let mut sig: u8 = 0;
+    let mut digits = 0usize;
+    let mut scale: u32 = 0;
+    let mut seen_point = false;
+    while let Some(&c) = line.get(i) {
+        if c.is_ascii_digit() {
+            digits += 1;
+            if mant != 0 || c != b'0' {
+                sig = sig.saturating_add(1);
+                if sig > MAX_SIG_DIGITS {
+                    return Err(ParseErrorKind::TooManyDigits);
+                }
+            }
+            // Cannot overflow: at most 19 significant digits.
+            mant = mant * 10 + u64::from(c - b'0');
+            if seen_point {
+                scale += 1;
+            }
+        } else if c == b'.' && !seen_point {
+            seen_point = true;
+        } else {
+            break;
+        }
+        i += 1;
+        if i - pos > MAX_NUMBER_LEN {
+            return Err(ParseErrorKind::NumberTooLong);
+        }
+    }
+    if digits == 0 {
+        return Err(ParseErrorKind::MissingNumber);
+    }
+    // `i - pos <= MAX_NUMBER_LEN` so scale fits in u8 and positions in u16 for any line the
+    // link accepts; longer lines are only parsed by host tools, so saturate rather than wrap.
+    let num = Num {
+        mant,
+        scale: scale.min(u32::from(u8::MAX)) as u8,
+        neg,
+        start: pos.min(usize::from(u16::MAX)) as u16,
+        end: i.min(usize::from(u16::MAX)) as u16,
+    };
+    Ok(Some((num, i)))
+}
+
+impl Num {
+    /// The value as `f32`, correctly rounded, within ±[`MAX_ABS_VALUE`].
+    pub fn to_f32(self, line: &[u8]) -> Result<f32, ParseErrorKind> {
+        let mag = if self.mant <= (1 << 24) && usize::from(self.scale) < POW10_F32.len() {
+            // Both operands exact in f32, so the single division rounds correctly.
+            let p = POW10_F32
+                .get(usize::from(self.scale))
+                .copied()
+                .unwrap_or(1.0);
+            self.mant as f32 / p
+        } else {
+            slow_f32(line, self)?
+        };
+        if !mag.is_finite() || mag > MAX_ABS_VALUE {
+            return Err(ParseErrorKind::OutOfRange);
+        }
+        Ok(if self.neg { -mag } else { mag })
+    }
+
+    /// The value as an exact integer; a fractional part that is not zero is an error.
+    pub fn to_i64(self) -> Result<i64, ParseErrorKind> {
+        let whole = if self.scale == 0 {
+            self.mant
+        } else {
+            let Some(&p) = POW10_U64.get(usize::from(self.scale)) else {
+                // More than 19 fractional digits: only an all-zero mantissa is whole.
+                return if self.mant == 0 {
+                    Ok(0)
+                } else {
+                    Err(ParseErrorKind::NotWhole)
+                };
+            };
+            if !self.mant.is_multiple_of(p) {
+                return Err(ParseErrorKind::NotWhole);
+            }
+            self.mant / p
+        };
+        let v = i64::try_from(whole).map_err(|_| ParseErrorKind::OutOfRange)?;
+        Ok(if self.neg { -v } else { v })
+    }
+
+    /// The value as a non-negative `u32`.
+    pub fn to_u32(self) -> Result<u32, ParseErrorKind> {
+        let v = self.to_i64()?;
+        if v < 0 {
+            return Err(ParseErrorKind::Negative);
+        }
+        u32::try_from(v).map_err(|_| ParseErrorKind::OutOfRange)
+    }
+
+    /// The value as a small non-negative index (tool, fan, heater).
+    pub fn to_u8(self) -> Result<u8, ParseErrorKind> {
+        u8::try_from(self.to_u32()?).map_err(|_| ParseErrorKind::OutOfRange)
+    }
+}
+
+/// Correctly rounded conversion through core's parser (Eisel-Lemire with a big-decimal
+/// fallback): used only for long mantissas or many fractional digits.
+fn slow_f32(line: &[u8], n: Num) -> Result<f32, ParseErrorKind> {
+    let text = line
+        .get(usize::from(n.start)..usize::from(n.end))
+        .ok_or(ParseErrorKind::NumberTooLong)?;
+    // Skip the sign: the caller applies it.
+    let text = match text.first() {
+        Some(b'-') | Some(b'+') => text.get(1..).unwrap_or(&[]),
+        _ => text,
+    };
+    let s = core::str::from_utf8(text).map_err(|_| ParseErrorKind::BadNumber)?;
+    // core accepts "1." and ".5" as we do; both sides already checked to be digits and a point.
+    s.parse::<f32>().map_err(|_| ParseErrorKind::BadNumber)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn f(s: &str) -> Result<f32, ParseErrorKind> {
+        let b = s.as_bytes();
+        match lex(b, 0)? {
+            Some((n, end)) if end == b.len() => n.to_f32(b),
+            _ => Err(ParseErrorKind::BadNumber),
+        }
+    }
+
+    #[test]
+    fn forms() {
+        assert_eq!(f("10"), Ok(10.0));
+        assert_eq!(f("-1.5"), Ok(-1.5));
+        assert_eq!(f("+.5"), Ok(0.5));
+        assert_eq!(f(".03321"), Ok(0.03321));
+        assert_eq!(f("7."), Ok(7.0));
+        assert_eq!(f("0000000000000000000000001.25"), Ok(1.25));
+        assert_eq!(f("-"), Err(ParseErrorKind::MissingNumber));
+        assert_eq!(f("."), Err(ParseErrorKind::MissingNumber));
+        assert_eq!(f("10000001"), Err(ParseErrorKind::OutOfRange));
+        assert_eq!(
+            f("1000000000000000000000000000000"),
+            Err(ParseErrorKind::TooManyDigits)
+        );
+    }
+
+    #[test]
+    fn integers() {
+        let b = b"12.000";
+        let (n, _) = lex(b, 0).unwrap().unwrap();
+        assert_eq!(n.to_u32(), Ok(12));
+        let b = b"12.5";
+        let (n, _) = lex(b, 0).unwrap().unwrap();
+        assert_eq!(n.to_u32(), Err(ParseErrorKind::NotWhole));
+        let b = b"-3";
+        let (n, _) = lex(b, 0).unwrap().unwrap();
+        assert_eq!(n.to_u32(), Err(ParseErrorKind::Negative));
+        let b = b"4294967296";
+        let (n, _) = lex(b, 0).unwrap().unwrap();
+        assert_eq!(n.to_u32(), Err(ParseErrorKind::OutOfRange));
+    }
+
+    proptest! {
+        /// The fast path and the fallback agree with core's correctly rounded parser on every
+        /// decimal G-code is likely to contain (and many it is not).
+        #[test]
+        fn agrees_with_core(int in 0u64..10_000_000, frac in 0u64..100_000_000, fd in 0usize..9, neg: bool) {
+            let mut s = heapless::String::<40>::new();
+            use core::fmt::Write;
+            let fd_digits = if fd == 0 { 0 } else { frac % 10u64.pow(fd as u32) };
+            if fd == 0 {
+                write!(s, "{}{}", if neg { "-" } else { "" }, int).unwrap();
+            } else {
+                write!(s, "{}{}.{:0w$}", if neg { "-" } else { "" }, int, fd_digits, w = fd).unwrap();
+            }
+            let want: f32 = s.parse().unwrap();
+            prop_assert_eq!(f(&s).map(f32::to_bits), Ok(want.to_bits()), "{}", s);
+        }
+
+        /// Shortest round-trip text of any in-range f32 parses back to the same bits.
+        #[test]
+        fn display_round_trips(v in -1.0e7f32..1.0e7) {
+            let mut s = heapless::String::<64>::new();
+            use core::fmt::Write;
+            write!(s, "{}", v).unwrap();
+            prop_assert_eq!(f(&s).map(f32::to_bits), Ok(v.to_bits()), "{}", s);
+        }
+    }
+}
