@@ -1,0 +1,111 @@
+//! Block kinematics: length, direction, speed and acceleration limits of a straight move in
+//! steps, and the junction speed between two moves (junction deviation). Pure functions, `libm`
+//! for every square root so the host and the MCU compute the same bits.
+
+use crate::config::MachineConfig;
+use crate::motion::{Axis, AXES};
+
+/// Kinematic summary of one straight move (or of every segment of it: the segments of one move
+/// share direction, nominal speed and acceleration).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Kin {
+    /// Path length in mm: XYZ length, or |E| for an extruder-only move.
+    pub len_mm: f32,
+    /// Unit direction over X, Y, Z, E (each component in mm per mm of path).
+    pub unit: [f32; AXES],
+    /// Requested speed after per-axis feed limits, mm/s (before any pause speed-up).
+    pub nominal_mm_s: f32,
+    /// Highest speed this move may ever run at (per-axis feed limits), mm/s.
+    pub cap_mm_s: f32,
+    /// Acceleration along the path, mm/s² (M204 P/T/R, then per-axis limits).
+    pub accel_mm_s2: f32,
+    /// Filament length per mm of path (|E mm| / path mm); 0 for travel.
+    pub e_per_mm: f32,
+}
+
+/// Kinematics of the straight move `delta` (steps) at `feed_mm_s`. `None` when the move has no
+/// step on any axis, or when the feed is not a positive finite number.
+pub fn kinematics(cfg: &MachineConfig, delta: &[i32; AXES], feed_mm_s: f32) -> Option<Kin> {
+    let mut mm = [0.0f32; AXES];
+    for (i, m) in mm.iter_mut().enumerate() {
+        *m = delta[i] as f32 / cfg.axes[i].steps_per_mm;
+    }
+    let xyz2 = mm[0] * mm[0] + mm[1] * mm[1] + mm[2] * mm[2];
+    let e = Axis::E.index();
+    let (len, base_accel) = if xyz2 > 0.0 {
+        let a = if delta[e] != 0 {
+            cfg.accel_print_mm_s2
+        } else {
+            cfg.accel_travel_mm_s2
+        };
+        (libm::sqrtf(xyz2), a)
+    } else if delta[e] != 0 {
+        (libm::fabsf(mm[e]), cfg.accel_retract_mm_s2)
+    } else {
+        return None;
+    };
+    if len.partial_cmp(&0.0) != Some(core::cmp::Ordering::Greater) {
+        return None;
+    }
+    let feed = if feed_mm_s.is_finite() && feed_mm_s > 0.0 {
+        feed_mm_s
+    } else {
+        cfg.default_feed_mm_s
+    };
+    let inv = 1.0 / len;
+    let mut unit = [0.0f32; AXES];
+    let mut cap = f32::INFINITY;
+    let mut accel = base_accel;
+    for i in 0..AXES {
+        unit[i] = mm[i] * inv;
+        let r = libm::fabsf(unit[i]);
+        if r > 0.0 {
+            cap = cap.min(cfg.axes[i].max_feed_mm_s / r);
+            accel = accel.min(cfg.axes[i].max_accel_mm_s2 / r);
+        }
+    }
+    Some(Kin {
+        len_mm: len,
+        unit,
+        nominal_mm_s: feed.min(cap),
+        cap_mm_s: cap,
+        accel_mm_s2: accel,
+        e_per_mm: libm::fabsf(unit[e]),
+    })
+}
+
+/// Square of the highest speed at the corner between a move along `prev` and one along `next`
+/// (unit vectors), by junction deviation `dev_mm` at acceleration `accel_mm_s2`: the speed at
+/// which a circular arc that deviates `dev_mm` from the corner is taken at `accel_mm_s2`
+/// centripetal acceleration. Collinear: unlimited (`f32::INFINITY`); reversal: 0.
+pub fn junction_v2(prev: &[f32; AXES], next: &[f32; AXES], dev_mm: f32, accel_mm_s2: f32) -> f32 {
+    let mut dot = 0.0f32;
+    for i in 0..AXES {
+        dot += prev[i] * next[i];
+    }
+    // cos of the angle between the incoming and the reversed outgoing direction.
+    let cos_theta = -dot;
+    if cos_theta > 0.999_999 {
+        return 0.0;
+    }
+    if cos_theta < -0.999_999 {
+        return f32::INFINITY;
+    }
+    let sin_half = libm::sqrtf(0.5 * (1.0 - cos_theta));
+    accel_mm_s2 * dev_mm * sin_half / (1.0 - sin_half)
+}
+
+/// Highest speed of the pause speed-up for a move: `factor` × the nominal speed, bounded by the
+/// per-axis feed limits and by the extruder's volumetric flow, never below the nominal speed.
+pub fn sped_up_mm_s(kin: &Kin, factor: f32, max_vol_mm3_s: f32, filament_diameter_mm: f32) -> f32 {
+    if factor.partial_cmp(&1.0) != Some(core::cmp::Ordering::Greater) {
+        return kin.nominal_mm_s;
+    }
+    let mut v = (kin.nominal_mm_s * factor).min(kin.cap_mm_s);
+    if kin.e_per_mm > 0.0 && max_vol_mm3_s > 0.0 && filament_diameter_mm > 0.0 {
+        let r = 0.5 * filament_diameter_mm;
+        let area = core::f32::consts::PI * r * r;
+        v = v.min(max_vol_mm3_s / (area * kin.e_per_mm));
+    }
+    v.max(kin.nominal_mm_s)
+}

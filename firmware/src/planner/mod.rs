@@ -1,0 +1,740 @@
+//! The planner: a fixed-capacity ring buffer of motion blocks with motion-queue segmentation,
+//! lookahead, layer marks and the pause barrier.
+//!
+//! * **Segmentation**: a [`MoveRequest`] is held as the *pending* move and cut lazily, as room
+//!   frees in the ring, into segments no longer than `segment_len_mm`. Segments of one move join
+//!   at full speed. The uncut remainder of the pending move is collinear, so it counts as known
+//!   lookahead: the last queued segment may leave at `√(2·a·remainder)` instead of 0, and a
+//!   small ring still reaches full speed on a long move.
+//! * **Lookahead**: junction deviation corner speeds, trapezoidal profiles, a backward and a
+//!   forward pass over the ring in `v²`, bounded by grbl's *planned pointer* (blocks whose entry
+//!   speed can no longer rise are never revisited). The first block of the ring always has a
+//!   fixed entry speed (the exit of the executing block), so the plan is always one the head can
+//!   follow, and it always ends at standstill within the queued distance.
+//! * **Layer marks** sit between blocks ([`LayerMark`] queued with the id of the block that
+//!   follows). By default a mark is also a stop point of the plan (layer changes are Z moves,
+//!   whose corners are near standstill anyway), so a `layer` pause can stop exactly at any
+//!   queued boundary whenever it is requested.
+//! * **Barrier**: a block id the plan may not pass. Blocks at and behind it stay queued,
+//!   unplanned and untouched until [`Planner::release`].
+
+mod kin;
+
+pub use kin::{junction_v2, kinematics, sped_up_mm_s, Kin};
+
+use crate::config::MachineConfig;
+use crate::motion::{LayerMark, MoveRequest, StepPos, AXES};
+use heapless::Deque;
+
+/// Ring capacity in blocks. RAM: `RING_CAPACITY × size_of::<Block>()` (64 × 72 B ≈ 4.6 KiB on
+/// the MCU). With 0.2 mm segments a long straight move needs no more than a few blocks thanks
+/// to the pending-move lookahead; the depth matters for runs of short moves (curves), where 64
+/// blocks of ≥ 0.2 mm give ≥ 12.8 mm of lookahead: enough to stop from 113 mm/s at 500 mm/s².
+pub const RING_CAPACITY: usize = 64;
+
+/// Layer marks that can wait in the queue at once (each is 20 B).
+pub const MARK_CAPACITY: usize = 16;
+
+/// What produced a block.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum BlockKind {
+    /// A segment of a job move.
+    #[default]
+    Job,
+    /// A homing move (G28): a pause waits until it has finished.
+    Homing,
+    /// A move of the pause/resume service lane or a manual move while paused.
+    Service,
+}
+
+/// One planned segment of a move.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Block {
+    /// Planner-wide block number, strictly increasing.
+    pub id: u32,
+    /// Job sequence number of the move this segment belongs to.
+    pub seq: u32,
+    /// Index of this segment within its move (0-based).
+    pub seg: u32,
+    /// Number of segments of the move.
+    pub segs: u32,
+    /// What produced the block.
+    pub kind: BlockKind,
+    /// Signed steps per axis.
+    pub delta: [i32; AXES],
+    /// Path length, mm.
+    pub len_mm: f32,
+    /// Acceleration, mm/s².
+    pub accel_mm_s2: f32,
+    /// Nominal speed², mm²/s² (sped up after a `layer` pause request).
+    pub nominal_v2: f32,
+    /// Nominal speed² without the speed-up.
+    pub base_v2: f32,
+    /// Nominal speed² with the speed-up.
+    pub fast_v2: f32,
+    /// Corner limit at the entry of this block (∞ inside one move, 0 at a layer mark).
+    pub junction_v2: f32,
+    /// Highest entry speed²: min(junction, previous nominal, own nominal).
+    pub entry_max_v2: f32,
+    /// Planned entry speed².
+    pub entry_v2: f32,
+}
+
+/// A block handed to the step generator with its planned entry and exit speeds.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PlannedBlock {
+    /// The block.
+    pub block: Block,
+    /// Entry speed², mm²/s².
+    pub entry_v2: f32,
+    /// Exit speed², mm²/s².
+    pub exit_v2: f32,
+}
+
+/// Why the planner did not take an entry.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PlanError {
+    /// A move is still being cut into segments: try again after [`Planner::refill`].
+    Busy,
+    /// The mark queue is full.
+    Full,
+}
+
+/// Where the plan must stop.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Barrier {
+    /// No barrier.
+    None,
+    /// At the next layer mark to be queued.
+    NextMark,
+    /// Before the block with this id.
+    At(u32),
+}
+
+/// Runtime policy knobs: the same planner models conventional firmware.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlannerPolicy {
+    /// Cut moves into segments (`false`: one block per move, as Marlin/Klipper).
+    pub segment: bool,
+    /// Highest number of blocks queued, the executing one included (≤ [`RING_CAPACITY`]).
+    pub max_blocks: usize,
+    /// Plan a stop at every layer mark so a `layer` pause can stop at any queued boundary.
+    pub stop_at_marks: bool,
+}
+
+impl Default for PlannerPolicy {
+    fn default() -> Self {
+        Self {
+            segment: true,
+            max_blocks: RING_CAPACITY,
+            stop_at_marks: true,
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Pending {
+    seq: u32,
+    kind: BlockKind,
+    from: StepPos,
+    to: StepPos,
+    n: u32,
+    next: u32,
+    kin: Kin,
+    seg_len_mm: f32,
+    first_junction_v2: f32,
+    fast_mm_s: f32,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct QueuedMark {
+    id: u32,
+    mark: LayerMark,
+}
+
+/// The planner ring buffer. See the module documentation.
+#[derive(Clone, Debug)]
+pub struct Planner {
+    ring: [Block; RING_CAPACITY],
+    head: usize,
+    len: usize,
+    planned: usize,
+    marks: Deque<QueuedMark, MARK_CAPACITY>,
+    pending: Option<Pending>,
+    /// Position at the end of everything queued (pending move included).
+    end_pos: StepPos,
+    prev_unit: [f32; AXES],
+    prev_nominal_v2: f32,
+    have_prev: bool,
+    stop_next: bool,
+    next_id: u32,
+    barrier: Barrier,
+    fast: bool,
+    executing: bool,
+    head_entry_v2: f32,
+    /// Policy knobs.
+    pub policy: PlannerPolicy,
+}
+
+impl Default for Planner {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Planner {
+    /// An empty planner at position 0.
+    pub const fn new() -> Self {
+        const B: Block = Block {
+            id: 0,
+            seq: 0,
+            seg: 0,
+            segs: 0,
+            kind: BlockKind::Job,
+            delta: [0; AXES],
+            len_mm: 0.0,
+            accel_mm_s2: 0.0,
+            nominal_v2: 0.0,
+            base_v2: 0.0,
+            fast_v2: 0.0,
+            junction_v2: 0.0,
+            entry_max_v2: 0.0,
+            entry_v2: 0.0,
+        };
+        Self {
+            ring: [B; RING_CAPACITY],
+            head: 0,
+            len: 0,
+            planned: 0,
+            marks: Deque::new(),
+            pending: None,
+            end_pos: [0; AXES],
+            prev_unit: [0.0; AXES],
+            prev_nominal_v2: 0.0,
+            have_prev: false,
+            stop_next: false,
+            next_id: 0,
+            barrier: Barrier::None,
+            fast: false,
+            executing: false,
+            head_entry_v2: 0.0,
+            policy: PlannerPolicy {
+                segment: true,
+                max_blocks: RING_CAPACITY,
+                stop_at_marks: true,
+            },
+        }
+    }
+
+    fn idx(&self, k: usize) -> usize {
+        (self.head + k) % RING_CAPACITY
+    }
+
+    /// Blocks in the ring (the executing block is not in the ring).
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// True when nothing is queued (ring empty and no pending move).
+    pub fn is_empty(&self) -> bool {
+        self.len == 0 && self.pending.is_none()
+    }
+
+    /// True while a move is still being cut into segments.
+    pub fn has_pending(&self) -> bool {
+        self.pending.is_some()
+    }
+
+    /// Segments of the pending move not yet in the ring.
+    pub fn pending_segments(&self) -> u32 {
+        self.pending.map_or(0, |p| p.n - p.next)
+    }
+
+    /// Position at the end of everything queued.
+    pub fn end_position(&self) -> StepPos {
+        self.end_pos
+    }
+
+    /// The current barrier.
+    pub fn barrier(&self) -> Barrier {
+        self.barrier
+    }
+
+    /// Id the next queued block will get.
+    pub fn next_id(&self) -> u32 {
+        self.next_id
+    }
+
+    /// Block at offset `k` from the head of the ring.
+    pub fn get(&self, k: usize) -> Option<&Block> {
+        (k < self.len).then(|| &self.ring[self.idx(k)])
+    }
+
+    fn limit(&self) -> usize {
+        self.policy.max_blocks.clamp(1, RING_CAPACITY)
+    }
+
+    /// Free block slots under the current limit (the executing block counts).
+    pub fn room(&self) -> usize {
+        self.limit()
+            .saturating_sub(self.len + usize::from(self.executing))
+    }
+
+    /// True when a new move can be accepted at once: no pending move and room for a block.
+    pub fn can_accept(&self) -> bool {
+        self.pending.is_none() && self.room() > 0
+    }
+
+    /// Set the position (G92, homing) when nothing is queued. Returns false if motion is queued.
+    pub fn set_position(&mut self, pos: StepPos) -> bool {
+        if !self.is_empty() {
+            return false;
+        }
+        self.end_pos = pos;
+        self.have_prev = false;
+        true
+    }
+
+    /// Queue a move; it is cut into segments as room frees ([`Planner::refill`] is called
+    /// here once). A move without steps is dropped (`Ok(false)`).
+    pub fn push_move(
+        &mut self,
+        cfg: &MachineConfig,
+        req: &MoveRequest,
+        kind: BlockKind,
+    ) -> Result<bool, PlanError> {
+        if self.pending.is_some() {
+            return Err(PlanError::Busy);
+        }
+        let mut delta = [0i32; AXES];
+        for (i, d) in delta.iter_mut().enumerate() {
+            *d = req.target[i].wrapping_sub(self.end_pos[i]);
+        }
+        let Some(kin) = kinematics(cfg, &delta, req.feed_mm_s) else {
+            return Ok(false);
+        };
+        let seg = cfg.pause.segment_len_mm;
+        let n = if self.policy.segment && seg > 0.0 && kin.len_mm > seg {
+            let n = libm::ceilf(kin.len_mm / seg);
+            if n >= 1.0e6 {
+                1_000_000
+            } else {
+                n as u32
+            }
+        } else {
+            1
+        };
+        let mut junction = if self.have_prev {
+            let a = kin.accel_mm_s2;
+            junction_v2(&self.prev_unit, &kin.unit, cfg.junction_deviation_mm, a)
+        } else {
+            0.0
+        };
+        if self.stop_next {
+            junction = 0.0;
+            self.stop_next = false;
+        }
+        self.pending = Some(Pending {
+            seq: req.seq,
+            kind,
+            from: self.end_pos,
+            to: req.target,
+            n,
+            next: 0,
+            kin,
+            seg_len_mm: kin.len_mm / n as f32,
+            first_junction_v2: junction,
+            fast_mm_s: sped_up_mm_s(
+                &kin,
+                cfg.pause.speedup_factor,
+                cfg.pause.max_volumetric_mm3_s,
+                cfg.filament_diameter_mm,
+            ),
+        });
+        self.end_pos = req.target;
+        self.prev_unit = kin.unit;
+        self.have_prev = true;
+        self.refill();
+        Ok(true)
+    }
+
+    /// Queue a layer mark before the next block. Becomes the barrier if one is waiting for
+    /// the next mark (returns `Ok(true)` then).
+    pub fn push_mark(&mut self, mark: LayerMark) -> Result<bool, PlanError> {
+        if self.pending.is_some() {
+            return Err(PlanError::Busy);
+        }
+        if self.marks.is_full() {
+            return Err(PlanError::Full);
+        }
+        let id = self.next_id;
+        // Cannot fail: checked is_full above.
+        let _ = self.marks.push_back(QueuedMark { id, mark });
+        if self.policy.stop_at_marks {
+            self.stop_next = true;
+        }
+        if self.barrier == Barrier::NextMark {
+            self.set_barrier(id);
+            return Ok(true);
+        }
+        Ok(false)
+    }
+
+    /// Cut more segments of the pending move into the ring, then replan. Returns the number of
+    /// blocks added.
+    pub fn refill(&mut self) -> usize {
+        let mut added = 0;
+        while let Some(mut p) = self.pending {
+            if self.room() == 0 {
+                break;
+            }
+            let j = p.next + 1;
+            let mut from = [0i32; AXES];
+            let mut to = [0i32; AXES];
+            for i in 0..AXES {
+                let d = i64::from(p.to[i]) - i64::from(p.from[i]);
+                let n = i64::from(p.n);
+                from[i] = (i64::from(p.from[i]) + (d * i64::from(p.next)).div_euclid(n)) as i32;
+                to[i] = (i64::from(p.from[i]) + (d * i64::from(j)).div_euclid(n)) as i32;
+            }
+            let mut delta = [0i32; AXES];
+            for i in 0..AXES {
+                delta[i] = to[i].wrapping_sub(from[i]);
+            }
+            let base = p.kin.nominal_mm_s;
+            let fast = p.fast_mm_s;
+            let base_v2 = base * base;
+            let fast_v2 = fast * fast;
+            let nominal_v2 = if self.fast { fast_v2 } else { base_v2 };
+            let junction = if p.next == 0 {
+                p.first_junction_v2
+            } else {
+                f32::INFINITY
+            };
+            let prev_nom = if self.len > 0 {
+                self.ring[self.idx(self.len - 1)].nominal_v2
+            } else {
+                self.prev_nominal_v2
+            };
+            let b = Block {
+                id: self.next_id,
+                seq: p.seq,
+                seg: p.next,
+                segs: p.n,
+                kind: p.kind,
+                delta,
+                len_mm: p.seg_len_mm,
+                accel_mm_s2: p.kin.accel_mm_s2,
+                nominal_v2,
+                base_v2,
+                fast_v2,
+                junction_v2: junction,
+                entry_max_v2: junction.min(prev_nom).min(nominal_v2),
+                entry_v2: if self.len == 0 && self.executing {
+                    self.head_entry_v2
+                } else {
+                    0.0
+                },
+            };
+            let slot = self.idx(self.len);
+            self.ring[slot] = b;
+            self.len += 1;
+            self.next_id = self.next_id.wrapping_add(1);
+            self.prev_nominal_v2 = nominal_v2;
+            p.next = j;
+            self.pending = if j >= p.n { None } else { Some(p) };
+            added += 1;
+        }
+        if added > 0 {
+            self.recalculate();
+        }
+        added
+    }
+
+    /// Number of ring blocks before the barrier (the part of the ring that is planned).
+    fn plan_len(&self) -> usize {
+        match self.barrier {
+            Barrier::At(id) => {
+                let mut k = 0;
+                while k < self.len && (self.ring[self.idx(k)].id.wrapping_sub(id) as i32) < 0 {
+                    k += 1;
+                }
+                k
+            }
+            _ => self.len,
+        }
+    }
+
+    /// Exit speed² allowed at the end of the planned part of the ring.
+    fn tail_exit_v2(&self, end: usize) -> f32 {
+        if end < self.len {
+            return 0.0;
+        }
+        if let Barrier::At(id) = self.barrier {
+            if (self.next_id.wrapping_sub(id) as i32) >= 0 {
+                return 0.0;
+            }
+        }
+        match self.pending {
+            Some(p) => {
+                let rem = (p.n - p.next) as f32 * p.seg_len_mm;
+                let v = if self.fast {
+                    p.fast_mm_s
+                } else {
+                    p.kin.nominal_mm_s
+                };
+                let nom = v * v;
+                let j = if p.next == 0 {
+                    p.first_junction_v2
+                } else {
+                    f32::INFINITY
+                };
+                nom.min(j).min(2.0 * p.kin.accel_mm_s2 * rem)
+            }
+            None => 0.0,
+        }
+    }
+
+    /// Lookahead: backward then forward pass from the planned pointer to the end of the
+    /// planned part of the ring. The head block's entry is fixed.
+    fn recalculate(&mut self) {
+        let end = self.plan_len();
+        if end == 0 {
+            self.planned = 0;
+            return;
+        }
+        if self.planned >= end {
+            self.planned = end - 1;
+        }
+        let mut next_entry = self.tail_exit_v2(end);
+        let mut k = end;
+        while k > self.planned + 1 {
+            k -= 1;
+            let i = self.idx(k);
+            let b = &mut self.ring[i];
+            let v = b
+                .entry_max_v2
+                .min(next_entry + 2.0 * b.accel_mm_s2 * b.len_mm);
+            b.entry_v2 = v;
+            next_entry = v;
+        }
+        let mut k = self.planned;
+        while k + 1 < end {
+            let cur = self.ring[self.idx(k)];
+            let ni = self.idx(k + 1);
+            let nxt = &mut self.ring[ni];
+            if cur.entry_v2 < nxt.entry_v2 {
+                let v = cur.entry_v2 + 2.0 * cur.accel_mm_s2 * cur.len_mm;
+                if v < nxt.entry_v2 {
+                    nxt.entry_v2 = v;
+                    self.planned = k + 1;
+                }
+            }
+            if nxt.entry_v2 >= nxt.entry_max_v2 {
+                self.planned = k + 1;
+            }
+            k += 1;
+        }
+    }
+
+    /// Replan the whole planned part of the ring (after the speed or the barrier changed).
+    fn replan_all(&mut self) {
+        self.planned = 0;
+        self.recalculate();
+    }
+
+    /// Take the head block for execution with its entry and exit speeds, unless the barrier
+    /// is reached or the ring is empty. The planner counts it as executing until
+    /// [`Planner::exec_done`].
+    pub fn pop(&mut self) -> Option<PlannedBlock> {
+        if self.len == 0 || self.plan_len() == 0 {
+            return None;
+        }
+        let b = self.ring[self.head];
+        let exit = if self.plan_len() > 1 {
+            self.ring[self.idx(1)].entry_v2
+        } else {
+            self.tail_exit_v2(1)
+        };
+        self.head = (self.head + 1) % RING_CAPACITY;
+        self.len -= 1;
+        self.planned = self.planned.saturating_sub(1);
+        self.executing = true;
+        self.head_entry_v2 = exit;
+        // The new head's entry is now fixed to `exit`.
+        if self.len > 0 {
+            let h = self.head;
+            self.ring[h].entry_v2 = exit;
+        }
+        Some(PlannedBlock {
+            block: b,
+            entry_v2: b.entry_v2,
+            exit_v2: exit,
+        })
+    }
+
+    /// The executing block has finished (or was dropped).
+    pub fn exec_done(&mut self) {
+        self.executing = false;
+        self.head_entry_v2 = 0.0;
+    }
+
+    /// Layer marks at or before block `id` (crossed when that block starts), oldest first.
+    pub fn take_mark_before(&mut self, id: u32) -> Option<LayerMark> {
+        if let Some(m) = self.marks.front() {
+            if (id.wrapping_sub(m.id) as i32) >= 0 {
+                return self.marks.pop_front().map(|m| m.mark);
+            }
+        }
+        None
+    }
+
+    /// The first queued layer mark that the head has not crossed: (block id, mark).
+    pub fn first_mark(&self) -> Option<(u32, LayerMark)> {
+        self.marks.front().map(|m| (m.id, m.mark))
+    }
+
+    /// Queued marks, oldest first: (block id, mark).
+    pub fn marks(&self) -> impl Iterator<Item = (u32, LayerMark)> + '_ {
+        self.marks.iter().map(|m| (m.id, m.mark))
+    }
+
+    /// Place the barrier before block `id` and replan to stop there.
+    pub fn set_barrier(&mut self, id: u32) {
+        self.barrier = Barrier::At(id);
+        if self.fast {
+            // The speed-up ends at the barrier: later blocks keep their speed.
+            self.fast = false;
+        }
+        self.replan_all();
+    }
+
+    /// Place the barrier at the next layer mark that will be queued.
+    pub fn set_barrier_next_mark(&mut self) {
+        self.barrier = Barrier::NextMark;
+    }
+
+    /// Speed up every planned block before the barrier (and, with the barrier still waiting
+    /// for its mark, every block queued until then) to its `fast` speed, and replan.
+    pub fn speed_up(&mut self) {
+        let end = self.plan_len();
+        if self.barrier == Barrier::NextMark || self.barrier == Barrier::None {
+            self.fast = true;
+        }
+        let mut prev_nom = f32::INFINITY;
+        for k in 0..end {
+            let i = self.idx(k);
+            let b = &mut self.ring[i];
+            b.nominal_v2 = b.fast_v2;
+            if k > 0 {
+                b.entry_max_v2 = b.junction_v2.min(prev_nom).min(b.nominal_v2);
+            }
+            prev_nom = b.nominal_v2;
+        }
+        if end == self.len && self.len > 0 {
+            self.prev_nominal_v2 = prev_nom;
+        }
+        self.replan_all();
+    }
+
+    /// Withdraw the barrier and the speed-up while moving (a pause request taken back before
+    /// it stopped): the head's entry stays fixed, the rest is replanned.
+    pub fn clear_barrier(&mut self) {
+        self.barrier = Barrier::None;
+        self.fast = false;
+        let mut prev_nom = f32::INFINITY;
+        for k in 0..self.len {
+            let i = self.idx(k);
+            let b = &mut self.ring[i];
+            b.nominal_v2 = b.base_v2;
+            if k > 0 {
+                b.entry_max_v2 = b.junction_v2.min(prev_nom).min(b.nominal_v2);
+            }
+            prev_nom = b.nominal_v2;
+        }
+        if self.len > 0 {
+            self.prev_nominal_v2 = prev_nom;
+        }
+        self.replan_all();
+    }
+
+    /// True when the plan stands at the barrier: the next block to execute is the barrier's.
+    pub fn at_barrier(&self) -> bool {
+        match self.barrier {
+            Barrier::At(id) => {
+                let head_id = if self.len > 0 {
+                    self.ring[self.head].id
+                } else {
+                    self.next_id
+                };
+                (head_id.wrapping_sub(id) as i32) >= 0
+            }
+            _ => false,
+        }
+    }
+
+    /// Remove the barrier and the speed-up and replan from the held state. `exec_rem` is the
+    /// unexecuted part of a block held mid-way by a feed hold: (remaining mm, accel mm/s²,
+    /// nominal²). Returns the exit speed² for that held block (the new head's entry).
+    pub fn release(&mut self, exec_rem: Option<(f32, f32, f32)>) -> f32 {
+        self.barrier = Barrier::None;
+        self.fast = false;
+        let mut prev_nom = f32::INFINITY;
+        for k in 0..self.len {
+            let i = self.idx(k);
+            let b = &mut self.ring[i];
+            b.nominal_v2 = b.base_v2;
+            if k > 0 {
+                b.entry_max_v2 = b.junction_v2.min(prev_nom).min(b.nominal_v2);
+            }
+            prev_nom = b.nominal_v2;
+        }
+        if self.len > 0 {
+            self.prev_nominal_v2 = prev_nom;
+            // Head entry: from standstill, or reachable from the held remainder.
+            let h = self.head;
+            let max = match exec_rem {
+                Some((rem, a, nom)) => {
+                    let b = &self.ring[h];
+                    b.junction_v2.min(nom).min(b.nominal_v2).min(2.0 * a * rem)
+                }
+                None => 0.0,
+            };
+            // Plan the ring with a temporarily free head, then fix it.
+            let end = self.plan_len();
+            let mut next_entry = self.tail_exit_v2(end);
+            let mut k = end;
+            while k > 0 {
+                k -= 1;
+                let i = self.idx(k);
+                let b = &mut self.ring[i];
+                let cap = if k == 0 { max } else { b.entry_max_v2 };
+                let v = cap.min(next_entry + 2.0 * b.accel_mm_s2 * b.len_mm);
+                b.entry_v2 = v;
+                next_entry = v;
+            }
+            self.planned = 0;
+            self.recalculate();
+            self.ring[h].entry_v2
+        } else {
+            self.prev_nominal_v2 = 0.0;
+            0.0
+        }
+    }
+
+    /// Drop everything queued (cancel, quick stop). Returns (blocks dropped, pending segments
+    /// dropped, marks dropped). The end position becomes `pos`.
+    pub fn clear(&mut self, pos: StepPos) -> (usize, u32, usize) {
+        let r = (self.len, self.pending_segments(), self.marks.len());
+        self.len = 0;
+        self.planned = 0;
+        self.pending = None;
+        self.marks.clear();
+        self.barrier = Barrier::None;
+        self.fast = false;
+        self.stop_next = false;
+        self.have_prev = false;
+        self.end_pos = pos;
+        r
+    }
+}

@@ -1,0 +1,1197 @@
+//! The executive every driver runs (the board's main loop and timer interrupt, the simulator,
+//! the tests): command queue, planner, step generator and the pause state machine.
+//!
+//! Drivers call [`Printer::receive`] with host bytes, [`Printer::request`] for a pause button,
+//! [`Printer::poll`] from the main loop, and pull step events with
+//! [`Printer::next_step_ns`] / [`Printer::next_step`]. What happened is reported as
+//! [`Record`]s ([`Printer::pop_record`]) and host-link lines ([`Printer::write_output`]).
+//!
+//! Pause state machine (see `docs/planner.md` for the edge-case table):
+//!
+//! ```text
+//! Printing ─Pause(layer)─► Stopping: barrier at the next layer mark, rest of layer sped up
+//! Printing ─Pause(now)───► Stopping: feed hold (brake at the block's acceleration)
+//! Stopping ─stopped──────► Parking: retract, lift, park (service lane) ─► Paused
+//! Paused ───Resume───────► Returning: XY, then Z, then un-retract ─► release held ─► Printing
+//! ```
+
+mod service;
+
+pub use service::ServiceMove;
+
+use crate::config::MachineConfig;
+use crate::motion::{Axis, LayerMark, MoveRequest, PauseMode, Realtime, StepPos, AXES};
+use crate::planner::{Barrier, BlockKind, PlannedBlock, Planner, PlannerPolicy, RING_CAPACITY};
+use crate::stepgen::{ExecBlock, StepEvent, StepGen};
+use core::fmt::Write as _;
+use heapless::{Deque, String};
+
+/// Command queue capacity (commands after parsing; each ≈ 32 B).
+pub const CMD_CAPACITY: usize = 32;
+/// Execution records kept until the driver takes them.
+pub const RECORD_CAPACITY: usize = 256;
+/// Host-link output lines kept until the driver writes them.
+pub const OUT_CAPACITY: usize = 16;
+/// Longest output line.
+pub const LINE_LEN: usize = 120;
+/// A `layer` pause waiting for a boundary treats the end of the known job as the boundary once
+/// the printer has had nothing to do for this long (job ended before any layer boundary).
+pub const LAYER_PAUSE_IDLE_US: u64 = 2_000_000;
+
+/// Run state, as reported by [`Printer::status`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum State {
+    /// Nothing queued, nothing moving.
+    Idle,
+    /// Executing the job.
+    Printing,
+    /// A pause was requested: speeding up / braking, then retract, lift and park.
+    Pausing,
+    /// Parked; held moves wait.
+    Paused,
+    /// Returning from the park position.
+    Resuming,
+    /// The job was cancelled (until the next command arrives).
+    Cancelled,
+    /// Emergency stop: nothing moves until a new `Printer` is made (reset).
+    Halted,
+}
+
+/// A command after parsing and the machine's modal state: what the command queue holds.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Command {
+    /// A job move.
+    Move(MoveRequest),
+    /// A layer boundary.
+    Layer(LayerMark),
+    /// G28: wait for motion to end, then move to the home corner (axes' minimum, E kept).
+    Home,
+    /// G92 and friends: wait for motion to end, then set the position in steps.
+    SetPosition(StepPos),
+    /// G4: wait for motion to end, then wait this long.
+    Dwell {
+        /// Dwell time, ms.
+        ms: u32,
+    },
+    /// M400: wait for motion to end.
+    Sync,
+    /// M761 L/Z inside the job: schedule a pause.
+    SchedulePause(Schedule),
+}
+
+/// A scheduled pause (M761).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Schedule {
+    /// At the start of layer n (at the boundary before it).
+    Layer(u32),
+    /// At the first layer whose height is at or above this, µm.
+    Z(i32),
+}
+
+/// What lines the host sends while paused mean.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PausedLines {
+    /// Job lines: they keep queuing behind the barrier until the queue is full (safe with any
+    /// host; manual moves wait for the resume).
+    Queue,
+    /// Manual commands: moves run at once in the service lane; the modal state is restored on
+    /// resume (for hosts that stop streaming on `//action:paused`, like OctoPrint).
+    Manual,
+}
+
+/// Policy knobs: our firmware and conventional firmware on the same code.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Policy {
+    /// Cut moves into `segment_len_mm` segments.
+    pub segment: bool,
+    /// A pause acts only after everything queued before it has executed (Marlin, Klipper).
+    pub pause_at_tail: bool,
+    /// Most planner blocks queued, the executing one included (≤ [`RING_CAPACITY`]).
+    pub max_blocks: usize,
+    /// Most commands waiting in the command queue (≤ [`CMD_CAPACITY`]).
+    pub cmd_limit: usize,
+    /// Plan a stop at every layer mark (lets a `layer` pause stop at any queued boundary).
+    pub stop_at_marks: bool,
+    /// Meaning of host lines while paused.
+    pub paused_lines: PausedLines,
+}
+
+impl Policy {
+    /// Ours: segmentation, layer barrier, full ring.
+    pub const FIRMWARE: Policy = Policy {
+        segment: true,
+        pause_at_tail: false,
+        max_blocks: RING_CAPACITY,
+        cmd_limit: CMD_CAPACITY,
+        stop_at_marks: true,
+        paused_lines: PausedLines::Queue,
+    };
+    /// Conventional firmware: no segmentation, pause at the tail, 16 moves queued in all
+    /// (15 planner blocks including the executing one, as Marlin's 16-slot ring, plus 1
+    /// command waiting), as measured in SPEC §1.
+    pub const FIFO: Policy = Policy {
+        segment: false,
+        pause_at_tail: true,
+        max_blocks: 15,
+        cmd_limit: 1,
+        stop_at_marks: false,
+        paused_lines: PausedLines::Queue,
+    };
+
+    /// Split a total limit of queued moves into 1 waiting command + planner blocks.
+    pub fn with_queue_limit(mut self, total: usize) -> Self {
+        let total = total.clamp(2, RING_CAPACITY + 1);
+        self.cmd_limit = 1;
+        self.max_blocks = total - 1;
+        self
+    }
+}
+
+impl Default for Policy {
+    fn default() -> Self {
+        Self::FIRMWARE
+    }
+}
+
+/// What happened, for the simulator's and the tests' execution record.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Record {
+    /// A block finished executing.
+    Executed {
+        /// Job sequence number.
+        seq: u32,
+        /// Segment index within the move.
+        seg: u32,
+        /// Segments of the move.
+        segs: u32,
+        /// Job, homing or service lane.
+        kind: BlockKind,
+        /// When its last step happened, µs.
+        t_us: u64,
+        /// Position after it, steps.
+        pos: StepPos,
+    },
+    /// The head crossed a layer boundary (the first block of the layer started).
+    Layer {
+        /// Layer that started.
+        layer: u32,
+        /// When, µs.
+        t_us: u64,
+    },
+    /// The state changed.
+    State {
+        /// New state.
+        state: State,
+        /// When, µs.
+        t_us: u64,
+    },
+    /// A `layer` pause sped up the rest of the layer (the visible acknowledgement).
+    SpeedUp {
+        /// When, µs.
+        t_us: u64,
+    },
+    /// A feed hold started braking from this speed.
+    Brake {
+        /// Speed when braking started, mm/s.
+        v_mm_s: f32,
+        /// Acceleration used by the executing block, mm/s².
+        accel_mm_s2: f32,
+        /// When, µs.
+        t_us: u64,
+    },
+    /// The head stopped for a pause at this position.
+    Stopped {
+        /// Position, steps.
+        pos: StepPos,
+        /// Layer mark the barrier stood at (layer mode), if any.
+        layer: Option<u32>,
+        /// True when a block was interrupted mid-way (now mode).
+        mid_block: bool,
+        /// When, µs.
+        t_us: u64,
+    },
+}
+
+/// A snapshot for displays, the sim and the board.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Status {
+    /// Run state.
+    pub state: State,
+    /// Position of the steppers, steps.
+    pub position: StepPos,
+    /// Current layer (last boundary crossed).
+    pub layer: Option<u32>,
+    /// Commands waiting + planner blocks + executing block.
+    pub queue_depth: usize,
+    /// Planner blocks queued.
+    pub planner_blocks: usize,
+    /// Commands waiting in the command queue.
+    pub commands: usize,
+    /// Where the head stopped for the current pause, steps.
+    pub paused_at: Option<StepPos>,
+    /// Mode of the current pause.
+    pub pause_mode: Option<PauseMode>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Phase {
+    Run,
+    Stopping,
+    Parking,
+    Parked,
+    Returning,
+}
+
+/// The executive. See the module documentation.
+pub struct Printer {
+    cfg: MachineConfig,
+    policy: Policy,
+    planner: Planner,
+    stepgen: StepGen,
+    cmds: Deque<Command, CMD_CAPACITY>,
+    service: Deque<ServiceMove, { service::SERVICE_CAPACITY }>,
+    phase: Phase,
+    mode: Option<PauseMode>,
+    held: Option<ExecBlock>,
+    held_pos: StepPos,
+    retracted_steps: i32,
+    barrier_layer: Option<u32>,
+    fifo_countdown: Option<usize>,
+    schedule: Option<Schedule>,
+    deferred_pause: Option<PauseMode>,
+    deferred_resume: bool,
+    hold_deferred: bool,
+    withdraw_after_stop: bool,
+    cancel_pending: bool,
+    cancelled: bool,
+    halted: bool,
+    layer: Option<u32>,
+    dwell_until_us: Option<u64>,
+    now_us: u64,
+    last_activity_us: u64,
+    last_state: State,
+    records: Deque<Record, RECORD_CAPACITY>,
+    records_dropped: u32,
+    out: Deque<String<LINE_LEN>, OUT_CAPACITY>,
+    out_dropped: u32,
+}
+
+fn steps(cfg: &MachineConfig, axis: Axis, mm: f32) -> i32 {
+    let v = libm::roundf(mm * cfg.axis(axis).steps_per_mm);
+    if v.is_finite() {
+        v.clamp(i32::MIN as f32, i32::MAX as f32) as i32
+    } else {
+        0
+    }
+}
+
+impl Printer {
+    /// A printer with `cfg`, the [`Policy::FIRMWARE`] policy, at position 0, time 0.
+    pub fn new(cfg: MachineConfig) -> Self {
+        Self::with_policy(cfg, Policy::FIRMWARE)
+    }
+
+    /// A printer with a policy (use [`Policy::FIFO`] to model conventional firmware).
+    pub fn with_policy(cfg: MachineConfig, policy: Policy) -> Self {
+        let mut p = Self {
+            cfg,
+            policy,
+            planner: Planner::new(),
+            stepgen: StepGen::new(),
+            cmds: Deque::new(),
+            service: Deque::new(),
+            phase: Phase::Run,
+            mode: None,
+            held: None,
+            held_pos: [0; AXES],
+            retracted_steps: 0,
+            barrier_layer: None,
+            fifo_countdown: None,
+            schedule: None,
+            deferred_pause: None,
+            deferred_resume: false,
+            hold_deferred: false,
+            withdraw_after_stop: false,
+            cancel_pending: false,
+            cancelled: false,
+            halted: false,
+            layer: None,
+            dwell_until_us: None,
+            now_us: 0,
+            last_activity_us: 0,
+            last_state: State::Idle,
+            records: Deque::new(),
+            records_dropped: 0,
+            out: Deque::new(),
+            out_dropped: 0,
+        };
+        p.set_policy(policy);
+        p
+    }
+
+    /// Change the policy (between jobs).
+    pub fn set_policy(&mut self, policy: Policy) {
+        self.policy = policy;
+        self.planner.policy = PlannerPolicy {
+            segment: policy.segment,
+            max_blocks: policy.max_blocks.clamp(1, RING_CAPACITY),
+            stop_at_marks: policy.stop_at_marks,
+        };
+    }
+
+    /// The policy.
+    pub fn policy(&self) -> Policy {
+        self.policy
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &MachineConfig {
+        &self.cfg
+    }
+
+    /// Change the configuration (M204, M760, ... apply here).
+    pub fn config_mut(&mut self) -> &mut MachineConfig {
+        &mut self.cfg
+    }
+
+    /// The planner (read-only, for tests and displays).
+    pub fn planner(&self) -> &Planner {
+        &self.planner
+    }
+
+    /// The step generator (read-only).
+    pub fn stepgen(&self) -> &StepGen {
+        &self.stepgen
+    }
+
+    fn now_ns(&self) -> u64 {
+        self.now_us.saturating_mul(1000)
+    }
+
+    fn set_now(&mut self, now_us: u64) {
+        if now_us > self.now_us {
+            self.now_us = now_us;
+        }
+    }
+
+    fn t_us(&self) -> u64 {
+        self.now_us.max(self.stepgen.last_time_ns() / 1000)
+    }
+
+    fn record(&mut self, r: Record) {
+        if self.records.is_full() {
+            let _ = self.records.pop_front();
+            self.records_dropped = self.records_dropped.saturating_add(1);
+        }
+        let _ = self.records.push_back(r);
+    }
+
+    /// Take the oldest execution record.
+    pub fn pop_record(&mut self) -> Option<Record> {
+        self.records.pop_front()
+    }
+
+    /// Records lost because the driver did not take them in time.
+    pub fn records_dropped(&self) -> u32 {
+        self.records_dropped
+    }
+
+    fn say(&mut self, args: core::fmt::Arguments) {
+        let mut s: String<LINE_LEN> = String::new();
+        let _ = s.write_fmt(args);
+        if self.out.is_full() {
+            let _ = self.out.pop_front();
+            self.out_dropped = self.out_dropped.saturating_add(1);
+        }
+        let _ = self.out.push_back(s);
+    }
+
+    /// Write every pending host-link line (each followed by `\n`).
+    pub fn write_output<W: core::fmt::Write>(&mut self, w: &mut W) -> core::fmt::Result {
+        while let Some(l) = self.out.front() {
+            w.write_str(l)?;
+            w.write_char('\n')?;
+            let _ = self.out.pop_front();
+        }
+        Ok(())
+    }
+
+    /// Take one pending output line.
+    pub fn pop_output_line(&mut self) -> Option<String<LINE_LEN>> {
+        self.out.pop_front()
+    }
+
+    /// Host bytes in. Not built yet: the G-code front end (`link`, `gcode`, `machine`,
+    /// `layer`) is being written; until it lands, drive the printer with
+    /// [`Printer::push_command`]. Every byte is answered with an error line today.
+    pub fn receive(&mut self, bytes: &[u8], now_us: u64) {
+        self.set_now(now_us);
+        if bytes.contains(&b'\n') {
+            self.say(format_args!(
+                "Error:G-code front end not built yet (use push_command)"
+            ));
+        }
+    }
+
+    /// Room in the command queue under the policy's limit.
+    pub fn command_room(&self) -> usize {
+        self.policy
+            .cmd_limit
+            .clamp(1, CMD_CAPACITY)
+            .saturating_sub(self.cmds.len())
+    }
+
+    /// Queue a command (what the front end does for every parsed line). Returns the command
+    /// back when the queue is full (the host gets no `ok` until there is room) or the printer
+    /// is halted. While paused with [`PausedLines::Manual`], moves run at once in the service
+    /// lane instead.
+    pub fn push_command(&mut self, cmd: Command, now_us: u64) -> Result<(), Command> {
+        self.set_now(now_us);
+        if self.halted {
+            return Err(cmd);
+        }
+        if self.phase == Phase::Parked && self.policy.paused_lines == PausedLines::Manual {
+            if let Command::Move(m) = cmd {
+                return self
+                    .service
+                    .push_back(ServiceMove {
+                        target: m.target,
+                        feed_mm_s: m.feed_mm_s,
+                    })
+                    .map_err(|_| cmd);
+            }
+        }
+        if self.command_room() == 0 {
+            return Err(cmd);
+        }
+        if self.cancelled {
+            self.cancelled = false;
+        }
+        self.last_activity_us = self.now_us;
+        self.cmds.push_back(cmd)?;
+        self.feed_planner();
+        self.update_state_record();
+        Ok(())
+    }
+
+    fn motion_idle(&self) -> bool {
+        self.planner.is_empty() && self.stepgen.current().is_none()
+    }
+
+    /// Move commands from the command queue into the planner while it has room.
+    fn feed_planner(&mut self) {
+        if self.halted {
+            return;
+        }
+        self.planner.refill();
+        while let Some(cmd) = self.cmds.front().copied() {
+            match cmd {
+                Command::Move(req) => {
+                    if !self.planner.can_accept() {
+                        break;
+                    }
+                    let _ = self.planner.push_move(&self.cfg, &req, BlockKind::Job);
+                }
+                Command::Layer(mark) => {
+                    if self.planner.has_pending() {
+                        break;
+                    }
+                    match self.planner.push_mark(mark) {
+                        Ok(true) => self.barrier_layer = Some(mark.layer),
+                        Ok(false) => {}
+                        Err(_) => break,
+                    }
+                    self.check_schedule(mark);
+                }
+                Command::Home => {
+                    if !self.motion_idle() || self.phase != Phase::Run {
+                        break;
+                    }
+                    let mut target = self.stepgen.position();
+                    for ax in [Axis::X, Axis::Y, Axis::Z] {
+                        let min = self.cfg.axis(ax).min_mm;
+                        target[ax.index()] = steps(&self.cfg, ax, min);
+                    }
+                    let req = MoveRequest {
+                        target,
+                        feed_mm_s: self.cfg.pause.park_feed_mm_s,
+                        seq: u32::MAX,
+                    };
+                    let _ = self.planner.push_move(&self.cfg, &req, BlockKind::Homing);
+                }
+                Command::SetPosition(pos) => {
+                    if !self.motion_idle() {
+                        break;
+                    }
+                    self.planner.set_position(pos);
+                    self.stepgen.set_position(pos);
+                }
+                Command::Dwell { ms } => {
+                    if !self.motion_idle() {
+                        break;
+                    }
+                    let until = *self
+                        .dwell_until_us
+                        .get_or_insert(self.now_us + u64::from(ms) * 1000);
+                    if self.now_us < until {
+                        break;
+                    }
+                    self.dwell_until_us = None;
+                }
+                Command::Sync => {
+                    if !self.motion_idle() {
+                        break;
+                    }
+                }
+                Command::SchedulePause(s) => {
+                    self.schedule = Some(s);
+                    self.say(format_args!("echo:pause scheduled: {:?}", s));
+                }
+            }
+            let _ = self.cmds.pop_front();
+            if let Some(n) = self.fifo_countdown.as_mut() {
+                *n = n.saturating_sub(1);
+            }
+        }
+        if self.fifo_countdown == Some(0) && !self.planner.has_pending() {
+            self.fifo_countdown = None;
+            let id = self.planner.next_id();
+            self.planner.set_barrier(id);
+        }
+    }
+
+    fn check_schedule(&mut self, mark: LayerMark) {
+        let hit = match self.schedule {
+            Some(Schedule::Layer(n)) => mark.layer >= n,
+            Some(Schedule::Z(z)) => mark.z_um.is_some_and(|mz| mz >= z),
+            None => false,
+        };
+        if hit && self.phase == Phase::Run {
+            self.schedule = None;
+            if let Some((id, _)) = self.planner.marks().last() {
+                self.planner.set_barrier(id);
+            }
+            self.barrier_layer = Some(mark.layer);
+            self.phase = Phase::Stopping;
+            self.mode = Some(PauseMode::Layer);
+            self.say(format_args!(
+                "echo:scheduled pause: stopping before layer {}",
+                mark.layer
+            ));
+            self.update_state_record();
+        }
+    }
+
+    /// Set a pause schedule now (M761 from the host).
+    pub fn schedule_pause(&mut self, s: Option<Schedule>) {
+        self.schedule = s;
+    }
+
+    /// The current pause schedule (M761 report).
+    pub fn scheduled_pause(&self) -> Option<Schedule> {
+        self.schedule
+    }
+
+    /// Main loop: move commands into the planner, run the pause state machine and dwell.
+    pub fn poll(&mut self, now_us: u64) {
+        self.set_now(now_us);
+        if self.halted {
+            return;
+        }
+        self.feed_planner();
+        self.retire_finished();
+        self.update_pause();
+        self.feed_planner();
+        self.update_state_record();
+    }
+
+    /// Time of the next step event, ns (loads the next block when the current one is done).
+    pub fn next_step_ns(&mut self) -> Option<u64> {
+        for _ in 0..(RING_CAPACITY + 8) {
+            if let Some(t) = self.stepgen.peek_time_ns() {
+                return Some(t);
+            }
+            if !self.advance_block() {
+                return None;
+            }
+        }
+        None
+    }
+
+    /// Time of the next step event, µs.
+    pub fn next_step_us(&mut self) -> Option<u64> {
+        self.next_step_ns().map(|t| t / 1000)
+    }
+
+    /// Take the next step event (the one [`Printer::next_step_ns`] announced). The driver
+    /// calls this when its clock reaches the event's time.
+    pub fn next_step(&mut self) -> Option<StepEvent> {
+        self.next_step_ns()?;
+        let ev = self.stepgen.next_event();
+        if ev.is_some() && self.stepgen.block_finished() {
+            // Record the block at once so the record follows its last step.
+            self.advance_block();
+        }
+        ev
+    }
+
+    fn retire_finished(&mut self) {
+        if self.stepgen.block_finished() {
+            if let Some(e) = self.stepgen.unload() {
+                let b = e.planned.block;
+                if b.kind != BlockKind::Service {
+                    self.planner.exec_done();
+                }
+                let t_us = self.stepgen.last_time_ns() / 1000;
+                let pos = self.stepgen.position();
+                self.record(Record::Executed {
+                    seq: b.seq,
+                    seg: b.seg,
+                    segs: b.segs,
+                    kind: b.kind,
+                    t_us,
+                    pos,
+                });
+                if b.kind == BlockKind::Homing && self.hold_deferred {
+                    self.hold_deferred = false;
+                    self.begin_hold();
+                }
+            }
+        }
+    }
+
+    /// Retire a finished block and load the next one. False when nothing can be loaded.
+    fn advance_block(&mut self) -> bool {
+        if self.halted {
+            return false;
+        }
+        self.retire_finished();
+        if self.stepgen.current().is_some() {
+            return false; // held mid-block
+        }
+        if let Some(pb) = self.next_block() {
+            let now = self.now_ns();
+            self.stepgen.load(pb, now);
+            return true;
+        }
+        self.update_pause();
+        if self.stepgen.current().is_some() {
+            return true;
+        }
+        if let Some(pb) = self.next_block() {
+            let now = self.now_ns();
+            self.stepgen.load(pb, now);
+            return true;
+        }
+        false
+    }
+
+    fn job_block(&mut self) -> Option<PlannedBlock> {
+        let pb = self.planner.pop()?;
+        self.planner.refill();
+        self.feed_planner();
+        while let Some(m) = self.planner.take_mark_before(pb.block.id) {
+            self.layer = Some(m.layer);
+            let t_us = self.t_us();
+            self.record(Record::Layer {
+                layer: m.layer,
+                t_us,
+            });
+        }
+        Some(pb)
+    }
+
+    fn next_block(&mut self) -> Option<PlannedBlock> {
+        match self.phase {
+            Phase::Run => self.job_block(),
+            Phase::Stopping => match self.mode {
+                Some(PauseMode::Now) => {
+                    if self.hold_deferred
+                        || (self.stepgen.is_braking() && self.stepgen.exit_speed_mm_s() > 0.0)
+                    {
+                        self.job_block()
+                    } else {
+                        None
+                    }
+                }
+                _ => self.job_block(),
+            },
+            Phase::Parking | Phase::Parked | Phase::Returning => {
+                while let Some(m) = self.service.pop_front() {
+                    let from = self.stepgen.position();
+                    if let Some(pb) = service::block(&self.cfg, from, m) {
+                        return Some(pb);
+                    }
+                }
+                None
+            }
+        }
+    }
+
+    fn begin_hold(&mut self) {
+        if self
+            .stepgen
+            .current()
+            .is_some_and(|e| e.planned.block.kind == BlockKind::Homing && !e.finished())
+        {
+            self.hold_deferred = true;
+            self.mode = Some(PauseMode::Now);
+            return;
+        }
+        let now = self.now_ns();
+        let v = self.stepgen.hold(now);
+        let a = self
+            .stepgen
+            .current()
+            .map_or(0.0, |e| e.planned.block.accel_mm_s2);
+        self.mode = Some(PauseMode::Now);
+        let t_us = self.t_us();
+        self.record(Record::Brake {
+            v_mm_s: v,
+            accel_mm_s2: a,
+            t_us,
+        });
+    }
+
+    fn has_work(&self) -> bool {
+        !self.cmds.is_empty() || !self.planner.is_empty() || self.stepgen.current().is_some()
+    }
+
+    /// Realtime request (pause button, sim, or parsed from the byte stream).
+    pub fn request(&mut self, req: Realtime, now_us: u64) {
+        self.set_now(now_us);
+        if self.halted {
+            self.say(format_args!("echo:halted: reset required"));
+            return;
+        }
+        self.retire_finished();
+        match req {
+            Realtime::Pause(mode) => self.request_pause(mode),
+            Realtime::Resume => self.request_resume(),
+            Realtime::Cancel => self.request_cancel(),
+            Realtime::EmergencyStop => self.emergency_stop(),
+            Realtime::QuickStop => self.quick_stop(),
+            Realtime::BreakWait => {
+                self.dwell_until_us = Some(0);
+                self.feed_planner();
+            }
+        }
+        self.update_pause();
+        self.update_state_record();
+    }
+
+    fn request_pause(&mut self, mode: PauseMode) {
+        match self.phase {
+            Phase::Run => {
+                if !self.has_work() {
+                    self.say(format_args!("echo:pause: nothing to pause"));
+                    return;
+                }
+                self.phase = Phase::Stopping;
+                self.withdraw_after_stop = false;
+                if self.policy.pause_at_tail {
+                    self.mode = Some(mode);
+                    self.fifo_countdown = Some(self.cmds.len());
+                    self.feed_planner();
+                    self.say(format_args!("echo:pause queued behind the buffered moves"));
+                    return;
+                }
+                match mode {
+                    PauseMode::Layer => {
+                        self.mode = Some(PauseMode::Layer);
+                        if let Some((id, m)) = self.planner.first_mark() {
+                            self.planner.set_barrier(id);
+                            self.barrier_layer = Some(m.layer);
+                            self.say(format_args!(
+                                "echo:pause: stopping before layer {}",
+                                m.layer
+                            ));
+                        } else {
+                            self.planner.set_barrier_next_mark();
+                            self.say(format_args!("echo:pause: stopping at the next layer"));
+                        }
+                        if self.cfg.pause.speedup_factor > 1.0 {
+                            self.planner.speed_up();
+                            let t_us = self.t_us();
+                            self.record(Record::SpeedUp { t_us });
+                        }
+                    }
+                    PauseMode::Now => {
+                        self.begin_hold();
+                        self.say(format_args!("echo:pause: stopping now"));
+                    }
+                }
+            }
+            Phase::Stopping => {
+                if mode == PauseMode::Now
+                    && self.mode == Some(PauseMode::Layer)
+                    && !self.policy.pause_at_tail
+                {
+                    self.begin_hold();
+                    self.say(format_args!("echo:pause: stopping now"));
+                } else {
+                    self.say(format_args!("echo:pause already in progress"));
+                }
+                self.withdraw_after_stop = false;
+            }
+            Phase::Parking | Phase::Parked => {
+                self.say(format_args!("echo:already paused"));
+            }
+            Phase::Returning => {
+                self.deferred_pause = Some(mode);
+                self.say(format_args!(
+                    "echo:pause deferred until the resume completes"
+                ));
+            }
+        }
+    }
+
+    fn request_resume(&mut self) {
+        match self.phase {
+            Phase::Parked => self.start_resume(),
+            Phase::Parking => {
+                self.deferred_resume = true;
+                self.say(format_args!("echo:resume deferred until parked"));
+            }
+            Phase::Stopping => {
+                if self.mode == Some(PauseMode::Now) || self.hold_deferred {
+                    self.withdraw_after_stop = true;
+                } else {
+                    self.planner.clear_barrier();
+                    self.fifo_countdown = None;
+                    self.phase = Phase::Run;
+                    self.mode = None;
+                    self.barrier_layer = None;
+                }
+                self.say(format_args!("echo:pause withdrawn"));
+            }
+            Phase::Run => self.say(format_args!("echo:not paused")),
+            Phase::Returning => self.say(format_args!("echo:already resuming")),
+        }
+    }
+
+    fn drop_job(&mut self) {
+        let cmds = self.cmds.len();
+        let held = usize::from(self.held.take().is_some());
+        let pos = self.stepgen.position();
+        let (blocks, segs, marks) = self.planner.clear(pos);
+        self.cmds.clear();
+        self.fifo_countdown = None;
+        self.schedule = None;
+        self.say(format_args!("//action:cancel"));
+        self.say(format_args!(
+            "echo:cancelled: dropped {} commands, {} blocks, {} uncut segments, {} layer marks",
+            cmds,
+            blocks + held,
+            segs,
+            marks
+        ));
+    }
+
+    fn request_cancel(&mut self) {
+        match self.phase {
+            Phase::Parked => {
+                self.drop_job();
+                self.finish_cancel();
+            }
+            Phase::Parking => {
+                self.drop_job();
+                self.cancel_pending = true;
+            }
+            Phase::Returning => {
+                self.service.clear();
+                self.drop_job();
+                self.cancel_pending = true;
+            }
+            Phase::Stopping | Phase::Run => {
+                if !self.has_work() {
+                    self.say(format_args!("echo:nothing to cancel"));
+                    return;
+                }
+                self.cancel_pending = true;
+                self.phase = Phase::Stopping;
+                if self.mode != Some(PauseMode::Now) {
+                    self.begin_hold();
+                }
+            }
+        }
+    }
+
+    fn finish_cancel(&mut self) {
+        self.phase = Phase::Run;
+        self.mode = None;
+        self.cancel_pending = false;
+        self.cancelled = true;
+        self.deferred_pause = None;
+        self.deferred_resume = false;
+        self.held = None;
+        self.barrier_layer = None;
+        let pos = self.stepgen.position();
+        self.planner.clear(pos);
+        self.planner.exec_done();
+    }
+
+    fn emergency_stop(&mut self) {
+        self.halted = true;
+        let _ = self.stepgen.unload();
+        let pos = self.stepgen.position();
+        self.planner.clear(pos);
+        self.cmds.clear();
+        self.service.clear();
+        self.held = None;
+        self.say(format_args!(
+            "echo:emergency stop (M112): motors and heaters off, reset required"
+        ));
+    }
+
+    fn quick_stop(&mut self) {
+        let _ = self.stepgen.unload();
+        self.stepgen.end_hold();
+        let pos = self.stepgen.position();
+        let (blocks, segs, _) = self.planner.clear(pos);
+        self.planner.exec_done();
+        self.service.clear();
+        self.held = None;
+        self.phase = Phase::Run;
+        self.mode = None;
+        self.barrier_layer = None;
+        self.fifo_countdown = None;
+        self.say(format_args!(
+            "echo:quick stop (M410): dropped {} blocks, {} uncut segments",
+            blocks, segs
+        ));
+    }
+
+    fn stopped_for_pause(&mut self) -> bool {
+        if self.hold_deferred {
+            return false;
+        }
+        match self.mode {
+            Some(PauseMode::Now) => {
+                self.stepgen.is_stopped()
+                    && (self.stepgen.current().is_some() || self.stepgen.exit_speed_mm_s() <= 0.0)
+            }
+            _ => {
+                if self.stepgen.current().is_some() {
+                    return false;
+                }
+                if self.planner.at_barrier() {
+                    return true;
+                }
+                // The job ended before any layer boundary: stop at its end.
+                if self.planner.barrier() == Barrier::NextMark
+                    && self.cmds.is_empty()
+                    && self.planner.is_empty()
+                    && self.now_us.saturating_sub(self.last_activity_us) >= LAYER_PAUSE_IDLE_US
+                {
+                    let id = self.planner.next_id();
+                    self.planner.set_barrier(id);
+                    return true;
+                }
+                false
+            }
+        }
+    }
+
+    fn update_pause(&mut self) {
+        self.retire_finished();
+        match self.phase {
+            Phase::Run => {
+                if !self.has_work() && self.fifo_countdown.is_none() {
+                    // Idle: nothing to do.
+                }
+            }
+            Phase::Stopping => {
+                if !self.stopped_for_pause() {
+                    return;
+                }
+                let mid = self.stepgen.current().is_some();
+                self.held = self.stepgen.unload();
+                self.stepgen.end_hold();
+                self.held_pos = self.stepgen.position();
+                let t_us = self.t_us();
+                let layer = if self.mode == Some(PauseMode::Now) {
+                    None
+                } else {
+                    self.barrier_layer
+                };
+                self.record(Record::Stopped {
+                    pos: self.held_pos,
+                    layer,
+                    mid_block: mid,
+                    t_us,
+                });
+                if self.withdraw_after_stop && !self.cancel_pending {
+                    self.withdraw_after_stop = false;
+                    self.release_held();
+                    return;
+                }
+                if self.cancel_pending {
+                    self.drop_job();
+                }
+                self.start_park();
+            }
+            Phase::Parking => {
+                if !self.service.is_empty() || self.stepgen.current().is_some() {
+                    return;
+                }
+                if self.cancel_pending {
+                    self.finish_cancel();
+                    return;
+                }
+                self.phase = Phase::Parked;
+                self.say(format_args!("//action:paused"));
+                if self.deferred_resume {
+                    self.deferred_resume = false;
+                    self.start_resume();
+                }
+            }
+            Phase::Parked => {}
+            Phase::Returning => {
+                if !self.service.is_empty() || self.stepgen.current().is_some() {
+                    return;
+                }
+                if self.cancel_pending {
+                    self.finish_cancel();
+                    return;
+                }
+                // Logical E: the job continues from the held E count (no E jump).
+                let mut pos = self.stepgen.position();
+                pos[Axis::E.index()] = self.held_pos[Axis::E.index()];
+                self.stepgen.set_position(pos);
+                self.release_held();
+                self.say(format_args!("//action:resumed"));
+                if let Some(m) = self.deferred_pause.take() {
+                    self.request_pause(m);
+                }
+            }
+        }
+    }
+
+    fn release_held(&mut self) {
+        let rem = self.held.map(|e| {
+            let b = e.planned.block;
+            (e.remaining_mm(), b.accel_mm_s2, b.base_v2)
+        });
+        let exit = self.planner.release(rem);
+        if let Some(mut e) = self.held.take() {
+            e.planned.block.nominal_v2 = e.planned.block.base_v2;
+            self.stepgen.restore(e);
+            let now = self.now_ns();
+            self.stepgen.resume_held(exit, now);
+        }
+        self.phase = Phase::Run;
+        self.mode = None;
+        self.barrier_layer = None;
+        self.feed_planner();
+    }
+
+    fn start_park(&mut self) {
+        self.phase = Phase::Parking;
+        self.service.clear();
+        let p = self.held_pos;
+        let c = self.cfg;
+        let r = steps(&c, Axis::E, c.pause.retract_mm);
+        self.retracted_steps = r;
+        let mut cur = p;
+        cur[Axis::E.index()] = cur[Axis::E.index()].wrapping_sub(r);
+        let _ = self.service.push_back(ServiceMove {
+            target: cur,
+            feed_mm_s: c.pause.retract_feed_mm_s,
+        });
+        let zmax = steps(&c, Axis::Z, c.axis(Axis::Z).max_mm);
+        let lift = steps(&c, Axis::Z, c.pause.lift_z_mm);
+        cur[Axis::Z.index()] = p[Axis::Z.index()].saturating_add(lift).min(zmax).max(p[2]);
+        let _ = self.service.push_back(ServiceMove {
+            target: cur,
+            feed_mm_s: c.axis(Axis::Z).max_feed_mm_s,
+        });
+        cur[Axis::X.index()] = steps(&c, Axis::X, c.pause.park_x_mm);
+        cur[Axis::Y.index()] = steps(&c, Axis::Y, c.pause.park_y_mm);
+        let _ = self.service.push_back(ServiceMove {
+            target: cur,
+            feed_mm_s: c.pause.park_feed_mm_s,
+        });
+    }
+
+    fn start_resume(&mut self) {
+        self.phase = Phase::Returning;
+        self.service.clear();
+        let p = self.held_pos;
+        let c = self.cfg;
+        let mut cur = self.stepgen.position();
+        cur[Axis::X.index()] = p[Axis::X.index()];
+        cur[Axis::Y.index()] = p[Axis::Y.index()];
+        let _ = self.service.push_back(ServiceMove {
+            target: cur,
+            feed_mm_s: c.pause.park_feed_mm_s,
+        });
+        cur[Axis::Z.index()] = p[Axis::Z.index()];
+        let _ = self.service.push_back(ServiceMove {
+            target: cur,
+            feed_mm_s: c.axis(Axis::Z).max_feed_mm_s,
+        });
+        cur[Axis::E.index()] = cur[Axis::E.index()].wrapping_add(self.retracted_steps);
+        let _ = self.service.push_back(ServiceMove {
+            target: cur,
+            feed_mm_s: c.pause.retract_feed_mm_s,
+        });
+        self.say(format_args!("//action:resume"));
+    }
+
+    /// The run state now.
+    pub fn state(&self) -> State {
+        if self.halted {
+            return State::Halted;
+        }
+        match self.phase {
+            Phase::Stopping | Phase::Parking => State::Pausing,
+            Phase::Parked => State::Paused,
+            Phase::Returning => State::Resuming,
+            Phase::Run => {
+                if self.cancelled {
+                    State::Cancelled
+                } else if self.has_work() {
+                    State::Printing
+                } else {
+                    State::Idle
+                }
+            }
+        }
+    }
+
+    fn update_state_record(&mut self) {
+        let s = self.state();
+        if s != self.last_state {
+            self.last_state = s;
+            let t_us = self.t_us();
+            self.record(Record::State { state: s, t_us });
+        }
+    }
+
+    /// A snapshot of the printer.
+    pub fn status(&self) -> Status {
+        let exec = usize::from(self.stepgen.current().is_some() || self.held.is_some());
+        Status {
+            state: self.state(),
+            position: self.stepgen.position(),
+            layer: self.layer,
+            queue_depth: self.cmds.len() + self.planner.len() + exec,
+            planner_blocks: self.planner.len(),
+            commands: self.cmds.len(),
+            paused_at: match self.phase {
+                Phase::Parking | Phase::Parked | Phase::Returning => Some(self.held_pos),
+                _ => None,
+            },
+            pause_mode: self.mode,
+        }
+    }
+
+    /// Heater sample in, duty out. Not built yet: waits for `firmware::thermal` (board);
+    /// returns 0 (heater off) until then.
+    pub fn thermal_sample(&mut self, bed: bool, measured_c: f32, now_us: u64) -> f32 {
+        let _ = (bed, measured_c);
+        self.set_now(now_us);
+        0.0
+    }
+}

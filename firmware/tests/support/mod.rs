@@ -1,0 +1,150 @@
+//! Shared test driver: runs a `Printer` on virtual time with a scripted job and requests.
+#![allow(dead_code)]
+
+use firmware::config::MachineConfig;
+use firmware::motion::{LayerMark, LayerSource, MoveRequest, Realtime, StepPos};
+use firmware::planner::BlockKind;
+use firmware::printer::{Command, Policy, Printer, Record, State};
+
+/// A job entry.
+#[derive(Clone, Copy, Debug)]
+pub enum Item {
+    /// Move to (mm x, y, z, e absolute) at feed mm/s.
+    Move([f32; 4], f32),
+    /// Layer mark.
+    Layer(u32),
+}
+
+/// What a run produced.
+#[derive(Default, Debug)]
+pub struct Run {
+    /// (seq, seg) of executed job blocks, in order.
+    pub executed: Vec<(u32, u32)>,
+    /// Position after each job block.
+    pub job_pos: Vec<StepPos>,
+    /// All records.
+    pub records: Vec<Record>,
+    /// Step positions sampled at each event: (t_ns, pos).
+    pub trace: Vec<(u64, StepPos)>,
+    /// Final position.
+    pub end: StepPos,
+    /// Final time, µs.
+    pub end_us: u64,
+    /// Output text.
+    pub out: String,
+}
+
+/// Convert mm to steps with the Ender-3 scale.
+pub fn to_steps(cfg: &MachineConfig, mm: [f32; 4]) -> StepPos {
+    let mut s = [0i32; 4];
+    for i in 0..4 {
+        s[i] = (mm[i] * cfg.axes[i].steps_per_mm).round() as i32;
+    }
+    s
+}
+
+/// Turn items into commands with increasing seq.
+pub fn commands(cfg: &MachineConfig, items: &[Item]) -> Vec<Command> {
+    let mut seq = 0;
+    items
+        .iter()
+        .map(|it| match *it {
+            Item::Move(p, f) => {
+                seq += 1;
+                Command::Move(MoveRequest {
+                    target: to_steps(cfg, p),
+                    feed_mm_s: f,
+                    seq,
+                })
+            }
+            Item::Layer(l) => Command::Layer(LayerMark {
+                layer: l,
+                z_um: None,
+                source: LayerSource::Comment,
+            }),
+        })
+        .collect()
+}
+
+/// A timed request.
+#[derive(Clone, Copy, Debug)]
+pub struct Req {
+    /// When, µs.
+    pub t_us: u64,
+    /// What.
+    pub req: Realtime,
+}
+
+/// Drive a printer through `cmds`, issuing `reqs` at their times; poll every `tick_us`.
+pub fn run(p: &mut Printer, cmds: &[Command], reqs: &[Req], limit_us: u64) -> Run {
+    let mut r = Run::default();
+    let mut now = 0u64;
+    let tick = 1000u64;
+    let mut next_cmd = 0usize;
+    let mut next_req = 0usize;
+    loop {
+        // Feed commands while there is room (ok flow).
+        while next_cmd < cmds.len() {
+            if p.push_command(cmds[next_cmd], now).is_err() {
+                break;
+            }
+            next_cmd += 1;
+        }
+        while next_req < reqs.len() && reqs[next_req].t_us <= now {
+            p.request(reqs[next_req].req, now);
+            next_req += 1;
+        }
+        p.poll(now);
+        // Steps up to the next tick.
+        let until_ns = (now + tick) * 1000;
+        while let Some(t) = p.next_step_ns() {
+            if t > until_ns {
+                break;
+            }
+            let Some(_ev) = p.next_step() else { break };
+            r.trace.push((t, p.status().position));
+        }
+        while let Some(rec) = p.pop_record() {
+            if let Record::Executed {
+                seq,
+                seg,
+                kind,
+                pos,
+                ..
+            } = rec
+            {
+                if kind == BlockKind::Job {
+                    r.executed.push((seq, seg));
+                    r.job_pos.push(pos);
+                }
+            }
+            r.records.push(rec);
+        }
+        let mut s = String::new();
+        let _ = p.write_output(&mut s);
+        r.out.push_str(&s);
+        now += tick;
+        let st = p.status().state;
+        if next_cmd >= cmds.len()
+            && next_req >= reqs.len()
+            && matches!(
+                st,
+                State::Idle | State::Cancelled | State::Paused | State::Halted
+            )
+            && p.next_step_ns().is_none()
+        {
+            break;
+        }
+        if now > limit_us {
+            break;
+        }
+    }
+    r.end = p.status().position;
+    r.end_us = now;
+    r
+}
+
+/// Default printer.
+pub fn printer() -> Printer {
+    Printer::with_policy(MachineConfig::ENDER3, Policy::FIRMWARE)
+}
