@@ -32,6 +32,8 @@ pub struct Run {
     pub end_us: u64,
     /// Output text.
     pub out: String,
+    /// When each request was handed to the printer, µs.
+    pub req_times: Vec<u64>,
 }
 
 /// Convert mm to steps with the Ender-3 scale.
@@ -92,6 +94,7 @@ pub fn run(p: &mut Printer, cmds: &[Command], reqs: &[Req], limit_us: u64) -> Ru
         }
         while next_req < reqs.len() && reqs[next_req].t_us <= now {
             p.request(reqs[next_req].req, now);
+            r.req_times.push(now);
             next_req += 1;
         }
         p.poll(now);
