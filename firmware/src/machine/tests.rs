@@ -1,0 +1,287 @@
+use super::*;
+use crate::gcode::parse_line;
+use proptest::prelude::*;
+
+const CFG: MachineConfig = MachineConfig::ENDER3;
+
+fn c(s: &str) -> Command {
+    parse_line(s.as_bytes()).unwrap().command.unwrap()
+}
+
+fn run(m: &mut MachineState, s: &str) -> Result<Action, MachineError> {
+    m.apply(&c(s), &CFG)
+}
+
+fn mv(m: &mut MachineState, s: &str) -> MoveRequest {
+    match run(m, s) {
+        Ok(Action::Move(r)) => r,
+        other => panic!("{s}: {other:?}"),
+    }
+}
+
+#[test]
+fn absolute_relative_and_e_modes() {
+    let mut m = MachineState::new(&CFG);
+    assert_eq!(mv(&mut m, "G1 X10 E1").target, [800, 0, 0, 93]);
+    run(&mut m, "G91").unwrap();
+    assert!(m.is_relative() && m.is_relative_e());
+    assert_eq!(mv(&mut m, "G1 X10 E1").target, [1600, 0, 0, 186]);
+    // M82 after G91: E absolute, XYZ still relative.
+    run(&mut m, "M82").unwrap();
+    assert_eq!(mv(&mut m, "G1 X1 E3").target, [1680, 0, 0, 279]);
+    // G90 sets E absolute too; M83 after it makes E relative again.
+    run(&mut m, "G90").unwrap();
+    run(&mut m, "M83").unwrap();
+    assert_eq!(mv(&mut m, "G1 X1 E1").target, [80, 0, 0, 372]);
+    // M83 then G90: G90 wins for E (last one wins, as Marlin does).
+    run(&mut m, "G90").unwrap();
+    assert!(!m.is_relative_e());
+}
+
+#[test]
+fn g92_offsets_are_per_axis() {
+    let mut m = MachineState::new(&CFG);
+    mv(&mut m, "G1 X100 Y50 E5");
+    run(&mut m, "G92 X0 E0").unwrap();
+    assert_eq!(m.logical_mm(), [0.0, 50.0, 0.0, 0.0]);
+    // X now logical 10 = machine 110; E from logical 0 to 2 feeds 2 more mm.
+    assert_eq!(mv(&mut m, "G1 X10 E2").target, [8800, 4000, 0, 651]);
+    // Bounds apply to machine coordinates: logical 130 = machine 230 is fine, 140 is not.
+    assert!(run(&mut m, "G1 X130").is_ok());
+    assert_eq!(
+        run(&mut m, "G1 X140"),
+        Err(MachineError::OutOfBounds(Axis::X))
+    );
+    // Homing clears the offset of the homed axis only.
+    assert_eq!(
+        run(&mut m, "G28 X"),
+        Ok(Action::Home(AxisFlags([true, false, false, false])))
+    );
+    assert_eq!(m.logical_mm()[0], 0.0);
+    assert_eq!(m.position_steps(&CFG)[0], 0);
+}
+
+#[test]
+fn inches_feed_and_overrides() {
+    let mut m = MachineState::new(&CFG);
+    run(&mut m, "G20").unwrap();
+    let r = mv(&mut m, "G1 X1 F60");
+    assert_eq!(r.target[0], 2032); // 25.4 mm × 80
+    assert!((r.feed_mm_s - 25.4).abs() < 1e-4);
+    run(&mut m, "G21").unwrap();
+    assert_eq!(run(&mut m, "G1 F1200"), Ok(Action::None));
+    assert_eq!(m.feed_mm_s(), 20.0);
+    run(&mut m, "M220 S150").unwrap();
+    assert_eq!(mv(&mut m, "G1 X30").feed_mm_s, 30.0);
+    run(&mut m, "M221 S50").unwrap();
+    assert_eq!(mv(&mut m, "G1 X31 E10").target[3], 465); // 5 mm fed
+    assert_eq!(m.logical_mm()[3], 10.0);
+    assert_eq!(
+        run(&mut m, "M220 S0"),
+        Err(MachineError::OverrideOutOfRange)
+    );
+    assert_eq!(run(&mut m, "G1 X1 F0"), Err(MachineError::BadFeed));
+    assert_eq!(run(&mut m, "G1 X1 F-5"), Err(MachineError::BadFeed));
+    assert_eq!(run(&mut m, "M220"), Ok(Action::Executive));
+}
+
+#[test]
+fn errors_leave_state_unchanged() {
+    let mut m = MachineState::new(&CFG);
+    mv(&mut m, "G1 X10 Y10 Z1 E1 F600");
+    for bad in [
+        "G1 X-1",
+        "G1 Y236",
+        "G1 Z251 E5 F100",
+        "G1 X5 F0",
+        "G2 X20 Y10",
+        "G2 X20 Y10 I5 R5",
+        "G2 X10 Y10 R5",
+        "G2 X30 Y10 I1",
+        "G2 X10 Y10 I-20",
+        "M221 S1000",
+        "G4 P-1",
+    ] {
+        let before = m;
+        assert!(run(&mut m, bad).is_err(), "{bad}");
+        assert_eq!(m, before, "{bad}");
+    }
+}
+
+#[test]
+fn no_drift_over_many_relative_moves() {
+    let mut m = MachineState::new(&CFG);
+    run(&mut m, "G91").unwrap();
+    let mut last = None;
+    for _ in 0..2000 {
+        if let Ok(Action::Move(r)) = run(&mut m, "G1 X0.1 E0.0123") {
+            last = Some(r);
+        }
+    }
+    let r = last.unwrap();
+    // 200 mm × 80 and 24.6 mm × 93, rounded once.
+    assert_eq!(r.target[0], 16000);
+    assert_eq!(r.target[3], 2288);
+}
+
+#[test]
+fn seq_strictly_increases_and_errors_do_not_consume() {
+    let mut m = MachineState::new(&CFG);
+    let a = mv(&mut m, "G1 X1");
+    assert!(run(&mut m, "G1 X-5").is_err());
+    let b = mv(&mut m, "G1 X2");
+    assert_eq!(b.seq, a.seq + 1);
+    let Ok(Action::Arc(arc)) = run(&mut m, "G2 X4 Y0 I1 J0") else {
+        panic!()
+    };
+    let seqs: heapless::Vec<u32, 4096> = arc.map(|r| r.seq).collect();
+    assert_eq!(seqs.first(), Some(&(b.seq + 1)));
+    assert!(seqs.windows(2).all(|w| w[1] == w[0] + 1));
+    let c = mv(&mut m, "G1 X10");
+    assert_eq!(Some(&(c.seq - 1)), seqs.last());
+}
+
+#[test]
+fn arcs_follow_the_circle_and_end_exactly() {
+    let mut m = MachineState::new(&CFG);
+    mv(&mut m, "G1 X100 Y100 Z1 E0");
+    // Quarter circle counter-clockwise around (100, 110) to (110, 110), E 1 mm.
+    let Ok(Action::Arc(arc)) = run(&mut m, "G3 X110 Y110 J10 E1") else {
+        panic!()
+    };
+    let n = arc.segments();
+    assert!(n > 10, "{n}");
+    let mut last = None;
+    for r in arc {
+        let x = f64::from(r.target[0]) / 80.0 - 100.0;
+        let y = f64::from(r.target[1]) / 80.0 - 110.0;
+        let rad = libm::hypot(x, y);
+        // On the circle within chord tolerance + a step of rounding.
+        assert!((rad - 10.0).abs() < ARC_CHORD_TOLERANCE_MM + 0.02, "{rad}");
+        // Counter-clockwise from (100,100) to (110,110) about (100,110): x ≥ 0 side.
+        assert!(x >= -0.02);
+        last = Some(r);
+    }
+    assert_eq!(last.unwrap().target, [8800, 8800, 400, 93]);
+    assert_eq!(m.position_steps(&CFG), [8800, 8800, 400, 93]);
+    // Clockwise with R: the short way round from (110,110) to (100,120), centre (100,110)? No:
+    // clockwise short arc has the centre right of the chord: (110,120).
+    let Ok(Action::Arc(arc)) = run(&mut m, "G2 X100 Y120 R10") else {
+        panic!()
+    };
+    for r in arc {
+        let x = f64::from(r.target[0]) / 80.0 - 110.0;
+        let y = f64::from(r.target[1]) / 80.0 - 120.0;
+        assert!((libm::hypot(x, y) - 10.0).abs() < 0.03);
+    }
+    // Full circle with I only.
+    let Ok(Action::Arc(arc)) = run(&mut m, "G2 I5") else {
+        panic!()
+    };
+    assert!(arc.segments() > 50, "{}", arc.segments());
+    assert_eq!(arc.last().unwrap().target, m.position_steps(&CFG));
+}
+
+#[test]
+fn arc_bulging_out_of_the_volume_is_refused() {
+    let mut m = MachineState::new(&CFG);
+    mv(&mut m, "G1 X5 Y100");
+    let before = m;
+    // Half circle to the left of x = 5 with radius 10: reaches x = -5.
+    assert_eq!(
+        run(&mut m, "G2 X5 Y120 I0 J10"),
+        Err(MachineError::OutOfBounds(Axis::X))
+    );
+    assert_eq!(m, before);
+    // The other way round (through x = 15) stays inside.
+    assert!(matches!(
+        run(&mut m, "G3 X5 Y120 I0 J10"),
+        Ok(Action::Arc(_))
+    ));
+}
+
+#[test]
+fn firmware_retract_and_dwell() {
+    let mut m = MachineState::new(&CFG);
+    let r = mv(&mut m, "G10");
+    assert_eq!(r.target[3], -186);
+    assert_eq!(run(&mut m, "G10"), Ok(Action::None));
+    assert_eq!(m.logical_mm()[3], 0.0);
+    assert_eq!(mv(&mut m, "G11").target[3], 0);
+    assert_eq!(run(&mut m, "G4 S1.5"), Ok(Action::Dwell { ms: 1500 }));
+    assert_eq!(run(&mut m, "G4 P20"), Ok(Action::Dwell { ms: 20 }));
+    assert_eq!(run(&mut m, "M104 S200"), Ok(Action::Executive));
+}
+
+#[test]
+fn set_position_steps_keeps_offsets() {
+    let mut m = MachineState::new(&CFG);
+    mv(&mut m, "G1 X50 E10");
+    run(&mut m, "G92 X0 E0").unwrap();
+    m.set_position_steps(&[4800, 0, 0, 1023], &CFG);
+    assert_eq!(m.position_steps(&CFG), [4800, 0, 0, 1023]);
+    let l = m.logical_mm();
+    assert!((l[0] - 10.0).abs() < 1e-9);
+    assert!((l[3] - 1.0).abs() < 1e-9);
+}
+
+fn line() -> impl Strategy<Value = String> {
+    prop_oneof![
+        "G[0-3]( [XYZEIJR]-?[0-9]{1,3}(\\.[0-9]{1,3})?){0,5}( F[0-9]{1,4})?",
+        Just("G90".to_string()),
+        Just("G91".to_string()),
+        Just("M82".to_string()),
+        Just("M83".to_string()),
+        Just("G20".to_string()),
+        Just("G21".to_string()),
+        Just("G10".to_string()),
+        Just("G11".to_string()),
+        "G28( X)?( Y)?( Z)?",
+        "G92( [XYZE]-?[0-9]{1,3})",
+        "M22[01] S[0-9]{1,4}",
+        "G4 [PS]-?[0-9]{1,3}",
+    ]
+}
+
+proptest! {
+    /// Random command sequences: no panic; an error changes nothing; a success keeps the
+    /// commanded position in the build volume and the step position consistent with it.
+    #[test]
+    fn state_stays_consistent(lines in proptest::collection::vec(line(), 1..60)) {
+        let mut m = MachineState::new(&CFG);
+        let mut last_seq = 0;
+        for l in &lines {
+            let Ok(parsed) = parse_line(l.as_bytes()) else { continue };
+            let Some(cmd) = parsed.command else { continue };
+            let before = m;
+            match m.apply(&cmd, &CFG) {
+                Err(_) => prop_assert_eq!(m, before),
+                Ok(Action::Move(r)) => {
+                    prop_assert!(r.seq > last_seq);
+                    last_seq = r.seq;
+                    prop_assert_eq!(r.target, m.position_steps(&CFG));
+                }
+                Ok(Action::Arc(arc)) => {
+                    let mut end = None;
+                    for r in arc {
+                        prop_assert!(r.seq > last_seq);
+                        last_seq = r.seq;
+                        for axis in [Axis::X, Axis::Y, Axis::Z] {
+                            let mm = f64::from(r.target[axis.index()]) / f64::from(CFG.axis(axis).steps_per_mm);
+                            prop_assert!(mm >= f64::from(CFG.axis(axis).min_mm) - 0.05);
+                            prop_assert!(mm <= f64::from(CFG.axis(axis).max_mm) + 0.05);
+                        }
+                        end = Some(r.target);
+                    }
+                    prop_assert_eq!(end, Some(m.position_steps(&CFG)));
+                }
+                Ok(_) => {}
+            }
+            let pos = m.machine_mm();
+            for axis in [Axis::X, Axis::Y, Axis::Z] {
+                prop_assert!(pos[axis.index()] >= f64::from(CFG.axis(axis).min_mm) - BOUNDS_TOLERANCE_MM);
+                prop_assert!(pos[axis.index()] <= f64::from(CFG.axis(axis).max_mm) + BOUNDS_TOLERANCE_MM);
+            }
+        }
+    }
+}
