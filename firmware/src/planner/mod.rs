@@ -537,8 +537,10 @@ impl Planner {
         }
     }
 
-    /// Replan the whole planned part of the ring (after the speed or the barrier changed).
-    fn replan_all(&mut self) {
+    /// Replan the whole planned part of the ring from the head, ignoring the planned pointer
+    /// (done after the speed or the barrier changed; O(ring)). Public so tests can check that
+    /// the incremental plan equals the full one.
+    pub fn replan_all(&mut self) {
         self.planned = 0;
         self.recalculate();
     }
