@@ -165,7 +165,7 @@ proptest! {
                 p.refill();
             }
             mv(&mut p, x, y, f, i as u32);
-            if pops[i % pops.len()] && p.len() > 0 {
+            if pops[i % pops.len()] && p.get(0).is_some() {
                 p.pop();
                 p.exec_done();
                 p.refill();
