@@ -1,0 +1,339 @@
+use super::*;
+use proptest::prelude::*;
+use std::string::String;
+use std::vec::Vec as StdVec;
+
+fn numbered(n: u32, cmd: &str) -> String {
+    let body = format!("N{n} {cmd}");
+    format!("{body}*{}\n", checksum(body.as_bytes()))
+}
+
+fn out(link: &mut HostLink) -> String {
+    let mut s = String::new();
+    link.write_output(&mut s).unwrap();
+    s
+}
+
+fn pop_text(link: &mut HostLink) -> Option<String> {
+    link.pop_line()
+        .map(|l| String::from_utf8(l.text().to_vec()).unwrap())
+}
+
+#[test]
+fn numbered_lines_in_order() {
+    let mut l = HostLink::new();
+    l.receive(numbered(1, "G28").as_bytes());
+    l.receive(numbered(2, "G1 X5").as_bytes());
+    assert_eq!(out(&mut l), "");
+    assert_eq!(pop_text(&mut l).as_deref(), Some("G28"));
+    l.respond(Response::Ok);
+    assert_eq!(pop_text(&mut l).as_deref(), Some("G1 X5"));
+    l.respond(Response::Ok);
+    assert_eq!(out(&mut l), "ok\nok\n");
+    assert_eq!(l.last_line(), 2);
+}
+
+#[test]
+fn bad_checksum_asks_for_resend() {
+    let mut l = HostLink::new();
+    l.receive(numbered(1, "G28").as_bytes());
+    l.receive(b"N2 G1 X5*0\n");
+    assert_eq!(
+        out(&mut l),
+        "Error:checksum mismatch, Last Line: 1\nResend: 2\nok\n"
+    );
+    l.receive(b"N2 G1 X5\n");
+    assert_eq!(
+        out(&mut l),
+        "Error:No Checksum with line number, Last Line: 1\nResend: 2\nok\n"
+    );
+    assert_eq!(l.lines_waiting(), 1);
+    // The resent line is accepted.
+    l.receive(numbered(2, "G1 X5").as_bytes());
+    assert_eq!(l.lines_waiting(), 2);
+    assert_eq!(l.stats().resends, 2);
+}
+
+#[test]
+fn gap_duplicate_and_m110() {
+    let mut l = HostLink::new();
+    l.receive(numbered(1, "G28").as_bytes());
+    l.receive(numbered(3, "G1 X1").as_bytes());
+    assert_eq!(
+        out(&mut l),
+        "Error:Line Number is not Last Line Number+1, Last Line: 1\nResend: 2\nok\n"
+    );
+    // A line already accepted, resent: ignored and acknowledged.
+    l.receive(numbered(1, "G28").as_bytes());
+    assert_eq!(out(&mut l), "ok\n");
+    assert_eq!(l.lines_waiting(), 1);
+    // Far behind: not a duplicate but a gap.
+    l.receive(numbered(100, "M110 N500").as_bytes());
+    assert_eq!(out(&mut l), "ok\n");
+    assert_eq!(l.last_line(), 500);
+    l.receive(numbered(2, "G1").as_bytes());
+    assert!(out(&mut l).contains("Resend: 501"));
+    l.receive(numbered(0, "M110").as_bytes());
+    assert_eq!(l.last_line(), 0);
+    l.receive(b"M110 N41\n");
+    assert_eq!(l.last_line(), 41);
+    // Unnumbered lines do not touch the numbering.
+    l.receive(b"G1 X2\n");
+    assert_eq!(l.last_line(), 41);
+}
+
+#[test]
+fn overlong_line_is_rejected_never_truncated() {
+    let mut l = HostLink::new();
+    let long = format!("G1 X1 ;{}\n", "x".repeat(LINE_CAP));
+    l.receive(long.as_bytes());
+    assert_eq!(out(&mut l), "Error:Line too long (max 128 bytes)\nok\n");
+    assert_eq!(l.lines_waiting(), 0);
+    // Resynchronised at the line end.
+    l.receive(b"G1 X2\n");
+    assert_eq!(pop_text(&mut l).as_deref(), Some("G1 X2"));
+    // A numbered one asks for a resend (a lost line end merges two lines).
+    let long = format!("N1 G1 X1 ;{}*1\n", "x".repeat(LINE_CAP));
+    l.receive(long.as_bytes());
+    assert!(out(&mut l).ends_with("Resend: 1\nok\n"));
+    // Exactly LINE_CAP bytes is fine.
+    let exact = format!("G1 ;{}\n", "y".repeat(LINE_CAP - 4));
+    l.receive(exact.as_bytes());
+    assert_eq!(pop_text(&mut l).map(|s| s.len()), Some(LINE_CAP));
+}
+
+#[test]
+fn realtime_lines_jump_the_queue() {
+    let mut l = HostLink::new();
+    for (i, c) in ["G1 X1", "G1 X2", "G1 X3", "G1 X4"].iter().enumerate() {
+        l.receive(numbered(i as u32 + 1, c).as_bytes());
+    }
+    assert_eq!(l.lines_waiting(), LINE_QUEUE);
+    // Every queue is full; realtime still acts, numbered or not.
+    l.receive(numbered(5, "M25").as_bytes());
+    l.receive(b"M601 S1\n");
+    l.receive(b"m108\n");
+    l.receive(numbered(6, "M112").as_bytes());
+    l.receive(b"M410\nM24\nM602\nM524\n");
+    assert_eq!(l.take_realtime(), Some(Realtime::EmergencyStop));
+    assert_eq!(l.take_realtime(), Some(Realtime::Pause(PauseMode::Layer)));
+    assert_eq!(l.take_realtime(), Some(Realtime::Pause(PauseMode::Now)));
+    assert_eq!(l.take_realtime(), Some(Realtime::BreakWait));
+    assert_eq!(l.take_realtime(), Some(Realtime::QuickStop));
+    assert_eq!(l.take_realtime(), Some(Realtime::Resume));
+    assert_eq!(l.take_realtime(), Some(Realtime::Resume));
+    assert_eq!(l.take_realtime(), Some(Realtime::Cancel));
+    assert_eq!(l.take_realtime(), None);
+    // Each realtime line was acknowledged and consumed its number: no false Resend.
+    assert_eq!(out(&mut l), "ok\n".repeat(8));
+    assert_eq!(l.last_line(), 6);
+    l.receive(numbered(7, "G1 X5").as_bytes());
+    assert_eq!(
+        out(&mut l),
+        "Error:Line queue full (send one line per ok), Last Line: 6\nResend: 7\nok\n"
+    );
+}
+
+#[test]
+fn early_realtime_line_acts_once() {
+    let mut l = HostLink::new();
+    l.receive(numbered(1, "G1 X1").as_bytes());
+    // Line 2 is lost; line 3 is a pause.
+    l.receive(numbered(3, "M25").as_bytes());
+    assert_eq!(l.take_realtime(), Some(Realtime::Pause(PauseMode::Layer)));
+    assert!(out(&mut l).contains("Resend: 2"));
+    // The host resends 2 and 3: the pause does not act again.
+    l.receive(numbered(2, "G1 X2").as_bytes());
+    l.receive(numbered(3, "M25").as_bytes());
+    assert_eq!(l.take_realtime(), None);
+    assert_eq!(l.last_line(), 3);
+    // A realtime line with a bad checksum does not act.
+    l.receive(b"N4 M112*1\n");
+    assert_eq!(l.take_realtime(), None);
+}
+
+#[test]
+fn control_bytes_act_anywhere() {
+    let mut l = HostLink::new();
+    l.receive(b"G1 X");
+    l.receive(&[BYTE_PAUSE_NOW]);
+    l.receive(b"10\n");
+    assert_eq!(l.take_realtime(), Some(Realtime::Pause(PauseMode::Now)));
+    assert_eq!(pop_text(&mut l).as_deref(), Some("G1 X10"));
+    for (b, rt) in [
+        (BYTE_EMERGENCY_STOP, Realtime::EmergencyStop),
+        (BYTE_QUICK_STOP, Realtime::QuickStop),
+        (BYTE_PAUSE_LAYER, Realtime::Pause(PauseMode::Layer)),
+        (BYTE_RESUME, Realtime::Resume),
+        (BYTE_CANCEL, Realtime::Cancel),
+        (BYTE_BREAK_WAIT, Realtime::BreakWait),
+    ] {
+        l.receive(&[b]);
+        assert_eq!(l.take_realtime(), Some(rt));
+        assert!(!matches!(b, b'\t' | b'\n' | b'\r' | 0x11 | 0x13));
+    }
+    assert_eq!(out(&mut l), "");
+}
+
+#[test]
+fn empty_and_comment_lines() {
+    let mut l = HostLink::new();
+    l.receive(b"\r\n  \n\r");
+    assert_eq!(l.lines_waiting(), 0);
+    assert_eq!(out(&mut l), "");
+    l.receive(b";LAYER_CHANGE\r\n");
+    assert_eq!(pop_text(&mut l).as_deref(), Some(";LAYER_CHANGE"));
+    // `*` inside text of an unnumbered line is text.
+    l.receive(b"M117 a*b\n");
+    assert_eq!(pop_text(&mut l).as_deref(), Some("M117 a*b"));
+}
+
+#[test]
+fn responses_format_like_marlin() {
+    let t = TempReport {
+        hotend_c: 210.0,
+        hotend_target_c: 210.0,
+        bed_c: Some((60.0, 60.0)),
+        hotend_duty: 1.0,
+        bed_duty: 0.5,
+    };
+    let s = format!(
+        "{}",
+        Response::Temperatures {
+            report: t,
+            with_ok: true
+        }
+    );
+    assert_eq!(s, "ok T:210.0 /210.0 B:60.0 /60.0 @:127 B@:64");
+    let p = PositionReport {
+        logical_mm: [10.0, 20.0, 0.3, 1.234],
+        steps: [800, 1600, 120, 115],
+    };
+    assert_eq!(
+        format!("{}", Response::Position(p)),
+        "X:10.00 Y:20.00 Z:0.30 E:1.23 Count X:800 Y:1600 Z:120"
+    );
+    let m115 = format!("{}", Response::FirmwareInfo);
+    assert!(m115.starts_with("FIRMWARE_NAME:LayerPause "));
+    assert!(m115.contains("PROTOCOL_VERSION:1.0"));
+    assert!(m115.contains("\nCap:EMERGENCY_PARSER:1"));
+    assert!(m115.contains("\nCap:HOST_ACTION_COMMANDS:1"));
+    assert!(m115.contains("\nCap:AUTOREPORT_TEMP:0"));
+    assert!(m115.len() < OUT_RESERVE);
+    assert_eq!(format!("{}", Response::Busy), "busy: processing");
+    assert_eq!(
+        format!("{}", Response::Action(HostAction::Paused, "")),
+        "//action:paused"
+    );
+    assert_eq!(
+        format!("{}", Response::Action(HostAction::Notification, "Layer 3")),
+        "//action:notification Layer 3"
+    );
+    assert_eq!(
+        format!("{}", Response::UnknownCommand("M999")),
+        "echo:Unknown command: \"M999\""
+    );
+    assert_eq!(format!("{}", Response::Resend(7)), "Resend: 7");
+}
+
+#[test]
+fn output_backpressure() {
+    let mut l = HostLink::new();
+    l.receive(b"G1 X1\n");
+    // Fill the output ring to below the reserve: no line is handed out.
+    while l.output_free() >= OUT_RESERVE {
+        assert!(l.respond(Response::Echo("0123456789012345678901234567890123456789")));
+    }
+    assert!(l.pop_line().is_none());
+    let _ = out(&mut l);
+    assert!(l.pop_line().is_some());
+    // A response that does not fit is dropped whole and counted.
+    while l.respond(Response::Echo("0123456789")) {}
+    assert_eq!(l.stats().output_dropped, 1);
+    let s = out(&mut l);
+    assert!(s.lines().all(|x| x == "echo:0123456789"));
+    // Non-ASCII is written as '?'.
+    l.respond(Response::Echo("héllo"));
+    assert_eq!(out(&mut l), "echo:h?llo\n");
+}
+
+/// A host as printcore does it: one line, wait for the answer; `Resend: n` rewinds.
+fn host_session(
+    lines: &[String],
+    chunks: &[usize],
+    corrupt: &[(usize, usize, u8)],
+) -> StdVec<String> {
+    let mut l = HostLink::new();
+    let mut got = StdVec::new();
+    let mut next = 1u32;
+    let mut attempt = 0usize;
+    let mut rounds = 0;
+    while (next as usize) <= lines.len() {
+        rounds += 1;
+        assert!(rounds < 10 * lines.len() + 100, "no progress");
+        let mut bytes = numbered(next, &lines[next as usize - 1]).into_bytes();
+        // Never the line number (a line whose number is garbled cannot be asked for again, in
+        // Marlin's protocol too), never the line end.
+        let first_space = bytes.iter().position(|&b| b == b' ').unwrap_or(0);
+        // One byte per attempt: two changes can cancel out in an XOR checksum (a weakness of
+        // the protocol itself, Marlin's included).
+        if let Some(&(_, pos, ch)) = corrupt.iter().find(|c| c.0 == attempt) {
+            if pos > first_space && pos + 1 < bytes.len() {
+                bytes[pos] = ch;
+            }
+        }
+        attempt += 1;
+        let mut rest = &bytes[..];
+        let mut k = 0;
+        while !rest.is_empty() {
+            let n = chunks[k % chunks.len()].clamp(1, rest.len());
+            l.receive(&rest[..n]);
+            rest = &rest[n..];
+            k += 1;
+        }
+        while let Some(line) = l.pop_line() {
+            got.push(String::from_utf8(line.text().to_vec()).unwrap());
+            l.respond(Response::Ok);
+        }
+        let o = out(&mut l);
+        assert_eq!(o.matches("ok").count(), 1, "one ok per line: {o:?}");
+        match o.lines().find_map(|x| x.strip_prefix("Resend: ")) {
+            Some(n) => next = n.parse().unwrap(),
+            None => next += 1,
+        }
+    }
+    got
+}
+
+proptest! {
+    #[test]
+    fn arbitrary_bytes_never_panic(chunks in proptest::collection::vec(proptest::collection::vec(any::<u8>(), 0..300), 0..20)) {
+        let mut l = HostLink::new();
+        for c in &chunks {
+            l.receive(c);
+            prop_assert!(l.lines_waiting() <= LINE_QUEUE);
+            while let Some(line) = l.pop_line() {
+                prop_assert!(line.text().len() <= LINE_CAP);
+                let _ = line.parse();
+                l.respond(Response::Ok);
+            }
+            while l.take_realtime().is_some() {}
+            let mut s = String::new();
+            prop_assert!(l.write_output(&mut s).is_ok());
+            prop_assert!(s.is_ascii());
+        }
+    }
+
+    /// Lines arrive exactly once and in order, whatever the chunking, and in spite of
+    /// corrupted bytes (checksum and line numbers recover them).
+    #[test]
+    fn host_protocol_delivers_everything_once(
+        n in 1usize..40,
+        chunks in proptest::collection::vec(1usize..20, 1..8),
+        corrupt in proptest::collection::vec((0usize..60, 0usize..20, b' '..=b'~'), 0..10),
+    ) {
+        let lines: StdVec<String> = (0..n).map(|i| format!("G1 X{} Y{}.5", i, i % 7)).collect();
+        let got = host_session(&lines, &chunks, &corrupt);
+        prop_assert_eq!(got, lines);
+    }
+}
