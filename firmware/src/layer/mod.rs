@@ -1,0 +1,351 @@
+//! Layer detection: turns slicer markers (or, in files without any, Z rising before an
+//! extruding move) into [`LayerMark`] events placed in the command stream, so the planner can
+//! hold a pause exactly at a layer boundary.
+//!
+//! # Use
+//! Feed every line, in order, **after** the machine state has applied its command, with the
+//! facts of the move it made (if any). A returned mark must be queued **before** that line's
+//! command:
+//!
+//! ```
+//! use firmware::config::MachineConfig;
+//! use firmware::gcode::parse_line;
+//! use firmware::layer::{LayerDetector, MoveFacts};
+//! use firmware::machine::MachineState;
+//! let cfg = MachineConfig::ENDER3;
+//! let mut m = MachineState::new(&cfg);
+//! let mut d = LayerDetector::new();
+//! let mut marks = 0;
+//! for text in [";LAYER_CHANGE", ";Z:0.2", "G1 Z0.2 F600", "G1 X10 E1", ";LAYER_CHANGE", ";Z:0.4", "G1 Z0.4"] {
+//!     let line = parse_line(text.as_bytes()).unwrap();
+//!     let before = m.position_steps(&cfg);
+//!     if let Some(cmd) = &line.command {
+//!         m.apply(cmd, &cfg).unwrap();
+//!     }
+//!     let facts = MoveFacts::between(&before, &m.position_steps(&cfg), &cfg);
+//!     if let Some(mark) = d.feed(&line, facts) {
+//!         // queue `mark`, then the line's action
+//!         assert_eq!(mark.layer, marks);
+//!         marks += 1;
+//!     }
+//! }
+//! assert_eq!(marks, 2);
+//! ```
+//!
+//! # Markers accepted
+//! | source | spelling | mark placed |
+//! |---|---|---|
+//! | PrusaSlicer, SuperSlicer, OrcaSlicer, Bambu | `;LAYER_CHANGE` (height from a following `;Z:<mm>`; `;HEIGHT:` is ignored — it also appears mid-layer) | before the first command after the marker, i.e. before the layer's Z move |
+//! | Cura, ideaMaker | `;LAYER:<n>` (`;LAYER_COUNT:` is not a marker; a following `;Z:` gives the height) | before the first command after the marker; Cura has already moved Z, so the Z move sits just before the mark, the first extrusion after it |
+//! | Simplify3D | `; layer <n>, Z = <mm>` | before the first command after the marker |
+//! | Klipper macros | `SET_PRINT_STATS_INFO CURRENT_LAYER=<n>` | before that command |
+//! | Orca/Bambu/Prusa progress | `M73 L<n>` | before that command |
+//! | this project's host compiler (helical prints) | `;TURN` or `;TURN:<n>`, one per helix turn | before the first command after the marker ([`LayerSource::Turn`]) |
+//! | none of the above | Z higher at the start of an extruding move than at the end of the previous extruding move (first extruding move: layer 0) | before that extruding move |
+//!
+//! An *extruding move* moves X or Y and advances E. Z-hops (up, travel, down, extrude at the
+//! same height) and helices (Z rising *during* extrusion) start no layer.
+//!
+//! # The boundary
+//! For every source: every extruding move of layer k is before the mark of layer k+1 and every
+//! extruding move of layer k+1 after it. Non-extruding moves between the two layers (retract,
+//! Z move, travel) sit on either side depending on the slicer: PrusaSlicer's marker precedes its
+//! Z move, Cura's follows it, the Z-rise fallback can only tell at the first extrusion. A pause
+//! held at the mark therefore always stops after the last extrusion of layer k and before the
+//! first of layer k+1.
+//!
+//! # No double counting
+//! The first explicit marker family seen (PrusaSlicer, Cura, Simplify3D, Klipper, M73, turn)
+//! wins for the rest of the file: other families, and the Z-rise fallback, are ignored from then
+//! on (Orca writes both `;LAYER_CHANGE` and `M73 L`; PrusaSlicer for Klipper writes both
+//! `;LAYER_CHANGE` and `SET_PRINT_STATS_INFO`). A repeated `M73 L`/`CURRENT_LAYER` with the
+//! same number is not a new layer. Marks produced by the Z-rise fallback before the first
+//! explicit marker (e.g. a purge line in start G-code at another height) stay.
+//!
+//! [`LayerMark::layer`] counts marks from 0 in file order: it equals Cura's `;LAYER:n` for a
+//! Cura file and is PrusaSlicer's GUI layer number minus one.
+
+use crate::config::MachineConfig;
+use crate::gcode::{Command, Line};
+use crate::motion::{Axis, LayerMark, LayerSource, StepPos};
+
+#[cfg(test)]
+mod tests;
+
+/// What a command did to the head, for the Z-rise fallback and for mark heights.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MoveFacts {
+    /// Z before the command, µm.
+    pub z_start_um: i32,
+    /// Z after the command, µm.
+    pub z_end_um: i32,
+    /// The command moved X or Y and advanced E (a printing move).
+    pub extrudes: bool,
+}
+
+impl MoveFacts {
+    /// Facts of the motion between two step positions (before and after a command). Works for
+    /// lines without motion too (then nothing moved and nothing extrudes).
+    pub fn between(before: &StepPos, after: &StepPos, cfg: &MachineConfig) -> Self {
+        let z = |s: i32| {
+            let spm = f64::from(cfg.axis(Axis::Z).steps_per_mm);
+            if spm > 0.0 {
+                libm::round(f64::from(s) * 1000.0 / spm) as i32
+            } else {
+                0
+            }
+        };
+        let (x, y, zi, e) = (
+            Axis::X.index(),
+            Axis::Y.index(),
+            Axis::Z.index(),
+            Axis::E.index(),
+        );
+        MoveFacts {
+            z_start_um: z(before[zi]),
+            z_end_um: z(after[zi]),
+            extrudes: after[e] > before[e] && (after[x] != before[x] || after[y] != before[y]),
+        }
+    }
+}
+
+/// Marker families; the first one seen locks.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Family {
+    Prusa,
+    Cura,
+    Simplify3d,
+    Klipper,
+    M73,
+    Turn,
+}
+
+/// A marker seen in a comment, waiting for the next command to be placed before.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Pending {
+    source: LayerSource,
+    z_um: Option<i32>,
+}
+
+/// The streaming layer detector. See the module documentation.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LayerDetector {
+    count: u32,
+    family: Option<Family>,
+    pending: Option<Pending>,
+    /// Z at the end of the last extruding move, µm (Z-rise fallback).
+    last_extrusion_z_um: Option<i32>,
+    /// Last known Z, µm.
+    z_um: Option<i32>,
+    /// Last layer number seen in an `M73 L` / `CURRENT_LAYER=`.
+    last_numbered: Option<u32>,
+}
+
+impl Default for LayerDetector {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl LayerDetector {
+    /// A detector at the start of a file: no layer yet, no marker family.
+    pub const fn new() -> Self {
+        LayerDetector {
+            count: 0,
+            family: None,
+            pending: None,
+            last_extrusion_z_um: None,
+            z_um: None,
+            last_numbered: None,
+        }
+    }
+
+    /// Feed one parsed line with the facts of the move its command made (use
+    /// [`MoveFacts::between`] with the step positions before and after applying it). Returns the
+    /// mark to queue **before** this line's command, if a layer starts here.
+    pub fn feed(&mut self, line: &Line<'_>, facts: MoveFacts) -> Option<LayerMark> {
+        let mut out = None;
+        // A comment marker: it becomes pending (an earlier pending one is flushed first; no
+        // command came between them, so its place is the same).
+        if let Some(comment) = line.comment {
+            match classify_comment(comment) {
+                Some(CommentMarker::Layer(family, source, z)) => {
+                    if self.accept_family(family) {
+                        out = self.pending.take().map(|p| self.emit(p));
+                        self.pending = Some(Pending { source, z_um: z });
+                    }
+                }
+                Some(CommentMarker::Z(z)) => {
+                    if let Some(p) = &mut self.pending {
+                        p.z_um = Some(z);
+                    }
+                }
+                None => {}
+            }
+        }
+        let Some(cmd) = &line.command else {
+            return out;
+        };
+        // A command line: a pending mark goes before it.
+        if out.is_none() {
+            out = self.pending.take().map(|p| self.emit(p));
+        }
+        // Command markers.
+        let numbered = match cmd {
+            Command::Progress(p) => p.layer.map(|l| (Family::M73, l)),
+            Command::PrintStatsInfo {
+                current_layer: Some(l),
+                ..
+            } => Some((Family::Klipper, *l)),
+            _ => None,
+        };
+        if let Some((family, n)) = numbered {
+            if self.last_numbered != Some(n) && self.accept_family(family) {
+                self.last_numbered = Some(n);
+                if out.is_none() {
+                    out = Some(self.emit(Pending {
+                        source: LayerSource::Command,
+                        z_um: None,
+                    }));
+                }
+            }
+        }
+        // Z-rise fallback, only while no explicit marker has been seen.
+        if facts.extrudes {
+            if self.family.is_none() && out.is_none() {
+                let rose = match self.last_extrusion_z_um {
+                    None => true,
+                    Some(z) => facts.z_start_um > z,
+                };
+                if rose {
+                    self.z_um = Some(facts.z_start_um);
+                    out = Some(self.emit(Pending {
+                        source: LayerSource::ZRise,
+                        z_um: Some(facts.z_start_um),
+                    }));
+                }
+            }
+            self.last_extrusion_z_um = Some(facts.z_end_um);
+        }
+        self.z_um = Some(facts.z_end_um);
+        out
+    }
+
+    /// End of the file: a marker after the last command still counts as a layer.
+    pub fn finish(&mut self) -> Option<LayerMark> {
+        self.pending.take().map(|p| self.emit(p))
+    }
+
+    /// Number of marks emitted so far (the number of the next layer).
+    pub fn layers(&self) -> u32 {
+        self.count
+    }
+
+    /// True once an explicit marker has been seen (the Z-rise fallback is off).
+    pub fn has_explicit_markers(&self) -> bool {
+        self.family.is_some()
+    }
+
+    fn accept_family(&mut self, f: Family) -> bool {
+        match self.family {
+            None => {
+                self.family = Some(f);
+                true
+            }
+            Some(g) => g == f,
+        }
+    }
+
+    fn emit(&mut self, p: Pending) -> LayerMark {
+        let mark = LayerMark {
+            layer: self.count,
+            z_um: p.z_um.or(self.z_um),
+            source: p.source,
+        };
+        self.count = self.count.saturating_add(1);
+        mark
+    }
+}
+
+/// What a comment says about layers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum CommentMarker {
+    /// A layer starts (family, source, height if the marker carries one).
+    Layer(Family, LayerSource, Option<i32>),
+    /// `;Z:<mm>`: height of the pending layer.
+    Z(i32),
+}
+
+fn strip_prefix_ci<'a>(s: &'a [u8], prefix: &[u8]) -> Option<&'a [u8]> {
+    let head = s.get(..prefix.len())?;
+    if head.eq_ignore_ascii_case(prefix) {
+        s.get(prefix.len()..)
+    } else {
+        None
+    }
+}
+
+fn trim(s: &[u8]) -> &[u8] {
+    let start = s.iter().position(|c| !c.is_ascii_whitespace());
+    let end = s.iter().rposition(|c| !c.is_ascii_whitespace());
+    match (start, end) {
+        (Some(a), Some(b)) => s.get(a..=b).unwrap_or(&[]),
+        _ => &[],
+    }
+}
+
+/// A decimal in mm → µm, if the text is one.
+fn mm_to_um(s: &[u8]) -> Option<i32> {
+    let s = core::str::from_utf8(trim(s)).ok()?;
+    let v: f32 = s.parse().ok()?;
+    if !v.is_finite() || v.abs() > 1.0e6 {
+        return None;
+    }
+    Some(libm::roundf(v * 1000.0) as i32)
+}
+
+fn is_int(s: &[u8]) -> bool {
+    let s = s.strip_prefix(b"-").unwrap_or(s);
+    !s.is_empty() && s.iter().all(u8::is_ascii_digit)
+}
+
+fn classify_comment(c: &[u8]) -> Option<CommentMarker> {
+    let t = trim(c);
+    if t == b"LAYER_CHANGE" {
+        return Some(CommentMarker::Layer(
+            Family::Prusa,
+            LayerSource::Comment,
+            None,
+        ));
+    }
+    if let Some(rest) = t.strip_prefix(b"Z:") {
+        return mm_to_um(rest).map(CommentMarker::Z);
+    }
+    if let Some(rest) = t.strip_prefix(b"LAYER:") {
+        return is_int(trim(rest)).then_some(CommentMarker::Layer(
+            Family::Cura,
+            LayerSource::Comment,
+            None,
+        ));
+    }
+    if t == b"TURN" || t.strip_prefix(b"TURN:").is_some_and(|r| is_int(trim(r))) {
+        return Some(CommentMarker::Layer(Family::Turn, LayerSource::Turn, None));
+    }
+    // Simplify3D: "; layer 12, Z = 2.600".
+    if let Some(rest) = strip_prefix_ci(t, b"layer ") {
+        let digits = rest.iter().take_while(|c| c.is_ascii_digit()).count();
+        if digits > 0 && matches!(rest.get(digits), None | Some(b',')) {
+            let z = rest
+                .windows(3)
+                .position(|w| w == b"Z =")
+                .and_then(|p| rest.get(p + 3..))
+                .and_then(mm_to_um);
+            return Some(CommentMarker::Layer(
+                Family::Simplify3d,
+                LayerSource::Comment,
+                z,
+            ));
+        }
+    }
+    None
+}

@@ -1,0 +1,129 @@
+use super::*;
+use crate::gcode::parse_line;
+use crate::machine::MachineState;
+use std::vec::Vec;
+
+const CFG: MachineConfig = MachineConfig::ENDER3;
+
+/// Run a program; return (index of the line each mark precedes, mark).
+fn marks(program: &str) -> Vec<(usize, LayerMark)> {
+    let mut m = MachineState::new(&CFG);
+    let mut d = LayerDetector::new();
+    let mut out = Vec::new();
+    for (i, text) in program.lines().enumerate() {
+        let line = parse_line(text.as_bytes()).unwrap();
+        let before = m.position_steps(&CFG);
+        if let Some(c) = &line.command {
+            m.apply(c, &CFG).unwrap();
+        }
+        let facts = MoveFacts::between(&before, &m.position_steps(&CFG), &CFG);
+        if let Some(mark) = d.feed(&line, facts) {
+            out.push((i, mark));
+        }
+    }
+    if let Some(mark) = d.finish() {
+        out.push((usize::MAX, mark));
+    }
+    out
+}
+
+#[test]
+fn prusaslicer_marker_precedes_the_z_move() {
+    let p = "G28\nG1 Z5 F5000\n;LAYER_CHANGE\n;Z:0.2\n;HEIGHT:0.2\nG1 E-2 F2400\nG1 Z.2 F7800\nG1 X10 Y10\nG1 E2\n\
+             G1 X20 Y10 E1\n;HEIGHT:0.15\nG1 X20 Y20 E2\nG1 E-1\n;LAYER_CHANGE\n;Z:0.4\n;HEIGHT:0.2\nG1 Z.4\nG1 X10 Y10 E3";
+    let m = marks(p);
+    assert_eq!(m.len(), 2, "{m:?}");
+    // Placed before `G1 E-2` (line 5), i.e. before the Z move, height from ;Z:.
+    assert_eq!(m[0].0, 5);
+    assert_eq!(
+        m[0].1,
+        LayerMark {
+            layer: 0,
+            z_um: Some(200),
+            source: LayerSource::Comment
+        }
+    );
+    assert_eq!(m[1].0, 16);
+    assert_eq!(m[1].1.z_um, Some(400));
+    assert_eq!(m[1].1.layer, 1);
+}
+
+#[test]
+fn cura_marker_follows_the_z_move() {
+    let p = ";LAYER_COUNT:2\n;LAYER:0\nM107\nG0 F3000 X10 Y10 Z0.3\n;TYPE:WALL-OUTER\nG1 X20 E1\n\
+             G0 X20 Y20 Z0.5\n;TIME_ELAPSED:10\n;LAYER:1\nG1 X10 Y20 E2\n";
+    let m = marks(p);
+    assert_eq!(m.len(), 2, "{m:?}");
+    assert_eq!(m[0].0, 2);
+    assert_eq!(m[1].0, 9);
+    // Height: Cura has moved Z already.
+    assert_eq!(m[1].1.z_um, Some(500));
+}
+
+#[test]
+fn simplify3d_and_turn_markers() {
+    let m =
+        marks("; layer 1, Z = 0.300\nG1 Z0.3\nG1 X5 E1\n; layer 2, Z = 0.600\nG1 Z0.6\nG1 X6 E2");
+    assert_eq!(m.len(), 2);
+    assert_eq!(m[1].1.z_um, Some(600));
+    let m = marks(";TURN:0\nG1 X1 Z0.1 E1\n;TURN:1\nG1 X2 Z0.2 E2\n;TURN\nG1 X3 Z0.3 E3");
+    assert_eq!(m.len(), 3);
+    assert!(m.iter().all(|(_, k)| k.source == LayerSource::Turn));
+    // Not markers.
+    assert!(marks(";layer height 0.2\n;LAYER:abc\n;HEIGHT:0.2\n;Z:0.3\nG1 X1").is_empty());
+}
+
+#[test]
+fn families_do_not_double_count() {
+    // Orca: ;LAYER_CHANGE and M73 L both per layer.
+    let p = ";LAYER_CHANGE\n;Z:0.2\nM73 L1\nG1 Z0.2\nG1 X5 E1\n;LAYER_CHANGE\n;Z:0.4\nM73 L2\nG1 Z0.4\nG1 X6 E2\nG1 Z1\nG1 X7 E3";
+    let m = marks(p);
+    assert_eq!(m.len(), 2, "{m:?}");
+    assert_eq!(m[0].0, 2);
+    // Klipper macro alone, repeated with the same number: one layer each.
+    let p =
+        "SET_PRINT_STATS_INFO CURRENT_LAYER=1\nG1 X5 E1\nSET_PRINT_STATS_INFO CURRENT_LAYER=1\n\
+             SET_PRINT_STATS_INFO CURRENT_LAYER=2\nG1 Z1\nG1 X6 E2";
+    let m = marks(p);
+    assert_eq!(m.len(), 2, "{m:?}");
+    assert_eq!(m[0].1.source, LayerSource::Command);
+    assert_eq!(m[1].0, 3);
+}
+
+#[test]
+fn z_rise_fallback() {
+    // Slic3r 1.3 style: no comments. Z-hop does not count; layers do.
+    let p = "G28\nG1 Z5\nG1 Z0.3\nG1 X10 Y10\nG1 X20 E1\nG1 Z0.7\nG1 X30\nG1 Z0.3\nG1 X40 E2\n\
+             G1 Z0.6\nG1 X41\nG1 E2.5\nG1 X50 E3\nG1 X60 E4\nG1 Z0.9\nG1 X55 E5";
+    let m = marks(p);
+    assert_eq!(
+        m.iter().map(|(i, k)| (*i, k.z_um)).collect::<Vec<_>>(),
+        vec![(4, Some(300)), (12, Some(600)), (15, Some(900))]
+    );
+    assert!(m.iter().all(|(_, k)| k.source == LayerSource::ZRise));
+    // A helix (Z rising during extrusion) is one layer.
+    let mut p = String::from("G1 X10 Y10 Z0.2\n");
+    for i in 0..200 {
+        p.push_str(&format!(
+            "G1 X{} Y{} Z{:.4} E{}\n",
+            10 + i % 2,
+            10 + (i / 2) % 2,
+            0.2 + i as f32 * 0.005,
+            i
+        ));
+    }
+    assert_eq!(marks(&p).len(), 1);
+    // Explicit markers switch the fallback off.
+    let p = "G1 Z0.3\nG1 X1 E1\n;LAYER_CHANGE\n;Z:0.5\nG1 Z0.5\nG1 X2 E2\nG1 Z0.7\nG1 X3 E3";
+    let m = marks(p);
+    assert_eq!(m.len(), 2, "{m:?}");
+    assert_eq!(m[0].1.source, LayerSource::ZRise);
+    assert_eq!(m[1].1.source, LayerSource::Comment);
+}
+
+#[test]
+fn marker_at_end_of_file_counts() {
+    let m = marks("G1 X1 E1\n;LAYER_CHANGE");
+    assert_eq!(m.len(), 2);
+    assert_eq!(m[1].0, usize::MAX);
+}
