@@ -169,18 +169,17 @@ impl LayerDetector {
         // command came between them, so its place is the same).
         if let Some(comment) = line.comment {
             match classify_comment(comment) {
-                Some(CommentMarker::Layer(family, source, z)) => {
-                    if self.accept_family(family) {
-                        out = self.pending.take().map(|p| self.emit(p));
-                        self.pending = Some(Pending { source, z_um: z });
-                    }
+                // `accept_family` locks the family on the first marker.
+                Some(CommentMarker::Layer(family, source, z)) if self.accept_family(family) => {
+                    out = self.pending.take().map(|p| self.emit(p));
+                    self.pending = Some(Pending { source, z_um: z });
                 }
                 Some(CommentMarker::Z(z)) => {
                     if let Some(p) = &mut self.pending {
                         p.z_um = Some(z);
                     }
                 }
-                None => {}
+                _ => {}
             }
         }
         let Some(cmd) = &line.command else {
