@@ -42,8 +42,10 @@
 //! ```
 
 mod arc;
+mod interp;
 
 pub use arc::{ArcMoves, ARC_CHORD_TOLERANCE_MM, ARC_MAX_SEGMENTS, ARC_MIN_SEGMENT_MM};
+pub use interp::{Interpreter, Step};
 
 use crate::config::MachineConfig;
 use crate::gcode::{AxisFlags, AxisWords, Command};
