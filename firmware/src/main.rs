@@ -1,23 +1,569 @@
-//! SKR 2 board image (being written; built only with `--features board` for thumbv7em).
+//! The BigTreeTech SKR 2 (STM32F407VG) image: embassy tasks around the portable executive
+//! (`firmware::printer::Printer`).
+//!
+//! * `motion` (every 1 ms): `Printer::poll`, step events into the step interrupt's queue
+//!   (`board::stepper`, TIM5 compare at the highest priority), G28 homing on the endstops, the
+//!   pause button, the stepper idle timeout, halt handling, host-link output to both ports;
+//! * `heaters` (every 1 ms): 10 Hz software PWM of the heaters; every 100 ms the thermistors
+//!   are sampled and fed to the executive's thermal control;
+//! * `usb` / `cdc`: USB CDC-ACM on the board's USB port; `uart`: the TFT header (USART1,
+//!   115200 Bd). Both feed `Printer::receive`; every output line goes to both.
+//!
+//! defmt logs over RTT. A panic turns every heater off (raw register writes) before logging
+//! and stopping, and so does a HardFault.
+//!
+//! On the host this file compiles to an empty program (`cargo test --workspace` never builds
+//! embassy).
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 #[cfg(target_os = "none")]
-use defmt_rtt as _;
+mod board;
 
 #[cfg(target_os = "none")]
-#[embassy_executor::main]
-async fn main(_spawner: embassy_executor::Spawner) {
-    let _p = embassy_stm32::init(Default::default());
-    defmt::info!("skr2 up");
-    loop {
-        embassy_time::Timer::after_millis(1000).await;
+mod image {
+    use core::cell::RefCell;
+
+    use defmt_rtt as _;
+    use embassy_executor::Spawner;
+    use embassy_futures::join::join;
+    use embassy_futures::select::{select, Either};
+    use embassy_stm32::adc::{Adc, SampleTime};
+    use embassy_stm32::gpio::Input;
+    use embassy_stm32::usart::{BufferedUart, Config as UartConfig};
+    use embassy_stm32::usb::Driver;
+    use embassy_stm32::{bind_interrupts, peripherals, usart, usb};
+    use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+    use embassy_sync::pipe::Pipe;
+    use embassy_time::{Duration, Ticker, Timer};
+    use embassy_usb::class::cdc_acm::{CdcAcmClass, State as CdcState};
+    use embassy_usb::UsbDevice;
+    use firmware::config::MachineConfig;
+    use firmware::motion::{Axis, Realtime};
+    use firmware::planner::BlockKind;
+    use firmware::printer::{Command, Printer, State};
+    use firmware::stepgen::StepEvent;
+    use heapless::spsc::Producer;
+    use static_cell::StaticCell;
+
+    use crate::board::drivers::{
+        Endstops, Homing, HomingConfig, HomingStep, IdleTimeout, PauseButton, StepperPins,
+    };
+    use crate::board::heaters::{self, HotendFan, SoftPwm, PWM_SLOTS};
+    use crate::board::stepper::{self, PinEvent, LOOKAHEAD_NS};
+    use crate::board::{clock, pins, safety};
+
+    bind_interrupts!(struct Irqs {
+        OTG_FS => usb::InterruptHandler<peripherals::USB_OTG_FS>;
+        USART1 => usart::BufferedInterruptHandler<peripherals::USART1>;
+    });
+
+    /// Stepper drivers switch off after this long without motion (Marlin's default 120 s).
+    const STEPPER_IDLE_S: u32 = 120;
+    /// Baud rate of the TFT header.
+    const UART_BAUD: u32 = 115_200;
+    /// Host-link bytes buffered per output port.
+    const OUT_PIPE: usize = 1024;
+
+    type Shared = &'static RefCell<Printer>;
+
+    static PRINTER: StaticCell<RefCell<Printer>> = StaticCell::new();
+    static USB_OUT: Pipe<CriticalSectionRawMutex, OUT_PIPE> = Pipe::new();
+    static UART_OUT: Pipe<CriticalSectionRawMutex, OUT_PIPE> = Pipe::new();
+
+    /// Executive time = board time − offset (homing runs outside the executive's timeline and
+    /// shifts it). Frozen while homing.
+    struct TimeBase {
+        offset_ns: u64,
+        frozen_ns: Option<u64>,
     }
-}
+    static TIME: critical_section::Mutex<core::cell::Cell<(u64, Option<u64>)>> =
+        critical_section::Mutex::new(core::cell::Cell::new((0, None)));
 
-#[cfg(target_os = "none")]
-#[panic_handler]
-fn panic(_info: &core::panic::PanicInfo) -> ! {
-    cortex_m::asm::udf()
+    fn timebase() -> TimeBase {
+        let (offset_ns, frozen_ns) = critical_section::with(|cs| TIME.borrow(cs).get());
+        TimeBase {
+            offset_ns,
+            frozen_ns,
+        }
+    }
+
+    /// The executive's clock, ns.
+    fn printer_now_ns() -> u64 {
+        let tb = timebase();
+        tb.frozen_ns
+            .unwrap_or_else(|| clock::now_ns().saturating_sub(tb.offset_ns))
+    }
+
+    fn printer_now_us() -> u64 {
+        printer_now_ns() / 1000
+    }
+
+    fn steps(cfg: &MachineConfig, axis: Axis, mm: f32) -> i32 {
+        let v = libm::roundf(mm * cfg.axis(axis).steps_per_mm);
+        if v.is_finite() {
+            v.clamp(i32::MIN as f32, i32::MAX as f32) as i32
+        } else {
+            0
+        }
+    }
+
+    #[embassy_executor::main]
+    async fn main(spawner: Spawner) {
+        let mut config = embassy_stm32::Config::default();
+        {
+            use embassy_stm32::rcc::*;
+            use embassy_stm32::time::Hertz;
+            // 8 MHz crystal → 168 MHz SYSCLK, 48 MHz for USB.
+            config.rcc.hse = Some(Hse {
+                freq: Hertz(pins::HSE_HZ),
+                mode: HseMode::Oscillator,
+            });
+            config.rcc.pll_src = PllSource::HSE;
+            config.rcc.pll = Some(Pll {
+                prediv: PllPreDiv::DIV4,
+                mul: PllMul::MUL168,
+                divp: Some(PllPDiv::DIV2),
+                divq: Some(PllQDiv::DIV7),
+                divr: None,
+            });
+            config.rcc.ahb_pre = AHBPrescaler::DIV1;
+            config.rcc.apb1_pre = APBPrescaler::DIV4;
+            config.rcc.apb2_pre = APBPrescaler::DIV2;
+            config.rcc.sys = Sysclk::PLL1_P;
+            config.rcc.mux.clk48sel = mux::Clk48sel::PLL1_Q;
+        }
+        let p = embassy_stm32::init(config);
+        let (pins, periph) = pins::split(p);
+        defmt::info!("SKR 2 up at 168 MHz");
+        clock::start(periph.step_timer);
+
+        let cfg = MachineConfig::ENDER3;
+        let printer = PRINTER.init(RefCell::new(Printer::new(cfg)));
+        // Until G28, the executive believes the head is at the far end of every axis, so that
+        // G28 always plans a real move towards the endstops (which the board replaces by the
+        // physical homing sequence). Moves before homing are refused by the step interrupt.
+        {
+            let target = [
+                steps(&cfg, Axis::X, cfg.axis(Axis::X).max_mm),
+                steps(&cfg, Axis::Y, cfg.axis(Axis::Y).max_mm),
+                steps(&cfg, Axis::Z, cfg.axis(Axis::Z).max_mm),
+                0,
+            ];
+            let _ = printer
+                .borrow_mut()
+                .push_command(Command::SetPosition(target), 0);
+        }
+
+        let steppers = StepperPins::new(pins.step, pins.dir, pins.enable, 0b1111);
+        let endstops = Endstops::new(pins.endstops, 0b111);
+        let producer = stepper::init(steppers, endstops);
+
+        // USB CDC-ACM.
+        static EP_OUT: StaticCell<[u8; 256]> = StaticCell::new();
+        static CONFIG_DESC: StaticCell<[u8; 256]> = StaticCell::new();
+        static BOS_DESC: StaticCell<[u8; 256]> = StaticCell::new();
+        static CONTROL: StaticCell<[u8; 64]> = StaticCell::new();
+        static CDC_STATE: StaticCell<CdcState> = StaticCell::new();
+        let mut usb_config = usb::Config::default();
+        usb_config.vbus_detection = false;
+        let (usb_p, dp, dm) = periph.usb;
+        let driver = Driver::new_fs(usb_p, Irqs, dp, dm, EP_OUT.init([0; 256]), usb_config);
+        let mut dev = embassy_usb::Config::new(0x0483, 0x5740);
+        dev.manufacturer = Some("pause firmware");
+        dev.product = Some("SKR 2 printer");
+        dev.serial_number = Some("skr2");
+        dev.max_power = 100;
+        dev.max_packet_size_0 = 64;
+        let mut builder = embassy_usb::Builder::new(
+            driver,
+            dev,
+            CONFIG_DESC.init([0; 256]),
+            BOS_DESC.init([0; 256]),
+            &mut [],
+            CONTROL.init([0; 64]),
+        );
+        let cdc = CdcAcmClass::new(&mut builder, CDC_STATE.init(CdcState::new()), 64);
+        let usb_dev = builder.build();
+
+        // TFT header UART.
+        static UART_TX: StaticCell<[u8; 512]> = StaticCell::new();
+        static UART_RX: StaticCell<[u8; 512]> = StaticCell::new();
+        let mut ucfg = UartConfig::default();
+        ucfg.baudrate = UART_BAUD;
+        let (uart_p, rx, tx) = periph.uart;
+        let uart = BufferedUart::new(
+            uart_p,
+            rx,
+            tx,
+            UART_TX.init([0; 512]),
+            UART_RX.init([0; 512]),
+            Irqs,
+            ucfg,
+        );
+
+        spawn(&spawner, usb_task(usb_dev));
+        spawn(&spawner, cdc_task(cdc, printer));
+        match uart {
+            Ok(uart) => spawn(&spawner, uart_task(uart, printer)),
+            Err(_) => defmt::error!("TFT UART configuration rejected"),
+        }
+        spawn(
+            &spawner,
+            heater_task(
+                printer,
+                periph.adc,
+                SoftPwm::new(pins.heater_hotend),
+                SoftPwm::new(pins.heater_bed),
+                HotendFan::new(pins.fan_hotend),
+            ),
+        );
+        let _ = (pins.fan_part, pins.safe_power);
+        spawn(
+            &spawner,
+            motion_task(printer, producer, pins.pause_button, pins.status_led),
+        );
+    }
+
+    /// Spawns a task; a task that cannot be spawned (pool exhausted) is logged, not a panic.
+    fn spawn<S>(
+        spawner: &Spawner,
+        token: Result<embassy_executor::SpawnToken<S>, embassy_executor::SpawnError>,
+    ) {
+        match token {
+            Ok(t) => spawner.spawn(t),
+            Err(_) => defmt::error!("task could not be spawned"),
+        }
+    }
+
+    /// Pushes every pending host-link line to both ports (a port that cannot take it, e.g.
+    /// USB not connected, loses the line rather than stalling the printer).
+    fn flush_output(p: &mut Printer) {
+        while let Some(line) = p.pop_output_line() {
+            for pipe in [&USB_OUT, &UART_OUT] {
+                if pipe.free_capacity() > line.len() {
+                    let _ = pipe.try_write(line.as_bytes());
+                    let _ = pipe.try_write(b"\n");
+                }
+            }
+        }
+    }
+
+    /// Queues the executive's step events up to [`LOOKAHEAD_NS`] ahead. `held` is an event
+    /// kept back across a homing sequence (queued first, on the new timeline). Returns the end
+    /// time (ns, executive time) of a homing block when one was met: its events are dropped
+    /// and the caller runs the physical homing sequence instead.
+    fn feed_steps(
+        p: &mut Printer,
+        producer: &mut Producer<'static, PinEvent>,
+        held: &mut Option<StepEvent>,
+    ) -> Option<u64> {
+        let now = printer_now_ns();
+        let offset = timebase().offset_ns;
+        let to_pin = |ev: &StepEvent| PinEvent {
+            t_ticks: (ev.t_ns + offset) / clock::NS_PER_TICK,
+            axis_mask: ev.axis_mask,
+            dir_mask: ev.dir_mask,
+        };
+        let mut queued = false;
+        let mut homing_end = None;
+        if let Some(ev) = held.take() {
+            if producer.enqueue(to_pin(&ev)).is_err() {
+                *held = Some(ev);
+                return None;
+            }
+            queued = true;
+        }
+        while producer.ready() {
+            let Some(t) = p.next_step_ns() else { break };
+            if t > now + LOOKAHEAD_NS && homing_end.is_none() {
+                break;
+            }
+            let Some(ev) = p.next_step() else { break };
+            if ev.kind == BlockKind::Homing {
+                homing_end = Some(ev.t_ns);
+                continue;
+            }
+            if homing_end.is_some() {
+                // First event after the homing block: it runs after the physical homing.
+                *held = Some(ev);
+                break;
+            }
+            if producer.enqueue(to_pin(&ev)).is_err() {
+                *held = Some(ev);
+                break;
+            }
+            queued = true;
+        }
+        if queued {
+            stepper::with(|s| s.pins.set_enabled(true));
+            stepper::kick();
+        }
+        homing_end
+    }
+
+    /// Marlin's Ender-3 homing: 50 mm/s X/Y, 4 mm/s Z, the second bump at half (X/Y) or a
+    /// quarter (Z) speed after backing off 5 mm (X/Y) or 2 mm (Z).
+    fn homing_config(cfg: &MachineConfig, axis: Axis) -> HomingConfig {
+        let spm = cfg.axis(axis).steps_per_mm;
+        let len = cfg.axis(axis).max_mm - cfg.axis(axis).min_mm;
+        let (fast, div, bump) = match axis {
+            Axis::Z => (4.0, 4.0, 2.0),
+            _ => (50.0, 2.0, 5.0),
+        };
+        HomingConfig {
+            fast_steps_s: (fast * spm) as u32,
+            slow_steps_s: (fast / div * spm) as u32,
+            backoff_steps: (bump * spm) as u32,
+            max_steps: (1.5 * len * spm) as u32,
+        }
+    }
+
+    /// G28: waits for queued steps to finish, then homes X, Y and Z on their endstops and
+    /// resumes the executive's timeline where its homing block ended.
+    async fn home_all(printer: Shared, homing_end_ns: u64) {
+        let freeze = printer_now_ns();
+        critical_section::with(|cs| {
+            let (off, _) = TIME.borrow(cs).get();
+            TIME.borrow(cs).set((off, Some(freeze)));
+        });
+        // Let the interrupt drain everything before the homing block.
+        while stepper::with(|s| s.running).unwrap_or(false) {
+            Timer::after_micros(500).await;
+        }
+        let cfg = *printer.borrow().config();
+        stepper::with(|s| s.pins.set_enabled(true));
+        let mut ok = true;
+        for axis in [Axis::X, Axis::Y, Axis::Z] {
+            let i = axis.index();
+            let mut h = Homing::new(homing_config(&cfg, axis));
+            loop {
+                let hit = stepper::with(|s| s.endstops.triggered(i)).unwrap_or(true);
+                match h.next(hit) {
+                    HomingStep::Step { toward, period_us } => {
+                        stepper::with(|s| {
+                            // Min endstops: towards the switch is the negative direction.
+                            let dir = if toward { 0 } else { 1 << i };
+                            if s.pins.set_dirs(1 << i, dir) {
+                                cortex_m::asm::delay(168);
+                            }
+                            s.pins.step_high(1 << i);
+                            cortex_m::asm::delay(336);
+                            s.pins.step_low();
+                        });
+                        Timer::after_micros(u64::from(period_us)).await;
+                    }
+                    HomingStep::Done => break,
+                    HomingStep::Failed(e) => {
+                        defmt::error!("homing {} failed: {}", i, defmt::Debug2Format(&e));
+                        ok = false;
+                        break;
+                    }
+                }
+            }
+            if !ok {
+                break;
+            }
+        }
+        let limits = [Axis::X, Axis::Y, Axis::Z].map(|a| {
+            (
+                steps(&cfg, a, cfg.axis(a).min_mm),
+                steps(&cfg, a, cfg.axis(a).max_mm),
+            )
+        });
+        stepper::with(|s| {
+            for (i, (min, _)) in limits.iter().enumerate() {
+                s.pos[i] = *min;
+            }
+            s.limits = if ok { Some(limits) } else { None };
+        });
+        // Resume the executive's time where its homing block ended.
+        let resume_at = homing_end_ns.max(freeze);
+        let now = clock::now_ns();
+        critical_section::with(|cs| {
+            TIME.borrow(cs).set((now.saturating_sub(resume_at), None));
+        });
+        let mut p = printer.borrow_mut();
+        if !ok {
+            p.request(Realtime::EmergencyStop, printer_now_us());
+        }
+        flush_output(&mut p);
+    }
+
+    #[embassy_executor::task]
+    async fn motion_task(
+        printer: Shared,
+        mut producer: Producer<'static, PinEvent>,
+        button_pin: Input<'static>,
+        mut led: embassy_stm32::gpio::Output<'static>,
+    ) {
+        let mut ticker = Ticker::every(Duration::from_millis(1));
+        let mut button = PauseButton::new();
+        let mut idle = IdleTimeout::new(STEPPER_IDLE_S);
+        let mut halted = false;
+        let mut blink: u32 = 0;
+        let mut held: Option<StepEvent> = None;
+        loop {
+            ticker.next().await;
+            let now_us = printer_now_us();
+            let mut homing = None;
+            {
+                let mut p = printer.borrow_mut();
+                let state = p.state();
+                let paused = matches!(state, State::Paused | State::Pausing);
+                if let Some(req) = button.update(button_pin.is_low(), now_us, paused) {
+                    defmt::info!("pause button: {}", defmt::Debug2Format(&req));
+                    p.request(req, now_us);
+                }
+                p.poll(now_us);
+                if p.state() == State::Halted {
+                    if !halted {
+                        halted = true;
+                        defmt::error!("halted: motion stopped, heaters off");
+                        stepper::with(|s| {
+                            s.flush = true;
+                            s.pins.set_enabled(false);
+                        });
+                        stepper::kick();
+                    }
+                } else {
+                    homing = feed_steps(&mut p, &mut producer, &mut held);
+                }
+                let busy =
+                    p.state() != State::Idle || stepper::with(|s| s.running).unwrap_or(false);
+                if idle.update(busy, now_us) {
+                    stepper::with(|s| s.pins.set_enabled(false));
+                }
+                if let Some(n) = stepper::with(|s| core::mem::take(&mut s.refused)) {
+                    if n > 0 {
+                        defmt::warn!("{} steps refused (not homed or outside the volume)", n);
+                    }
+                }
+                flush_output(&mut p);
+            }
+            if let Some(end_ns) = homing {
+                home_all(printer, end_ns).await;
+            }
+            blink = blink.wrapping_add(1);
+            let period = if halted { 100 } else { 500 };
+            if blink % period == 0 {
+                led.toggle();
+            }
+        }
+    }
+
+    #[embassy_executor::task]
+    async fn heater_task(
+        printer: Shared,
+        adc: (
+            embassy_stm32::Peri<'static, peripherals::ADC1>,
+            embassy_stm32::Peri<'static, peripherals::PA2>,
+            embassy_stm32::Peri<'static, peripherals::PA1>,
+        ),
+        mut hotend: SoftPwm,
+        mut bed: SoftPwm,
+        mut fan: HotendFan,
+    ) {
+        let (adc1, mut th0, mut tb) = adc;
+        let mut adc = Adc::new(adc1);
+        let tables = heaters::tables();
+        let mut ticker = Ticker::every(Duration::from_millis(1));
+        let mut slot: u32 = 0;
+        loop {
+            ticker.next().await;
+            if slot == 0 {
+                let raw_h = adc.blocking_read(&mut th0, SampleTime::CYCLES480);
+                let raw_b = adc.blocking_read(&mut tb, SampleTime::CYCLES480);
+                let c_h = heaters::adc_to_c(&tables[0], raw_h);
+                let c_b = heaters::adc_to_c(&tables[1], raw_b);
+                let now = printer_now_us();
+                let mut p = printer.borrow_mut();
+                if p.state() == State::Halted {
+                    hotend.off();
+                    bed.off();
+                } else {
+                    hotend.set_duty(p.thermal_sample(false, c_h, now));
+                    bed.set_duty(p.thermal_sample(true, c_b, now));
+                }
+                fan.update(c_h);
+            }
+            hotend.tick(slot);
+            bed.tick(slot);
+            slot = (slot + 1) % PWM_SLOTS;
+        }
+    }
+
+    #[embassy_executor::task]
+    async fn usb_task(mut dev: UsbDevice<'static, Driver<'static, peripherals::USB_OTG_FS>>) {
+        dev.run().await
+    }
+
+    #[embassy_executor::task]
+    async fn cdc_task(
+        class: CdcAcmClass<'static, Driver<'static, peripherals::USB_OTG_FS>>,
+        printer: Shared,
+    ) {
+        let (mut tx, mut rx) = class.split();
+        let receive = async {
+            let mut buf = [0u8; 64];
+            loop {
+                rx.wait_connection().await;
+                while let Ok(n) = rx.read_packet(&mut buf).await {
+                    let data = buf.get(..n).unwrap_or(&[]);
+                    printer.borrow_mut().receive(data, printer_now_us());
+                }
+            }
+        };
+        let send = async {
+            let mut buf = [0u8; 64];
+            loop {
+                tx.wait_connection().await;
+                loop {
+                    let n = USB_OUT.read(&mut buf).await;
+                    let data = buf.get(..n).unwrap_or(&[]);
+                    if tx.write_packet(data).await.is_err() {
+                        break;
+                    }
+                }
+            }
+        };
+        join(receive, send).await;
+    }
+
+    #[embassy_executor::task]
+    async fn uart_task(uart: BufferedUart<'static>, printer: Shared) {
+        use embedded_io_async::{Read, Write};
+        let (mut tx, mut rx) = uart.split();
+        let mut inbuf = [0u8; 64];
+        let mut outbuf = [0u8; 64];
+        loop {
+            match select(rx.read(&mut inbuf), UART_OUT.read(&mut outbuf)).await {
+                Either::First(Ok(n)) => {
+                    let data = inbuf.get(..n).unwrap_or(&[]);
+                    printer.borrow_mut().receive(data, printer_now_us());
+                }
+                Either::First(Err(_)) => {}
+                Either::Second(n) => {
+                    let _ = tx.write_all(outbuf.get(..n).unwrap_or(&[])).await;
+                }
+            }
+        }
+    }
+
+    #[panic_handler]
+    fn panic(info: &core::panic::PanicInfo) -> ! {
+        // Heaters first, before anything that could fault again.
+        safety::heaters_off();
+        defmt::error!("panic: {}", defmt::Display2Format(info));
+        cortex_m::asm::udf()
+    }
+
+    #[cortex_m_rt::exception]
+    unsafe fn HardFault(_frame: &cortex_m_rt::ExceptionFrame) -> ! {
+        safety::heaters_off();
+        loop {
+            cortex_m::asm::bkpt();
+        }
+    }
 }
 
 #[cfg(not(target_os = "none"))]

@@ -1,0 +1,72 @@
+//! The board's time base: TIM5, a 32-bit timer counting at 4 MHz (250 ns), extended to 64 bits
+//! in software. Step events are scheduled on it (compare channel 1, see `stepper`), and the
+//! executive's time (`Printer` µs) is derived from it, so both agree to the tick.
+//!
+//! The 32-bit counter wraps every 1073 s; [`now_ticks`] notices a wrap as long as it is called
+//! at least once per wrap period (the motion loop calls it every millisecond).
+
+use core::cell::Cell;
+use critical_section::{CriticalSection, Mutex};
+use embassy_stm32::pac;
+use embassy_stm32::time::Hertz;
+use embassy_stm32::timer::low_level::Timer;
+
+/// Timer ticks per second.
+pub const TICK_HZ: u32 = 4_000_000;
+/// Nanoseconds per tick.
+pub const NS_PER_TICK: u64 = 1_000_000_000 / TICK_HZ as u64;
+
+struct Ext {
+    high: u32,
+    last_low: u32,
+}
+
+static EXT: Mutex<Cell<Ext>> = Mutex::new(Cell::new(Ext {
+    high: 0,
+    last_low: 0,
+}));
+
+/// Starts TIM5 free-running at [`TICK_HZ`] over its full 32-bit range.
+pub fn start(tim: embassy_stm32::Peri<'static, embassy_stm32::peripherals::TIM5>) {
+    let mut t = Timer::new(tim);
+    t.stop();
+    t.set_tick_freq(Hertz(TICK_HZ));
+    t.set_max_compare_value(u32::MAX);
+    t.generate_update_event();
+    t.start();
+    // Keep the timer running: dropping the driver would disable its clock.
+    core::mem::forget(t);
+}
+
+/// The 32-bit counter value.
+#[inline(always)]
+pub fn counter() -> u32 {
+    pac::TIM5.cnt().read()
+}
+
+/// 64-bit tick count, inside an existing critical section.
+pub fn now_ticks_cs(cs: CriticalSection) -> u64 {
+    let cell = EXT.borrow(cs);
+    let mut ext = cell.replace(Ext {
+        high: 0,
+        last_low: 0,
+    });
+    let low = counter();
+    if low < ext.last_low {
+        ext.high = ext.high.wrapping_add(1);
+    }
+    ext.last_low = low;
+    let t = (u64::from(ext.high) << 32) | u64::from(low);
+    cell.set(ext);
+    t
+}
+
+/// 64-bit tick count since start.
+pub fn now_ticks() -> u64 {
+    critical_section::with(now_ticks_cs)
+}
+
+/// Nanoseconds since start.
+pub fn now_ns() -> u64 {
+    now_ticks() * NS_PER_TICK
+}

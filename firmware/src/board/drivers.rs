@@ -1,0 +1,335 @@
+//! Portable drivers at the seam between the firmware and the board: generic over the
+//! `embedded-hal` 1.0 pin traits (and pure state machines where no pin is needed), with no
+//! embassy or register access, so a simulator or a test can supply its own pins. The board
+//! instantiates them with embassy-stm32's `Output`/`Input`.
+
+use embedded_hal::digital::{InputPin, OutputPin};
+use firmware::motion::{PauseMode, Realtime, AXES};
+
+/// STEP/DIR/EN outputs of the four stepper drivers (STEP/DIR mode, EN active low).
+pub struct StepperPins<P: OutputPin> {
+    step: [P; AXES],
+    dir: [P; AXES],
+    enable: [P; AXES],
+    /// Bit i set: DIR of axis i is high for positive moves; clear: inverted wiring.
+    dir_high_positive: u8,
+    dir_mask: u8,
+    enabled: bool,
+}
+
+impl<P: OutputPin> StepperPins<P> {
+    /// Wraps the pins; `dir_high_positive` says per axis (bit i) whether DIR high means
+    /// positive. Drivers start disabled, every DIR low.
+    pub fn new(step: [P; AXES], dir: [P; AXES], enable: [P; AXES], dir_high_positive: u8) -> Self {
+        let mut s = StepperPins {
+            step,
+            dir,
+            enable,
+            dir_high_positive,
+            dir_mask: 0,
+            enabled: true,
+        };
+        s.set_enabled(false);
+        for d in s.dir.iter_mut() {
+            let _ = d.set_low();
+        }
+        s
+    }
+
+    /// Switches every driver on (M17, any move) or off (M18/M84, idle timeout, halt).
+    pub fn set_enabled(&mut self, on: bool) {
+        if self.enabled == on {
+            return;
+        }
+        for en in self.enable.iter_mut() {
+            let _ = if on { en.set_low() } else { en.set_high() };
+        }
+        self.enabled = on;
+    }
+
+    /// Sets DIR for the axes in `axis_mask` to the directions in `dir_mask` (bit set =
+    /// positive). Returns true if any DIR line changed (the caller then waits the driver's
+    /// direction setup time before the step edge).
+    pub fn set_dirs(&mut self, axis_mask: u8, dir_mask: u8) -> bool {
+        let want = (dir_mask ^ !self.dir_high_positive) & axis_mask;
+        let have = self.dir_mask & axis_mask;
+        if want == have {
+            return false;
+        }
+        for (i, d) in self.dir.iter_mut().enumerate() {
+            let bit = 1 << i;
+            if axis_mask & bit != 0 && (want ^ have) & bit != 0 {
+                let _ = if want & bit != 0 {
+                    d.set_high()
+                } else {
+                    d.set_low()
+                };
+            }
+        }
+        self.dir_mask = (self.dir_mask & !axis_mask) | want;
+        true
+    }
+
+    /// Raises STEP of the axes in `axis_mask` (the step happens on this edge).
+    pub fn step_high(&mut self, axis_mask: u8) {
+        for (i, s) in self.step.iter_mut().enumerate() {
+            if axis_mask & (1 << i) != 0 {
+                let _ = s.set_high();
+            }
+        }
+    }
+
+    /// Lowers every STEP line (after the minimum pulse width).
+    pub fn step_low(&mut self) {
+        for s in self.step.iter_mut() {
+            let _ = s.set_low();
+        }
+    }
+}
+
+/// The X, Y and Z endstop inputs.
+pub struct Endstops<I: InputPin> {
+    pins: [I; 3],
+    /// Bit i set: the switch of axis i reads high when triggered (Marlin's
+    /// `*_MIN_ENDSTOP_INVERTING false` with the pull-up: a normally-closed switch to ground).
+    high_when_triggered: u8,
+}
+
+impl<I: InputPin> Endstops<I> {
+    /// Wraps the inputs.
+    pub fn new(pins: [I; 3], high_when_triggered: u8) -> Self {
+        Endstops {
+            pins,
+            high_when_triggered,
+        }
+    }
+
+    /// True when the endstop of `axis` (0 = X, 1 = Y, 2 = Z) is triggered. A read error
+    /// counts as triggered (stop rather than crash into the frame); an axis without an
+    /// endstop (E) is never triggered.
+    pub fn triggered(&mut self, axis: usize) -> bool {
+        let Some(pin) = self.pins.get_mut(axis) else {
+            return false;
+        };
+        match pin.is_high() {
+            Ok(high) => high == (self.high_when_triggered & (1 << axis) != 0),
+            Err(_) => true,
+        }
+    }
+}
+
+/// Debounce time of the pause button, µs.
+pub const BUTTON_DEBOUNCE_US: u64 = 20_000;
+/// Holding the button this long means "pause now", µs.
+pub const BUTTON_LONG_US: u64 = 1_500_000;
+
+/// The pause button, debounced: a short press (released before 1.5 s) asks for a pause at
+/// the next layer boundary, holding it for 1.5 s asks for a pause now (raised while still
+/// held), and any press while paused resumes. It raises exactly the `Realtime` requests the
+/// host link raises for M601 / M601 S1 / M602.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct PauseButton {
+    stable: bool,
+    candidate: bool,
+    candidate_since_us: u64,
+    pressed_since_us: Option<u64>,
+    fired: bool,
+}
+
+impl PauseButton {
+    /// A released button.
+    pub const fn new() -> Self {
+        PauseButton {
+            stable: false,
+            candidate: false,
+            candidate_since_us: 0,
+            pressed_since_us: None,
+            fired: false,
+        }
+    }
+
+    /// Feeds one reading (`pressed` after the pin's polarity is applied), at least every few
+    /// milliseconds; `paused` is whether the printer is paused (or pausing). Returns the
+    /// request to raise, if any.
+    pub fn update(&mut self, pressed: bool, now_us: u64, paused: bool) -> Option<Realtime> {
+        if pressed != self.candidate {
+            self.candidate = pressed;
+            self.candidate_since_us = now_us;
+        }
+        let settled = now_us.saturating_sub(self.candidate_since_us) >= BUTTON_DEBOUNCE_US;
+        if settled && self.candidate != self.stable {
+            self.stable = self.candidate;
+            if self.stable {
+                self.pressed_since_us = Some(now_us);
+                self.fired = false;
+                if paused {
+                    self.fired = true;
+                    return Some(Realtime::Resume);
+                }
+            } else {
+                let was = self.pressed_since_us.take();
+                if !self.fired && was.is_some() {
+                    return Some(Realtime::Pause(PauseMode::Layer));
+                }
+            }
+        }
+        if let (true, Some(since), false) = (self.stable, self.pressed_since_us, self.fired) {
+            if now_us.saturating_sub(since) >= BUTTON_LONG_US {
+                self.fired = true;
+                return Some(Realtime::Pause(PauseMode::Now));
+            }
+        }
+        None
+    }
+}
+
+/// Switches the stepper drivers off after a while without motion (Marlin's
+/// `DEFAULT_STEPPER_DEACTIVE_TIME`, M18/M84 S<seconds>), but never while a print is running or
+/// paused: a paused print must keep its position.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct IdleTimeout {
+    /// Timeout, µs (0 = never).
+    pub timeout_us: u64,
+    last_activity_us: u64,
+}
+
+impl IdleTimeout {
+    /// A timeout of `timeout_s` seconds.
+    pub const fn new(timeout_s: u32) -> Self {
+        IdleTimeout {
+            timeout_us: timeout_s as u64 * 1_000_000,
+            last_activity_us: 0,
+        }
+    }
+
+    /// Call on every tick; `busy` is true while anything moves, is queued, or is paused.
+    /// Returns true when the drivers should be switched off now.
+    pub fn update(&mut self, busy: bool, now_us: u64) -> bool {
+        if busy {
+            self.last_activity_us = now_us;
+            return false;
+        }
+        self.timeout_us != 0 && now_us.saturating_sub(self.last_activity_us) >= self.timeout_us
+    }
+}
+
+/// Speeds and distances of a homing sequence for one axis.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HomingConfig {
+    /// First approach, steps/s.
+    pub fast_steps_s: u32,
+    /// Second, slower bump, steps/s.
+    pub slow_steps_s: u32,
+    /// Back-off after the first touch, steps.
+    pub backoff_steps: u32,
+    /// Longest travel before giving up, steps (1.5 × the axis length).
+    pub max_steps: u32,
+}
+
+/// Why homing stopped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum HomingError {
+    /// The switch never triggered within the axis length.
+    NotFound,
+    /// The switch stayed triggered after backing off (stuck switch, wrong polarity).
+    StuckTriggered,
+}
+
+/// What the homing state machine wants next.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum HomingStep {
+    /// One step, towards the endstop (`toward = true`) or away, then wait `period_us`.
+    Step {
+        /// Towards the endstop (negative direction for min endstops).
+        toward: bool,
+        /// Wait before the next call, µs.
+        period_us: u32,
+    },
+    /// Homed: the axis sits at its endstop.
+    Done,
+    /// Failed.
+    Failed(HomingError),
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum HomingPhase {
+    Seek,
+    Backoff,
+    Bump,
+    Done,
+}
+
+/// G28 for one axis, as Marlin does it: approach fast until the switch triggers, back off,
+/// approach again slowly (the second, slower bump sets the position precisely).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Homing {
+    cfg: HomingConfig,
+    phase: HomingPhase,
+    steps: u32,
+}
+
+impl Homing {
+    /// Starts homing with `cfg`.
+    pub fn new(cfg: HomingConfig) -> Self {
+        Homing {
+            cfg,
+            phase: HomingPhase::Seek,
+            steps: 0,
+        }
+    }
+
+    fn period(steps_s: u32) -> u32 {
+        1_000_000 / steps_s.max(1)
+    }
+
+    /// Feeds the endstop state; returns the next action.
+    pub fn next(&mut self, triggered: bool) -> HomingStep {
+        match self.phase {
+            HomingPhase::Seek => {
+                if triggered {
+                    self.phase = HomingPhase::Backoff;
+                    self.steps = 0;
+                    return self.next(triggered);
+                }
+                if self.steps >= self.cfg.max_steps {
+                    return HomingStep::Failed(HomingError::NotFound);
+                }
+                self.steps += 1;
+                HomingStep::Step {
+                    toward: true,
+                    period_us: Self::period(self.cfg.fast_steps_s),
+                }
+            }
+            HomingPhase::Backoff => {
+                if self.steps >= self.cfg.backoff_steps {
+                    if triggered {
+                        return HomingStep::Failed(HomingError::StuckTriggered);
+                    }
+                    self.phase = HomingPhase::Bump;
+                    self.steps = 0;
+                    return self.next(triggered);
+                }
+                self.steps += 1;
+                HomingStep::Step {
+                    toward: false,
+                    period_us: Self::period(self.cfg.slow_steps_s),
+                }
+            }
+            HomingPhase::Bump => {
+                if triggered {
+                    self.phase = HomingPhase::Done;
+                    return HomingStep::Done;
+                }
+                if self.steps >= self.cfg.backoff_steps.saturating_mul(2) {
+                    return HomingStep::Failed(HomingError::NotFound);
+                }
+                self.steps += 1;
+                HomingStep::Step {
+                    toward: true,
+                    period_us: Self::period(self.cfg.slow_steps_s),
+                }
+            }
+            HomingPhase::Done => HomingStep::Done,
+        }
+    }
+}

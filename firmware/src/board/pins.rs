@@ -1,0 +1,136 @@
+//! The whole SKR 2 pin map in one place.
+//!
+//! Sources, for every assignment below:
+//! * [M] Marlin's `Marlin/src/pins/stm32f4/pins_BTT_SKR_V2_0_common.h` (BigTreeTech SKR 2
+//!   Rev A/B), read for the facts only;
+//! * [S] BigTreeTech's published SKR 2 schematic and pin diagram (`BIGTREETECH SKR 2`
+//!   repository: `Hardware/BTT SKR 2 SCH.pdf`, `BIGTREETECH SKR 2.0 PIN.pdf`).
+//!
+//! | function | pin | source |
+//! |---|---|---|
+//! | X STEP / DIR / EN | PE2 / PE1 / PE3 | [M] `X_STEP_PIN`, `X_DIR_PIN`, `X_ENABLE_PIN` |
+//! | Y STEP / DIR / EN | PD5 / PD4 / PD6 | [M] `Y_*_PIN` |
+//! | Z STEP / DIR / EN | PA15 / PA8 / PD1 | [M] `Z_*_PIN` |
+//! | E0 STEP / DIR / EN | PD15 / PD14 / PC7 | [M] `E0_*_PIN` |
+//! | X / Y / Z endstop (X-STOP, Y-STOP, Z-STOP) | PC1 / PC3 / PC0 | [M] `X_STOP_PIN`, `Y_STOP_PIN`, `Z_STOP_PIN` |
+//! | hot-end heater (HE0) | PB3 | [M] `HEATER_0_PIN` |
+//! | bed heater (BED) | PD7 | [M] `HEATER_BED_PIN` |
+//! | part-cooling fan (FAN0) | PB7 | [M] `FAN_PIN` |
+//! | hot-end fan (FAN1) | PB6 | [M] `FAN1_PIN` |
+//! | hot-end thermistor (TH0) | PA2 (ADC123_IN2) | [M] `TEMP_0_PIN` |
+//! | bed thermistor (TB) | PA1 (ADC123_IN1) | [M] `TEMP_BED_PIN` |
+//! | pause button (filament-runout connector E0DET) | PC2 | [M] `FIL_RUNOUT_PIN` |
+//! | driver/heater/fan power switch (SAFE_POWER) | PC13 | [M] `SAFE_POWER_PIN` |
+//! | status LED (RGB header data pin) | PE6 | [M] `NEOPIXEL_PIN`; the SKR 2 has no user LED on a GPIO, so a plain LED on the RGB header is used |
+//! | USB (Type-B port, OTG FS) | PA11 / PA12 | [S] USB D− / D+ |
+//! | TFT header UART (USART1) | PA9 TX / PA10 RX | [S] TFT connector; Marlin's SKR 2 example configurations put the TFT on `SERIAL_PORT 1` |
+//! | HSE crystal | 8 MHz | [S] |
+//!
+//! The stepper drivers are TMC2209 (or A4988/DRV8825) modules in STEP/DIR mode: EN is active
+//! low, a step is a rising edge. The thermistor inputs have 4.7 kΩ pull-ups to 3.3 V ([S]),
+//! which is what `firmware::thermal::thermistor` assumes.
+
+/// HSE crystal frequency on the SKR 2, Hz.
+pub const HSE_HZ: u32 = 8_000_000;
+
+use embassy_stm32::gpio::{Input, Level, Output, Pull, Speed};
+use embassy_stm32::peripherals as P;
+use embassy_stm32::Peri;
+
+/// The configured GPIO pins (see the table above).
+pub struct Pins {
+    /// STEP outputs X, Y, Z, E0.
+    pub step: [Output<'static>; 4],
+    /// DIR outputs X, Y, Z, E0.
+    pub dir: [Output<'static>; 4],
+    /// EN outputs X, Y, Z, E0 (active low).
+    pub enable: [Output<'static>; 4],
+    /// Endstop inputs X, Y, Z (pulled up).
+    pub endstops: [Input<'static>; 3],
+    /// Hot-end heater MOSFET gate.
+    pub heater_hotend: Output<'static>,
+    /// Bed heater MOSFET gate.
+    pub heater_bed: Output<'static>,
+    /// Part-cooling fan.
+    pub fan_part: Output<'static>,
+    /// Hot-end fan.
+    pub fan_hotend: Output<'static>,
+    /// Pause button input (pulled up; pressed = low).
+    pub pause_button: Input<'static>,
+    /// Power switch of drivers, heaters and fans (high = on).
+    pub safe_power: Output<'static>,
+    /// Status LED.
+    pub status_led: Output<'static>,
+}
+
+/// The peripherals the board uses besides plain GPIO.
+pub struct Periph {
+    /// USB OTG FS and its D+ (PA12) / D− (PA11) pins.
+    pub usb: (
+        Peri<'static, P::USB_OTG_FS>,
+        Peri<'static, P::PA12>,
+        Peri<'static, P::PA11>,
+    ),
+    /// TFT header UART: USART1 with RX (PA10) and TX (PA9).
+    pub uart: (
+        Peri<'static, P::USART1>,
+        Peri<'static, P::PA10>,
+        Peri<'static, P::PA9>,
+    ),
+    /// ADC1 and the thermistor inputs TH0 (PA2) and TB (PA1).
+    pub adc: (
+        Peri<'static, P::ADC1>,
+        Peri<'static, P::PA2>,
+        Peri<'static, P::PA1>,
+    ),
+    /// The step timer.
+    pub step_timer: Peri<'static, P::TIM5>,
+}
+
+/// Splits the HAL's peripherals into the configured pins and the remaining peripherals.
+/// Heaters and fans start off, stepper drivers disabled.
+pub fn split(p: embassy_stm32::Peripherals) -> (Pins, Periph) {
+    let out = |pin: Peri<'static, embassy_stm32::gpio::AnyPin>, level| {
+        Output::new(pin, level, Speed::VeryHigh)
+    };
+    let pins = Pins {
+        step: [
+            out(p.PE2.into(), Level::Low),
+            out(p.PD5.into(), Level::Low),
+            out(p.PA15.into(), Level::Low),
+            out(p.PD15.into(), Level::Low),
+        ],
+        dir: [
+            out(p.PE1.into(), Level::Low),
+            out(p.PD4.into(), Level::Low),
+            out(p.PA8.into(), Level::Low),
+            out(p.PD14.into(), Level::Low),
+        ],
+        // Drivers start disabled (EN high).
+        enable: [
+            out(p.PE3.into(), Level::High),
+            out(p.PD6.into(), Level::High),
+            out(p.PD1.into(), Level::High),
+            out(p.PC7.into(), Level::High),
+        ],
+        endstops: [
+            Input::new(p.PC1, Pull::Up),
+            Input::new(p.PC3, Pull::Up),
+            Input::new(p.PC0, Pull::Up),
+        ],
+        heater_hotend: Output::new(p.PB3, Level::Low, Speed::Low),
+        heater_bed: Output::new(p.PD7, Level::Low, Speed::Low),
+        fan_part: Output::new(p.PB7, Level::Low, Speed::Low),
+        fan_hotend: Output::new(p.PB6, Level::Low, Speed::Low),
+        pause_button: Input::new(p.PC2, Pull::Up),
+        safe_power: Output::new(p.PC13, Level::High, Speed::Low),
+        status_led: Output::new(p.PE6, Level::Low, Speed::Low),
+    };
+    let periph = Periph {
+        usb: (p.USB_OTG_FS, p.PA12, p.PA11),
+        uart: (p.USART1, p.PA10, p.PA9),
+        adc: (p.ADC1, p.PA2, p.PA1),
+        step_timer: p.TIM5,
+    };
+    (pins, periph)
+}

@@ -1,0 +1,192 @@
+//! Step generation on the board: the executive's step events (computed in the motion loop by
+//! the portable step generator, a few milliseconds ahead) go through a lock-free
+//! single-producer/single-consumer queue to the TIM5 compare interrupt, which runs at the
+//! highest priority and only sets pins at the events' times:
+//!
+//! 1. DIR lines of the stepping axes that change, then the driver's direction setup time
+//!    ([`DIR_SETUP_NS`]);
+//! 2. STEP high on every stepping axis at once, the minimum pulse width ([`PULSE_NS`]), STEP low;
+//! 3. the next event's time into CCR1, or the compare interrupt off when the queue is empty.
+//!
+//! The interrupt also keeps the position in steps and enforces the software limits of the
+//! configured volume once the axes are homed; before homing it refuses X/Y/Z steps (no motion
+//! before homing, as Marlin's `NO_MOTION_BEFORE_HOMING`).
+
+use core::cell::RefCell;
+use critical_section::Mutex;
+use embassy_stm32::gpio::{Input, Output};
+use embassy_stm32::interrupt::{self, InterruptExt, Priority};
+use embassy_stm32::pac;
+use heapless::spsc::{Consumer, Producer, Queue};
+
+use super::clock;
+use super::drivers::{Endstops, StepperPins};
+
+/// Events buffered ahead of the interrupt (each 16 B). At 100 k events/s this is 2.5 ms.
+pub const QUEUE_LEN: usize = 256;
+/// How far ahead of time the motion loop fills the queue, ns.
+pub const LOOKAHEAD_NS: u64 = 2_000_000;
+/// DIR setup before the step edge, ns (TMC2209: 20 ns; A4988: 200 ns; DRV8825: 650 ns).
+pub const DIR_SETUP_NS: u32 = 1_000;
+/// STEP high time, ns (TMC2209: 100 ns; A4988: 1 µs; DRV8825: 1.9 µs).
+pub const PULSE_NS: u32 = 2_000;
+/// CPU clock, Hz (for the busy-wait delays).
+pub const CPU_HZ: u32 = 168_000_000;
+/// Most events the interrupt executes in one entry before yielding.
+const MAX_PER_IRQ: usize = 32;
+
+/// One event as the interrupt sees it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PinEvent {
+    /// When, in [`clock`] ticks.
+    pub t_ticks: u64,
+    /// Axes that step (bit i = axis i).
+    pub axis_mask: u8,
+    /// Directions (bit set = positive).
+    pub dir_mask: u8,
+}
+
+/// The interrupt's state.
+pub struct StepIsr {
+    /// The stepper outputs.
+    pub pins: StepperPins<Output<'static>>,
+    /// The endstops (read by homing; polled here only for reports).
+    pub endstops: Endstops<Input<'static>>,
+    consumer: Consumer<'static, PinEvent>,
+    /// Position in steps as executed.
+    pub pos: [i32; 4],
+    /// Software limits in steps for X, Y, Z, once homed.
+    pub limits: Option<[(i32, i32); 3]>,
+    /// Steps refused (outside the limits or before homing) since last taken.
+    pub refused: u32,
+    /// Drop every queued event (halt / quick stop).
+    pub flush: bool,
+    /// True while the compare interrupt is armed.
+    pub running: bool,
+}
+
+static QUEUE: static_cell::StaticCell<Queue<PinEvent, QUEUE_LEN>> = static_cell::StaticCell::new();
+/// The interrupt's state, shared with the motion loop under a critical section.
+pub static ISR: Mutex<RefCell<Option<StepIsr>>> = Mutex::new(RefCell::new(None));
+
+/// Sets up the queue and the interrupt; returns the producer side for the motion loop.
+pub fn init(
+    pins: StepperPins<Output<'static>>,
+    endstops: Endstops<Input<'static>>,
+) -> Producer<'static, PinEvent> {
+    let (producer, consumer) = QUEUE.init(Queue::new()).split();
+    critical_section::with(|cs| {
+        ISR.borrow(cs).replace(Some(StepIsr {
+            pins,
+            endstops,
+            consumer,
+            pos: [0; 4],
+            limits: None,
+            refused: 0,
+            flush: false,
+            running: false,
+        }))
+    });
+    interrupt::TIM5.set_priority(Priority::P0);
+    // SAFETY: the handler below only touches state behind the critical-section mutex.
+    unsafe { interrupt::TIM5.enable() };
+    producer
+}
+
+/// Wakes the interrupt after events were queued (it arms the compare itself).
+pub fn kick() {
+    interrupt::TIM5.pend();
+}
+
+fn cycles(ns: u32) -> u32 {
+    (ns as u64 * CPU_HZ as u64 / 1_000_000_000) as u32
+}
+
+impl StepIsr {
+    fn fire(&mut self, ev: PinEvent) {
+        let mut mask = ev.axis_mask & 0x0F;
+        for axis in 0..3 {
+            let bit = 1u8 << axis;
+            if mask & bit == 0 {
+                continue;
+            }
+            let next = if ev.dir_mask & bit != 0 {
+                self.pos[axis].saturating_add(1)
+            } else {
+                self.pos[axis].saturating_sub(1)
+            };
+            let allowed = match self.limits {
+                Some(l) => next >= l[axis].0 && next <= l[axis].1,
+                None => false,
+            };
+            if !allowed {
+                mask &= !bit;
+                self.refused = self.refused.saturating_add(1);
+            }
+        }
+        if mask == 0 {
+            return;
+        }
+        if self.pins.set_dirs(mask, ev.dir_mask) {
+            cortex_m::asm::delay(cycles(DIR_SETUP_NS));
+        }
+        self.pins.step_high(mask);
+        for (axis, p) in self.pos.iter_mut().enumerate() {
+            let bit = 1u8 << axis;
+            if mask & bit != 0 {
+                *p = if ev.dir_mask & bit != 0 {
+                    p.saturating_add(1)
+                } else {
+                    p.saturating_sub(1)
+                };
+            }
+        }
+        cortex_m::asm::delay(cycles(PULSE_NS));
+        self.pins.step_low();
+    }
+
+    fn run(&mut self, cs: critical_section::CriticalSection) {
+        let tim = pac::TIM5;
+        tim.sr().modify(|w| w.set_ccif(0, false));
+        if self.flush {
+            while self.consumer.dequeue().is_some() {}
+            self.flush = false;
+        }
+        for _ in 0..MAX_PER_IRQ {
+            let Some(ev) = self.consumer.peek().copied() else {
+                tim.dier().modify(|w| w.set_ccie(0, false));
+                self.running = false;
+                return;
+            };
+            let now = clock::now_ticks_cs(cs);
+            if ev.t_ticks > now + 1 {
+                // Arm the compare for the event; if the counter passed it meanwhile, loop.
+                tim.ccr(0).write_value(ev.t_ticks as u32);
+                tim.dier().modify(|w| w.set_ccie(0, true));
+                self.running = true;
+                if clock::now_ticks_cs(cs) < ev.t_ticks {
+                    return;
+                }
+                continue;
+            }
+            let _ = self.consumer.dequeue();
+            self.fire(ev);
+        }
+        // Many events due at once (catching up): come back right away.
+        interrupt::TIM5.pend();
+    }
+}
+
+#[embassy_stm32::interrupt]
+fn TIM5() {
+    critical_section::with(|cs| {
+        if let Some(isr) = ISR.borrow(cs).borrow_mut().as_mut() {
+            isr.run(cs);
+        }
+    });
+}
+
+/// Runs `f` on the interrupt's state (the motion loop and homing use this).
+pub fn with<R>(f: impl FnOnce(&mut StepIsr) -> R) -> Option<R> {
+    critical_section::with(|cs| ISR.borrow(cs).borrow_mut().as_mut().map(f))
+}
