@@ -344,10 +344,10 @@ mod image {
                             // Min endstops: towards the switch is the negative direction.
                             let dir = if toward { 0 } else { 1 << i };
                             if s.pins.set_dirs(1 << i, dir) {
-                                cortex_m::asm::delay(168);
+                                cortex_m::asm::delay(stepper::cycles(stepper::DIR_SETUP_NS));
                             }
                             s.pins.step_high(1 << i);
-                            cortex_m::asm::delay(336);
+                            cortex_m::asm::delay(stepper::cycles(stepper::PULSE_NS));
                             s.pins.step_low();
                         });
                         Timer::after_micros(u64::from(period_us)).await;

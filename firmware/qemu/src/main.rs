@@ -15,6 +15,7 @@
 #![cfg_attr(target_os = "none", no_std, no_main)]
 #![deny(missing_docs)]
 
+mod checks;
 #[allow(dead_code)]
 mod scenario;
 
@@ -22,6 +23,13 @@ include!(concat!(env!("OUT_DIR"), "/expected.rs"));
 
 #[cfg(not(target_os = "none"))]
 fn main() {
+    match checks::run() {
+        Ok(n) => println!("board driver checks: {n} groups passed"),
+        Err(e) => {
+            eprintln!("board driver check failed: {e:?}");
+            std::process::exit(1);
+        }
+    }
     match scenario::run(&mut scenario::NoMeter) {
         Ok(d) => {
             println!("host digest: {d:?}");
@@ -39,7 +47,7 @@ fn main() {
 
 #[cfg(target_os = "none")]
 mod target {
-    use super::{scenario, EXPECTED};
+    use super::{checks, scenario, EXPECTED};
     use core::sync::atomic::{AtomicU32, Ordering};
     use cortex_m::peripheral::{syst::SystClkSource, SYST};
     use cortex_m_rt::{entry, exception};
@@ -96,10 +104,14 @@ mod target {
         }
     }
 
+    // Never inlined, so that every interval carries the same measuring overhead, which the
+    // calibration below measures through the same calls and subtracts.
     impl scenario::Meter for TickMeter {
+        #[inline(never)]
         fn begin(&mut self) {
             self.start = ticks();
         }
+        #[inline(never)]
         fn end(&mut self, work: scenario::Work) {
             let dt = ticks().saturating_sub(self.start);
             self.ticks[slot(work)] += dt;
@@ -127,11 +139,19 @@ mod target {
         spin(SPIN);
         let t1 = ticks();
         let ticks_per_insn = (t1 - t0) as f64 / (2.0 * SPIN as f64);
+        match checks::run() {
+            Ok(n) => hprintln!("qemu-core: board driver checks: {} groups passed", n),
+            Err(e) => {
+                hprintln!("qemu-core: board driver check failed: {:?}", e);
+                debug::exit(debug::EXIT_FAILURE);
+                halt()
+            }
+        }
         // Cost of an empty begin/end pair, to subtract from every interval.
         let mut m = TickMeter::default();
         for _ in 0..1000 {
-            scenario::Meter::begin(&mut m);
-            scenario::Meter::end(&mut m, scenario::Work::Plan);
+            scenario::Meter::begin(core::hint::black_box(&mut m));
+            scenario::Meter::end(core::hint::black_box(&mut m), scenario::Work::Plan);
         }
         let overhead = m.ticks[0] as f64 / 1000.0;
         let mut m = TickMeter::default();
@@ -184,6 +204,21 @@ mod target {
             (poll / 1e3) as u32,
             (step / 1e3) as u32,
             (peek / 1e3) as u32
+        );
+        // Driving the pins for one event (DIR when it changes, STEP high, STEP low).
+        const PIN_EVENTS: u32 = 100_000;
+        let mut t_pins = (0u64, 0u64);
+        checks::pin_cost(PIN_EVENTS, |start| {
+            if start {
+                t_pins.0 = ticks();
+            } else {
+                t_pins.1 = ticks();
+            }
+        });
+        let pins = (t_pins.1 - t_pins.0) as f64 / ticks_per_insn / PIN_EVENTS as f64;
+        hprintln!(
+            "qemu-core: instructions per step event to drive STEP/DIR (StepperPins over register writes): {}",
+            pins as u32
         );
         if digest == EXPECTED {
             hprintln!(

@@ -27,9 +27,9 @@ pub const QUEUE_LEN: usize = 256;
 /// How far ahead of time the motion loop fills the queue, ns.
 pub const LOOKAHEAD_NS: u64 = 2_000_000;
 /// DIR setup before the step edge, ns (TMC2209: 20 ns; A4988: 200 ns; DRV8825: 650 ns).
-pub const DIR_SETUP_NS: u32 = 1_000;
-/// STEP high time, ns (TMC2209: 100 ns; A4988: 1 µs; DRV8825: 1.9 µs).
-pub const PULSE_NS: u32 = 2_000;
+pub const DIR_SETUP_NS: u32 = 650;
+/// STEP high time, ns (TMC2209: 100 ns; A4988: 1 µs; DRV8825 needs 1.9 µs: raise it to 2000).
+pub const PULSE_NS: u32 = 1_000;
 /// CPU clock, Hz (for the busy-wait delays).
 pub const CPU_HZ: u32 = 168_000_000;
 /// Most events the interrupt executes in one entry before yielding.
@@ -98,7 +98,8 @@ pub fn kick() {
     interrupt::TIM5.pend();
 }
 
-fn cycles(ns: u32) -> u32 {
+/// CPU cycles for `ns` nanoseconds (busy-wait delays).
+pub fn cycles(ns: u32) -> u32 {
     (ns as u64 * CPU_HZ as u64 / 1_000_000_000) as u32
 }
 

@@ -1,0 +1,299 @@
+//! Checks of the board's portable drivers (`firmware/src/board/drivers.rs`, generic over
+//! `embedded-hal`), run on the emulated Cortex-M4 and on the host with pins supplied here,
+//! plus the cost of driving the pins for one step event.
+#![cfg_attr(not(target_os = "none"), allow(dead_code))]
+
+#[allow(dead_code)]
+#[path = "../../src/board/drivers.rs"]
+pub mod drivers;
+
+use core::cell::Cell;
+use core::convert::Infallible;
+use drivers::{
+    Endstops, Homing, HomingConfig, HomingError, HomingStep, IdleTimeout, PauseButton, StepperPins,
+};
+use embedded_hal::digital::{ErrorType, InputPin, OutputPin};
+use firmware::motion::{PauseMode, Realtime};
+
+/// An output that records its level in a shared bit field.
+pub struct LevelPin<'a> {
+    levels: &'a Cell<u32>,
+    bit: u32,
+}
+
+impl ErrorType for LevelPin<'_> {
+    type Error = Infallible;
+}
+
+impl OutputPin for LevelPin<'_> {
+    fn set_low(&mut self) -> Result<(), Infallible> {
+        self.levels.set(self.levels.get() & !(1 << self.bit));
+        Ok(())
+    }
+    fn set_high(&mut self) -> Result<(), Infallible> {
+        self.levels.set(self.levels.get() | (1 << self.bit));
+        Ok(())
+    }
+}
+
+/// An input reading a shared flag.
+pub struct FlagInput<'a> {
+    flag: &'a Cell<bool>,
+}
+
+impl ErrorType for FlagInput<'_> {
+    type Error = Infallible;
+}
+
+impl InputPin for FlagInput<'_> {
+    fn is_high(&mut self) -> Result<bool, Infallible> {
+        Ok(self.flag.get())
+    }
+    fn is_low(&mut self) -> Result<bool, Infallible> {
+        Ok(!self.flag.get())
+    }
+}
+
+/// An output that writes a GPIO BSRR-style register (volatile store), as on the STM32: what a
+/// step costs on the real pins.
+pub struct RegPin {
+    reg: *mut u32,
+    bit: u32,
+}
+
+impl ErrorType for RegPin {
+    type Error = Infallible;
+}
+
+impl OutputPin for RegPin {
+    fn set_low(&mut self) -> Result<(), Infallible> {
+        // SAFETY: `reg` points at a live static for the whole run.
+        unsafe { core::ptr::write_volatile(self.reg, 1 << (self.bit + 16)) };
+        Ok(())
+    }
+    fn set_high(&mut self) -> Result<(), Infallible> {
+        // SAFETY: as above.
+        unsafe { core::ptr::write_volatile(self.reg, 1 << self.bit) };
+        Ok(())
+    }
+}
+
+/// A failed check.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct CheckFailed(pub &'static str);
+
+fn check(ok: bool, what: &'static str) -> Result<(), CheckFailed> {
+    if ok {
+        Ok(())
+    } else {
+        Err(CheckFailed(what))
+    }
+}
+
+fn steppers(levels: &Cell<u32>) -> StepperPins<LevelPin<'_>> {
+    let pin = |bit| LevelPin { levels, bit };
+    // Bits 0..3 STEP, 4..7 DIR, 8..11 EN.
+    StepperPins::new(
+        [pin(0), pin(1), pin(2), pin(3)],
+        [pin(4), pin(5), pin(6), pin(7)],
+        [pin(8), pin(9), pin(10), pin(11)],
+        0b0111, // E wired inverted
+    )
+}
+
+/// Runs every check.
+#[inline(never)]
+pub fn run() -> Result<u32, CheckFailed> {
+    let mut n = 0;
+    // Stepper pins: enable is active low, DIR follows the wiring, STEP is a pulse.
+    let levels = Cell::new(0);
+    let mut s = steppers(&levels);
+    check(levels.get() & 0xF00 == 0xF00, "drivers start disabled")?;
+    s.set_enabled(true);
+    check(levels.get() & 0xF00 == 0, "enable drives EN low")?;
+    check(
+        s.set_dirs(0b1001, 0b1001),
+        "first direction change reported",
+    )?;
+    check(levels.get() & 0x10 != 0, "X positive = DIR high")?;
+    check(levels.get() & 0x80 == 0, "E positive = DIR low (inverted)")?;
+    check(
+        !s.set_dirs(0b1001, 0b1001),
+        "same direction: no setup delay needed",
+    )?;
+    check(s.set_dirs(0b0001, 0b0000), "X reversal reported")?;
+    s.step_high(0b0101);
+    check(
+        levels.get() & 0xF == 0b0101,
+        "STEP high on stepping axes only",
+    )?;
+    s.step_low();
+    check(levels.get() & 0xF == 0, "STEP low after the pulse")?;
+    n += 1;
+
+    // Endstops: polarity per axis.
+    let flag = Cell::new(true);
+    let mut e = Endstops::new(
+        [
+            FlagInput { flag: &flag },
+            FlagInput { flag: &flag },
+            FlagInput { flag: &flag },
+        ],
+        0b011,
+    );
+    check(e.triggered(0) && !e.triggered(2), "endstop polarity")?;
+    check(!e.triggered(3), "E has no endstop")?;
+    n += 1;
+
+    // Pause button: bounces are ignored, a short press pauses at the layer, a long press
+    // pauses now (while held), a press while paused resumes.
+    let mut b = PauseButton::new();
+    let mut got = None;
+    let mut t = 0u64;
+    for i in 0..10 {
+        // 10 ms of contact bounce, 1 ms per reading.
+        if let Some(r) = b.update(i % 2 == 0, t, false) {
+            got = Some(r);
+        }
+        t += 1_000;
+    }
+    for _ in 0..200 {
+        if let Some(r) = b.update(true, t, false) {
+            got = Some(r);
+        }
+        t += 1_000;
+    }
+    check(got.is_none(), "nothing raised while pressed briefly")?;
+    for _ in 0..50 {
+        if let Some(r) = b.update(false, t, false) {
+            check(got.is_none(), "one request per press")?;
+            got = Some(r);
+        }
+        t += 1_000;
+    }
+    check(
+        got == Some(Realtime::Pause(PauseMode::Layer)),
+        "short press = pause at layer",
+    )?;
+    let mut got = None;
+    let mut when = 0;
+    for _ in 0..3000 {
+        if let Some(r) = b.update(true, t, false) {
+            check(got.is_none(), "one request per long press")?;
+            got = Some(r);
+            when = t;
+        }
+        t += 1_000;
+    }
+    check(
+        got == Some(Realtime::Pause(PauseMode::Now)),
+        "long press = pause now",
+    )?;
+    for _ in 0..50 {
+        check(
+            b.update(false, t, true).is_none(),
+            "release after long press raises nothing",
+        )?;
+        t += 1_000;
+    }
+    let _ = when;
+    let mut got = None;
+    for _ in 0..50 {
+        if let Some(r) = b.update(true, t, true) {
+            got = Some(r);
+        }
+        t += 1_000;
+    }
+    check(got == Some(Realtime::Resume), "press while paused = resume")?;
+    n += 1;
+
+    // Idle timeout.
+    let mut idle = IdleTimeout::new(120);
+    check(!idle.update(true, 0), "busy never times out")?;
+    check(!idle.update(false, 119_000_000), "not before 120 s")?;
+    check(idle.update(false, 120_000_000), "off after 120 s idle")?;
+    n += 1;
+
+    // Homing: an axis 1000 steps from a switch that closes at position <= 0.
+    let cfg = HomingConfig {
+        fast_steps_s: 4000,
+        slow_steps_s: 2000,
+        backoff_steps: 400,
+        max_steps: 28_200,
+    };
+    let mut pos: i32 = 1000;
+    let mut h = Homing::new(cfg);
+    let mut moves = 0u32;
+    let mut slow = 0u32;
+    loop {
+        match h.next(pos <= 0) {
+            HomingStep::Step { toward, period_us } => {
+                pos += if toward { -1 } else { 1 };
+                moves += 1;
+                if period_us == 500 {
+                    slow += 1;
+                }
+                check(moves < 100_000, "homing terminates")?;
+            }
+            HomingStep::Done => break,
+            HomingStep::Failed(_) => return Err(CheckFailed("homing failed")),
+        }
+    }
+    check(pos == 0, "homed exactly at the switch")?;
+    check(
+        moves == 1000 + 400 + 400,
+        "fast approach, back-off, slow bump",
+    )?;
+    check(slow == 800, "back-off and bump at the slow speed")?;
+    let mut h = Homing::new(cfg);
+    let mut r = HomingStep::Done;
+    for _ in 0..100_000 {
+        r = h.next(true);
+        if matches!(r, HomingStep::Failed(_)) {
+            break;
+        }
+    }
+    check(
+        r == HomingStep::Failed(HomingError::StuckTriggered),
+        "stuck switch detected",
+    )?;
+    let mut h = Homing::new(cfg);
+    for _ in 0..100_000 {
+        r = h.next(false);
+        if matches!(r, HomingStep::Failed(_)) {
+            break;
+        }
+    }
+    check(
+        r == HomingStep::Failed(HomingError::NotFound),
+        "missing switch detected",
+    )?;
+    n += 1;
+    Ok(n)
+}
+
+/// Fake BSRR register for [`pin_cost`].
+static mut BSRR: u32 = 0;
+
+/// Drives STEP/DIR for `events` synthetic step events on register-writing pins (direction
+/// reversal every 64 events), calling `mark` before and after, so the caller can time it.
+pub fn pin_cost(events: u32, mut mark: impl FnMut(bool)) {
+    let reg = core::ptr::addr_of_mut!(BSRR);
+    let pin = |bit| RegPin { reg, bit };
+    let mut s = StepperPins::new(
+        [pin(0), pin(1), pin(2), pin(3)],
+        [pin(4), pin(5), pin(6), pin(7)],
+        [pin(8), pin(9), pin(10), pin(11)],
+        0b1111,
+    );
+    s.set_enabled(true);
+    mark(true);
+    for i in 0..events {
+        let dir = if (i / 64) % 2 == 0 { 0b0011 } else { 0b0000 };
+        let mask = 0b0011 | ((i & 1) as u8) << 3;
+        s.set_dirs(mask, dir);
+        s.step_high(mask);
+        s.step_low();
+    }
+    mark(false);
+}
