@@ -15,14 +15,19 @@
 //! Paused ───Resume───────► Returning: XY, then Z, then un-retract ─► release held ─► Printing
 //! ```
 
+mod host;
 mod service;
 
 pub use service::ServiceMove;
 
 use crate::config::MachineConfig;
+use crate::layer::LayerDetector;
+use crate::link::{HostAction, HostLink, Response};
+use crate::machine::{ArcMoves, MachineState};
 use crate::motion::{Axis, LayerMark, MoveRequest, PauseMode, Realtime, StepPos, AXES};
 use crate::planner::{Barrier, BlockKind, PlannedBlock, Planner, PlannerPolicy, RING_CAPACITY};
 use crate::stepgen::{ExecBlock, StepEvent, StepGen};
+use crate::thermal::{HeaterId, Thermal, ThermalConfig};
 use core::fmt::Write as _;
 use heapless::{Deque, String};
 
@@ -30,10 +35,10 @@ use heapless::{Deque, String};
 pub const CMD_CAPACITY: usize = 32;
 /// Execution records kept until the driver takes them.
 pub const RECORD_CAPACITY: usize = 256;
-/// Host-link output lines kept until the driver writes them.
-pub const OUT_CAPACITY: usize = 16;
-/// Longest output line.
+/// Longest message line the executive formats.
 pub const LINE_LEN: usize = 120;
+/// Keep-alive period during heater waits (`busy: processing`), µs.
+pub const BUSY_PERIOD_US: u64 = 2_000_000;
 /// A `layer` pause waiting for a boundary treats the end of the known job as the boundary once
 /// the printer has had nothing to do for this long (job ended before any layer boundary).
 pub const LAYER_PAUSE_IDLE_US: u64 = 2_000_000;
@@ -64,8 +69,15 @@ pub enum Command {
     Move(MoveRequest),
     /// A layer boundary.
     Layer(LayerMark),
-    /// G28: wait for motion to end, then move to the home corner (axes' minimum, E kept).
-    Home,
+    /// G28: wait for motion to end, then move the named axes (bit i = axis i; X, Y, Z) to
+    /// the home corner (axes' minimum). There are no endstops in the portable library: the
+    /// position is trusted, as after a successful homing.
+    Home {
+        /// Axes to home, bit i = axis i.
+        mask: u8,
+    },
+    /// M109/M190: wait until the heater has reached its target (M108 breaks the wait).
+    WaitHeater(HeaterId),
     /// G92 and friends: wait for motion to end, then set the position in steps.
     SetPosition(StepPos),
     /// G4: wait for motion to end, then wait this long.
@@ -272,8 +284,16 @@ pub struct Printer {
     last_state: State,
     records: Deque<Record, RECORD_CAPACITY>,
     records_dropped: u32,
-    out: Deque<String<LINE_LEN>, OUT_CAPACITY>,
-    out_dropped: u32,
+    link: HostLink,
+    machine: MachineState,
+    saved_machine: Option<MachineState>,
+    layers: LayerDetector,
+    arc: Option<ArcMoves>,
+    thermal: Thermal,
+    last_busy_us: u64,
+    break_wait: bool,
+    reheat_wait: bool,
+    fan_pwm: u8,
 }
 
 fn steps(cfg: &MachineConfig, axis: Axis, mm: f32) -> i32 {
@@ -322,8 +342,16 @@ impl Printer {
             last_state: State::Idle,
             records: Deque::new(),
             records_dropped: 0,
-            out: Deque::new(),
-            out_dropped: 0,
+            link: HostLink::new(),
+            machine: MachineState::new(&cfg),
+            saved_machine: None,
+            layers: LayerDetector::new(),
+            arc: None,
+            thermal: Thermal::new(&ThermalConfig::ENDER3),
+            last_busy_us: 0,
+            break_wait: false,
+            reheat_wait: false,
+            fan_pwm: 0,
         };
         p.set_policy(policy);
         p
@@ -396,41 +424,38 @@ impl Printer {
         self.records_dropped
     }
 
+    /// An `echo:` line to the host.
     fn say(&mut self, args: core::fmt::Arguments) {
-        let mut s: String<LINE_LEN> = String::new();
-        let _ = s.write_fmt(args);
-        if self.out.is_full() {
-            let _ = self.out.pop_front();
-            self.out_dropped = self.out_dropped.saturating_add(1);
-        }
-        let _ = self.out.push_back(s);
+        let mut t: String<LINE_LEN> = String::new();
+        let _ = t.write_fmt(args);
+        self.link.respond(Response::Echo(&t));
     }
 
-    /// Write every pending host-link line (each followed by `\n`).
+    fn action(&mut self, a: HostAction) {
+        self.link.respond(Response::Action(a, ""));
+    }
+
+    /// Write every pending host-link line (`ok`, `echo:`, `//action:`, errors ...), each
+    /// followed by `\n`.
     pub fn write_output<W: core::fmt::Write>(&mut self, w: &mut W) -> core::fmt::Result {
-        while let Some(l) = self.out.front() {
-            w.write_str(l)?;
-            w.write_char('\n')?;
-            let _ = self.out.pop_front();
-        }
-        Ok(())
+        self.link.write_output(w)
     }
 
-    /// Take one pending output line.
-    pub fn pop_output_line(&mut self) -> Option<String<LINE_LEN>> {
-        self.out.pop_front()
+    /// Copy pending host-link output bytes into `buf` (for a UART/USB driver); returns how
+    /// many were written.
+    pub fn read_output(&mut self, buf: &mut [u8]) -> usize {
+        self.link.read_output(buf)
     }
 
-    /// Host bytes in. Not built yet: the G-code front end (`link`, `gcode`, `machine`,
-    /// `layer`) is being written; until it lands, drive the printer with
-    /// [`Printer::push_command`]. Every byte is answered with an error line today.
+    /// Host bytes in: realtime requests act at once; lines are taken, parsed, interpreted by
+    /// the machine state and queued while the command queue has room (each answered `ok`
+    /// when taken).
     pub fn receive(&mut self, bytes: &[u8], now_us: u64) {
         self.set_now(now_us);
-        if bytes.contains(&b'\n') {
-            self.say(format_args!(
-                "Error:G-code front end not built yet (use push_command)"
-            ));
-        }
+        self.link.receive(bytes);
+        self.take_realtime();
+        self.process_lines();
+        self.update_state_record();
     }
 
     /// Room in the command queue under the policy's limit.
@@ -503,14 +528,16 @@ impl Printer {
                     }
                     self.check_schedule(mark);
                 }
-                Command::Home => {
+                Command::Home { mask } => {
                     if !self.motion_idle() || self.phase != Phase::Run {
                         break;
                     }
                     let mut target = self.stepgen.position();
                     for ax in [Axis::X, Axis::Y, Axis::Z] {
-                        let min = self.cfg.axis(ax).min_mm;
-                        target[ax.index()] = steps(&self.cfg, ax, min);
+                        if mask & (1 << ax.index()) != 0 {
+                            let min = self.cfg.axis(ax).min_mm;
+                            target[ax.index()] = steps(&self.cfg, ax, min);
+                        }
                     }
                     let req = MoveRequest {
                         target,
@@ -518,6 +545,16 @@ impl Printer {
                         seq: u32::MAX,
                     };
                     let _ = self.planner.push_move(&self.cfg, &req, BlockKind::Homing);
+                }
+                Command::WaitHeater(id) => {
+                    if !(self.thermal.reached(id) || self.break_wait) {
+                        if self.now_us.saturating_sub(self.last_busy_us) >= BUSY_PERIOD_US {
+                            self.last_busy_us = self.now_us;
+                            self.link.respond(Response::Busy);
+                        }
+                        break;
+                    }
+                    self.break_wait = false;
                 }
                 Command::SetPosition(pos) => {
                     if !self.motion_idle() {
@@ -533,9 +570,10 @@ impl Printer {
                     let until = *self
                         .dwell_until_us
                         .get_or_insert(self.now_us + u64::from(ms) * 1000);
-                    if self.now_us < until {
+                    if self.now_us < until && !self.break_wait {
                         break;
                     }
+                    self.break_wait = false;
                     self.dwell_until_us = None;
                 }
                 Command::Sync => {
@@ -545,7 +583,7 @@ impl Printer {
                 }
                 Command::SchedulePause(s) => {
                     self.schedule = Some(s);
-                    self.say(format_args!("echo:pause scheduled: {:?}", s));
+                    self.say(format_args!("pause scheduled: {:?}", s));
                 }
             }
             let _ = self.cmds.pop_front();
@@ -575,7 +613,7 @@ impl Printer {
             self.phase = Phase::Stopping;
             self.mode = Some(PauseMode::Layer);
             self.say(format_args!(
-                "echo:scheduled pause: stopping before layer {}",
+                "scheduled pause: stopping before layer {}",
                 mark.layer
             ));
             self.update_state_record();
@@ -595,9 +633,11 @@ impl Printer {
     /// Main loop: move commands into the planner, run the pause state machine and dwell.
     pub fn poll(&mut self, now_us: u64) {
         self.set_now(now_us);
+        self.take_realtime();
         if self.halted {
             return;
         }
+        self.process_lines();
         self.feed_planner();
         self.retire_finished();
         self.update_pause();
@@ -717,6 +757,12 @@ impl Printer {
                 _ => self.job_block(),
             },
             Phase::Parking | Phase::Parked | Phase::Returning => {
+                if self.reheat_wait {
+                    if !self.thermal.reached(HeaterId::Hotend) {
+                        return None;
+                    }
+                    self.reheat_wait = false;
+                }
                 while let Some(m) = self.service.pop_front() {
                     let from = self.stepgen.position();
                     if let Some(pb) = service::block(&self.cfg, from, m) {
@@ -761,7 +807,7 @@ impl Printer {
     pub fn request(&mut self, req: Realtime, now_us: u64) {
         self.set_now(now_us);
         if self.halted {
-            self.say(format_args!("echo:halted: reset required"));
+            self.say(format_args!("halted: reset required"));
             return;
         }
         self.retire_finished();
@@ -772,8 +818,10 @@ impl Printer {
             Realtime::EmergencyStop => self.emergency_stop(),
             Realtime::QuickStop => self.quick_stop(),
             Realtime::BreakWait => {
-                self.dwell_until_us = Some(0);
+                self.break_wait = true;
+                self.thermal.cancel_autotune();
                 self.feed_planner();
+                self.break_wait = false;
             }
         }
         self.update_pause();
@@ -784,7 +832,7 @@ impl Printer {
         match self.phase {
             Phase::Run => {
                 if !self.has_work() {
-                    self.say(format_args!("echo:pause: nothing to pause"));
+                    self.say(format_args!("pause: nothing to pause"));
                     return;
                 }
                 self.phase = Phase::Stopping;
@@ -793,7 +841,7 @@ impl Printer {
                     self.mode = Some(mode);
                     self.fifo_countdown = Some(self.cmds.len());
                     self.feed_planner();
-                    self.say(format_args!("echo:pause queued behind the buffered moves"));
+                    self.say(format_args!("pause queued behind the buffered moves"));
                     return;
                 }
                 match mode {
@@ -802,13 +850,10 @@ impl Printer {
                         if let Some((id, m)) = self.planner.first_mark() {
                             self.planner.set_barrier(id);
                             self.barrier_layer = Some(m.layer);
-                            self.say(format_args!(
-                                "echo:pause: stopping before layer {}",
-                                m.layer
-                            ));
+                            self.say(format_args!("pause: stopping before layer {}", m.layer));
                         } else {
                             self.planner.set_barrier_next_mark();
-                            self.say(format_args!("echo:pause: stopping at the next layer"));
+                            self.say(format_args!("pause: stopping at the next layer"));
                         }
                         if self.cfg.pause.speedup_factor > 1.0 {
                             self.planner.speed_up();
@@ -818,7 +863,7 @@ impl Printer {
                     }
                     PauseMode::Now => {
                         self.begin_hold();
-                        self.say(format_args!("echo:pause: stopping now"));
+                        self.say(format_args!("pause: stopping now"));
                     }
                 }
             }
@@ -828,20 +873,18 @@ impl Printer {
                     && !self.policy.pause_at_tail
                 {
                     self.begin_hold();
-                    self.say(format_args!("echo:pause: stopping now"));
+                    self.say(format_args!("pause: stopping now"));
                 } else {
-                    self.say(format_args!("echo:pause already in progress"));
+                    self.say(format_args!("pause already in progress"));
                 }
                 self.withdraw_after_stop = false;
             }
             Phase::Parking | Phase::Parked => {
-                self.say(format_args!("echo:already paused"));
+                self.say(format_args!("already paused"));
             }
             Phase::Returning => {
                 self.deferred_pause = Some(mode);
-                self.say(format_args!(
-                    "echo:pause deferred until the resume completes"
-                ));
+                self.say(format_args!("pause deferred until the resume completes"));
             }
         }
     }
@@ -851,7 +894,7 @@ impl Printer {
             Phase::Parked => self.start_resume(),
             Phase::Parking => {
                 self.deferred_resume = true;
-                self.say(format_args!("echo:resume deferred until parked"));
+                self.say(format_args!("resume deferred until parked"));
             }
             Phase::Stopping => {
                 if self.mode == Some(PauseMode::Now) || self.hold_deferred {
@@ -863,10 +906,10 @@ impl Printer {
                     self.mode = None;
                     self.barrier_layer = None;
                 }
-                self.say(format_args!("echo:pause withdrawn"));
+                self.say(format_args!("pause withdrawn"));
             }
-            Phase::Run => self.say(format_args!("echo:not paused")),
-            Phase::Returning => self.say(format_args!("echo:already resuming")),
+            Phase::Run => self.say(format_args!("not paused")),
+            Phase::Returning => self.say(format_args!("already resuming")),
         }
     }
 
@@ -876,11 +919,12 @@ impl Printer {
         let pos = self.stepgen.position();
         let (blocks, segs, marks) = self.planner.clear(pos);
         self.cmds.clear();
+        self.arc = None;
         self.fifo_countdown = None;
         self.schedule = None;
-        self.say(format_args!("//action:cancel"));
+        self.action(HostAction::Cancel);
         self.say(format_args!(
-            "echo:cancelled: dropped {} commands, {} blocks, {} uncut segments, {} layer marks",
+            "cancelled: dropped {} commands, {} blocks, {} uncut segments, {} layer marks",
             cmds,
             blocks + held,
             segs,
@@ -905,7 +949,7 @@ impl Printer {
             }
             Phase::Stopping | Phase::Run => {
                 if !self.has_work() {
-                    self.say(format_args!("echo:nothing to cancel"));
+                    self.say(format_args!("nothing to cancel"));
                     return;
                 }
                 self.cancel_pending = true;
@@ -926,13 +970,20 @@ impl Printer {
         self.deferred_resume = false;
         self.held = None;
         self.barrier_layer = None;
+        if let Some(m) = self.saved_machine.take() {
+            self.machine = m;
+        }
         let pos = self.stepgen.position();
         self.planner.clear(pos);
         self.planner.exec_done();
+        self.machine.set_position_steps(&pos, &self.cfg);
+        self.thermal.pause_idle_end();
     }
 
     fn emergency_stop(&mut self) {
         self.halted = true;
+        self.thermal.kill(self.now_us);
+        self.arc = None;
         let _ = self.stepgen.unload();
         let pos = self.stepgen.position();
         self.planner.clear(pos);
@@ -940,7 +991,7 @@ impl Printer {
         self.service.clear();
         self.held = None;
         self.say(format_args!(
-            "echo:emergency stop (M112): motors and heaters off, reset required"
+            "emergency stop (M112): motors and heaters off, reset required"
         ));
     }
 
@@ -956,8 +1007,13 @@ impl Printer {
         self.mode = None;
         self.barrier_layer = None;
         self.fifo_countdown = None;
+        self.arc = None;
+        if let Some(m) = self.saved_machine.take() {
+            self.machine = m;
+        }
+        self.machine.set_position_steps(&pos, &self.cfg);
         self.say(format_args!(
-            "echo:quick stop (M410): dropped {} blocks, {} uncut segments",
+            "quick stop (M410): dropped {} blocks, {} uncut segments",
             blocks, segs
         ));
     }
@@ -1040,7 +1096,13 @@ impl Printer {
                     return;
                 }
                 self.phase = Phase::Parked;
-                self.say(format_args!("//action:paused"));
+                // The job's modal state is kept aside; manual commands while paused start
+                // from the parked position and cannot change what the job resumes with.
+                self.saved_machine = Some(self.machine);
+                let here = self.stepgen.position();
+                self.machine.set_position_steps(&here, &self.cfg);
+                self.thermal.pause_idle_start(self.now_us);
+                self.action(HostAction::Paused);
                 if self.deferred_resume {
                     self.deferred_resume = false;
                     self.start_resume();
@@ -1048,19 +1110,23 @@ impl Printer {
             }
             Phase::Parked => {}
             Phase::Returning => {
-                if !self.service.is_empty() || self.stepgen.current().is_some() {
+                if !self.service.is_empty() || self.stepgen.current().is_some() || self.reheat_wait
+                {
                     return;
                 }
                 if self.cancel_pending {
                     self.finish_cancel();
                     return;
                 }
+                if let Some(m) = self.saved_machine.take() {
+                    self.machine = m;
+                }
                 // Logical E: the job continues from the held E count (no E jump).
                 let mut pos = self.stepgen.position();
                 pos[Axis::E.index()] = self.held_pos[Axis::E.index()];
                 self.stepgen.set_position(pos);
                 self.release_held();
-                self.say(format_args!("//action:resumed"));
+                self.action(HostAction::Resumed);
                 if let Some(m) = self.deferred_pause.take() {
                     self.request_pause(m);
                 }
@@ -1116,6 +1182,8 @@ impl Printer {
 
     fn start_resume(&mut self) {
         self.phase = Phase::Returning;
+        // A nozzle cooled by the pause idle timeout must be hot again before the return.
+        self.reheat_wait = self.thermal.pause_idle_end().is_some();
         self.service.clear();
         let p = self.held_pos;
         let c = self.cfg;
@@ -1136,7 +1204,7 @@ impl Printer {
             target: cur,
             feed_mm_s: c.pause.retract_feed_mm_s,
         });
-        self.say(format_args!("//action:resume"));
+        self.action(HostAction::Resume);
     }
 
     /// The run state now.
@@ -1187,11 +1255,44 @@ impl Printer {
         }
     }
 
-    /// Heater sample in, duty out. Not built yet: waits for `firmware::thermal` (board);
-    /// returns 0 (heater off) until then.
-    pub fn thermal_sample(&mut self, bed: bool, measured_c: f32, now_us: u64) -> f32 {
-        let _ = (bed, measured_c);
+    /// Heater sample in (°C, NaN = unreadable), duty 0..=1 out. A thermal fault halts the
+    /// printer (reported as Marlin does).
+    pub fn thermal_sample(&mut self, id: HeaterId, measured_c: f32, now_us: u64) -> f32 {
         self.set_now(now_us);
-        0.0
+        let had_fault = self.thermal.fault().is_some();
+        let duty = self.thermal.update(id, measured_c, now_us);
+        if !had_fault {
+            if let Some(f) = self.thermal.fault() {
+                let mut t: String<LINE_LEN> = String::new();
+                let _ = write!(t, "{f}");
+                self.link.respond(Response::Error(&t));
+                self.link
+                    .respond(Response::Error("Printer halted. kill() called!"));
+                if !self.halted {
+                    self.emergency_stop();
+                }
+            }
+        }
+        duty
+    }
+
+    /// The heaters (read-only).
+    pub fn thermal(&self) -> &Thermal {
+        &self.thermal
+    }
+
+    /// The heaters (for the board's configuration).
+    pub fn thermal_mut(&mut self) -> &mut Thermal {
+        &mut self.thermal
+    }
+
+    /// Part-cooling fan PWM 0..=255 (M106/M107).
+    pub fn fan_pwm(&self) -> u8 {
+        self.fan_pwm
+    }
+
+    /// The machine's modal state (read-only).
+    pub fn machine(&self) -> &MachineState {
+        &self.machine
     }
 }

@@ -151,3 +151,87 @@ pub fn run(p: &mut Printer, cmds: &[Command], reqs: &[Req], limit_us: u64) -> Ru
 pub fn printer() -> Printer {
     Printer::with_policy(MachineConfig::ENDER3, Policy::FIRMWARE)
 }
+
+/// Stream G-code lines with ok flow control (next line only after an `ok`); at each
+/// `(t_us, bytes)` send those bytes at once (realtime requests). Returns the run and the
+/// number of `ok`s seen.
+pub fn run_gcode(p: &mut Printer, lines: &[&str], sends: &[(u64, &str)], limit_us: u64) -> Run {
+    let mut r = Run::default();
+    let mut now = 0u64;
+    let tick = 1000u64;
+    let mut next_line = 0usize;
+    let mut next_send = 0usize;
+    let mut waiting_ok = false;
+    let mut oks_pending = 0usize;
+    loop {
+        if !waiting_ok && next_line < lines.len() {
+            let l = format!("{}\n", lines[next_line]);
+            p.receive(l.as_bytes(), now);
+            next_line += 1;
+            waiting_ok = true;
+        }
+        while next_send < sends.len() && sends[next_send].0 <= now {
+            p.receive(sends[next_send].1.as_bytes(), now);
+            r.req_times.push(now);
+            // A realtime line is answered `ok` too, but the host does not wait for it.
+            oks_pending += 1;
+            next_send += 1;
+        }
+        p.poll(now);
+        let until_ns = (now + tick) * 1000;
+        while let Some(t) = p.next_step_ns() {
+            if t > until_ns {
+                break;
+            }
+            let Some(_ev) = p.next_step() else { break };
+            r.trace.push((t, p.status().position));
+        }
+        while let Some(rec) = p.pop_record() {
+            if let Record::Executed {
+                seq,
+                seg,
+                kind,
+                pos,
+                ..
+            } = rec
+            {
+                if kind == BlockKind::Job {
+                    r.executed.push((seq, seg));
+                    r.job_pos.push(pos);
+                }
+            }
+            r.records.push(rec);
+        }
+        let mut s = String::new();
+        let _ = p.write_output(&mut s);
+        for l in s.lines() {
+            if l.starts_with("ok") {
+                if oks_pending > 0 {
+                    oks_pending -= 1;
+                } else {
+                    waiting_ok = false;
+                }
+            }
+        }
+        r.out.push_str(&s);
+        now += tick;
+        let st = p.status().state;
+        if next_line >= lines.len()
+            && !waiting_ok
+            && next_send >= sends.len()
+            && matches!(
+                st,
+                State::Idle | State::Cancelled | State::Paused | State::Halted
+            )
+            && p.next_step_ns().is_none()
+        {
+            break;
+        }
+        if now > limit_us {
+            break;
+        }
+    }
+    r.end = p.status().position;
+    r.end_us = now;
+    r
+}

@@ -1,0 +1,435 @@
+//! The host side of the executive: lines from the link are parsed, interpreted by the machine
+//! state, fed to the layer detector and queued as [`Command`]s; commands that are not motion
+//! (temperatures, reports, M760/M761, ...) are answered here.
+
+use super::{Command, PausedLines, Phase, Printer, Schedule, LINE_LEN};
+use crate::gcode::{self, Heater, PauseSchedule};
+use crate::layer::MoveFacts;
+use crate::link::{PositionReport, ReceivedLine, Response};
+use crate::machine::Action;
+use crate::motion::Realtime;
+use crate::printer::service::ServiceMove;
+use crate::printer::CMD_CAPACITY;
+use crate::thermal::HeaterId;
+use core::fmt::Write as _;
+use heapless::String;
+
+fn heater_id(h: Heater) -> HeaterId {
+    match h {
+        Heater::Hotend => HeaterId::Hotend,
+        Heater::Bed => HeaterId::Bed,
+    }
+}
+
+impl Printer {
+    pub(super) fn take_realtime(&mut self) {
+        while let Some(rt) = self.link.take_realtime() {
+            let now = self.now_us;
+            self.request(rt, now);
+        }
+    }
+
+    fn queued_moves(&self) -> usize {
+        self.cmds
+            .iter()
+            .filter(|c| !matches!(c, Command::Layer(_)))
+            .count()
+    }
+
+    /// Room for one more host line: the policy's limit on waiting commands (layer marks do not
+    /// count) and physical room for a mark plus a command.
+    fn line_room(&self) -> bool {
+        self.queued_moves() < self.policy.cmd_limit.clamp(1, CMD_CAPACITY)
+            && self.cmds.len() + 2 <= CMD_CAPACITY
+    }
+
+    /// Take lines from the link while there is room, and answer each.
+    pub(super) fn process_lines(&mut self) {
+        for _ in 0..64 {
+            if self.halted {
+                return;
+            }
+            if self.arc.is_some() {
+                self.push_arc();
+                if self.arc.is_some() {
+                    return;
+                }
+                self.link.respond(Response::Ok);
+            }
+            let manual =
+                self.phase == Phase::Parked && self.policy.paused_lines == PausedLines::Manual;
+            if manual && self.service.is_full() {
+                return;
+            }
+            if !manual && !self.line_room() {
+                return;
+            }
+            let Some(line) = self.link.pop_line() else {
+                return;
+            };
+            self.cancelled = false;
+            self.last_activity_us = self.now_us;
+            self.handle_line(&line, manual);
+            self.feed_planner();
+        }
+    }
+
+    fn push_arc(&mut self) {
+        while self.arc.is_some() {
+            if !self.line_room() {
+                return;
+            }
+            match self.arc.as_mut().and_then(|a| a.next()) {
+                Some(m) => {
+                    let _ = self.cmds.push_back(Command::Move(m));
+                }
+                None => self.arc = None,
+            }
+        }
+    }
+
+    fn error(&mut self, args: core::fmt::Arguments) {
+        let mut t: String<LINE_LEN> = String::new();
+        let _ = t.write_fmt(args);
+        self.link.respond(Response::Error(&t));
+    }
+
+    fn handle_line(&mut self, line: &ReceivedLine, manual: bool) {
+        let parsed = match line.parse() {
+            Ok(l) => l,
+            Err(e) => {
+                self.error(format_args!("{e}"));
+                self.link.respond(Response::Ok);
+                return;
+            }
+        };
+        let before = self.machine.position_steps(&self.cfg);
+        let action = match &parsed.command {
+            Some(cmd) => match self.machine.apply(cmd, &self.cfg) {
+                Ok(a) => a,
+                Err(e) => {
+                    self.error(format_args!("{e}"));
+                    self.link.respond(Response::Ok);
+                    return;
+                }
+            },
+            None => Action::None,
+        };
+        let after = self.machine.position_steps(&self.cfg);
+        if !manual {
+            let facts = MoveFacts::between(&before, &after, &self.cfg);
+            if let Some(mark) = self.layers.feed(&parsed, facts) {
+                let _ = self.cmds.push_back(Command::Layer(mark));
+            }
+        }
+        let mut answered = false;
+        match action {
+            Action::None => {}
+            Action::Move(m) => {
+                if manual {
+                    let _ = self.service.push_back(ServiceMove {
+                        target: m.target,
+                        feed_mm_s: m.feed_mm_s,
+                    });
+                } else {
+                    let _ = self.cmds.push_back(Command::Move(m));
+                }
+            }
+            Action::Arc(a) => {
+                if manual {
+                    self.error(format_args!("arcs are not taken while paused"));
+                } else {
+                    self.arc = Some(a);
+                    self.push_arc();
+                    if self.arc.is_some() {
+                        return; // `ok` once the whole arc is queued
+                    }
+                }
+            }
+            Action::Home(flags) => {
+                if manual {
+                    self.error(format_args!("homing is not allowed while paused"));
+                } else {
+                    let mut mask = 0u8;
+                    for (i, on) in flags.0.iter().enumerate() {
+                        if *on {
+                            mask |= 1 << i;
+                        }
+                    }
+                    let _ = self.cmds.push_back(Command::Home { mask });
+                }
+            }
+            Action::Dwell { ms } => {
+                if !manual {
+                    let _ = self.cmds.push_back(Command::Dwell { ms });
+                }
+            }
+            Action::Executive => {
+                if let Some(cmd) = &parsed.command {
+                    answered = self.executive(cmd);
+                }
+            }
+        }
+        if !answered {
+            self.link.respond(Response::Ok);
+        }
+    }
+
+    /// Commands the machine state leaves to the executive. Returns true when the `ok` was
+    /// already sent (M105 answers `ok T:...`).
+    fn executive(&mut self, cmd: &gcode::Command) -> bool {
+        use gcode::Command as G;
+        match cmd {
+            G::SetTemperature {
+                heater, wait, s, r, ..
+            } => {
+                let id = heater_id(*heater);
+                if let Some(t) = r.or(*s) {
+                    if let Err(e) = self.thermal.set_target(id, t) {
+                        self.error(format_args!("{e}"));
+                        return false;
+                    }
+                }
+                if *wait {
+                    let _ = self.cmds.push_back(Command::WaitHeater(id));
+                }
+            }
+            G::ReportTemperatures => {
+                // The report is its own `ok`.
+                return self.report_temperatures();
+            }
+            G::FanOn { speed, .. } => {
+                let v = speed.unwrap_or(255.0);
+                self.fan_pwm = if v.is_finite() {
+                    v.clamp(0.0, 255.0) as u8
+                } else {
+                    0
+                };
+            }
+            G::FanOff { .. } => self.fan_pwm = 0,
+            G::ReportPosition => {
+                let r = PositionReport {
+                    logical_mm: self.machine.logical_mm(),
+                    steps: self.stepgen.position(),
+                };
+                self.link.respond(Response::Position(r));
+            }
+            G::FirmwareInfo => {
+                self.link.respond(Response::FirmwareInfo);
+            }
+            G::Message(t) | G::Echo(t) => {
+                self.link.respond(Response::Echo(t));
+            }
+            G::SetAcceleration {
+                print,
+                retract,
+                travel,
+                s,
+            } => {
+                let ok = |v: &Option<f32>| v.filter(|a| a.is_finite() && *a > 0.0);
+                if let Some(a) = ok(s) {
+                    self.cfg.accel_print_mm_s2 = a;
+                    self.cfg.accel_travel_mm_s2 = a;
+                }
+                if let Some(a) = ok(print) {
+                    self.cfg.accel_print_mm_s2 = a;
+                }
+                if let Some(a) = ok(retract) {
+                    self.cfg.accel_retract_mm_s2 = a;
+                }
+                if let Some(a) = ok(travel) {
+                    self.cfg.accel_travel_mm_s2 = a;
+                }
+            }
+            G::FeedOverride(None) => {
+                let v = self.machine.feed_override_pct();
+                self.say(format_args!("FR:{v:.0}%"));
+            }
+            G::FlowOverride(None) => {
+                let v = self.machine.flow_override_pct();
+                self.say(format_args!("E0 Flow: {v:.0}%"));
+            }
+            G::WaitMoves => {
+                let _ = self.cmds.push_back(Command::Sync);
+            }
+            G::PauseParams(p) => self.m760(p),
+            G::SchedulePause(s) => self.m761(s),
+            G::Pause { now, .. } => {
+                let mode = if *now {
+                    crate::motion::PauseMode::Now
+                } else {
+                    crate::motion::PauseMode::Layer
+                };
+                let t = self.now_us;
+                self.request(Realtime::Pause(mode), t);
+            }
+            G::Resume { .. } => {
+                let t = self.now_us;
+                self.request(Realtime::Resume, t);
+            }
+            G::Cancel => {
+                let t = self.now_us;
+                self.request(Realtime::Cancel, t);
+            }
+            G::QuickStop => {
+                let t = self.now_us;
+                self.request(Realtime::QuickStop, t);
+            }
+            G::EmergencyStop => {
+                let t = self.now_us;
+                self.request(Realtime::EmergencyStop, t);
+            }
+            G::BreakWait => {
+                let t = self.now_us;
+                self.request(Realtime::BreakWait, t);
+            }
+            G::SetPid { heater, p, i, d } => {
+                let id = heater_id(*heater);
+                match (self.thermal.pid(id), p, i, d) {
+                    (Some(g), None, None, None) => {
+                        self.say(format_args!("p:{:.2} i:{:.2} d:{:.2}", g.kp, g.ki, g.kd));
+                    }
+                    (cur, _, _, _) => {
+                        let base = cur.unwrap_or(crate::thermal::pid::PidGains {
+                            kp: 0.0,
+                            ki: 0.0,
+                            kd: 0.0,
+                        });
+                        let g = crate::thermal::pid::PidGains {
+                            kp: p.unwrap_or(base.kp),
+                            ki: i.unwrap_or(base.ki),
+                            kd: d.unwrap_or(base.kd),
+                        };
+                        if let Err(e) = self.thermal.set_pid(id, g) {
+                            self.error(format_args!("{e}"));
+                        }
+                    }
+                }
+            }
+            G::Autotune {
+                heater_index,
+                target_c,
+                cycles,
+                use_result,
+            } => {
+                let id = if *heater_index == Some(-1) {
+                    HeaterId::Bed
+                } else {
+                    HeaterId::Hotend
+                };
+                let t = target_c.unwrap_or(if id == HeaterId::Bed { 70.0 } else { 200.0 });
+                let c = cycles.unwrap_or(5).min(255) as u8;
+                let now = self.now_us;
+                if let Err(e) = self.thermal.start_autotune(id, t, c, *use_result, now) {
+                    self.error(format_args!("{e}"));
+                }
+            }
+            G::Tool(0) | G::EnableSteppers(_) | G::DisableSteppers { .. } | G::Progress(_) => {}
+            G::PrintStatsInfo { .. } | G::SetLineNumber(_) => {}
+            G::Tool(n) => self.error(format_args!("T{n}: only one extruder")),
+            G::Stop { .. } | G::FilamentChange(_) => {
+                self.say(format_args!(
+                    "M0/M1/M600 not built yet: use M25 / M601 to pause"
+                ));
+            }
+            G::Unknown(t) => {
+                self.link.respond(Response::UnknownCommand(t));
+            }
+            _ => {}
+        }
+        false
+    }
+
+    fn report_temperatures(&mut self) -> bool {
+        let report = crate::link::TempReport {
+            hotend_c: self.thermal.temperature_c(HeaterId::Hotend),
+            hotend_target_c: self.thermal.target_c(HeaterId::Hotend),
+            bed_c: Some((
+                self.thermal.temperature_c(HeaterId::Bed),
+                self.thermal.target_c(HeaterId::Bed),
+            )),
+            hotend_duty: self.thermal.duty(HeaterId::Hotend),
+            bed_duty: self.thermal.duty(HeaterId::Bed),
+        };
+        self.link.respond(Response::Temperatures {
+            report,
+            with_ok: true,
+        });
+        true
+    }
+
+    fn m760(&mut self, p: &gcode::PauseParams) {
+        if p.is_empty() {
+            let c = self.cfg.pause;
+            self.say(format_args!(
+                "M760 R{:.2} Z{:.2} X{:.1} Y{:.1} F{:.0} S{:.2} V{:.1} L{:.3}",
+                c.retract_mm,
+                c.lift_z_mm,
+                c.park_x_mm,
+                c.park_y_mm,
+                c.park_feed_mm_s * 60.0,
+                c.speedup_factor,
+                c.max_volumetric_mm3_s,
+                c.segment_len_mm
+            ));
+            return;
+        }
+        let pos = |v: Option<f32>| v.filter(|x| x.is_finite() && *x >= 0.0);
+        let c = &mut self.cfg.pause;
+        if let Some(v) = pos(p.retract_mm) {
+            c.retract_mm = v.min(20.0);
+        }
+        if let Some(v) = pos(p.lift_z_mm) {
+            c.lift_z_mm = v;
+        }
+        if let Some(v) = pos(p.park_x_mm) {
+            c.park_x_mm = v;
+        }
+        if let Some(v) = pos(p.park_y_mm) {
+            c.park_y_mm = v;
+        }
+        if let Some(v) = pos(p.park_feed_mm_min).filter(|v| *v > 0.0) {
+            c.park_feed_mm_s = v / 60.0;
+        }
+        if let Some(v) = pos(p.speedup_factor).filter(|v| *v >= 1.0) {
+            c.speedup_factor = v;
+        }
+        if let Some(v) = pos(p.max_volumetric_mm3_s).filter(|v| *v > 0.0) {
+            c.max_volumetric_mm3_s = v;
+        }
+        if let Some(v) = pos(p.segment_len_mm) {
+            // 0 turns segmentation off; tiny values would flood the ring.
+            c.segment_len_mm = if v == 0.0 { 0.0 } else { v.max(0.05) };
+        }
+    }
+
+    fn m761(&mut self, s: &PauseSchedule) {
+        match *s {
+            PauseSchedule::Report => match self.schedule {
+                Some(Schedule::Layer(n)) => self.say(format_args!("pause scheduled at layer {n}")),
+                Some(Schedule::Z(z)) => {
+                    self.say(format_args!("pause scheduled at Z{:.3}", z as f32 / 1000.0))
+                }
+                None => self.say(format_args!("no pause scheduled")),
+            },
+            PauseSchedule::Clear => {
+                self.schedule = None;
+                self.say(format_args!("pause schedule cleared"));
+            }
+            PauseSchedule::Layer(n) => {
+                self.schedule = Some(Schedule::Layer(n));
+                self.say(format_args!("pause scheduled at layer {n}"));
+            }
+            PauseSchedule::Z(z) => {
+                let um = libm::roundf(z * 1000.0);
+                let um = if um.is_finite() {
+                    um.clamp(i32::MIN as f32, i32::MAX as f32) as i32
+                } else {
+                    0
+                };
+                self.schedule = Some(Schedule::Z(um));
+                self.say(format_args!("pause scheduled at Z{z:.3}"));
+            }
+        }
+    }
+}

@@ -1,0 +1,78 @@
+//! A slicer-style G-code job through the host link: ok flow control, layer markers from
+//! comments, realtime M25/M24 in the byte stream, modal state around the pause.
+mod support;
+
+use firmware::printer::Record;
+use support::*;
+
+fn job() -> Vec<String> {
+    let mut v = vec![
+        "M83".to_string(),
+        "G28".to_string(),
+        "G1 Z0.2 F600".to_string(),
+        "G92 E0".to_string(),
+    ];
+    for layer in 0..3 {
+        v.push(";LAYER_CHANGE".into());
+        v.push(format!(";Z:{:.1}", 0.2 * (layer + 1) as f32));
+        v.push(format!("G1 Z{:.1} F600", 0.2 * (layer + 1) as f32));
+        v.push("G1 X20 Y20 F6000".into());
+        v.push("G1 E0.8 F2400".into());
+        for (x, y) in [(60, 20), (60, 60), (20, 60), (20, 20)] {
+            v.push(format!("G1 X{x} Y{y} E1.33 F2400"));
+        }
+        v.push("G1 E-0.8 F2400".into());
+    }
+    v
+}
+
+#[test]
+fn gcode_job_pause_resume_via_link() {
+    let lines = job();
+    let lines: Vec<&str> = lines.iter().map(|s| s.as_str()).collect();
+    let base = run_gcode(&mut printer(), &lines, &[], 120_000_000);
+    assert!(!base.executed.is_empty());
+    assert!(!base.out.contains("Error"), "{}", base.out);
+    let mut p = printer();
+    let r = run_gcode(
+        &mut p,
+        &lines,
+        &[(2_500_000, "M25\n"), (15_000_000, "M24\n")],
+        120_000_000,
+    );
+    assert!(r.out.contains("//action:paused"), "{}", r.out);
+    assert!(r.out.contains("//action:resumed"), "{}", r.out);
+    assert_eq!(r.executed, base.executed);
+    assert_eq!(r.job_pos, base.job_pos);
+    assert_eq!(r.end, base.end);
+    // Layer-mode stop: at a layer boundary, not mid-block.
+    let stop = r.records.iter().find_map(|x| match *x {
+        Record::Stopped {
+            layer, mid_block, ..
+        } => Some((layer, mid_block)),
+        _ => None,
+    });
+    let (layer, mid) = stop.expect("stopped");
+    assert!(!mid);
+    assert!(layer.is_some());
+}
+
+#[test]
+fn reports_and_errors() {
+    let mut p = printer();
+    let r = run_gcode(
+        &mut p,
+        &["M105", "M114", "G1 X400", "M760", "M761 L3", "M761", "FOO"],
+        &[],
+        5_000_000,
+    );
+    assert!(r.out.contains("ok T:"), "{}", r.out);
+    assert!(r.out.contains("Count X:"), "{}", r.out);
+    assert!(
+        r.out.contains("Error:move outside the build volume"),
+        "{}",
+        r.out
+    );
+    assert!(r.out.contains("M760 R2.00"), "{}", r.out);
+    assert!(r.out.contains("pause scheduled at layer 3"), "{}", r.out);
+}
