@@ -4,3 +4,13 @@
 #![deny(missing_docs)]
 
 pub mod cli;
+// Design compiler (ht-design).
+pub mod deform;
+pub mod gcode_read;
+pub mod model;
+pub mod modulate;
+pub mod motion;
+pub mod parts;
+pub mod profile;
+pub mod turtle;
+pub mod writer;

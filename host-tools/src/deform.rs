@@ -1,0 +1,404 @@
+//! Deformations (Kanada): `deform_xyz(fd, fc, fv)` maps every string's end points with `fd`,
+//! its cross-section with `fc` and its speed with `fv`; `deform_cylinder` does the same in
+//! cylindrical coordinates `(r, θ, z)` about the model's axis (θ in radians). Only end points
+//! move, so strings stay straight; with a chord tolerance, strings are first subdivided until
+//! the deformed midpoint lies within the tolerance of the deformed chord.
+//!
+//! `fc` and `fv` receive the value and the *original* coordinates of the string's midpoint.
+//! Built-ins: [`cup_to_dish`], [`helix_to_sphere`], [`heart_dish`], [`twisted_vase`].
+
+use crate::model::{Model, Step, Str};
+use glam::DVec3;
+use std::f64::consts::PI;
+
+/// Deepest recursive subdivision (2^12 pieces per string at most).
+pub const MAX_SUBDIVISION_DEPTH: u32 = 12;
+
+/// Deformation errors.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum DeformError {
+    /// A user function returned a non-finite or invalid value.
+    #[error("deformation produced an invalid value at ({x:.3}, {y:.3}, {z:.3}): {msg}")]
+    Invalid {
+        /// X of the original point, mm.
+        x: f64,
+        /// Y of the original point, mm.
+        y: f64,
+        /// Z of the original point, mm.
+        z: f64,
+        /// What was wrong.
+        msg: String,
+    },
+    /// A user (script) function failed.
+    #[error("{0}")]
+    Callback(String),
+}
+
+/// A point map that may fail (script callbacks do).
+pub type PointFn<'a> = dyn FnMut(DVec3) -> Result<DVec3, DeformError> + 'a;
+/// A value map `(value, original point) -> value` that may fail.
+pub type ValueFn<'a> = dyn FnMut(f64, DVec3) -> Result<f64, DeformError> + 'a;
+
+fn invalid(p: DVec3, msg: impl Into<String>) -> DeformError {
+    DeformError::Invalid {
+        x: p.x,
+        y: p.y,
+        z: p.z,
+        msg: msg.into(),
+    }
+}
+
+/// Deforms in Cartesian coordinates (fallible callbacks; the general form).
+pub fn deform_xyz_try(
+    model: Model,
+    fd: &mut PointFn<'_>,
+    fc: &mut ValueFn<'_>,
+    fv: &mut ValueFn<'_>,
+    chord_tol_mm: Option<f64>,
+) -> Result<Model, DeformError> {
+    let tol = chord_tol_mm.filter(|t| t.is_finite() && *t > 0.0);
+    let model = model.arcs_to_lines(tol.unwrap_or(0.01));
+    let mut out = Model {
+        steps: Vec::with_capacity(model.steps.len()),
+        axis_xy: model.axis_xy,
+        emission: model.emission,
+    };
+    let map = |p: DVec3, fd: &mut PointFn<'_>| -> Result<DVec3, DeformError> {
+        let q = fd(p)?;
+        if q.is_finite() {
+            Ok(q)
+        } else {
+            Err(invalid(p, format!("point mapped to {q:?}")))
+        }
+    };
+    for step in model.steps {
+        match step {
+            Step::String(s) => {
+                let a = map(s.start, fd)?;
+                let b = map(s.end, fd)?;
+                let mut pieces = Vec::new();
+                subdivide(s.start, s.end, a, b, tol, 0, fd, &mut pieces)?;
+                for (p0, p1, q0, q1) in pieces {
+                    let mid = 0.5 * (p0 + p1);
+                    let c = fc(s.cross_mm2, mid)?;
+                    let v = fv(s.speed_mm_s, mid)?;
+                    if !(c.is_finite() && c >= 0.0) {
+                        return Err(invalid(mid, format!("cross-section mapped to {c}")));
+                    }
+                    if !(v.is_finite() && v > 0.0) {
+                        return Err(invalid(mid, format!("speed mapped to {v}")));
+                    }
+                    out.steps.push(Step::String(Str::line(q0, q1, c, v)));
+                }
+            }
+            Step::Travel { to, speed_mm_s } => out.steps.push(Step::Travel {
+                to: map(to, fd)?,
+                speed_mm_s,
+            }),
+            other => out.steps.push(other),
+        }
+    }
+    fix_markers(&mut out);
+    Ok(out)
+}
+
+type Piece = (DVec3, DVec3, DVec3, DVec3);
+
+#[allow(clippy::too_many_arguments)]
+fn subdivide(
+    p0: DVec3,
+    p1: DVec3,
+    q0: DVec3,
+    q1: DVec3,
+    tol: Option<f64>,
+    depth: u32,
+    fd: &mut PointFn<'_>,
+    out: &mut Vec<Piece>,
+) -> Result<(), DeformError> {
+    if let Some(t) = tol {
+        if depth < MAX_SUBDIVISION_DEPTH {
+            let pm = 0.5 * (p0 + p1);
+            let qm = fd(pm)?;
+            if !qm.is_finite() {
+                return Err(invalid(pm, format!("point mapped to {qm:?}")));
+            }
+            if qm.distance(0.5 * (q0 + q1)) > t {
+                subdivide(p0, pm, q0, qm, tol, depth + 1, fd, out)?;
+                return subdivide(pm, p1, qm, q1, tol, depth + 1, fd, out);
+            }
+        }
+    }
+    out.push((p0, p1, q0, q1));
+    Ok(())
+}
+
+/// After a deformation, markers take the height of the string that follows them and the
+/// thickness the distance to the previous marker.
+fn fix_markers(m: &mut Model) {
+    let mut next_z: Option<f64> = None;
+    for i in (0..m.steps.len()).rev() {
+        match &mut m.steps[i] {
+            Step::String(s) => next_z = Some(s.start.z),
+            Step::Marker { z_mm, .. } => {
+                if let Some(z) = next_z {
+                    *z_mm = z;
+                }
+            }
+            _ => {}
+        }
+    }
+    let mut prev: Option<f64> = None;
+    for s in &mut m.steps {
+        if let Step::Marker {
+            z_mm, height_mm, ..
+        } = s
+        {
+            if let Some(p) = prev {
+                if *z_mm > p {
+                    *height_mm = *z_mm - p;
+                }
+            }
+            prev = Some(*z_mm);
+        }
+    }
+}
+
+/// Deforms in Cartesian coordinates with infallible closures.
+pub fn deform_xyz(
+    model: Model,
+    mut fd: impl FnMut(DVec3) -> DVec3,
+    mut fc: impl FnMut(f64, DVec3) -> f64,
+    mut fv: impl FnMut(f64, DVec3) -> f64,
+    chord_tol_mm: Option<f64>,
+) -> Result<Model, DeformError> {
+    deform_xyz_try(
+        model,
+        &mut |p| Ok(fd(p)),
+        &mut |c, p| Ok(fc(c, p)),
+        &mut |v, p| Ok(fv(v, p)),
+        chord_tol_mm,
+    )
+}
+
+/// Cylindrical coordinates `(r, θ, z)` of `p` about `axis`.
+pub fn to_cyl(p: DVec3, axis: [f64; 2]) -> DVec3 {
+    let dx = p.x - axis[0];
+    let dy = p.y - axis[1];
+    DVec3::new(dx.hypot(dy), dy.atan2(dx), p.z)
+}
+
+/// Cartesian point of cylindrical `(r, θ, z)` about `axis`.
+pub fn from_cyl(c: DVec3, axis: [f64; 2]) -> DVec3 {
+    DVec3::new(axis[0] + c.x * c.y.cos(), axis[1] + c.x * c.y.sin(), c.z)
+}
+
+/// Deforms in cylindrical coordinates about the model's axis (fallible callbacks). `fd` maps
+/// `(r, θ, z)` to `(r', θ', z')`; `fc`, `fv` receive the value and `(r, θ, z)`.
+pub fn deform_cylinder_try(
+    model: Model,
+    fd: &mut PointFn<'_>,
+    fc: &mut ValueFn<'_>,
+    fv: &mut ValueFn<'_>,
+    chord_tol_mm: Option<f64>,
+) -> Result<Model, DeformError> {
+    let axis = model.axis_xy;
+    deform_xyz_try(
+        model,
+        &mut |p| Ok(from_cyl(fd(to_cyl(p, axis))?, axis)),
+        &mut |c, p| fc(c, to_cyl(p, axis)),
+        &mut |v, p| fv(v, to_cyl(p, axis)),
+        chord_tol_mm,
+    )
+}
+
+/// Deforms in cylindrical coordinates with infallible closures.
+pub fn deform_cylinder(
+    model: Model,
+    mut fd: impl FnMut(DVec3) -> DVec3,
+    mut fc: impl FnMut(f64, DVec3) -> f64,
+    mut fv: impl FnMut(f64, DVec3) -> f64,
+    chord_tol_mm: Option<f64>,
+) -> Result<Model, DeformError> {
+    deform_cylinder_try(
+        model,
+        &mut |p| Ok(fd(p)),
+        &mut |c, p| Ok(fc(c, p)),
+        &mut |v, p| Ok(fv(v, p)),
+        chord_tol_mm,
+    )
+}
+
+/// Cup → dish (SPEC §2): `fd(r,θ,z) = (r + 1.05 z, θ, 0.3 z)`, `fc = 0.96 c`, `fv = v`.
+pub fn cup_to_dish(model: Model, chord_tol_mm: Option<f64>) -> Result<Model, DeformError> {
+    deform_cylinder(
+        model,
+        |c| DVec3::new(c.x + 1.05 * c.z, c.y, 0.3 * c.z),
+        |c, _| 0.96 * c,
+        |v, _| v,
+        chord_tol_mm,
+    )
+}
+
+/// Helix → sphere (SPEC §2, pitch kept): `fd(r,θ,z) = (R sin(π z/H), θ, r − R cos(π z/H))`,
+/// `fc = 1.2 c`, `fv = 1.2 ((r'/R)² + 0.1) v` with `r'` the new radius. `H` is the helix
+/// height (half a meridian) measured from `z0_mm`, the helix's first point; the sphere's
+/// bottom is lifted to `z0_mm` so it starts on the bed.
+pub fn helix_to_sphere(
+    model: Model,
+    radius_mm: f64,
+    height_mm: f64,
+    z0_mm: f64,
+    chord_tol_mm: Option<f64>,
+) -> Result<Model, DeformError> {
+    if !(radius_mm.is_finite() && radius_mm > 0.0 && height_mm.is_finite() && height_mm > 0.0) {
+        return Err(DeformError::Callback(format!(
+            "sphere radius and height must be > 0 (got {radius_mm}, {height_mm})"
+        )));
+    }
+    let (rr, h) = (radius_mm, height_mm);
+    let new_r = move |z: f64| rr * (PI * (z - z0_mm) / h).sin();
+    deform_cylinder(
+        model,
+        move |c| {
+            let zz = c.z - z0_mm;
+            DVec3::new(
+                rr * (PI * zz / h).sin(),
+                c.y,
+                z0_mm + c.x - rr * (PI * zz / h).cos(),
+            )
+        },
+        |c, _| 1.2 * c,
+        move |v, c| {
+            let r1 = new_r(c.z) / rr;
+            1.2 * (r1 * r1 + 0.1) * v
+        },
+        chord_tol_mm,
+    )
+}
+
+/// Unit heart outline at parameter `t` (the classic parametric heart scaled so its mean
+/// radius about its centre is about 1; cleft up, tip down).
+pub fn heart_point(t: f64) -> [f64; 2] {
+    let x = 16.0 * t.sin().powi(3);
+    let y = 13.0 * t.cos() - 5.0 * (2.0 * t).cos() - 2.0 * (3.0 * t).cos() - (4.0 * t).cos();
+    // centre of the outline ≈ (0, −2); mean radius ≈ 13
+    [x / 13.0, (y + 2.0) / 13.0]
+}
+
+/// Heart-shaped dish: a cup whose circular section becomes a heart (the circle's angle is the
+/// heart's parameter, the radius scales the outline) and which flares like the dish:
+/// `xy' = axis + (r + 1.05 z)·heart(θ)`, `z' = 0.3 z`, `fc = 0.96 c`.
+pub fn heart_dish(model: Model, chord_tol_mm: Option<f64>) -> Result<Model, DeformError> {
+    let axis = model.axis_xy;
+    let rot = PI / 2.0; // θ = 0 (+X) maps to the cleft at the top
+    deform_xyz(
+        model,
+        move |p| {
+            let c = to_cyl(p, axis);
+            let h = heart_point(c.y - rot);
+            let s = c.x + 1.05 * c.z;
+            DVec3::new(axis[0] + s * h[0], axis[1] + s * h[1], 0.3 * c.z)
+        },
+        |c, _| 0.96 * c,
+        |v, _| v,
+        chord_tol_mm,
+    )
+}
+
+/// Twisted vase: `r' = r (1 + a cos(n θ + twist·z)) (1 + b sin(π z / H))`, θ and z kept —
+/// `lobes` n, `amplitude` a, `twist_deg_per_mm`, `bulge` b over height `H`.
+pub fn twisted_vase(
+    model: Model,
+    lobes: f64,
+    amplitude: f64,
+    twist_deg_per_mm: f64,
+    bulge: f64,
+    height_mm: f64,
+    chord_tol_mm: Option<f64>,
+) -> Result<Model, DeformError> {
+    let tw = twist_deg_per_mm.to_radians();
+    let h = height_mm.max(1e-6);
+    deform_cylinder(
+        model,
+        move |c| {
+            let k = (1.0 + amplitude * (lobes * c.y + tw * c.z).cos())
+                * (1.0 + bulge * (PI * c.z / h).sin());
+            DVec3::new(c.x * k, c.y, c.z)
+        },
+        |c, _| c,
+        |v, _| v,
+        chord_tol_mm,
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::parts::Helix;
+
+    #[test]
+    fn cup_to_dish_maps_points() {
+        let h = Helix {
+            center_xy: [0.0, 0.0],
+            z0_mm: 0.0,
+            radius_mm: 10.0,
+            pitch_mm: 1.0,
+            turns: 2.0,
+            per_turn: 36,
+            ..Helix::default()
+        };
+        let m = cup_to_dish(h.build().expect("helix"), None).expect("dish");
+        let s = m.strings().last().copied().expect("strings");
+        // end at z = 2 → r' = 10 + 2.1, z' = 0.6
+        assert!((s.end.truncate().length() - 12.1).abs() < 1e-9);
+        assert!((s.end.z - 0.6).abs() < 1e-9);
+        assert!((s.cross_mm2 - 0.96 * 0.2).abs() < 1e-12);
+    }
+
+    #[test]
+    fn sphere_radius_and_speed() {
+        let r = 20.0;
+        let h = Helix {
+            center_xy: [100.0, 100.0],
+            z0_mm: 0.0,
+            radius_mm: r,
+            pitch_mm: 0.4,
+            turns: 100.0,
+            per_turn: 100,
+            ..Helix::default()
+        };
+        let height = 40.0;
+        let m = helix_to_sphere(h.build().expect("helix"), r, height, 0.0, None).expect("sphere");
+        let centre = DVec3::new(100.0, 100.0, r);
+        for s in m.strings() {
+            assert!((s.end.distance(centre) - r).abs() < 1e-6);
+            assert!(s.speed_mm_s <= 1.2 * 1.1 * 20.0 + 1e-9);
+        }
+    }
+
+    #[test]
+    fn subdivision_meets_tolerance() {
+        let h = Helix {
+            center_xy: [0.0, 0.0],
+            z0_mm: 0.0,
+            radius_mm: 10.0,
+            pitch_mm: 1.0,
+            turns: 1.0,
+            per_turn: 4,
+            ..Helix::default()
+        };
+        let coarse =
+            twisted_vase(h.build().expect("h"), 3.0, 0.2, 0.0, 0.0, 10.0, None).expect("vase");
+        let fine = twisted_vase(h.build().expect("h"), 3.0, 0.2, 0.0, 0.0, 10.0, Some(0.05))
+            .expect("vase");
+        assert_eq!(coarse.string_count(), 4);
+        assert!(fine.string_count() > 20);
+    }
+
+    #[test]
+    fn nan_from_callback_is_an_error() {
+        let h = Helix::default().build().expect("h");
+        let r = deform_xyz(h, |_| DVec3::NAN, |c, _| c, |v, _| v, None);
+        assert!(r.is_err());
+    }
+}

@@ -1,0 +1,631 @@
+//! G-code writer: turns a [`Model`] into G-code for a [`Profile`].
+//!
+//! - E per string = cross-section × length ÷ filament area; the running E total is kept in
+//!   `f64` and written rounded, relative E being the difference of rounded totals, so rounding
+//!   never drifts.
+//! - Only axes whose rounded value changed are written; `F` only when it changes.
+//! - Travels are `G0` without `E` (never an `E0` travel under absolute E); travels at least
+//!   `retraction.min_travel_mm` long retract and prime.
+//! - Arc strings become `G2`/`G3` (with `Z` for helical arcs).
+//! - Markers become `;LAYER_CHANGE`, `;Z:`, `;HEIGHT:` — once per helix turn for layer-free
+//!   prints, so a layer pause stops at a turn boundary. `;TYPE:` for feature types.
+//! - Emission thinning ([`crate::model::EmissionHints`]) merges short consecutive strings,
+//!   keeping their volume and time (the globe's poles).
+
+use crate::model::{Model, StateChange, Step, Str};
+use crate::profile::{filament_area_mm2, EMode, Profile};
+use glam::DVec3;
+use std::io::Write;
+
+/// Options of one write.
+#[derive(Clone, Debug, Default)]
+pub struct WriteOptions {
+    /// Leave out the profile's start and end code (golden tests, fragments).
+    pub bare: bool,
+    /// Header comment written first (e.g. the source file name).
+    pub header: Option<String>,
+}
+
+/// What a write produced.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct WriteSummary {
+    /// Strings written (after thinning).
+    pub strings: usize,
+    /// Strings merged away by thinning.
+    pub thinned: usize,
+    /// Travels written.
+    pub travels: usize,
+    /// Retractions written.
+    pub retractions: usize,
+    /// Layer/turn markers written.
+    pub markers: usize,
+    /// Filament pushed, mm.
+    pub filament_mm: f64,
+    /// Extruded volume, mm³.
+    pub volume_mm3: f64,
+    /// Bytes written.
+    pub bytes: usize,
+}
+
+/// Why a model could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum WriteError {
+    /// A step carries a value that cannot be printed.
+    #[error("step {index}: {msg}")]
+    BadStep {
+        /// Index in `model.steps`.
+        index: usize,
+        /// What is wrong.
+        msg: String,
+    },
+    /// The output failed.
+    #[error("writing G-code: {0}")]
+    Io(#[from] std::io::Error),
+}
+
+/// Appends `v` with at most `decimals` decimals, trailing zeros trimmed ("1.5", "-0.25", "3").
+pub fn push_fixed(buf: &mut Vec<u8>, v: f64, decimals: u32) {
+    let scale = 10i64.pow(decimals);
+    let n = (v * scale as f64).round() as i64;
+    push_scaled(buf, n, decimals);
+}
+
+/// Appends the integer `n` scaled by 10^-`decimals` (trailing zeros trimmed).
+fn push_scaled(buf: &mut Vec<u8>, n: i64, decimals: u32) {
+    let scale = 10u64.pow(decimals);
+    if n < 0 {
+        buf.push(b'-');
+    }
+    let a = n.unsigned_abs();
+    let int = a / scale;
+    let mut frac = a % scale;
+    push_u64(buf, int);
+    if frac != 0 {
+        let mut d = decimals;
+        while frac.is_multiple_of(10) {
+            frac /= 10;
+            d -= 1;
+        }
+        buf.push(b'.');
+        let mut tmp = [b'0'; 20];
+        let mut i = d as usize;
+        let mut f = frac;
+        while i > 0 {
+            i -= 1;
+            tmp[i] = b'0' + (f % 10) as u8;
+            f /= 10;
+        }
+        buf.extend_from_slice(&tmp[..d as usize]);
+    }
+}
+
+fn push_u64(buf: &mut Vec<u8>, mut v: u64) {
+    let mut tmp = [0u8; 20];
+    let mut i = tmp.len();
+    loop {
+        i -= 1;
+        tmp[i] = b'0' + (v % 10) as u8;
+        v /= 10;
+        if v == 0 {
+            break;
+        }
+    }
+    buf.extend_from_slice(&tmp[i..]);
+}
+
+/// The G-code writer for one profile.
+#[derive(Clone, Debug)]
+pub struct GcodeWriter<'p> {
+    profile: &'p Profile,
+    opts: WriteOptions,
+}
+
+struct State {
+    /// Last written position in integer units of 10^-decimals mm; `None` = unknown.
+    pos: [Option<i64>; 3],
+    /// Exact position (for travel lengths).
+    pos_f: Option<DVec3>,
+    /// Running E total (exact).
+    e_total: f64,
+    /// Last written rounded E total (integer units).
+    e_written: i64,
+    /// Current feed in 0.1 mm/min units.
+    f: Option<i64>,
+    area: f64,
+    retracted: bool,
+}
+
+impl<'p> GcodeWriter<'p> {
+    /// A writer for `profile`.
+    pub fn new(profile: &'p Profile, opts: WriteOptions) -> Self {
+        GcodeWriter { profile, opts }
+    }
+
+    /// Writes the model to a string.
+    pub fn to_string(&self, model: &Model) -> Result<(String, WriteSummary), WriteError> {
+        let mut buf = Vec::with_capacity(model.steps.len() * 40 + 1024);
+        let summary = self.write_into(model, &mut buf)?;
+        // Only ASCII and the model's own comments (valid UTF-8) are written.
+        let s = String::from_utf8(buf).map_err(|e| WriteError::BadStep {
+            index: 0,
+            msg: format!("non-UTF-8 output: {e}"),
+        })?;
+        Ok((s, summary))
+    }
+
+    /// Writes the model to `out`.
+    pub fn write<W: Write>(&self, model: &Model, mut out: W) -> Result<WriteSummary, WriteError> {
+        let mut buf = Vec::with_capacity(model.steps.len() * 40 + 1024);
+        let summary = self.write_into(model, &mut buf)?;
+        out.write_all(&buf)?;
+        Ok(summary)
+    }
+
+    /// Writes the model into a byte buffer (the fast path the benchmarks measure).
+    pub fn write_into(&self, model: &Model, buf: &mut Vec<u8>) -> Result<WriteSummary, WriteError> {
+        validate(model)?;
+        let thinned;
+        let steps: &[Step] = match model.emission.thin_min_len_mm {
+            Some(min) => {
+                thinned = thin(&model.steps, min);
+                &thinned
+            }
+            None => &model.steps,
+        };
+        let p = self.profile;
+        let dec = p.decimals;
+        let scale = 10f64.powi(dec as i32);
+        let mut sum = WriteSummary {
+            thinned: model.string_count() - steps_string_count(steps),
+            ..Default::default()
+        };
+        let start_len = buf.len();
+
+        // Temperatures set before the first string feed the start code instead of being
+        // written twice.
+        let mut hotend_c = p.hotend_c;
+        let mut bed_c = p.bed_c;
+        let mut first_string = steps.len();
+        for (i, s) in steps.iter().enumerate() {
+            match s {
+                Step::String(_) | Step::Travel { .. } => {
+                    first_string = i;
+                    break;
+                }
+                Step::State(StateChange::HotendTemp { celsius, .. }) => hotend_c = *celsius,
+                Step::State(StateChange::BedTemp { celsius, .. }) => bed_c = *celsius,
+                _ => {}
+            }
+        }
+        if let Some(h) = &self.opts.header {
+            for line in h.lines() {
+                buf.extend_from_slice(b"; ");
+                buf.extend_from_slice(line.as_bytes());
+                buf.push(b'\n');
+            }
+        }
+        if !self.opts.bare {
+            buf.extend_from_slice(p.start_code(hotend_c, bed_c).as_bytes());
+            if !buf.ends_with(b"\n") {
+                buf.push(b'\n');
+            }
+            if p.fan > 0.0 {
+                buf.extend_from_slice(b"M106 S");
+                push_u64(buf, (p.fan * 255.0).round() as u64);
+                buf.push(b'\n');
+            }
+        }
+        buf.extend_from_slice(match p.e_mode {
+            EMode::Absolute => b"M82\nG92 E0\n",
+            EMode::Relative => b"M83\nG92 E0\n",
+        });
+
+        let mut st = State {
+            pos: [None; 3],
+            pos_f: None,
+            e_total: 0.0,
+            e_written: 0,
+            f: None,
+            area: p.filament_area_mm2(),
+            retracted: false,
+        };
+        for (i, step) in steps.iter().enumerate() {
+            match step {
+                Step::String(s) => {
+                    let start_i = quant(s.start, scale);
+                    if st.pos.iter().zip(start_i).any(|(a, b)| *a != Some(b)) {
+                        self.travel(buf, &mut st, s.start, None, scale, &mut sum);
+                    }
+                    self.string(buf, &mut st, s, scale);
+                    sum.strings += 1;
+                    sum.volume_mm3 += s.volume_mm3();
+                }
+                Step::Travel { to, speed_mm_s } => {
+                    let to_i = quant(*to, scale);
+                    if st.pos.iter().zip(to_i).any(|(a, b)| *a != Some(b)) {
+                        self.travel(buf, &mut st, *to, *speed_mm_s, scale, &mut sum);
+                    }
+                }
+                Step::Comment(c) => {
+                    for line in c.lines() {
+                        buf.extend_from_slice(b"; ");
+                        buf.extend_from_slice(line.as_bytes());
+                        buf.push(b'\n');
+                    }
+                }
+                Step::Marker {
+                    z_mm, height_mm, ..
+                } => {
+                    buf.extend_from_slice(b";LAYER_CHANGE\n;Z:");
+                    push_fixed(buf, *z_mm, dec);
+                    buf.extend_from_slice(b"\n;HEIGHT:");
+                    push_fixed(buf, *height_mm, dec);
+                    buf.push(b'\n');
+                    sum.markers += 1;
+                }
+                Step::Type(t) => {
+                    buf.extend_from_slice(b";TYPE:");
+                    buf.extend_from_slice(t.lines().next().unwrap_or("").as_bytes());
+                    buf.push(b'\n');
+                }
+                Step::State(sc) => {
+                    if i < first_string
+                        && !self.opts.bare
+                        && matches!(
+                            sc,
+                            StateChange::HotendTemp { .. } | StateChange::BedTemp { .. }
+                        )
+                    {
+                        continue; // already in the start code
+                    }
+                    write_state(buf, &mut st, sc, dec);
+                }
+            }
+        }
+        sum.filament_mm = st.e_total;
+        if !self.opts.bare {
+            buf.extend_from_slice(p.end_code(hotend_c, bed_c).as_bytes());
+            if !buf.ends_with(b"\n") {
+                buf.push(b'\n');
+            }
+        }
+        sum.bytes = buf.len() - start_len;
+        Ok(sum)
+    }
+
+    fn push_f(&self, buf: &mut Vec<u8>, st: &mut State, speed_mm_s: f64) {
+        let f = (speed_mm_s * 600.0).round() as i64; // 0.1 mm/min
+        if st.f != Some(f) {
+            buf.extend_from_slice(b" F");
+            push_scaled(buf, f, 1);
+            st.f = Some(f);
+        }
+    }
+
+    fn push_axes(&self, buf: &mut Vec<u8>, st: &mut State, to: DVec3, scale: f64) -> bool {
+        let q = quant(to, scale);
+        let mut any = false;
+        for (k, name) in [b'X', b'Y', b'Z'].into_iter().enumerate() {
+            if st.pos[k] != Some(q[k]) {
+                buf.push(b' ');
+                buf.push(name);
+                push_scaled(buf, q[k], self.profile.decimals);
+                st.pos[k] = Some(q[k]);
+                any = true;
+            }
+        }
+        st.pos_f = Some(to);
+        any
+    }
+
+    fn push_e(&self, buf: &mut Vec<u8>, st: &mut State, scale: f64) {
+        let e_i = (st.e_total * scale).round() as i64;
+        let v = match self.profile.e_mode {
+            EMode::Absolute => e_i,
+            EMode::Relative => e_i - st.e_written,
+        };
+        st.e_written = e_i;
+        buf.extend_from_slice(b" E");
+        push_scaled(buf, v, self.profile.decimals);
+    }
+
+    fn travel(
+        &self,
+        buf: &mut Vec<u8>,
+        st: &mut State,
+        to: DVec3,
+        speed: Option<f64>,
+        scale: f64,
+        sum: &mut WriteSummary,
+    ) {
+        let p = self.profile;
+        let dist = st.pos_f.map(|f| f.distance(to)).unwrap_or(f64::INFINITY);
+        let retract = p.retraction.length_mm > 0.0
+            && st.pos_f.is_some()
+            && st.e_total > 0.0
+            && dist >= p.retraction.min_travel_mm;
+        if retract {
+            self.retract(buf, st, scale, true);
+            sum.retractions += 1;
+        }
+        buf.extend_from_slice(b"G0");
+        self.push_f(buf, st, speed.unwrap_or(p.travel_speed_mm_s));
+        self.push_axes(buf, st, to, scale);
+        buf.push(b'\n');
+        sum.travels += 1;
+    }
+
+    fn retract(&self, buf: &mut Vec<u8>, st: &mut State, scale: f64, pull: bool) {
+        let p = self.profile;
+        let r = (p.retraction.length_mm * scale).round() as i64;
+        buf.extend_from_slice(b"G1");
+        self.push_f(buf, st, p.retraction.speed_mm_s);
+        buf.extend_from_slice(b" E");
+        match (p.e_mode, pull) {
+            (EMode::Absolute, true) => push_scaled(buf, st.e_written - r, p.decimals),
+            (EMode::Absolute, false) => push_scaled(buf, st.e_written, p.decimals),
+            (EMode::Relative, true) => push_scaled(buf, -r, p.decimals),
+            (EMode::Relative, false) => push_scaled(buf, r, p.decimals),
+        }
+        buf.push(b'\n');
+        st.retracted = pull;
+    }
+
+    fn string(&self, buf: &mut Vec<u8>, st: &mut State, s: &Str, scale: f64) {
+        if st.retracted {
+            self.retract(buf, st, scale, false);
+        }
+        let len = s.len_mm();
+        st.e_total += s.cross_mm2 * len / st.area;
+        match s.arc {
+            Some(a) => {
+                buf.extend_from_slice(if a.ccw { b"G3" } else { b"G2" });
+                let from = st.pos_f.unwrap_or(s.start);
+                // Full circles keep X/Y unchanged; Marlin treats that as 360°.
+                self.push_axes(buf, st, s.end, scale);
+                buf.extend_from_slice(b" I");
+                push_fixed(buf, a.center_xy[0] - from.x, self.profile.decimals);
+                buf.extend_from_slice(b" J");
+                push_fixed(buf, a.center_xy[1] - from.y, self.profile.decimals);
+                self.push_e(buf, st, scale);
+                self.push_f(buf, st, s.speed_mm_s);
+            }
+            None => {
+                buf.extend_from_slice(b"G1");
+                let moved = self.push_axes(buf, st, s.end, scale);
+                if !moved {
+                    // Shorter than the output resolution: drop the line, its E carries over.
+                    buf.truncate(buf.len() - 2);
+                    return;
+                }
+                self.push_e(buf, st, scale);
+                self.push_f(buf, st, s.speed_mm_s);
+            }
+        }
+        buf.push(b'\n');
+    }
+}
+
+fn write_state(buf: &mut Vec<u8>, st: &mut State, sc: &StateChange, dec: u32) {
+    match sc {
+        StateChange::HotendTemp { celsius, wait } => {
+            buf.extend_from_slice(if *wait { b"M109 S" } else { b"M104 S" });
+            push_fixed(buf, *celsius, 1);
+        }
+        StateChange::BedTemp { celsius, wait } => {
+            buf.extend_from_slice(if *wait { b"M190 S" } else { b"M140 S" });
+            push_fixed(buf, *celsius, 1);
+        }
+        StateChange::Fan(duty) => {
+            let d = duty.clamp(0.0, 1.0);
+            if d == 0.0 {
+                buf.extend_from_slice(b"M107");
+            } else {
+                buf.extend_from_slice(b"M106 S");
+                push_u64(buf, (d * 255.0).round() as u64);
+            }
+        }
+        StateChange::FilamentDiameter(d) => {
+            st.area = filament_area_mm2(*d);
+            buf.extend_from_slice(b"; filament diameter ");
+            push_fixed(buf, *d, dec);
+        }
+    }
+    buf.push(b'\n');
+}
+
+fn quant(p: DVec3, scale: f64) -> [i64; 3] {
+    [
+        (p.x * scale).round() as i64,
+        (p.y * scale).round() as i64,
+        (p.z * scale).round() as i64,
+    ]
+}
+
+fn steps_string_count(steps: &[Step]) -> usize {
+    steps
+        .iter()
+        .filter(|s| matches!(s, Step::String(_)))
+        .count()
+}
+
+/// Rejects values that cannot become G-code (non-finite points, non-positive speeds, negative
+/// cross-sections or filament diameters).
+pub fn validate(model: &Model) -> Result<(), WriteError> {
+    let bad = |index: usize, msg: String| Err(WriteError::BadStep { index, msg });
+    for (i, s) in model.steps.iter().enumerate() {
+        match s {
+            Step::String(s) => {
+                if !(s.start.is_finite() && s.end.is_finite()) {
+                    return bad(i, format!("non-finite point {:?} → {:?}", s.start, s.end));
+                }
+                if !(s.cross_mm2.is_finite() && s.cross_mm2 >= 0.0) {
+                    return bad(i, format!("cross-section {} mm² is invalid", s.cross_mm2));
+                }
+                if !(s.speed_mm_s.is_finite() && s.speed_mm_s > 0.0) {
+                    return bad(i, format!("speed {} mm/s is invalid", s.speed_mm_s));
+                }
+                if let Some(a) = s.arc {
+                    if !(a.center_xy[0].is_finite() && a.center_xy[1].is_finite()) {
+                        return bad(i, "non-finite arc centre".into());
+                    }
+                }
+            }
+            Step::Travel { to, speed_mm_s } => {
+                if !to.is_finite() {
+                    return bad(i, format!("non-finite travel target {to:?}"));
+                }
+                if let Some(v) = speed_mm_s {
+                    if !(v.is_finite() && *v > 0.0) {
+                        return bad(i, format!("travel speed {v} mm/s is invalid"));
+                    }
+                }
+            }
+            Step::Marker {
+                z_mm, height_mm, ..
+            } => {
+                if !(z_mm.is_finite() && height_mm.is_finite()) {
+                    return bad(i, "non-finite marker height".into());
+                }
+            }
+            Step::State(StateChange::FilamentDiameter(d)) => {
+                if !(d.is_finite() && *d > 0.0) {
+                    return bad(i, format!("filament diameter {d} mm is invalid"));
+                }
+            }
+            Step::State(StateChange::HotendTemp { celsius, .. })
+            | Step::State(StateChange::BedTemp { celsius, .. }) => {
+                if !(celsius.is_finite() && (0.0..=400.0).contains(celsius)) {
+                    return bad(i, format!("temperature {celsius} °C is out of range"));
+                }
+            }
+            Step::State(StateChange::Fan(d)) => {
+                if !d.is_finite() {
+                    return bad(i, "non-finite fan duty".into());
+                }
+            }
+            Step::Comment(_) | Step::Type(_) => {}
+        }
+    }
+    Ok(())
+}
+
+/// Emission thinning: merges runs of contiguous straight strings until each merged string is
+/// at least `min_len_mm` long. The merged string keeps the run's volume (cross-section =
+/// volume ÷ chord) and its time (speed = chord ÷ Σ time).
+pub fn thin(steps: &[Step], min_len_mm: f64) -> Vec<Step> {
+    struct Acc {
+        start: DVec3,
+        end: DVec3,
+        volume: f64,
+        time: f64,
+        len: f64,
+        n: usize,
+        first: Str,
+    }
+    fn flush(out: &mut Vec<Step>, acc: &mut Option<Acc>) {
+        if let Some(a) = acc.take() {
+            if a.n == 1 {
+                out.push(Step::String(a.first));
+                return;
+            }
+            let chord = a.start.distance(a.end);
+            if chord <= 1e-9 || a.time <= 0.0 {
+                out.push(Step::String(a.first));
+                return;
+            }
+            out.push(Step::String(Str::line(
+                a.start,
+                a.end,
+                a.volume / chord,
+                chord / a.time,
+            )));
+        }
+    }
+    let mut out = Vec::with_capacity(steps.len());
+    let mut acc: Option<Acc> = None;
+    for s in steps {
+        match s {
+            Step::String(st) if st.arc.is_none() => {
+                let l = st.len_mm();
+                if let Some(a) = &mut acc {
+                    if a.len < min_len_mm && a.end.distance_squared(st.start) < 1e-12 {
+                        a.end = st.end;
+                        a.volume += st.cross_mm2 * l;
+                        a.time += l / st.speed_mm_s;
+                        a.len += l;
+                        a.n += 1;
+                        continue;
+                    }
+                }
+                flush(&mut out, &mut acc);
+                acc = Some(Acc {
+                    start: st.start,
+                    end: st.end,
+                    volume: st.cross_mm2 * l,
+                    time: l / st.speed_mm_s,
+                    len: l,
+                    n: 1,
+                    first: *st,
+                });
+            }
+            // Markers and comments do not break a run of short strings on the same curve.
+            other => {
+                flush(&mut out, &mut acc);
+                out.push(other.clone());
+            }
+        }
+    }
+    flush(&mut out, &mut acc);
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fixed_formatting() {
+        let cases = [
+            (1.5, "1.5"),
+            (-0.25, "-0.25"),
+            (3.0, "3"),
+            (0.0004, "0"),
+            (-0.0004, "0"),
+            (12.3456, "12.346"),
+            (100.0, "100"),
+        ];
+        for (v, s) in cases {
+            let mut b = Vec::new();
+            push_fixed(&mut b, v, 3);
+            assert_eq!(String::from_utf8(b).unwrap_or_default(), s, "{v}");
+        }
+    }
+
+    #[test]
+    fn thinning_keeps_volume_and_time() {
+        let mut steps = Vec::new();
+        for i in 0..10 {
+            let a = DVec3::new(i as f64 * 0.1, 0.0, 0.0);
+            let b = DVec3::new((i + 1) as f64 * 0.1, 0.0, 0.0);
+            let v = if i % 2 == 0 { 10.0 } else { 13.0 };
+            steps.push(Step::String(Str::line(a, b, 0.2, v)));
+        }
+        let t = thin(&steps, 0.5);
+        let strs: Vec<&Str> = t
+            .iter()
+            .filter_map(|s| match s {
+                Step::String(s) => Some(s),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(strs.len(), 2);
+        let vol: f64 = strs.iter().map(|s| s.volume_mm3()).sum();
+        assert!((vol - 0.2).abs() < 1e-9);
+        let time: f64 = strs.iter().map(|s| s.len_mm() / s.speed_mm_s).sum();
+        let t0: f64 = (0..10)
+            .map(|i| 0.1 / if i % 2 == 0 { 10.0 } else { 13.0 })
+            .sum();
+        assert!((time - t0).abs() < 1e-9);
+    }
+}
