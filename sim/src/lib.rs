@@ -1,3 +1,21 @@
 //! The firmware library on virtual time: a host-link model, the firmware's own command queue,
 //! planner and step generator, a heater model, and recorders that measure pauses.
 #![deny(missing_docs)]
+
+pub mod demo;
+pub mod engine;
+pub mod exec;
+pub mod heater;
+pub mod hostlink;
+pub mod job;
+pub mod lab;
+pub mod layers;
+pub mod metrics;
+pub mod patterns;
+pub mod plot;
+pub mod port;
+pub mod recorder;
+pub mod run;
+pub mod serve;
+pub mod split;
+pub mod thermal;

@@ -1,0 +1,624 @@
+//! The host side of the serial link, modelled on what Pronterface/printcore and OctoPrint do:
+//! every job line goes out as `N<n> <text>*<checksum>`, the next line only after the printer's
+//! `ok`, `Resend: <n>` rewinds to that line, and realtime requests (pause, resume, ...) are
+//! written at once, unnumbered, without waiting for `ok` (printcore's `send_now`).
+//!
+//! The wire is modelled in both directions at the configured baud rate and bits per byte
+//! (115200 baud, 8N1 = 10 bits per byte by default): a chunk written at time `t` arrives when its
+//! last byte has been clocked out, after whatever was already on the wire.
+//!
+//! The host knows nothing of motion; it only sends text and reads lines. What a line *is* (a job
+//! line, a line the host inserted for its own pause sequence, a realtime request) is kept in
+//! [`Origin`] so the recorder can tell job moves from service moves.
+
+use std::collections::VecDeque;
+
+/// Wire and protocol settings of the host.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LinkConfig {
+    /// Baud rate of the serial line.
+    pub baud: u32,
+    /// Bits on the wire per byte (8N1: start + 8 data + stop = 10).
+    pub bits_per_byte: u32,
+    /// Send job lines with line numbers and checksums (printcore and OctoPrint do).
+    pub numbered: bool,
+    /// Drop comments and blank lines before sending (printcore and OctoPrint do).
+    pub strip_comments: bool,
+    /// The first line of a session (printcore: `M110` numbered `N-1`, resetting the counter).
+    pub reset_line: bool,
+}
+
+impl Default for LinkConfig {
+    fn default() -> Self {
+        Self {
+            baud: 115_200,
+            bits_per_byte: 10,
+            numbered: true,
+            strip_comments: true,
+            reset_line: true,
+        }
+    }
+}
+
+impl LinkConfig {
+    /// Time one byte takes on the wire, in nanoseconds.
+    pub fn byte_ns(&self) -> u64 {
+        (u64::from(self.bits_per_byte) * 1_000_000_000) / u64::from(self.baud.max(1))
+    }
+}
+
+/// Where a line sent by the host came from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Origin {
+    /// Line `index` (0-based, counting the lines of the job as loaded, comments included).
+    Job(usize),
+    /// A line the host inserted itself (host-side pause and resume sequences), numbered in
+    /// insertion order.
+    Service(u32),
+    /// Session setup (`M110`).
+    Setup,
+    /// A realtime request written at once.
+    Realtime,
+}
+
+/// One line the host has written.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct SentLine {
+    /// Line number (`N`), or `None` when sent unnumbered.
+    pub n: Option<i64>,
+    /// The text as it went on the wire, without the newline.
+    pub wire: String,
+    /// What the line was.
+    pub origin: Origin,
+    /// Virtual time the host wrote it, µs.
+    pub t_us: u64,
+}
+
+/// A line the printer sent back, as the host received it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Received {
+    /// Arrival time at the host, µs.
+    pub t_us: u64,
+    /// The line without its newline.
+    pub text: String,
+}
+
+/// printcore's checksum: XOR of every byte of `N<n> <command>`.
+pub fn checksum(prefix: &str) -> u8 {
+    prefix.bytes().fold(0u8, |a, b| a ^ b)
+}
+
+/// `N<n> <command>*<checksum>` as printcore writes it.
+pub fn numbered_line(n: i64, command: &str) -> String {
+    let prefix = format!("N{n} {command}");
+    let cs = checksum(&prefix);
+    format!("{prefix}*{cs}")
+}
+
+/// Strip a `;` comment and surrounding blanks, as printcore does before sending.
+pub fn strip_comment(line: &str) -> &str {
+    let code = match line.find(';') {
+        Some(i) => &line[..i],
+        None => line,
+    };
+    code.trim()
+}
+
+/// A chunk of bytes travelling on one direction of the wire.
+#[derive(Clone, Debug)]
+struct Chunk {
+    arrive_us: u64,
+    bytes: Vec<u8>,
+}
+
+/// One direction of a serial line: chunks queue behind each other at the byte rate.
+#[derive(Clone, Debug, Default)]
+pub struct Wire {
+    byte_ns: u64,
+    free_ns: u64,
+    chunks: VecDeque<Chunk>,
+    /// Bytes carried so far.
+    pub bytes_total: u64,
+}
+
+impl Wire {
+    /// An idle wire with the given byte time.
+    pub fn new(byte_ns: u64) -> Self {
+        Self {
+            byte_ns,
+            ..Self::default()
+        }
+    }
+
+    /// Write `bytes` at `now_us`; returns the arrival time of the last byte, µs.
+    pub fn write(&mut self, bytes: &[u8], now_us: u64) -> u64 {
+        let start_ns = self.free_ns.max(now_us.saturating_mul(1000));
+        let end_ns = start_ns + self.byte_ns * bytes.len() as u64;
+        self.free_ns = end_ns;
+        let arrive_us = end_ns.div_ceil(1000);
+        self.bytes_total += bytes.len() as u64;
+        self.chunks.push_back(Chunk {
+            arrive_us,
+            bytes: bytes.to_vec(),
+        });
+        arrive_us
+    }
+
+    /// Arrival time of the next chunk, µs.
+    pub fn next_arrival_us(&self) -> Option<u64> {
+        self.chunks.front().map(|c| c.arrive_us)
+    }
+
+    /// Take the next chunk if it has arrived by `now_us`.
+    pub fn take_arrived(&mut self, now_us: u64) -> Option<Vec<u8>> {
+        if self.chunks.front().is_some_and(|c| c.arrive_us <= now_us) {
+            self.chunks.pop_front().map(|c| c.bytes)
+        } else {
+            None
+        }
+    }
+
+    /// Nothing in flight.
+    pub fn is_idle(&self) -> bool {
+        self.chunks.is_empty()
+    }
+}
+
+/// The host: a job to stream with `ok` flow control, plus lines it inserts itself.
+#[derive(Clone, Debug)]
+pub struct Host {
+    cfg: LinkConfig,
+    /// Lines of the job as loaded (comments included; stripping happens when sending).
+    job: Vec<String>,
+    cursor: usize,
+    /// Lines the host sends before continuing the job (its own pause/resume sequences).
+    inserts: VecDeque<(String, Origin)>,
+    /// While true, no job line goes out (a host-side pause holds the stream).
+    hold: bool,
+    /// Job line index before which the host stops and sends `inserts_at_mark` (host-split's
+    /// "after the current layer").
+    stop_before: Option<usize>,
+    stop_lines: Vec<(String, Origin)>,
+    stop_hold: bool,
+    next_n: i64,
+    /// Every numbered line ever sent, indexed by `n - first_n`, for resends.
+    numbered: Vec<SentLine>,
+    first_n: i64,
+    sent_log: Vec<SentLine>,
+    resend_from: Option<i64>,
+    clear: bool,
+    started: bool,
+    service_count: u32,
+    /// Host → printer.
+    pub tx: Wire,
+    /// Printer → host.
+    pub rx: Wire,
+    rx_partial: Vec<u8>,
+    /// Every line received from the printer, in order.
+    pub received: Vec<Received>,
+    /// Count of `ok` lines received.
+    pub oks: u64,
+    /// Count of `Resend:` requests honoured.
+    pub resends: u64,
+    /// Lines whose `ok` is still outstanding (0 or 1 with this flow control).
+    pub awaiting_ok: bool,
+}
+
+impl Host {
+    /// A host about to stream `job` (one entry per line of the file).
+    pub fn new(cfg: LinkConfig, job: Vec<String>) -> Self {
+        let byte_ns = cfg.byte_ns();
+        Self {
+            cfg,
+            job,
+            cursor: 0,
+            inserts: VecDeque::new(),
+            hold: false,
+            stop_before: None,
+            stop_lines: Vec::new(),
+            stop_hold: false,
+            next_n: 0,
+            numbered: Vec::new(),
+            first_n: 0,
+            sent_log: Vec::new(),
+            resend_from: None,
+            clear: true,
+            started: false,
+            service_count: 0,
+            tx: Wire::new(byte_ns),
+            rx: Wire::new(byte_ns),
+            rx_partial: Vec::new(),
+            received: Vec::new(),
+            oks: 0,
+            resends: 0,
+            awaiting_ok: false,
+        }
+    }
+
+    /// The link settings.
+    pub fn config(&self) -> &LinkConfig {
+        &self.cfg
+    }
+
+    /// The job lines as loaded.
+    pub fn job(&self) -> &[String] {
+        &self.job
+    }
+
+    /// Index of the next job line the host will send.
+    pub fn cursor(&self) -> usize {
+        self.cursor
+    }
+
+    /// Every line written so far, in order.
+    pub fn sent(&self) -> &[SentLine] {
+        &self.sent_log
+    }
+
+    /// The origin of numbered line `n`, if the host sent it.
+    pub fn origin_of(&self, n: i64) -> Option<Origin> {
+        let i = usize::try_from(n - self.first_n).ok()?;
+        self.numbered.get(i).map(|l| l.origin)
+    }
+
+    /// Origin of the last numbered line written.
+    pub fn last_numbered_origin(&self) -> Option<Origin> {
+        self.numbered.last().map(|l| l.origin)
+    }
+
+    /// All job lines sent, all inserted lines sent, and every `ok` received.
+    pub fn done(&self) -> bool {
+        self.next_job_line().is_none()
+            && self.inserts.is_empty()
+            && !self.awaiting_ok
+            && self.resend_from.is_none()
+            && self.tx.is_idle()
+    }
+
+    /// Holding the stream (host-side pause in effect).
+    pub fn holding(&self) -> bool {
+        self.hold
+    }
+
+    /// Stop sending job lines after the current one; queued insert lines still go out.
+    pub fn hold_now(&mut self) {
+        self.hold = true;
+    }
+
+    /// Continue streaming the job after a hold.
+    pub fn release(&mut self) {
+        self.hold = false;
+    }
+
+    /// Queue lines the host sends before the next job line (in order). They are marked
+    /// [`Origin::Service`].
+    pub fn insert_lines<I: IntoIterator<Item = String>>(&mut self, lines: I) {
+        for l in lines {
+            let o = Origin::Service(self.service_count);
+            self.service_count += 1;
+            self.inserts.push_back((l, o));
+        }
+    }
+
+    /// Before job line `index` goes out, send `lines` and hold the stream (host-split's pause
+    /// appended after the current layer). If the cursor is already past `index`, they go out
+    /// next.
+    pub fn insert_and_hold_before(&mut self, index: usize, lines: Vec<String>) {
+        self.insert_before(index, lines, true);
+    }
+
+    /// Before job line `index` goes out, send `lines` (marked [`Origin::Service`]); with `hold`
+    /// the stream then stops until [`Self::release`].
+    pub fn insert_before(&mut self, index: usize, lines: Vec<String>, hold: bool) {
+        let mut tagged = Vec::with_capacity(lines.len());
+        for l in lines {
+            tagged.push((l, Origin::Service(self.service_count)));
+            self.service_count += 1;
+        }
+        if index <= self.cursor {
+            self.inserts.extend(tagged);
+            self.hold |= hold;
+        } else {
+            self.stop_before = Some(index);
+            self.stop_lines = tagged;
+            self.stop_hold = hold;
+        }
+    }
+
+    /// Job line `index` has been reached with a pending [`Self::insert_and_hold_before`].
+    fn check_stop(&mut self) {
+        if self.stop_before.is_some_and(|i| self.cursor >= i) {
+            self.stop_before = None;
+            let lines = std::mem::take(&mut self.stop_lines);
+            self.inserts.extend(lines);
+            self.hold |= self.stop_hold;
+        }
+    }
+
+    /// The inserted lines (pause sequence) have all been sent and acknowledged.
+    pub fn inserts_done(&self) -> bool {
+        self.inserts.is_empty() && self.stop_before.is_none() && !self.awaiting_ok
+    }
+
+    fn next_job_line(&self) -> Option<usize> {
+        let mut i = self.cursor;
+        while i < self.job.len() {
+            let line = &self.job[i];
+            let text = if self.cfg.strip_comments {
+                strip_comment(line)
+            } else {
+                line.trim()
+            };
+            if !text.is_empty() {
+                return Some(i);
+            }
+            i += 1;
+        }
+        None
+    }
+
+    fn write_line(&mut self, text: &str, origin: Origin, numbered: bool, now_us: u64) {
+        let (n, wire) = if numbered {
+            let n = self.next_n;
+            self.next_n += 1;
+            (Some(n), numbered_line(n, text))
+        } else {
+            (None, text.to_string())
+        };
+        let mut bytes = wire.clone().into_bytes();
+        bytes.push(b'\n');
+        self.tx.write(&bytes, now_us);
+        let sent = SentLine {
+            n,
+            wire,
+            origin,
+            t_us: now_us,
+        };
+        if n.is_some() {
+            self.numbered.push(sent.clone());
+        }
+        self.sent_log.push(sent);
+    }
+
+    /// Send the next line if the printer has cleared us to (the `ok` flow control).
+    pub fn pump(&mut self, now_us: u64) {
+        if !self.clear {
+            return;
+        }
+        let numbered = self.cfg.numbered;
+        if !self.started {
+            self.started = true;
+            if self.cfg.reset_line && numbered {
+                // printcore: `N-1 M110*..` resets the printer's line counter to -1.
+                self.next_n = -1;
+                self.first_n = -1;
+                self.write_line("M110", Origin::Setup, true, now_us);
+                self.clear = false;
+                self.awaiting_ok = true;
+                return;
+            }
+            self.first_n = self.next_n;
+        }
+        if let Some(n) = self.resend_from {
+            let i = usize::try_from(n - self.first_n).ok();
+            match i.and_then(|i| self.numbered.get(i).cloned()) {
+                Some(line) => {
+                    let mut bytes = line.wire.clone().into_bytes();
+                    bytes.push(b'\n');
+                    self.tx.write(&bytes, now_us);
+                    self.resends += 1;
+                    let next = n + 1;
+                    self.resend_from = if next < self.next_n { Some(next) } else { None };
+                    self.sent_log.push(SentLine {
+                        t_us: now_us,
+                        ..line
+                    });
+                    self.clear = false;
+                    self.awaiting_ok = true;
+                    return;
+                }
+                None => self.resend_from = None,
+            }
+        }
+        if let Some((text, origin)) = self.inserts.pop_front() {
+            self.write_line(&text, origin, numbered, now_us);
+            self.clear = false;
+            self.awaiting_ok = true;
+            return;
+        }
+        self.check_stop();
+        if !self.inserts.is_empty() {
+            return self.pump(now_us);
+        }
+        if self.hold {
+            return;
+        }
+        if let Some(i) = self.next_job_line() {
+            let text = if self.cfg.strip_comments {
+                strip_comment(&self.job[i]).to_string()
+            } else {
+                self.job[i].trim().to_string()
+            };
+            self.cursor = i + 1;
+            self.write_line(&text, Origin::Job(i), numbered, now_us);
+            self.clear = false;
+            self.awaiting_ok = true;
+        } else {
+            self.cursor = self.job.len();
+        }
+    }
+
+    /// Write a realtime request at once, unnumbered, without waiting for `ok`.
+    pub fn send_realtime(&mut self, text: &str, now_us: u64) {
+        self.write_line(text, Origin::Realtime, false, now_us);
+    }
+
+    /// Write raw bytes at once (control bytes).
+    pub fn send_raw(&mut self, bytes: &[u8], now_us: u64) {
+        self.tx.write(bytes, now_us);
+    }
+
+    /// Bytes the printer wrote at `now_us` go onto the return wire.
+    pub fn printer_wrote(&mut self, bytes: &[u8], now_us: u64) {
+        if !bytes.is_empty() {
+            self.rx.write(bytes, now_us);
+        }
+    }
+
+    /// Handle every printer line that has arrived by `now_us`; then send what flow control
+    /// allows.
+    pub fn receive_arrived(&mut self, now_us: u64) {
+        while let Some(bytes) = self.rx.take_arrived(now_us) {
+            for b in bytes {
+                if b == b'\n' {
+                    let text = String::from_utf8_lossy(&self.rx_partial)
+                        .trim_end_matches('\r')
+                        .to_string();
+                    self.rx_partial.clear();
+                    self.handle_line(text, now_us);
+                } else {
+                    self.rx_partial.push(b);
+                }
+            }
+        }
+        self.pump(now_us);
+    }
+
+    fn handle_line(&mut self, text: String, now_us: u64) {
+        let lower = text.to_ascii_lowercase();
+        if let Some(rest) = lower
+            .strip_prefix("resend:")
+            .or_else(|| lower.strip_prefix("rs "))
+        {
+            let digits: String = rest
+                .trim()
+                .trim_start_matches('n')
+                .chars()
+                .take_while(|c| c.is_ascii_digit() || *c == '-')
+                .collect();
+            if let Ok(n) = digits.parse::<i64>() {
+                self.resend_from = Some(n);
+            }
+        } else if lower.starts_with("ok") {
+            self.oks += 1;
+            self.clear = true;
+            self.awaiting_ok = false;
+        }
+        self.received.push(Received { t_us: now_us, text });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn checksum_matches_printcore() {
+        // printcore: reduce(xor, map(ord, "N1 G28")).
+        let expect = "N1 G28".bytes().fold(0, |a, b| a ^ b);
+        assert_eq!(checksum("N1 G28"), expect);
+        assert_eq!(numbered_line(1, "G28"), format!("N1 G28*{expect}"));
+    }
+
+    #[test]
+    fn strips_comments() {
+        assert_eq!(strip_comment("G1 X1 ; move"), "G1 X1");
+        assert_eq!(strip_comment(";LAYER_CHANGE"), "");
+    }
+
+    #[test]
+    fn wire_timing_is_ten_bits_per_byte() {
+        let mut w = Wire::new(LinkConfig::default().byte_ns());
+        let t = w.write(&[0; 1_152], 0);
+        // 1152 bytes at 11520 bytes/s = 100 ms.
+        assert_eq!(t, 100_000);
+        // A second chunk queues behind the first.
+        let t2 = w.write(&[0; 10], 50_000);
+        assert_eq!(t2, (1162 * 86_805u64).div_ceil(1000));
+    }
+
+    fn answer(h: &mut Host, now: u64, text: &str) -> u64 {
+        while h.tx.take_arrived(u64::MAX).is_some() {}
+        let t = h.rx.write(format!("{text}\n").as_bytes(), now);
+        h.receive_arrived(t);
+        t
+    }
+
+    #[test]
+    fn ok_flow_control_and_resend() {
+        let job = vec![
+            "G28 ; home".into(),
+            "".into(),
+            ";c".into(),
+            "G1 X1".into(),
+            "G1 X2".into(),
+        ];
+        let mut h = Host::new(LinkConfig::default(), job);
+        h.pump(0);
+        assert_eq!(h.sent().len(), 1);
+        assert_eq!(h.sent()[0].wire, numbered_line(-1, "M110"));
+        // Nothing more until ok.
+        h.pump(10);
+        assert_eq!(h.sent().len(), 1);
+        let t = answer(&mut h, 1000, "ok");
+        assert_eq!(h.sent().len(), 2);
+        assert_eq!(h.sent()[1].wire, numbered_line(0, "G28"));
+        assert_eq!(h.sent()[1].origin, Origin::Job(0));
+        let t = answer(&mut h, t, "ok");
+        assert_eq!(h.sent()[2].origin, Origin::Job(3));
+        assert_eq!(h.sent()[2].n, Some(1));
+        // The printer asks for line 1 again.
+        let t = answer(&mut h, t, "Resend: 1");
+        assert_eq!(h.sent().len(), 3);
+        let t = answer(&mut h, t, "ok");
+        assert_eq!(h.sent()[3].wire, numbered_line(1, "G1 X1"));
+        assert_eq!(h.resends, 1);
+        let t = answer(&mut h, t, "ok");
+        assert_eq!(h.sent()[4].wire, numbered_line(2, "G1 X2"));
+        assert!(!h.done());
+        answer(&mut h, t, "ok");
+        assert!(h.done());
+        assert_eq!(h.origin_of(2), Some(Origin::Job(4)));
+    }
+
+    #[test]
+    fn realtime_goes_out_without_waiting() {
+        let mut h = Host::new(LinkConfig::default(), vec!["G1 X1".into()]);
+        h.pump(0);
+        h.send_realtime("M25", 5);
+        assert_eq!(h.sent().len(), 2);
+        assert_eq!(h.sent()[1].wire, "M25");
+        assert_eq!(h.sent()[1].n, None);
+    }
+
+    #[test]
+    fn insert_and_hold_before_a_line() {
+        let job: Vec<String> = (0..5).map(|i| format!("G1 X{i}")).collect();
+        let cfg = LinkConfig {
+            reset_line: false,
+            ..LinkConfig::default()
+        };
+        let mut h = Host::new(cfg, job);
+        h.pump(0);
+        h.insert_and_hold_before(2, vec!["M83".into(), "G1 E-2".into()]);
+        let mut t = 0;
+        for _ in 0..6 {
+            t = answer(&mut h, t, "ok");
+        }
+        let origins: Vec<Origin> = h.sent().iter().map(|l| l.origin).collect();
+        assert_eq!(
+            origins,
+            vec![
+                Origin::Job(0),
+                Origin::Job(1),
+                Origin::Service(0),
+                Origin::Service(1)
+            ]
+        );
+        assert!(h.holding());
+        assert!(h.inserts_done());
+        h.release();
+        h.pump(t);
+        assert_eq!(h.sent().last().map(|l| l.origin), Some(Origin::Job(2)));
+    }
+}

@@ -1,0 +1,326 @@
+//! Pause figures from the executed record of a run (A) and its reference without the pause (B).
+//!
+//! Definitions (all times are virtual, from the moment the host wrote the request):
+//! - **reaction**: the first step that differs from the reference in time, axis or direction
+//!   (a speed-up makes steps come earlier, braking later). Found in lock-step, see
+//!   [`crate::run`].
+//! - **pause point**: where the last job block before the first service block (retract, lift,
+//!   park — the firmware's own, or the host's pause sequence for host-split) ended.
+//! - **stop time**: request → the last step of that job block (the head is at rest at the pause
+//!   point from then on).
+//! - **travel / extrusion after the request**: XYZ path length (sum of straight block pieces)
+//!   and E advance from the position at the request to the pause point.
+//! - **layer boundary**: the stop is at a boundary when every extruding move up to the pause
+//!   point is complete and no extruding move of a later layer has begun (travel, Z moves and
+//!   retracts between layers may have run). The stop layer is the layer of the last completed
+//!   extruding move. "First boundary after the request": the stop layer is the layer of the
+//!   first extruding move not finished at the request (or the request's own layer when that
+//!   was already complete).
+//! - **resume position error**: the largest per-axis difference (steps, X Y Z E) between the
+//!   pause point and where the first job block after the resume starts.
+//! - **lost / duplicated**: the executed job blocks of A against those of B, as multisets of
+//!   (job line, segment); a segment interrupted by the pause and finished after it counts once.
+
+use crate::engine::Engine;
+use crate::hostlink::Origin;
+use crate::job::JobInfo;
+use crate::port::{Executive, Lane};
+use crate::recorder::{Scale, SegRecord};
+use crate::run::{PauseWhen, Scenario};
+use firmware::motion::StepPos;
+use std::collections::HashMap;
+
+/// What the run loop observed, for [`compute`].
+#[derive(Clone, Debug, Default)]
+pub struct RunFacts {
+    /// When the request was written, µs.
+    pub t_req_us: Option<u64>,
+    /// Position at the request, steps.
+    pub pos_at_req: StepPos,
+    /// Number of records when the request was made.
+    pub records_before_req: usize,
+    /// Reaction time (first differing step), µs.
+    pub reaction_us: Option<u64>,
+    /// Parked (last parking step), µs.
+    pub t_parked_us: Option<u64>,
+    /// Resume requested, µs.
+    pub t_resume_us: Option<u64>,
+    /// Run A reached the end of the job.
+    pub finished: bool,
+    /// Run B reached the end of the job.
+    pub reference_finished: bool,
+    /// Wall-clock seconds spent.
+    pub wall_s: f64,
+}
+
+/// The figures for one pause (the JSON of `sim run --json`).
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct PauseReport {
+    /// Policy name.
+    pub policy: String,
+    /// Mode name.
+    pub mode: String,
+    /// When the request was made, s (`None` for a pause scheduled before the job).
+    pub request_s: Option<f64>,
+    /// Request → first change of motion, s.
+    pub reaction_s: Option<f64>,
+    /// Request → head at rest at the pause point, s.
+    pub stop_s: Option<f64>,
+    /// XYZ travel from the request to the pause point, mm.
+    pub travel_after_request_mm: Option<f64>,
+    /// Filament fed from the request to the pause point, mm.
+    pub extrusion_after_request_mm: Option<f64>,
+    /// The stop was at a layer boundary.
+    pub stopped_at_layer_boundary: bool,
+    /// Layer of the last completed extruding move at the stop.
+    pub stop_layer: Option<u32>,
+    /// Layer whose end is the first boundary after the request.
+    pub request_layer: Option<u32>,
+    /// Stopped at the first boundary after the request (or at the scheduled layer).
+    pub first_boundary_after_request: bool,
+    /// Pause point position, steps (X Y Z E).
+    pub pause_point_steps: Option<StepPos>,
+    /// Largest per-axis difference between the pause point and the resume start, steps.
+    pub resume_position_error_steps: Option<i64>,
+    /// Job moves (lines) with a segment never executed.
+    pub lost_moves: usize,
+    /// Job moves (lines) with a segment executed more than once.
+    pub duplicated_moves: usize,
+    /// Segments never executed.
+    pub lost_segments: usize,
+    /// Segments executed more than once.
+    pub duplicated_segments: usize,
+    /// The executed job segments equal the reference's, in order.
+    pub executed_in_order: bool,
+    /// Parked (last parking step), s.
+    pub parked_s: Option<f64>,
+    /// First job step after the resume, s.
+    pub resumed_s: Option<f64>,
+    /// Time at the pause point, s (from stop to resumed).
+    pub paused_s: Option<f64>,
+    /// Whole run, first byte to last step, including the pause, s.
+    pub print_time_s: f64,
+    /// The same job without a pause, s.
+    pub print_time_unpaused_s: f64,
+    /// Print time with this segmentation minus without segmentation (same firmware), s.
+    pub segmentation_cost_s: Option<f64>,
+    /// The run reached the end of the job.
+    pub finished: bool,
+    /// Steps executed.
+    pub steps: u64,
+    /// Wall-clock time the simulation took (both runs), s.
+    pub sim_wall_s: f64,
+    /// Simulated seconds (both runs) per wall-clock second.
+    pub realtime_factor: f64,
+}
+
+type Key = (usize, u32);
+
+fn key_of<E: Executive>(e: &Engine<E>, r: &SegRecord) -> Option<Key> {
+    if r.tag.lane == Lane::Service {
+        return None;
+    }
+    match e.origin_of_seq(r.tag.seq) {
+        Some(Origin::Job(line)) => Some((line, r.tag.segment)),
+        Some(_) => None,
+        // Unknown numbering: keep it as a job block keyed by its sequence number.
+        None => Some((usize::MAX - r.tag.seq as usize, r.tag.segment)),
+    }
+}
+
+fn job_keys<E: Executive>(e: &Engine<E>) -> Vec<Option<Key>> {
+    e.rec.records.iter().map(|r| key_of(e, r)).collect()
+}
+
+fn collapse(keys: &[Option<Key>]) -> Vec<Key> {
+    let mut out: Vec<Key> = Vec::new();
+    for k in keys.iter().flatten() {
+        if out.last() != Some(k) {
+            out.push(*k);
+        }
+    }
+    out
+}
+
+fn max_abs_diff(a: &StepPos, b: &StepPos) -> i64 {
+    a.iter()
+        .zip(b.iter())
+        .map(|(x, y)| (i64::from(*x) - i64::from(*y)).abs())
+        .max()
+        .unwrap_or(0)
+}
+
+/// Compute the report of run `a` against reference `b`.
+pub fn compute<E: Executive>(
+    sc: &Scenario,
+    info: &JobInfo,
+    a: &Engine<E>,
+    b: &Engine<E>,
+    facts: &RunFacts,
+) -> PauseReport {
+    let scale = Scale::from_config(&sc.machine);
+    let ka = job_keys(a);
+    let kb = job_keys(b);
+    let ra = &a.rec.records;
+    let rb = &b.rec.records;
+    let mut rep = PauseReport {
+        policy: sc.policy.name().into(),
+        mode: sc.mode.name().into(),
+        request_s: facts.t_req_us.map(|t| t as f64 * 1e-6),
+        reaction_s: facts
+            .reaction_us
+            .zip(facts.t_req_us)
+            .map(|(r, t)| r.saturating_sub(t) as f64 * 1e-6),
+        parked_s: facts.t_parked_us.map(|t| t as f64 * 1e-6),
+        print_time_s: a.rec.last_step_us as f64 * 1e-6,
+        print_time_unpaused_s: b.rec.last_step_us as f64 * 1e-6,
+        finished: facts.finished,
+        steps: a.rec.steps,
+        sim_wall_s: facts.wall_s,
+        ..PauseReport::default()
+    };
+    let simulated = (a.now_us + b.now_us) as f64 * 1e-6;
+    rep.realtime_factor = if facts.wall_s > 0.0 {
+        simulated / facts.wall_s
+    } else {
+        0.0
+    };
+
+    // Lost and duplicated, by (line, segment) multisets.
+    let ca = collapse(&ka);
+    let cb = collapse(&kb);
+    rep.executed_in_order = ca == cb;
+    let mut count: HashMap<Key, i64> = HashMap::new();
+    for k in &cb {
+        *count.entry(*k).or_default() += 1;
+    }
+    for k in &ca {
+        *count.entry(*k).or_default() -= 1;
+    }
+    let mut lost_lines = std::collections::BTreeSet::new();
+    let mut dup_lines = std::collections::BTreeSet::new();
+    for (k, c) in &count {
+        if *c > 0 {
+            rep.lost_segments += *c as usize;
+            lost_lines.insert(k.0);
+        } else if *c < 0 {
+            rep.duplicated_segments += (-*c) as usize;
+            dup_lines.insert(k.0);
+        }
+    }
+    rep.lost_moves = lost_lines.len();
+    rep.duplicated_moves = dup_lines.len();
+
+    // Where each line ends in the reference.
+    let mut b_line_end: HashMap<usize, StepPos> = HashMap::new();
+    for (r, k) in rb.iter().zip(kb.iter()) {
+        if let Some((line, _)) = k {
+            b_line_end.insert(*line, r.end);
+        }
+    }
+    let complete = |line: usize, pos: &StepPos| b_line_end.get(&line).is_none_or(|e| e == pos);
+    let extrudes = |line: usize| info.lines.get(line).is_some_and(|l| l.extrudes);
+    let layer_of = |line: usize| info.lines.get(line).and_then(|l| l.layer);
+    let last_extruding_at_or_before = |line: usize| -> Option<usize> {
+        (0..=line.min(info.lines.len().saturating_sub(1)))
+            .rev()
+            .find(|&i| extrudes(i))
+    };
+    let next_extruding_after =
+        |line: usize| -> Option<usize> { (line + 1..info.lines.len()).find(|&i| extrudes(i)) };
+
+    // The pause point.
+    let from = facts.records_before_req.saturating_sub(1);
+    let Some(s) = (from..ra.len()).find(|&i| ka[i].is_none()) else {
+        return rep;
+    };
+    let j = (0..s).rev().find(|&i| ka[i].is_some());
+    let (stop_pos, t_stop, frontier) = match j {
+        Some(j) => (ra[j].end, ra[j].t_end_us, ka[j].map(|k| k.0)),
+        None => ([0; 4], 0, None),
+    };
+    rep.pause_point_steps = Some(stop_pos);
+    if let Some(t) = facts.t_req_us {
+        rep.stop_s = Some(t_stop.saturating_sub(t) as f64 * 1e-6);
+        // Travel: the part of the block in progress at the request, then whole blocks.
+        let mut travel = 0.0;
+        if facts.records_before_req > 0 {
+            let k = facts.records_before_req - 1;
+            if k < s && ka[k].is_some() {
+                travel += scale.xyz_dist_mm(&facts.pos_at_req, &ra[k].end);
+            }
+        }
+        for k in facts.records_before_req..s {
+            if ka[k].is_some() {
+                travel += scale.xyz_dist_mm(&ra[k].start, &ra[k].end);
+            }
+        }
+        rep.travel_after_request_mm = Some(travel);
+        rep.extrusion_after_request_mm = Some(scale.e_mm(&facts.pos_at_req, &stop_pos));
+    }
+
+    // Layer at the stop.
+    if let Some(lf) = frontier {
+        let done = complete(lf, &stop_pos);
+        if extrudes(lf) && !done {
+            rep.stop_layer = layer_of(lf);
+            rep.stopped_at_layer_boundary = false;
+        } else {
+            let last = last_extruding_at_or_before(lf);
+            rep.stop_layer = last.and_then(layer_of);
+            let next = next_extruding_after(lf);
+            rep.stopped_at_layer_boundary = match next {
+                None => true,
+                Some(n) => layer_of(n) != rep.stop_layer,
+            };
+        }
+    }
+
+    // The first boundary after the request.
+    match sc.pause {
+        Some(PauseWhen::AtLayer(n)) => {
+            rep.request_layer = n.checked_sub(1);
+            rep.first_boundary_after_request =
+                rep.stopped_at_layer_boundary && rep.stop_layer == rep.request_layer;
+        }
+        _ if facts.t_req_us.is_some() => {
+            let k = facts.records_before_req;
+            let in_progress = (k.saturating_sub(1)..ra.len())
+                .find(|&i| ka[i].is_some())
+                .and_then(|i| ka[i].map(|x| (i, x.0)));
+            if let Some((i, lr)) = in_progress {
+                let done_at_req = i < k && complete(lr, &facts.pos_at_req);
+                let first_unfinished = if extrudes(lr) && !done_at_req {
+                    Some(lr)
+                } else {
+                    next_extruding_after(lr)
+                };
+                let k0 = first_unfinished.and_then(layer_of);
+                let prev_done = if done_at_req {
+                    last_extruding_at_or_before(lr)
+                } else {
+                    lr.checked_sub(1).and_then(last_extruding_at_or_before)
+                };
+                let kprev = prev_done.and_then(layer_of);
+                rep.request_layer = k0.or(kprev);
+                rep.first_boundary_after_request = rep.stopped_at_layer_boundary
+                    && match (rep.stop_layer, kprev, k0) {
+                        (Some(s), Some(p), Some(k)) => s >= p && s <= k,
+                        (Some(s), None, Some(k)) => s <= k,
+                        (s, _, None) => s.is_some(),
+                        (None, _, _) => kprev.is_none(),
+                    };
+            }
+        }
+        _ => {}
+    }
+    // Resume.
+    if let Some(r) = (s..ra.len()).find(|&i| ka[i].is_some()) {
+        if facts.t_resume_us.is_some() {
+            rep.resume_position_error_steps = Some(max_abs_diff(&ra[r].start, &stop_pos));
+            rep.resumed_s = Some(ra[r].t_start_us as f64 * 1e-6);
+            rep.paused_s = Some((ra[r].t_start_us.saturating_sub(t_stop)) as f64 * 1e-6);
+        }
+    }
+    rep
+}

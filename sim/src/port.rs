@@ -1,0 +1,119 @@
+//! The seam between the simulator and the firmware executive: what the sim needs from
+//! `firmware::printer::Printer`, as a small trait. The sim's event loop, host model and recorder
+//! are written against this trait only; [`crate::exec`] implements it for the real executive.
+//! Nothing here plans motion or decides a pause: that is the firmware's job.
+
+use firmware::motion::{Realtime, StepPos};
+
+/// Which lane a step belongs to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Lane {
+    /// A move of the job (or, for host-split, any G-code line the host sent).
+    Job,
+    /// The firmware's own pause/resume moves (retract, lift, park, return, un-retract).
+    Service,
+}
+
+/// Identity of the block a step belongs to: the job command and the planner segment of it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct BlockTag {
+    /// The command's job sequence number (`MoveRequest::seq`).
+    pub seq: u32,
+    /// Segment index within the command (0 when not segmented).
+    pub segment: u32,
+    /// Job or service lane.
+    pub lane: Lane,
+}
+
+/// One step event: the axes in `axis_mask` step at once.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct StepEvent {
+    /// When the step pulses happen, µs of virtual time.
+    pub t_us: u64,
+    /// The same instant in ns.
+    pub t_ns: u64,
+    /// Bit `i` set: axis `i` (X=0, Y=1, Z=2, E=3) steps.
+    pub axis_mask: u8,
+    /// Bit `i` set: axis `i` moves in the positive direction.
+    pub dir_mask: u8,
+    /// The block the steps belong to.
+    pub tag: BlockTag,
+}
+
+impl StepEvent {
+    /// Same time, axes and directions (the block tag is not compared).
+    pub fn same_motion(&self, o: &StepEvent) -> bool {
+        self.t_ns == o.t_ns && self.axis_mask == o.axis_mask && self.dir_mask == o.dir_mask
+    }
+}
+
+/// The executive's run state, as the sim sees it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
+pub enum RunState {
+    /// Nothing to do.
+    Idle,
+    /// Printing the job.
+    Printing,
+    /// A pause was requested and is taking hold (speed-up, braking, pause sequence).
+    Pausing,
+    /// Paused and parked.
+    Paused,
+    /// Returning from the park position.
+    Resuming,
+    /// The job was cancelled.
+    Cancelled,
+    /// Emergency stop or fault: halted until reset.
+    Halted,
+}
+
+/// What the sim reads of the executive's state.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ExecStatus {
+    /// Run state.
+    pub state: RunState,
+    /// Position in steps (where the stepper is now).
+    pub pos_steps: StepPos,
+    /// Current layer, when known.
+    pub layer: Option<u32>,
+    /// Moves queued (command queue + planner).
+    pub queue_depth: usize,
+}
+
+/// How a policy configures the one firmware (see `sim run --policy`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FirmwareKnobs {
+    /// Cut moves into segments no longer than this (mm); `None` = no segmentation.
+    pub segment_len_mm: Option<f32>,
+    /// Queue a pause request at the tail, behind every buffered move (conventional firmware).
+    pub pause_at_tail: bool,
+    /// Most moves queued at once (command queue + planner), `None` = the firmware's capacity.
+    pub queue_limit: Option<usize>,
+    /// Speed-up factor after a `layer` request (1.0 = off); `None` = the firmware default.
+    pub speedup: Option<f32>,
+}
+
+/// What the simulator drives. Implemented for the real executive in [`crate::exec`].
+pub trait Executive {
+    /// Host bytes arrived at `now_us` (realtime requests are handled at once by the firmware).
+    fn receive(&mut self, bytes: &[u8], now_us: u64);
+    /// A realtime request raised at `now_us` outside the serial link (pause button).
+    fn request(&mut self, req: Realtime, now_us: u64);
+    /// Let the firmware's main loop run at `now_us`.
+    fn poll(&mut self, now_us: u64);
+    /// Time of the next step event, if the step generator has one ready.
+    fn next_step_us(&mut self, now_us: u64) -> Option<u64>;
+    /// Take the next step event (the one [`Self::next_step_us`] announced).
+    fn pop_step(&mut self, now_us: u64) -> Option<StepEvent>;
+    /// Host-link output written since the last call.
+    fn take_output(&mut self, out: &mut String);
+    /// Current state.
+    fn status(&self) -> ExecStatus;
+    /// The sequence number the firmware will give the next job move, when it tells (used to map
+    /// executed blocks back to the host line that produced them).
+    fn next_seq(&self) -> Option<u32> {
+        None
+    }
+    /// Feed a temperature sample (°C) for heater `bed` (false = hotend); returns the heater
+    /// duty 0..=1 the firmware asks for. Executives without thermal control return 0.
+    fn thermal(&mut self, bed: bool, measured_c: f32, now_us: u64) -> f32;
+}

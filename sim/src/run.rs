@@ -1,0 +1,468 @@
+//! One simulated print with (optionally) one pause: the policy set-up, the pause request, the
+//! resume, and the reference run the pause is measured against.
+//!
+//! Every run is made twice on the same configuration: the run with the pause (A) and the same
+//! run without it (B, the reference). Both are deterministic and identical up to the request;
+//! from the request on they are stepped in lock-step and the first step that differs (in time,
+//! axis or direction) is the **reaction**: the first change of motion the request caused,
+//! whether a speed-up (steps come earlier) or braking (steps come later). The executed blocks of
+//! A and B are then compared for lost and duplicated moves and the resume position.
+
+use crate::engine::{Engine, Stop};
+use crate::hostlink::{Host, LinkConfig, Origin};
+use crate::job::JobInfo;
+use crate::metrics::{self, PauseReport, RunFacts};
+use crate::port::{Executive, FirmwareKnobs, RunState};
+use crate::split;
+use firmware::config::MachineConfig;
+
+/// How the printer and host handle a pause (see the crate docs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Policy {
+    /// Conventional firmware: no segmentation, the pause queued behind every buffered move
+    /// (16 moves), park once the queue has drained.
+    Fifo,
+    /// The paper's host-side method on a FIFO firmware: moves pre-split by the host, the pause
+    /// sequence appended by the host after the current layer.
+    HostSplit,
+    /// This project's firmware: segmentation in the planner, layer barrier, speed-up, feed hold.
+    Firmware,
+}
+
+impl Policy {
+    /// Name as on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Policy::Fifo => "fifo",
+            Policy::HostSplit => "host-split",
+            Policy::Firmware => "firmware",
+        }
+    }
+}
+
+/// Pause mode.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Mode {
+    /// Finish the current layer, stop at its end.
+    Layer,
+    /// Stop as soon as possible (feed hold).
+    Now,
+}
+
+impl Mode {
+    /// Name as on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Mode::Layer => "layer",
+            Mode::Now => "now",
+        }
+    }
+}
+
+/// When the pause is requested.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum PauseWhen {
+    /// At this virtual time, µs.
+    AtUs(u64),
+    /// Scheduled before the job for the start of layer `n` (M761 L n for the firmware; a pause
+    /// placed in the stream before layer `n` for the conventional policies).
+    AtLayer(u32),
+    /// While job line `line` executes, at `fraction` of its duration (the lab's "during the 3rd
+    /// line").
+    DuringLine {
+        /// Job line index.
+        line: usize,
+        /// 0..1 of the line's execution time.
+        fraction: f64,
+    },
+}
+
+/// Everything that defines one run.
+#[derive(Clone, Debug)]
+pub struct Scenario {
+    /// Policy.
+    pub policy: Policy,
+    /// Pause mode.
+    pub mode: Mode,
+    /// When to pause (`None`: print without pausing).
+    pub pause: Option<PauseWhen>,
+    /// Resume this long after the printer is parked, µs (`None`: stay paused, end the run).
+    pub resume_after_us: Option<u64>,
+    /// Machine configuration.
+    pub machine: MachineConfig,
+    /// Host link.
+    pub link: LinkConfig,
+    /// Moves the conventional policies buffer (paper: 16).
+    pub queue_limit: usize,
+    /// Planner segment length for the `firmware` policy, mm (`None`: the firmware default).
+    pub segment_len_mm: Option<f32>,
+    /// Host-split piece length, mm (paper: 0.1–0.2).
+    pub split_mm: f64,
+    /// Give up after this much virtual time, µs.
+    pub max_time_us: u64,
+    /// Also run the job with segmentation off to measure segmentation's print-time cost.
+    pub measure_segmentation_cost: bool,
+}
+
+impl Scenario {
+    /// Defaults for a policy and mode: 115200 baud, queue 16, host pieces 0.2 mm.
+    pub fn new(policy: Policy, mode: Mode) -> Self {
+        Self {
+            policy,
+            mode,
+            pause: None,
+            resume_after_us: Some(10_000_000),
+            machine: MachineConfig::ENDER3,
+            link: LinkConfig::default(),
+            queue_limit: 16,
+            segment_len_mm: None,
+            split_mm: 0.2,
+            max_time_us: 48 * 3600 * 1_000_000,
+            measure_segmentation_cost: false,
+        }
+    }
+
+    /// The firmware knobs this policy sets.
+    pub fn knobs(&self) -> FirmwareKnobs {
+        match self.policy {
+            Policy::Fifo | Policy::HostSplit => FirmwareKnobs {
+                segment_len_mm: None,
+                pause_at_tail: true,
+                queue_limit: Some(self.queue_limit),
+                speedup: Some(1.0),
+            },
+            Policy::Firmware => FirmwareKnobs {
+                segment_len_mm: Some(
+                    self.segment_len_mm
+                        .unwrap_or(self.machine.pause.segment_len_mm),
+                ),
+                pause_at_tail: false,
+                queue_limit: None,
+                speedup: None,
+            },
+        }
+    }
+}
+
+/// Builds executives: the seam to `firmware::printer::Printer` (see [`crate::exec`]).
+pub trait Factory {
+    /// The executive type.
+    type Exec: Executive;
+    /// A fresh executive for this machine and these knobs.
+    fn make(&self, machine: &MachineConfig, knobs: &FirmwareKnobs) -> Self::Exec;
+}
+
+/// A moment worth telling in a timeline.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct TimelineEvent {
+    /// Virtual time, s.
+    pub t_s: f64,
+    /// What happened.
+    pub what: String,
+}
+
+/// The outcome of one run.
+pub struct Outcome<E: Executive> {
+    /// The measured pause (and print) figures.
+    pub report: PauseReport,
+    /// The run with the pause.
+    pub run: Engine<E>,
+    /// The reference run.
+    pub reference: Engine<E>,
+    /// The job as the host sent it (split for host-split).
+    pub job: Vec<String>,
+    /// Timeline of the run.
+    pub timeline: Vec<TimelineEvent>,
+}
+
+/// Make a job ready for a policy: host-split pre-splits it.
+pub fn prepare_job(policy: Policy, job: &[String], split_mm: f64) -> Vec<String> {
+    match policy {
+        Policy::HostSplit => split::split_job(job, split_mm).lines,
+        _ => job.to_vec(),
+    }
+}
+
+fn new_engine<F: Factory>(f: &F, sc: &Scenario, job: Vec<String>) -> Engine<F::Exec> {
+    let fw = f.make(&sc.machine, &sc.knobs());
+    let host = Host::new(sc.link.clone(), job);
+    Engine::new(fw, host)
+}
+
+/// Time at `fraction` of the execution of job line `line`, from a trial run.
+fn line_time<F: Factory>(
+    f: &F,
+    sc: &Scenario,
+    job: &[String],
+    line: usize,
+    fraction: f64,
+) -> Option<u64> {
+    let mut e = new_engine(f, sc, job.to_vec());
+    let mut t0 = None;
+    loop {
+        match e.advance(sc.max_time_us, true) {
+            Stop::Step(ev) => {
+                let here = e.origin_of_seq(ev.tag.seq) == Some(Origin::Job(line));
+                match (t0, here) {
+                    (None, true) => t0 = Some(ev.t_us),
+                    (Some(t), false) => {
+                        let d = ev.t_us.saturating_sub(t) as f64;
+                        return Some(t + (d * fraction.clamp(0.0, 1.0)) as u64);
+                    }
+                    _ => {}
+                }
+            }
+            _ => return t0,
+        }
+    }
+}
+
+/// The request as the host writes it on the link.
+pub fn request_text(mode: Mode) -> &'static str {
+    match mode {
+        Mode::Layer => "M25",
+        Mode::Now => "M25 S1",
+    }
+}
+
+/// Run `job` under the scenario and measure the pause.
+pub fn run<F: Factory>(
+    f: &F,
+    sc: &Scenario,
+    job_lines: &[String],
+) -> anyhow::Result<Outcome<F::Exec>> {
+    let wall = std::time::Instant::now();
+    let job = prepare_job(sc.policy, job_lines, sc.split_mm);
+    let info = JobInfo::parse(&job);
+    let mut a = new_engine(f, sc, job.clone());
+    let mut b = new_engine(f, sc, job.clone());
+    let mut timeline = Vec::new();
+    let mut note = |t_us: u64, what: String| {
+        timeline.push(TimelineEvent {
+            t_s: t_us as f64 * 1e-6,
+            what,
+        })
+    };
+
+    let mut host_pause_state = None;
+    // When is the request made?
+    let t_req: Option<u64> = match sc.pause {
+        None => None,
+        Some(PauseWhen::AtUs(t)) => Some(t),
+        Some(PauseWhen::DuringLine { line, fraction }) => {
+            Some(line_time(f, sc, &job, line, fraction).ok_or_else(|| {
+                anyhow::anyhow!("job line {line} never executes: no moment to pause in")
+            })?)
+        }
+        Some(PauseWhen::AtLayer(n)) => {
+            match sc.policy {
+                Policy::Firmware => a.host.insert_lines([format!("M761 L{n}")]),
+                Policy::Fifo => {
+                    let at = info
+                        .layer_starts
+                        .iter()
+                        .find(|(l, _)| *l == n)
+                        .map(|(_, i)| *i)
+                        .ok_or_else(|| anyhow::anyhow!("the job has no layer {n}"))?;
+                    // A conventional slicer's "pause at layer": M601 in the stream before it.
+                    a.host.insert_before(at, vec!["M601".into()], false);
+                }
+                Policy::HostSplit => {
+                    let at = info
+                        .layer_starts
+                        .iter()
+                        .find(|(l, _)| *l == n)
+                        .map(|(_, i)| *i)
+                        .ok_or_else(|| anyhow::anyhow!("the job has no layer {n}"))?;
+                    let st = info.state_before(at);
+                    host_pause_state = Some(st);
+                    a.host
+                        .insert_and_hold_before(at, split::pause_sequence(&st, &sc.machine));
+                }
+            }
+            note(0, format!("pause scheduled for the start of layer {n}"));
+            None
+        }
+    };
+
+    let mut facts = RunFacts::default();
+    if let Some(t) = t_req {
+        if a.advance(t, false) == Stop::Finished {
+            anyhow::bail!(
+                "the job finished at {:.3} s, before the pause request at {:.3} s",
+                a.now_us as f64 * 1e-6,
+                t as f64 * 1e-6
+            );
+        }
+        b.advance(t, false);
+        facts.t_req_us = Some(t);
+        facts.pos_at_req = a.rec.pos;
+        facts.records_before_req = a.rec.records.len();
+        note(
+            t,
+            format!(
+                "pause requested ({} mode, {})",
+                sc.mode.name(),
+                sc.policy.name()
+            ),
+        );
+        match sc.policy {
+            // Conventional firmware has one pause (at the tail): always the plain M25.
+            Policy::Fifo => a.host.send_realtime(request_text(Mode::Layer), t),
+            Policy::Firmware => a.host.send_realtime(request_text(sc.mode), t),
+            Policy::HostSplit => {
+                // The host's view: the layer of the last line it sent.
+                let last_sent = a.host.cursor().saturating_sub(1);
+                let at = match sc.mode {
+                    Mode::Now => a.host.cursor(),
+                    Mode::Layer => info.next_layer_start(last_sent).unwrap_or(job.len()),
+                };
+                let st = info.state_before(at);
+                host_pause_state = Some(st);
+                a.host
+                    .insert_and_hold_before(at, split::pause_sequence(&st, &sc.machine));
+            }
+        }
+        // Lock-step until the motion differs.
+        facts.reaction_us = lockstep(&mut a, &mut b, t, sc.max_time_us);
+        if let Some(r) = facts.reaction_us {
+            note(r, "first change of motion (reaction)".into());
+        }
+    } else if let Some(PauseWhen::AtLayer(_)) = sc.pause {
+        facts.t_req_us = None;
+    }
+
+    // Wait for the park, then resume.
+    if sc.pause.is_some() {
+        let parked = wait_parked(&mut a, sc);
+        if let Some(tp) = parked {
+            facts.t_parked_us = Some(tp);
+            note(tp, "parked (paused)".into());
+            if let Some(after) = sc.resume_after_us {
+                let tr = tp + after;
+                a.advance(tr, false);
+                facts.t_resume_us = Some(tr);
+                note(tr, "resume requested".into());
+                match sc.policy {
+                    Policy::Fifo | Policy::Firmware => a.host.send_realtime("M24", tr),
+                    Policy::HostSplit => {
+                        let st = host_pause_state.unwrap_or_else(|| {
+                            // Scheduled host-side pause: the state where the host stopped.
+                            info.state_before(a.host.cursor())
+                        });
+                        a.host
+                            .insert_lines(split::resume_sequence(&st, &sc.machine));
+                        a.host.release();
+                    }
+                }
+            }
+        }
+    }
+    let a_done = a.run_to_end(sc.max_time_us);
+    let b_done = b.run_to_end(sc.max_time_us);
+    facts.finished = a_done;
+    facts.reference_finished = b_done;
+    facts.wall_s = wall.elapsed().as_secs_f64();
+
+    let mut report = metrics::compute(sc, &info, &a, &b, &facts);
+    if sc.measure_segmentation_cost && sc.policy == Policy::Firmware {
+        let mut knobs = sc.knobs();
+        knobs.segment_len_mm = None;
+        let fw = f.make(&sc.machine, &knobs);
+        let mut c = Engine::new(fw, Host::new(sc.link.clone(), job.clone()));
+        c.rec.keep_records = false;
+        c.run_to_end(sc.max_time_us);
+        let t_plain = c.rec.last_step_us as f64 * 1e-6;
+        report.segmentation_cost_s = Some(report.print_time_unpaused_s - t_plain);
+    }
+    if let Some(ts) = report.stop_s.zip(facts.t_req_us) {
+        note(
+            ts.1 + (ts.0 * 1e6) as u64,
+            format!(
+                "head stopped at the pause point{}",
+                match (report.stopped_at_layer_boundary, report.stop_layer) {
+                    (true, Some(l)) => format!(" (end of layer {l})"),
+                    (false, Some(l)) => format!(" (inside layer {l})"),
+                    _ => String::new(),
+                }
+            ),
+        );
+    }
+    if let Some(t) = report.resumed_s {
+        note(
+            (t * 1e6) as u64,
+            "printing again (first job step after resume)".into(),
+        );
+    }
+    note(a.rec.last_step_us, "job finished".into());
+    timeline.sort_by(|x, y| x.t_s.total_cmp(&y.t_s));
+    Ok(Outcome {
+        report,
+        run: a,
+        reference: b,
+        job,
+        timeline,
+    })
+}
+
+/// Step A and B together from the request on; the time of the first step that differs.
+fn lockstep<E: Executive>(
+    a: &mut Engine<E>,
+    b: &mut Engine<E>,
+    _t_req: u64,
+    max_us: u64,
+) -> Option<u64> {
+    loop {
+        match b.advance(max_us, true) {
+            Stop::Step(eb) => match a.advance(eb.t_us, true) {
+                Stop::Step(ea) => {
+                    if !ea.same_motion(&eb) {
+                        return Some(ea.t_us.min(eb.t_us));
+                    }
+                }
+                // A did not step when B did: A has braked or stopped.
+                _ => return Some(eb.t_us),
+            },
+            _ => {
+                // The reference has no more steps: any further step of A differs.
+                return match a.advance(max_us, true) {
+                    Stop::Step(ea) => Some(ea.t_us),
+                    _ => None,
+                };
+            }
+        }
+    }
+}
+
+/// Advance until the printer is parked; the time of the last parking step.
+fn wait_parked<E: Executive>(a: &mut Engine<E>, sc: &Scenario) -> Option<u64> {
+    let slice = 20_000;
+    loop {
+        let st = a.fw.status().state;
+        let idle_motion = a.fw.next_step_us(a.now_us).is_none();
+        let parked = match sc.policy {
+            Policy::Fifo | Policy::Firmware => st == RunState::Paused && idle_motion,
+            Policy::HostSplit => {
+                a.host.holding()
+                    && a.host.inserts_done()
+                    && idle_motion
+                    && a.host.tx.is_idle()
+                    && a.fw.status().queue_depth == 0
+            }
+        };
+        if parked {
+            return Some(a.rec.last_step_us);
+        }
+        if a.now_us >= sc.max_time_us {
+            return None;
+        }
+        if matches!(
+            a.advance(a.now_us + slice, false),
+            Stop::Finished | Stop::Stalled
+        ) {
+            return None;
+        }
+    }
+}
