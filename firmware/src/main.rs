@@ -42,13 +42,14 @@ mod image {
     use firmware::planner::BlockKind;
     use firmware::printer::{Command, Printer, State};
     use firmware::stepgen::StepEvent;
+    use firmware::thermal::HeaterId;
     use heapless::spsc::Producer;
     use static_cell::StaticCell;
 
     use crate::board::drivers::{
         Endstops, Homing, HomingConfig, HomingStep, IdleTimeout, PauseButton, StepperPins,
     };
-    use crate::board::heaters::{self, HotendFan, SoftPwm, PWM_SLOTS};
+    use crate::board::heaters::{self, Fans, SoftPwm, PWM_SLOTS};
     use crate::board::stepper::{self, PinEvent, LOOKAHEAD_NS};
     use crate::board::{clock, pins, safety};
 
@@ -214,10 +215,10 @@ mod image {
                 periph.adc,
                 SoftPwm::new(pins.heater_hotend),
                 SoftPwm::new(pins.heater_bed),
-                HotendFan::new(pins.fan_hotend),
+                Fans::new(periph.fans.0, periph.fans.1, periph.fans.2),
             ),
         );
-        let _ = (pins.fan_part, pins.safe_power);
+        let _ = pins.safe_power;
         spawn(
             &spawner,
             motion_task(printer, producer, pins.pause_button, pins.status_led),
@@ -235,14 +236,27 @@ mod image {
         }
     }
 
-    /// Pushes every pending host-link line to both ports (a port that cannot take it, e.g.
-    /// USB not connected, loses the line rather than stalling the printer).
+    /// Pushes pending host-link output to both ports, as far as both pipes have room (a port
+    /// that does not drain, e.g. USB not connected, loses bytes rather than stalling the
+    /// printer; the executive keeps what neither pipe could take).
     fn flush_output(p: &mut Printer) {
-        while let Some(line) = p.pop_output_line() {
+        let mut buf = [0u8; 128];
+        loop {
+            let room = USB_OUT
+                .free_capacity()
+                .max(UART_OUT.free_capacity())
+                .min(buf.len());
+            if room == 0 {
+                return;
+            }
+            let n = p.read_output(buf.get_mut(..room).unwrap_or(&mut []));
+            if n == 0 {
+                return;
+            }
+            let data = buf.get(..n).unwrap_or(&[]);
             for pipe in [&USB_OUT, &UART_OUT] {
-                if pipe.free_capacity() > line.len() {
-                    let _ = pipe.try_write(line.as_bytes());
-                    let _ = pipe.try_write(b"\n");
+                if pipe.free_capacity() >= n {
+                    let _ = pipe.try_write(data);
                 }
             }
         }
@@ -250,13 +264,15 @@ mod image {
 
     /// Queues the executive's step events up to [`LOOKAHEAD_NS`] ahead. `held` is an event
     /// kept back across a homing sequence (queued first, on the new timeline). Returns the end
-    /// time (ns, executive time) of a homing block when one was met: its events are dropped
-    /// and the caller runs the physical homing sequence instead.
+    /// time (ns, executive time) and the moving axes of a homing block when one was met: its
+    /// events are dropped and the caller runs the physical homing sequence for those axes
+    /// instead (an axis the executive already believes at its minimum does not move in the
+    /// block and is not re-homed).
     fn feed_steps(
         p: &mut Printer,
         producer: &mut Producer<'static, PinEvent>,
         held: &mut Option<StepEvent>,
-    ) -> Option<u64> {
+    ) -> Option<(u64, u8)> {
         let now = printer_now_ns();
         let offset = timebase().offset_ns;
         let to_pin = |ev: &StepEvent| PinEvent {
@@ -280,7 +296,8 @@ mod image {
             }
             let Some(ev) = p.next_step() else { break };
             if ev.kind == BlockKind::Homing {
-                homing_end = Some(ev.t_ns);
+                let mask = homing_end.map_or(0, |(_, m)| m);
+                homing_end = Some((ev.t_ns, mask | (ev.axis_mask & 0b111)));
                 continue;
             }
             if homing_end.is_some() {
@@ -318,9 +335,9 @@ mod image {
         }
     }
 
-    /// G28: waits for queued steps to finish, then homes X, Y and Z on their endstops and
-    /// resumes the executive's timeline where its homing block ended.
-    async fn home_all(printer: Shared, homing_end_ns: u64) {
+    /// G28: waits for queued steps to finish, then homes the axes in `mask` (X, Y, then Z) on
+    /// their endstops and resumes the executive's timeline where its homing block ended.
+    async fn home_all(printer: Shared, homing_end_ns: u64, mask: u8) {
         let freeze = printer_now_ns();
         critical_section::with(|cs| {
             let (off, _) = TIME.borrow(cs).get();
@@ -335,6 +352,9 @@ mod image {
         let mut ok = true;
         for axis in [Axis::X, Axis::Y, Axis::Z] {
             let i = axis.index();
+            if mask & (1 << i) == 0 {
+                continue;
+            }
             let mut h = Homing::new(homing_config(&cfg, axis));
             loop {
                 let hit = stepper::with(|s| s.endstops.triggered(i)).unwrap_or(true);
@@ -372,9 +392,15 @@ mod image {
         });
         stepper::with(|s| {
             for (i, (min, _)) in limits.iter().enumerate() {
-                s.pos[i] = *min;
+                if mask & (1 << i) != 0 {
+                    s.pos[i] = *min;
+                    s.homed |= 1 << i;
+                }
             }
-            s.limits = if ok { Some(limits) } else { None };
+            s.limits = limits;
+            if !ok {
+                s.homed = 0;
+            }
         });
         // Resume the executive's time where its homing block ended.
         let resume_at = homing_end_ns.max(freeze);
@@ -440,12 +466,12 @@ mod image {
                 }
                 flush_output(&mut p);
             }
-            if let Some(end_ns) = homing {
-                home_all(printer, end_ns).await;
+            if let Some((end_ns, mask)) = homing {
+                home_all(printer, end_ns, mask).await;
             }
             blink = blink.wrapping_add(1);
             let period = if halted { 100 } else { 500 };
-            if blink % period == 0 {
+            if blink.is_multiple_of(period) {
                 led.toggle();
             }
         }
@@ -461,7 +487,7 @@ mod image {
         ),
         mut hotend: SoftPwm,
         mut bed: SoftPwm,
-        mut fan: HotendFan,
+        mut fans: Fans,
     ) {
         let (adc1, mut th0, mut tb) = adc;
         let mut adc = Adc::new(adc1);
@@ -473,18 +499,22 @@ mod image {
             if slot == 0 {
                 let raw_h = adc.blocking_read(&mut th0, SampleTime::CYCLES480);
                 let raw_b = adc.blocking_read(&mut tb, SampleTime::CYCLES480);
-                let c_h = heaters::adc_to_c(&tables[0], raw_h);
-                let c_b = heaters::adc_to_c(&tables[1], raw_b);
+                // Faults travel as ±∞ markers the thermal control understands.
+                let c_h = tables[0].celsius_marked(raw_h);
+                let c_b = tables[1].celsius_marked(raw_b);
                 let now = printer_now_us();
                 let mut p = printer.borrow_mut();
+                let d_h = p.thermal_sample(HeaterId::Hotend, c_h, now);
+                let d_b = p.thermal_sample(HeaterId::Bed, c_b, now);
                 if p.state() == State::Halted {
                     hotend.off();
                     bed.off();
                 } else {
-                    hotend.set_duty(p.thermal_sample(false, c_h, now));
-                    bed.set_duty(p.thermal_sample(true, c_b, now));
+                    hotend.set_duty(d_h);
+                    bed.set_duty(d_b);
                 }
-                fan.update(c_h);
+                fans.set_hotend(p.thermal().hotend_fan_on());
+                fans.set_part(p.fan_pwm());
             }
             hotend.tick(slot);
             bed.tick(slot);

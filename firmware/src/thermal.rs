@@ -505,10 +505,19 @@ impl Thermal {
         Ok(())
     }
 
-    /// Feeds one temperature sample in °C (NaN = unreadable sensor) and returns the heater's
-    /// duty 0..=1. Runs the protection; on a fault every heater goes off and stays off.
+    /// Feeds one temperature sample in °C and returns the heater's duty 0..=1. Runs the
+    /// protection; on a fault every heater goes off and stays off. Sensor faults are passed as
+    /// markers (what [`ThermistorTable::celsius_marked`] returns): NaN or −∞ = open sensor,
+    /// +∞ = shorted sensor.
     pub fn update(&mut self, id: HeaterId, measured_c: f32, now_us: u64) -> f32 {
-        self.feed(id, Ok(measured_c), now_us)
+        let sample = if measured_c == f32::INFINITY {
+            Err(SensorFault::Short)
+        } else if measured_c.is_nan() || measured_c == f32::NEG_INFINITY {
+            Err(SensorFault::Open)
+        } else {
+            Ok(measured_c)
+        };
+        self.feed(id, sample, now_us)
     }
 
     /// Feeds one raw 12-bit ADC reading of the heater's thermistor input (converted with its

@@ -216,6 +216,26 @@ fn sensor_open_and_short_are_caught_within_half_a_second() {
 }
 
 #[test]
+fn degree_samples_with_fault_markers() {
+    // The executive's path: °C samples, faults as ±∞ markers from the table.
+    let table =
+        firmware::thermal::ThermistorTable::new(&firmware::thermal::Thermistor::NTC_100K_3950);
+    for (raw, kind) in [
+        (0u16, FaultKind::SensorShort),
+        (4095, FaultKind::SensorOpen),
+    ] {
+        let mut t = Thermal::new(&ThermalConfig::ENDER3);
+        t.set_target(HeaterId::Hotend, 200.0).unwrap();
+        let mut now = 0;
+        for _ in 0..5 {
+            t.update(HeaterId::Hotend, table.celsius_marked(raw), now);
+            now += SAMPLE_US;
+        }
+        assert_eq!(t.fault().map(|f| f.kind), Some(kind));
+    }
+}
+
+#[test]
 fn idle_open_sensor_is_harmless_until_heated() {
     let mut rig = Rig::new(&ThermalConfig::ENDER3);
     rig.bed.set_fault(Some(HeaterFault::SensorOpen));

@@ -3,9 +3,13 @@
 //! answers applied by software PWM on the heater MOSFETs (HE0 on PB3 and BED on PD7 have no free
 //! timer channel: PB3 is TIM2_CH2, and TIM2 is embassy-time's driver). 100 slots of 1 ms make a
 //! 10 Hz PWM, like Marlin's soft PWM for heaters. The hot-end fan follows the automatic
-//! threshold (50 °C) of the thermal configuration.
+//! threshold (50 °C) of the thermal control; the part fan follows M106/M107.
 
-use embassy_stm32::gpio::Output;
+use embassy_stm32::gpio::{Output, OutputType};
+use embassy_stm32::time::Hertz;
+use embassy_stm32::timer::low_level::CountingMode;
+use embassy_stm32::timer::simple_pwm::{PwmPin, SimplePwm};
+use embassy_stm32::{peripherals, Peri};
 use firmware::thermal::ThermalConfig;
 
 /// Soft-PWM slots per period (1 ms each).
@@ -50,42 +54,50 @@ impl SoftPwm {
     }
 }
 
-/// Hot-end fan threshold with hysteresis, from the thermal configuration.
-pub struct HotendFan {
-    pin: Output<'static>,
-    on_c: f32,
-    on: bool,
+/// Both fans on TIM4 hardware PWM at 1 kHz: FAN1 (hot-end fan, on/off from the thermal
+/// control's automatic threshold) and FAN0 (part fan, M106/M107 duty).
+pub struct Fans {
+    pwm: SimplePwm<'static, peripherals::TIM4>,
 }
 
-impl HotendFan {
-    /// Wraps the FAN1 pin.
-    pub fn new(pin: Output<'static>) -> Self {
-        HotendFan {
-            pin,
-            on_c: ThermalConfig::ENDER3.hotend_fan_c,
-            on: false,
-        }
+impl Fans {
+    /// Starts TIM4 with both fans off.
+    pub fn new(
+        tim: Peri<'static, peripherals::TIM4>,
+        hotend: Peri<'static, peripherals::PB6>,
+        part: Peri<'static, peripherals::PB7>,
+    ) -> Self {
+        let mut pwm = SimplePwm::new(
+            tim,
+            Some(PwmPin::new(hotend, OutputType::PushPull)),
+            Some(PwmPin::new(part, OutputType::PushPull)),
+            None,
+            None,
+            Hertz(1_000),
+            CountingMode::EdgeAlignedUp,
+        );
+        pwm.ch1().set_duty_cycle_fully_off();
+        pwm.ch2().set_duty_cycle_fully_off();
+        pwm.ch1().enable();
+        pwm.ch2().enable();
+        Fans { pwm }
     }
 
-    /// Updates from the hot-end temperature.
-    pub fn update(&mut self, hotend_c: f32) {
-        if hotend_c >= self.on_c || !hotend_c.is_finite() {
-            self.on = true;
-        } else if hotend_c < self.on_c - 2.0 {
-            self.on = false;
-        }
-        if self.on {
-            self.pin.set_high();
+    /// Hot-end fan on or off.
+    pub fn set_hotend(&mut self, on: bool) {
+        if on {
+            self.pwm.ch1().set_duty_cycle_fully_on();
         } else {
-            self.pin.set_low();
+            self.pwm.ch1().set_duty_cycle_fully_off();
         }
     }
-}
 
-/// Converts a raw reading with the configured thermistor of `id` (NaN for an open or shorted
-/// sensor, which the thermal control treats as a sensor fault while heating).
-pub fn adc_to_c(table: &firmware::thermal::ThermistorTable, raw: u16) -> f32 {
-    table.celsius(raw).unwrap_or(f32::NAN)
+    /// Part fan duty in Marlin's 0..=255 (M106 S).
+    pub fn set_part(&mut self, pwm_255: u8) {
+        self.pwm
+            .ch2()
+            .set_duty_cycle_fraction(u32::from(pwm_255), 255);
+    }
 }
 
 /// The tables of both heaters, built once.

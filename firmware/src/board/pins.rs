@@ -15,8 +15,8 @@
 //! | X / Y / Z endstop (X-STOP, Y-STOP, Z-STOP) | PC1 / PC3 / PC0 | [M] `X_STOP_PIN`, `Y_STOP_PIN`, `Z_STOP_PIN` |
 //! | hot-end heater (HE0) | PB3 | [M] `HEATER_0_PIN` |
 //! | bed heater (BED) | PD7 | [M] `HEATER_BED_PIN` |
-//! | part-cooling fan (FAN0) | PB7 | [M] `FAN_PIN` |
-//! | hot-end fan (FAN1) | PB6 | [M] `FAN1_PIN` |
+//! | part-cooling fan (FAN0) | PB7 (TIM4_CH2 PWM) | [M] `FAN_PIN` |
+//! | hot-end fan (FAN1) | PB6 (TIM4_CH1 PWM) | [M] `FAN1_PIN` |
 //! | hot-end thermistor (TH0) | PA2 (ADC123_IN2) | [M] `TEMP_0_PIN` |
 //! | bed thermistor (TB) | PA1 (ADC123_IN1) | [M] `TEMP_BED_PIN` |
 //! | pause button (filament-runout connector E0DET) | PC2 | [M] `FIL_RUNOUT_PIN` |
@@ -51,10 +51,6 @@ pub struct Pins {
     pub heater_hotend: Output<'static>,
     /// Bed heater MOSFET gate.
     pub heater_bed: Output<'static>,
-    /// Part-cooling fan.
-    pub fan_part: Output<'static>,
-    /// Hot-end fan.
-    pub fan_hotend: Output<'static>,
     /// Pause button input (pulled up; pressed = low).
     pub pause_button: Input<'static>,
     /// Power switch of drivers, heaters and fans (high = on).
@@ -85,6 +81,13 @@ pub struct Periph {
     ),
     /// The step timer.
     pub step_timer: Peri<'static, P::TIM5>,
+    /// Fan PWM: TIM4 with FAN1 (hot-end fan, PB6 = TIM4_CH1) and FAN0 (part fan, PB7 =
+    /// TIM4_CH2).
+    pub fans: (
+        Peri<'static, P::TIM4>,
+        Peri<'static, P::PB6>,
+        Peri<'static, P::PB7>,
+    ),
 }
 
 /// Splits the HAL's peripherals into the configured pins and the remaining peripherals.
@@ -120,8 +123,6 @@ pub fn split(p: embassy_stm32::Peripherals) -> (Pins, Periph) {
         ],
         heater_hotend: Output::new(p.PB3, Level::Low, Speed::Low),
         heater_bed: Output::new(p.PD7, Level::Low, Speed::Low),
-        fan_part: Output::new(p.PB7, Level::Low, Speed::Low),
-        fan_hotend: Output::new(p.PB6, Level::Low, Speed::Low),
         pause_button: Input::new(p.PC2, Pull::Up),
         safe_power: Output::new(p.PC13, Level::High, Speed::Low),
         status_led: Output::new(p.PE6, Level::Low, Speed::Low),
@@ -131,6 +132,7 @@ pub fn split(p: embassy_stm32::Peripherals) -> (Pins, Periph) {
         uart: (p.USART1, p.PA10, p.PA9),
         adc: (p.ADC1, p.PA2, p.PA1),
         step_timer: p.TIM5,
+        fans: (p.TIM4, p.PB6, p.PB7),
     };
     (pins, periph)
 }

@@ -4,8 +4,9 @@
 use embassy_stm32::pac;
 
 /// Heater MOSFET gates low (HE0 PB3, BED PD7), stepper drivers disabled (EN high), hot-end
-/// fan on (PB6: the nozzle may still be hot). Idempotent; touches only the BSRR registers,
-/// which set or clear single pins atomically.
+/// Idempotent; touches only the BSRR registers, which set or clear
+/// single pins atomically. The fans keep their PWM (the hot-end fan runs while the nozzle is
+/// hot).
 pub fn heaters_off() {
     pac::GPIOB.bsrr().write(|w| w.set_br(3, true));
     pac::GPIOD.bsrr().write(|w| w.set_br(7, true));
@@ -15,5 +16,4 @@ pub fn heaters_off() {
         w.set_bs(1, true);
     });
     pac::GPIOC.bsrr().write(|w| w.set_bs(7, true));
-    pac::GPIOB.bsrr().write(|w| w.set_bs(6, true));
 }

@@ -55,8 +55,10 @@ pub struct StepIsr {
     consumer: Consumer<'static, PinEvent>,
     /// Position in steps as executed.
     pub pos: [i32; 4],
-    /// Software limits in steps for X, Y, Z, once homed.
-    pub limits: Option<[(i32, i32); 3]>,
+    /// Software limits in steps for X, Y, Z (enforced on homed axes).
+    pub limits: [(i32, i32); 3],
+    /// Homed axes (bit i = axis i); X/Y/Z steps of unhomed axes are refused.
+    pub homed: u8,
     /// Steps refused (outside the limits or before homing) since last taken.
     pub refused: u32,
     /// Drop every queued event (halt / quick stop).
@@ -81,7 +83,8 @@ pub fn init(
             endstops,
             consumer,
             pos: [0; 4],
-            limits: None,
+            limits: [(i32::MIN, i32::MAX); 3],
+            homed: 0,
             refused: 0,
             flush: false,
             running: false,
@@ -116,10 +119,8 @@ impl StepIsr {
             } else {
                 self.pos[axis].saturating_sub(1)
             };
-            let allowed = match self.limits {
-                Some(l) => next >= l[axis].0 && next <= l[axis].1,
-                None => false,
-            };
+            let allowed =
+                self.homed & bit != 0 && next >= self.limits[axis].0 && next <= self.limits[axis].1;
             if !allowed {
                 mask &= !bit;
                 self.refused = self.refused.saturating_add(1);

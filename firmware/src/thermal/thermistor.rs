@@ -149,6 +149,16 @@ impl ThermistorTable {
         let frac = (c_lo - x) / (c_lo - c_hi);
         Ok(TABLE_MIN_C + TABLE_STEP_C * (lo as f32 + frac))
     }
+
+    /// Like [`ThermistorTable::celsius`], with the faults as markers that
+    /// `Thermal::update` understands: −∞ for an open sensor, +∞ for a short.
+    pub fn celsius_marked(&self, raw: u16) -> f32 {
+        match self.celsius(raw) {
+            Ok(c) => c,
+            Err(SensorFault::Open) => f32::NEG_INFINITY,
+            Err(SensorFault::Short) => f32::INFINITY,
+        }
+    }
 }
 
 #[cfg(test)]
@@ -199,6 +209,8 @@ mod tests {
         assert_eq!(table.celsius(ADC_MAX), Err(SensorFault::Open));
         assert_eq!(table.celsius(0), Err(SensorFault::Short));
         assert_eq!(table.celsius(21).map(|c| c >= 350.0), Ok(true));
+        assert_eq!(table.celsius_marked(ADC_MAX), f32::NEG_INFINITY);
+        assert_eq!(table.celsius_marked(0), f32::INFINITY);
     }
 
     #[test]
