@@ -1255,9 +1255,16 @@ impl Printer {
         }
     }
 
+    /// Heater sample in for the bed (`bed` true) or the hot end; duty 0..=1 out. Same as
+    /// [`Printer::heater_sample`].
+    pub fn thermal_sample(&mut self, bed: bool, measured_c: f32, now_us: u64) -> f32 {
+        let id = if bed { HeaterId::Bed } else { HeaterId::Hotend };
+        self.heater_sample(id, measured_c, now_us)
+    }
+
     /// Heater sample in (°C, NaN = unreadable), duty 0..=1 out. A thermal fault halts the
     /// printer (reported as Marlin does).
-    pub fn thermal_sample(&mut self, id: HeaterId, measured_c: f32, now_us: u64) -> f32 {
+    pub fn heater_sample(&mut self, id: HeaterId, measured_c: f32, now_us: u64) -> f32 {
         self.set_now(now_us);
         let had_fault = self.thermal.fault().is_some();
         let duty = self.thermal.update(id, measured_c, now_us);
