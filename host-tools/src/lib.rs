@@ -3,6 +3,7 @@
 //! so the host reads exactly what the printer reads.
 #![deny(missing_docs)]
 
+pub mod additive;
 pub mod cli;
 // Design compiler (ht-design).
 pub mod deform;

@@ -1,0 +1,200 @@
+//! The additive job: from a base mesh, a chosen face and an added shape to world-space
+//! toolpaths stacked along the face normal, checked against the print head.
+//!
+//! The added shape is normalised first: its XY bounding-box centre becomes the local origin
+//! and its lowest point `z = 0`, so it stands on the face at the user's offset. It is sliced
+//! at the middle of each layer (`(k + ½)·layer`), filled, and layer `k` is printed at local
+//! height `(k + 1)·layer` along the face normal.
+
+use super::collision::{check_path, BaseSamples, Collision, HeadModel};
+use super::fill::{fill_layer, FillParams, PathKind};
+use super::frame::{local_to_world, nearest_face, Frame, Placement};
+use super::slice::slice_layers;
+use super::stl::{validate, Mesh, MeshReport};
+use anyhow::bail;
+use glam::{DMat4, DVec3};
+
+/// How the base face is chosen.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum FaceChoice {
+    /// Triangle index in the base STL.
+    Index(usize),
+    /// The triangle nearest to this point (world, mm).
+    At(DVec3),
+}
+
+/// Parameters of an additive job.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct JobParams {
+    /// The base face.
+    pub face: FaceChoice,
+    /// Offset and rotation of the shape in the polygon frame.
+    pub placement: Placement,
+    /// Layer height along the face normal, mm.
+    pub layer_mm: f64,
+    /// Walls and infill.
+    pub fill: FillParams,
+    /// Gap tolerance for chaining slice contours, mm.
+    pub gap_mm: f64,
+    /// Print head geometry for the collision check.
+    pub head: HeadModel,
+    /// Resolution of the collision check, mm.
+    pub collision_step_mm: f64,
+}
+
+impl Default for JobParams {
+    fn default() -> Self {
+        JobParams {
+            face: FaceChoice::Index(0),
+            placement: Placement::default(),
+            layer_mm: 0.2,
+            fill: FillParams::default(),
+            gap_mm: 0.01,
+            head: HeadModel::default(),
+            collision_step_mm: 0.5,
+        }
+    }
+}
+
+/// One extruded path in world coordinates.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WorldPath {
+    /// Layer index (0 = on the face).
+    pub layer: usize,
+    /// Wall or infill.
+    pub kind: PathKind,
+    /// Points (world, mm).
+    pub points: Vec<DVec3>,
+}
+
+/// A planned job.
+#[derive(Debug, Clone)]
+pub struct Job {
+    /// Index of the chosen base face.
+    pub face_index: usize,
+    /// The polygon frame of that face.
+    pub frame: Frame,
+    /// Local shape coordinates → world (`T · T_wp⁻¹`).
+    pub local_to_world: DMat4,
+    /// Number of layers.
+    pub layers: usize,
+    /// Paths in print order.
+    pub paths: Vec<WorldPath>,
+    /// Validation of the base mesh.
+    pub base_report: MeshReport,
+    /// Validation of the added shape.
+    pub shape_report: MeshReport,
+    /// Slice chains that could not be closed (summed over layers).
+    pub open_chains: usize,
+    /// Largest face tilt the head can print on (unbounded flat face), degrees.
+    pub max_tilt_deg: f64,
+}
+
+impl Job {
+    /// Nozzle positions in print order, travels included (the polyline the head follows).
+    pub fn tip_polyline(&self) -> Vec<DVec3> {
+        self.paths
+            .iter()
+            .flat_map(|p| p.points.iter().copied())
+            .collect()
+    }
+}
+
+/// Resolves the face choice to a triangle index.
+pub fn choose_face(base: &Mesh, face: FaceChoice) -> anyhow::Result<usize> {
+    match face {
+        FaceChoice::Index(i) => {
+            if i >= base.faces.len() {
+                bail!(
+                    "--face {i}: the base has {} triangles (0..{})",
+                    base.faces.len(),
+                    base.faces.len().saturating_sub(1)
+                );
+            }
+            Ok(i)
+        }
+        FaceChoice::At(p) => {
+            if !p.is_finite() {
+                bail!("--at: point must be finite");
+            }
+            nearest_face(base, p)
+                .map(|(i, _)| i)
+                .ok_or_else(|| anyhow::anyhow!("the base mesh has no triangles"))
+        }
+    }
+}
+
+/// Moves the shape so its XY bounding-box centre is the origin and its lowest point is z = 0.
+pub fn normalise_shape(shape: &Mesh) -> Mesh {
+    match shape.bbox() {
+        Some((lo, hi)) => {
+            let shift = DVec3::new(-(lo.x + hi.x) * 0.5, -(lo.y + hi.y) * 0.5, -lo.z);
+            shape.map(|v| v + shift)
+        }
+        None => shape.clone(),
+    }
+}
+
+/// Plans the job: frame, slicing, fill, transform. Does not check collisions (see [`check`]).
+pub fn plan(base: &Mesh, shape: &Mesh, p: &JobParams) -> anyhow::Result<Job> {
+    if !p.layer_mm.is_finite() || p.layer_mm <= 0.0 {
+        bail!("layer height must be a positive number");
+    }
+    if !p.fill.line_width_mm.is_finite() || p.fill.line_width_mm <= 0.0 {
+        bail!("line width must be a positive number");
+    }
+    if !(0.0..=100.0).contains(&p.fill.infill_percent) {
+        bail!("infill must be between 0 and 100 %");
+    }
+    if !p.placement.offset_mm.is_finite() || !p.placement.rotate_deg.is_finite() {
+        bail!("offset and rotation must be finite");
+    }
+    let base_report = validate(base);
+    let shape_report = validate(shape);
+    let face_index = choose_face(base, p.face)?;
+    let frame = Frame::from_face(base, face_index)?;
+    let m = local_to_world(&frame, &p.placement);
+    let local = normalise_shape(shape);
+    let sections = slice_layers(&local, p.layer_mm, p.gap_mm);
+    let layers = sections.len();
+    if layers == 0 {
+        bail!(
+            "the added shape is thinner than one layer ({} mm)",
+            p.layer_mm
+        );
+    }
+    let mut paths = Vec::new();
+    let mut open_chains = 0;
+    for (k, sec) in sections.iter().enumerate() {
+        open_chains += sec.open_chains;
+        let z = (k as f64 + 1.0) * p.layer_mm;
+        for lp in fill_layer(&sec.loops, &p.fill, k, layers) {
+            paths.push(WorldPath {
+                layer: k,
+                kind: lp.kind,
+                points: lp
+                    .points
+                    .iter()
+                    .map(|q| m.transform_point3(q.extend(z)))
+                    .collect(),
+            });
+        }
+    }
+    Ok(Job {
+        face_index,
+        frame,
+        local_to_world: m,
+        layers,
+        paths,
+        base_report,
+        shape_report,
+        open_chains,
+        max_tilt_deg: p.head.max_face_tilt_deg(p.layer_mm),
+    })
+}
+
+/// Checks the head along the whole toolpath (travels included) against the base part.
+pub fn check(base: &Mesh, job: &Job, p: &JobParams) -> Option<Collision> {
+    let samples = BaseSamples::new(base, p.collision_step_mm, p.head.max_radius_mm());
+    check_path(&samples, &p.head, &job.tip_polyline(), p.collision_step_mm)
+}
