@@ -314,7 +314,7 @@ impl Planner {
             return Ok(false);
         };
         let seg = cfg.pause.segment_len_mm;
-        let n = if self.policy.segment && seg > 0.0 && kin.len_mm > seg {
+        let n = if self.policy.segment && kind == BlockKind::Job && seg > 0.0 && kin.len_mm > seg {
             let n = libm::ceilf(kin.len_mm / seg);
             if n >= 1.0e6 {
                 1_000_000
