@@ -205,6 +205,24 @@ mod target {
             (step / 1e3) as u32,
             (peek / 1e3) as u32
         );
+        // What an idle main-loop tick costs (a printer with nothing to do), to tell the
+        // planning work from the 1 kHz polling it rides on.
+        const IDLE_POLLS: u64 = 10_000;
+        let idle_poll = {
+            let mut idle = firmware::printer::Printer::new(firmware::config::MachineConfig::ENDER3);
+            idle.poll(0);
+            let t0 = ticks();
+            for i in 1..=IDLE_POLLS {
+                idle.poll(core::hint::black_box(i * scenario::TICK_US));
+            }
+            (ticks() - t0) as f64 / ticks_per_insn / IDLE_POLLS as f64
+        };
+        let polls = m.count[1] as f64;
+        hprintln!(
+            "qemu-core: an idle poll costs {} instructions; planning per segment without the idle polling: {}",
+            idle_poll as u32,
+            ((plan + poll - idle_poll * polls).max(0.0) / blocks) as u32
+        );
         // Driving the pins for one event (DIR when it changes, STEP high, STEP low).
         const PIN_EVENTS: u32 = 100_000;
         let mut t_pins = (0u64, 0u64);

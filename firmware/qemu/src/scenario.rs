@@ -1,15 +1,18 @@
 //! The scenario shared by the host (build.rs computes the expected digest) and the emulated
 //! Cortex-M4 (main.rs recomputes it and compares): a small four-layer print — perimeters with
-//! extrusion, travels, Z steps and layer marks — with a layer pause and resume in layer 2 and a
-//! pause-now and resume in layer 4, run through the firmware's executive (`Printer`) on virtual
+//! extrusion, travels, Z steps and PrusaSlicer-style layer comments — streamed as G-code text
+//! through the host link the way Pronterface does (send a line, wait for `ok`), with
+//! `M601` (pause at the layer boundary) and `M602` (resume) in layer 2 and `M601 S1` (pause
+//! now) and `M602` in layer 4, run through the firmware's executive (`Printer`) on virtual
 //! time, 1 ms main-loop ticks, stepping every event on time.
 //!
 //! The digest is FNV-1a over every step event (time in ns, axis mask, direction mask), plus the
 //! number of events, executed blocks and host-link lines and the final position.
 
+use core::fmt::Write as _;
 use firmware::config::MachineConfig;
-use firmware::motion::{Axis, LayerMark, LayerSource, MoveRequest, PauseMode, Realtime, StepPos};
-use firmware::printer::{Command, Printer, Record, State};
+use firmware::motion::{Axis, StepPos};
+use firmware::printer::{Printer, Record, State};
 
 /// Main-loop tick: commands are pushed and `poll` runs once per tick; step events are pulled
 /// for each tick's window, as the board's timer interrupt would.
@@ -83,19 +86,53 @@ impl Meter for NoMeter {
     fn end(&mut self, _work: Work) {}
 }
 
+/// Longest line the script writes.
+const LINE: usize = 64;
+
+/// One G-code line (no allocation).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Line {
+    buf: [u8; LINE],
+    len: usize,
+}
+
+impl core::fmt::Write for Line {
+    fn write_str(&mut self, s: &str) -> core::fmt::Result {
+        let end = self.len + s.len();
+        let dst = self.buf.get_mut(self.len..end).ok_or(core::fmt::Error)?;
+        dst.copy_from_slice(s.as_bytes());
+        self.len = end;
+        Ok(())
+    }
+}
+
+impl Line {
+    fn new(args: core::fmt::Arguments) -> Self {
+        let mut l = Line {
+            buf: [0; LINE],
+            len: 0,
+        };
+        let _ = l.write_fmt(args);
+        let _ = l.write_str("\n");
+        l
+    }
+
+    fn bytes(&self) -> &[u8] {
+        self.buf.get(..self.len).unwrap_or(&[])
+    }
+}
+
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Item {
-    Cmd(Command),
-    Request(Realtime),
+    /// Send a line and wait for its `ok`.
+    Send(Line),
     WaitPaused,
     WaitUs(u64),
 }
 
 /// The script: an iterator of items computed from the part's geometry (no allocation).
 struct Script {
-    cfg: MachineConfig,
     i: u32,
-    seq: u32,
     e_mm: f32,
     /// Queue of up to 8 items produced by one `i`.
     buf: [Option<Item>; 8],
@@ -103,63 +140,64 @@ struct Script {
 }
 
 impl Script {
-    fn new(cfg: MachineConfig) -> Self {
+    fn new() -> Self {
         Script {
-            cfg,
             i: 0,
-            seq: 0,
             e_mm: 0.0,
             buf: [None; 8],
             head: 8,
         }
     }
 
-    fn steps(&self, axis: Axis, mm: f32) -> i32 {
-        libm::roundf(mm * self.cfg.axis(axis).steps_per_mm) as i32
+    fn mv(&mut self, x: f32, y: f32, z: f32, e: f32, feed_mm_s: f32) -> Item {
+        Item::Send(Line::new(format_args!(
+            "G1 X{x:.3} Y{y:.3} Z{z:.3} E{e:.5} F{:.0}",
+            feed_mm_s * 60.0
+        )))
     }
 
-    fn mv(&mut self, x: f32, y: f32, z: f32, e: f32, feed_mm_s: f32) -> Item {
-        self.seq += 1;
-        Item::Cmd(Command::Move(MoveRequest {
-            target: [
-                self.steps(Axis::X, x),
-                self.steps(Axis::Y, y),
-                self.steps(Axis::Z, z),
-                self.steps(Axis::E, e),
-            ],
-            feed_mm_s,
-            seq: self.seq,
-        }))
+    fn send(args: core::fmt::Arguments) -> Item {
+        Item::Send(Line::new(args))
     }
 
     /// Produces the items of script step `i` into `buf`; false when the script is over.
     fn fill(&mut self) -> bool {
         let mut items: [Option<Item>; 8] = [None; 8];
+        if self.i == 0 {
+            items[0] = Some(Self::send(format_args!("M110 N0")));
+            items[1] = Some(Self::send(format_args!("G21")));
+            items[2] = Some(Self::send(format_args!("G90")));
+            items[3] = Some(Self::send(format_args!("M82")));
+            items[4] = Some(Self::send(format_args!("G28")));
+            items[5] = Some(Self::send(format_args!("G92 E0")));
+            self.buf = items;
+            self.head = 0;
+            self.i += 1;
+            return true;
+        }
+        let step = self.i - 1;
         let per_layer = 2 + PERIMETERS * 5;
-        let layer = self.i / per_layer;
-        let k = self.i % per_layer;
+        let layer = step / per_layer;
+        let k = step % per_layer;
         if layer >= LAYERS {
             return false;
         }
         let z = 0.2 + 0.2 * layer as f32;
         match k {
             0 => {
-                items[0] = Some(Item::Cmd(Command::Layer(LayerMark {
-                    layer,
-                    z_um: Some(libm::roundf(z * 1000.0) as i32),
-                    source: LayerSource::Comment,
-                })));
-                items[1] = Some(self.mv(10.0, 10.0, z, self.e_mm, 5.0));
+                items[0] = Some(Self::send(format_args!(";LAYER_CHANGE")));
+                items[1] = Some(Self::send(format_args!(";Z:{z:.1}")));
+                items[2] = Some(self.mv(10.0, 10.0, z, self.e_mm, 5.0));
             }
             1 => {
                 // Retract-free travel to the first perimeter's corner.
                 items[0] = Some(self.mv(10.0, 10.0, z, self.e_mm, 120.0));
                 if layer == 2 {
                     // The operator asks for a pause at the layer boundary early in layer 2.
-                    items[1] = Some(Item::Request(Realtime::Pause(PauseMode::Layer)));
+                    items[1] = Some(Self::send(format_args!("M601")));
                     items[2] = Some(Item::WaitPaused);
                     items[3] = Some(Item::WaitUs(2_000_000));
-                    items[4] = Some(Item::Request(Realtime::Resume));
+                    items[4] = Some(Self::send(format_args!("M602")));
                 }
             }
             _ => {
@@ -189,10 +227,10 @@ impl Script {
                 items[0] = Some(self.mv(x, y, z, e, feed));
                 if layer == 3 && perimeter == 0 && corner == 2 {
                     // Pause now, in the middle of the perimeter.
-                    items[1] = Some(Item::Request(Realtime::Pause(PauseMode::Now)));
+                    items[1] = Some(Self::send(format_args!("M601 S1")));
                     items[2] = Some(Item::WaitPaused);
                     items[3] = Some(Item::WaitUs(1_000_000));
-                    items[4] = Some(Item::Request(Realtime::Resume));
+                    items[4] = Some(Self::send(format_args!("M602")));
                 }
             }
         }
@@ -234,7 +272,7 @@ fn fnv(hash: &mut u64, bytes: &[u8]) {
 pub fn run(meter: &mut impl Meter) -> Result<Digest, ScenarioError> {
     let cfg = MachineConfig::ENDER3;
     let mut p = Printer::new(cfg);
-    let mut script = Script::new(cfg);
+    let mut script = Script::new();
     let mut pending: Option<Item> = None;
     let mut wait_until: Option<u64> = None;
     let mut digest = Digest {
@@ -247,6 +285,11 @@ pub fn run(meter: &mut impl Meter) -> Result<Digest, ScenarioError> {
     let mut now: u64 = 0;
     let mut script_done = false;
     let mut item_no: u32 = 0;
+    // The host's side of the link: waiting for an `ok`, and the start of the line being read.
+    let mut awaiting_ok = false;
+    let mut col = 0usize;
+    let mut head = [0u8; 2];
+    let mut out = [0u8; 256];
     loop {
         if now > LIMIT_US {
             return Err(ScenarioError::Timeout {
@@ -264,17 +307,16 @@ pub fn run(meter: &mut impl Meter) -> Result<Digest, ScenarioError> {
                 }
             };
             let done = match item {
-                Item::Cmd(cmd) => {
-                    meter.begin();
-                    let r = p.push_command(cmd, now);
-                    meter.end(Work::Plan);
-                    r.is_ok()
-                }
-                Item::Request(req) => {
-                    meter.begin();
-                    p.request(req, now);
-                    meter.end(Work::Plan);
-                    true
+                Item::Send(line) => {
+                    if awaiting_ok {
+                        false
+                    } else {
+                        meter.begin();
+                        p.receive(line.bytes(), now);
+                        meter.end(Work::Plan);
+                        awaiting_ok = true;
+                        true
+                    }
                 }
                 Item::WaitPaused => p.state() == State::Paused,
                 Item::WaitUs(us) => {
@@ -296,8 +338,27 @@ pub fn run(meter: &mut impl Meter) -> Result<Digest, ScenarioError> {
         meter.begin();
         p.poll(now);
         meter.end(Work::Poll);
-        while p.pop_output_line().is_some() {
-            digest.lines += 1;
+        // Read what the printer answered: count lines, notice `ok`.
+        loop {
+            let n = p.read_output(&mut out);
+            if n == 0 {
+                break;
+            }
+            for &b in out.get(..n).unwrap_or(&[]) {
+                if b == b'\n' {
+                    if head == *b"ok" {
+                        awaiting_ok = false;
+                    }
+                    digest.lines += 1;
+                    col = 0;
+                    head = [0; 2];
+                } else {
+                    if let Some(h) = head.get_mut(col) {
+                        *h = b;
+                    }
+                    col += 1;
+                }
+            }
         }
         // The step timer: every event due in this tick.
         let horizon_ns = (now + TICK_US) * 1000;
@@ -317,12 +378,12 @@ pub fn run(meter: &mut impl Meter) -> Result<Digest, ScenarioError> {
             }
         }
         now += TICK_US;
-        if script_done && p.state() == State::Idle && p.next_step_ns().is_none() {
+        if script_done && !awaiting_ok && p.state() == State::Idle && p.next_step_ns().is_none() {
             break;
         }
     }
     digest.final_pos = p.status().position;
-    if digest.final_pos[0] != script.steps(Axis::X, 11.0) {
+    if digest.final_pos[0] != libm::roundf(11.0 * cfg.axis(Axis::X).steps_per_mm) as i32 {
         return Err(ScenarioError::WrongEnd);
     }
     Ok(digest)
