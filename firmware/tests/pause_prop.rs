@@ -116,6 +116,12 @@ fn check(items: &[Item], policy: Policy, mode: PauseMode, frac_permille: u64, wa
         .count();
     if mode == PauseMode::Layer && !policy.pause_at_tail {
         assert!(!mid, "layer pause stopped mid-block");
+        if n_before == 0 {
+            // Requested before anything ran: stopped at the job's first layer mark.
+            assert!(matches!(cmds[0], Command::Layer(_)));
+            assert_eq!(layer, Some(0));
+            return;
+        }
         // The last executed block before the stop ends a move that is followed by a layer
         // mark in the program, or ends the job.
         let (seq, seg) = r.executed[n_before - 1];

@@ -419,6 +419,7 @@ impl Printer {
             PauseSchedule::Layer(n) => {
                 self.schedule = Some(Schedule::Layer(n));
                 self.say(format_args!("pause scheduled at layer {n}"));
+                self.schedule_queued_marks();
             }
             PauseSchedule::Z(z) => {
                 let um = libm::roundf(z * 1000.0);
@@ -429,6 +430,7 @@ impl Printer {
                 };
                 self.schedule = Some(Schedule::Z(um));
                 self.say(format_args!("pause scheduled at Z{z:.3}"));
+                self.schedule_queued_marks();
             }
         }
     }

@@ -620,9 +620,42 @@ impl Printer {
         }
     }
 
-    /// Set a pause schedule now (M761 from the host).
+    /// Set a pause schedule now (M761 from the host). A matching layer mark already in the
+    /// planner becomes the barrier at once.
     pub fn schedule_pause(&mut self, s: Option<Schedule>) {
         self.schedule = s;
+        self.schedule_queued_marks();
+    }
+
+    /// Apply the schedule to the layer marks already queued in the planner.
+    fn schedule_queued_marks(&mut self) {
+        if self.schedule.is_none() || self.phase != Phase::Run {
+            return;
+        }
+        let mut hit = None;
+        for (id, m) in self.planner.marks() {
+            let matches = match self.schedule {
+                Some(Schedule::Layer(n)) => m.layer >= n,
+                Some(Schedule::Z(z)) => m.z_um.is_some_and(|mz| mz >= z),
+                None => false,
+            };
+            if matches {
+                hit = Some((id, m));
+                break;
+            }
+        }
+        if let Some((id, m)) = hit {
+            self.schedule = None;
+            self.planner.set_barrier(id);
+            self.barrier_layer = Some(m.layer);
+            self.phase = Phase::Stopping;
+            self.mode = Some(PauseMode::Layer);
+            self.say(format_args!(
+                "scheduled pause: stopping before layer {}",
+                m.layer
+            ));
+            self.update_state_record();
+        }
     }
 
     /// The current pause schedule (M761 report).
