@@ -184,7 +184,10 @@ fn check(items: &[Item], policy: Policy, mode: PauseMode, frac_permille: u64, wa
         // Braking uses each block's own acceleration; the slowest any job block may have is
         // the Z-limited one, but a Z move is only entered at a near-standstill corner.
         let a = if a > 0.0 { a as f64 } else { 500.0 };
-        let bound = (v as f64).powi(2) / (2.0 * a.min(500.0)) + 1.0 / 80.0 + 1e-3;
+        // The brake stops at the last whole step within v²/2a of the braking point (one step of
+        // resolution); the travel is measured between step-lattice positions, whose distance
+        // differs from the path length by up to one more step.
+        let bound = (v as f64).powi(2) / (2.0 * a.min(500.0)) + 2.0 / 80.0;
         assert!(
             travel <= bound,
             "travel {travel} > bound {bound} (v {v}, a {a})"
