@@ -1,0 +1,20 @@
+//! RAM budget of the motion side (printed with `--nocapture`; the limits guard the documented
+//! figures in docs/planner.md).
+use firmware::planner::{Block, Planner, RING_CAPACITY};
+use firmware::printer::Printer;
+use firmware::stepgen::StepGen;
+
+#[test]
+fn ram_budget() {
+    let block = std::mem::size_of::<Block>();
+    let planner = std::mem::size_of::<Planner>();
+    let stepgen = std::mem::size_of::<StepGen>();
+    let printer = std::mem::size_of::<Printer>();
+    println!(
+        "Block {block} B, ring {RING_CAPACITY} blocks = {} B, Planner {planner} B, StepGen {stepgen} B, Printer {printer} B",
+        RING_CAPACITY * block
+    );
+    assert!(block <= 80);
+    assert!(planner <= RING_CAPACITY * block + 1024);
+    assert!(printer <= 32 * 1024);
+}
