@@ -1288,10 +1288,8 @@ impl Printer {
         }
     }
 
-    /// Heater sample in for the bed (`bed` true) or the hot end; duty 0..=1 out. Same as
-    /// [`Printer::heater_sample`].
-    pub fn thermal_sample(&mut self, bed: bool, measured_c: f32, now_us: u64) -> f32 {
-        let id = if bed { HeaterId::Bed } else { HeaterId::Hotend };
+    /// Heater sample in; duty 0..=1 out. Same as [`Printer::heater_sample`].
+    pub fn thermal_sample(&mut self, id: HeaterId, measured_c: f32, now_us: u64) -> f32 {
         self.heater_sample(id, measured_c, now_us)
     }
 
