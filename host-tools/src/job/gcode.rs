@@ -1,0 +1,212 @@
+//! The one seam between the host and the firmware's G-code front end: every G-code line the
+//! host reads goes through `firmware::gcode` (parsing) and `firmware::layer` (layer detection)
+//! here, so the host reads exactly what the printer reads. Nothing else in the job or sender
+//! modules looks inside a G-code line.
+
+use firmware::motion::LayerMark;
+
+/// One command as the host needs it: letter, number and parameter words in millimetres/units as
+/// written.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Command {
+    /// `G`, `M` or `T`.
+    pub letter: char,
+    /// Command number (`1` in `G1`).
+    pub number: u16,
+    /// Parameter words in the order written.
+    pub params: Vec<(char, f64)>,
+}
+
+impl Command {
+    /// Value of parameter `c`, if present with a value.
+    pub fn get(&self, c: char) -> Option<f64> {
+        self.params.iter().find(|(l, _)| *l == c).map(|(_, v)| *v)
+    }
+
+    /// True when parameter `c` is present.
+    pub fn has(&self, c: char) -> bool {
+        self.params.iter().any(|(l, _)| *l == c)
+    }
+
+    /// True for `letter number`.
+    pub fn is(&self, letter: char, number: u16) -> bool {
+        self.letter == letter && self.number == number
+    }
+}
+
+/// A line the firmware's parser rejects.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("{0}")]
+pub struct GcodeError(pub String);
+
+/// Reads one line with the firmware's parser. `Ok(None)` for blank and comment-only lines.
+pub fn parse(line: &str) -> Result<Option<Command>, GcodeError> {
+    backend::parse(line)
+}
+
+/// The firmware's front end for layer detection (`firmware::machine::Interpreter`: machine
+/// state + `firmware::layer::LayerDetector`), fed line by line exactly as the printer feeds it.
+pub struct LayerDetector {
+    inner: backend::Detector,
+}
+
+impl Default for LayerDetector {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// What feeding one line gave.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Fed {
+    /// A layer starts before this line's command.
+    pub mark: Option<LayerMark>,
+    /// The firmware's machine state refuses the line (e.g. a move outside the build volume):
+    /// the printer would answer an error and skip it; the detector did not see it.
+    pub refused: Option<String>,
+}
+
+impl LayerDetector {
+    /// A detector at the start of a job, for the default machine (`MachineConfig::ENDER3`).
+    pub fn new() -> Self {
+        LayerDetector {
+            inner: backend::Detector::new(),
+        }
+    }
+
+    /// Feeds one raw line (comments included). A mark returned belongs **before** this line.
+    pub fn feed(&mut self, line: &str) -> Result<Fed, GcodeError> {
+        self.inner.feed(line)
+    }
+
+    /// End of the file: a marker after the last command.
+    pub fn finish(&mut self) -> Option<LayerMark> {
+        self.inner.finish()
+    }
+}
+
+mod backend {
+    //! Adapter to `firmware::gcode` / `firmware::layer`.
+    use super::{Command, GcodeError};
+    use firmware::gcode as fw;
+    use firmware::motion::LayerMark;
+
+    pub fn parse(line: &str) -> Result<Option<Command>, GcodeError> {
+        let parsed = fw::parse_line(line.as_bytes()).map_err(|e| GcodeError(e.to_string()))?;
+        Ok(parsed.command.map(|c| convert(&c)))
+    }
+
+    fn axes(params: &mut Vec<(char, f64)>, a: &fw::AxisWords) {
+        for (l, v) in ['X', 'Y', 'Z', 'E'].iter().zip(a.0.iter()) {
+            if let Some(v) = v {
+                params.push((*l, *v as f64));
+            }
+        }
+    }
+
+    fn opt(params: &mut Vec<(char, f64)>, l: char, v: Option<f32>) {
+        if let Some(v) = v {
+            params.push((l, v as f64));
+        }
+    }
+
+    /// Maps the firmware's typed command onto the letter/number/parameters view the host's
+    /// modal tracker reads. Commands the host does not track keep their code with no
+    /// parameters, or `?0` when they have no single code.
+    fn convert(c: &fw::Command) -> Command {
+        let mut p = Vec::new();
+        let (letter, number) = match c {
+            fw::Command::Move {
+                rapid,
+                axes: a,
+                feed,
+            } => {
+                axes(&mut p, a);
+                opt(&mut p, 'F', *feed);
+                ('G', if *rapid { 0 } else { 1 })
+            }
+            fw::Command::Arc {
+                clockwise,
+                axes: a,
+                i,
+                j,
+                r,
+                feed,
+            } => {
+                axes(&mut p, a);
+                opt(&mut p, 'I', *i);
+                opt(&mut p, 'J', *j);
+                opt(&mut p, 'R', *r);
+                opt(&mut p, 'F', *feed);
+                ('G', if *clockwise { 2 } else { 3 })
+            }
+            fw::Command::Inches => ('G', 20),
+            fw::Command::Millimetres => ('G', 21),
+            fw::Command::Home(flags) => {
+                for (l, on) in ['X', 'Y', 'Z', 'E'].iter().zip(flags.0.iter()) {
+                    if *on {
+                        p.push((*l, 0.0));
+                    }
+                }
+                ('G', 28)
+            }
+            fw::Command::Absolute => ('G', 90),
+            fw::Command::Relative => ('G', 91),
+            fw::Command::SetPosition(a) => {
+                axes(&mut p, a);
+                ('G', 92)
+            }
+            fw::Command::AbsoluteE => ('M', 82),
+            fw::Command::RelativeE => ('M', 83),
+            fw::Command::WaitMoves => ('M', 400),
+            fw::Command::FlowOverride(s) => {
+                opt(&mut p, 'S', *s);
+                ('M', 221)
+            }
+            fw::Command::FeedOverride(s) => {
+                opt(&mut p, 'S', *s);
+                ('M', 220)
+            }
+            fw::Command::Dwell { .. } => ('G', 4),
+            _ => ('?', 0),
+        };
+        Command {
+            letter,
+            number,
+            params: p,
+        }
+    }
+
+    pub struct Detector {
+        cfg: firmware::config::MachineConfig,
+        it: firmware::machine::Interpreter,
+    }
+
+    impl Detector {
+        pub fn new() -> Self {
+            let cfg = firmware::config::MachineConfig::ENDER3;
+            Detector {
+                it: firmware::machine::Interpreter::new(&cfg),
+                cfg,
+            }
+        }
+
+        pub fn feed(&mut self, line: &str) -> Result<super::Fed, GcodeError> {
+            let parsed = fw::parse_line(line.as_bytes()).map_err(|e| GcodeError(e.to_string()))?;
+            Ok(match self.it.line(&parsed, &self.cfg) {
+                Ok(step) => super::Fed {
+                    mark: step.mark,
+                    refused: None,
+                },
+                Err(e) => super::Fed {
+                    mark: None,
+                    refused: Some(e.to_string()),
+                },
+            })
+        }
+
+        pub fn finish(&mut self) -> Option<LayerMark> {
+            self.it.finish()
+        }
+    }
+}

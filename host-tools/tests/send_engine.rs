@@ -1,0 +1,550 @@
+//! The sender engine against a scripted fake printer (in-memory Read/Write): numbering and
+//! checksums, `ok` flow control, resends, errors, notifications, the firmware pause and the
+//! host-side fallback.
+
+use std::collections::VecDeque;
+use std::io::{Read, Write};
+use std::time::Duration;
+
+use firmware::motion::LayerSource;
+use host_tools::job::{Job, Layer};
+use host_tools::sender::protocol::checksum;
+use host_tools::sender::{Event, Options, PauseMethod, Request, Session, State};
+
+/// A scripted printer: answers `ok` to every numbered line with a good checksum and the
+/// expected number, `Resend:` otherwise; M115 with a configurable capability report; realtime
+/// pause/resume requests with `//action:` notifications.
+#[derive(Default)]
+struct FakePrinter {
+    inbuf: Vec<u8>,
+    out: VecDeque<u8>,
+    expected: u32,
+    /// Numbered commands accepted, in order (body without N and checksum).
+    executed: Vec<String>,
+    /// Realtime lines received, with the count of executed lines at that moment.
+    realtime: Vec<(String, usize)>,
+    /// Line numbers whose first transmission is "corrupted" (answered with a checksum error).
+    corrupt_once: Vec<u32>,
+    layer_pause_cap: bool,
+    /// Answer `ok` to M110 probes only after this many probes (a board that is booting).
+    ignore_probes: usize,
+    /// Extra line sent before every `ok` (e.g. `busy: processing`).
+    chatter: Option<String>,
+    /// Stop answering after this many executed lines.
+    die_after: Option<usize>,
+    /// Paused: held lines are not acknowledged.
+    paused: bool,
+    held: usize,
+    /// M761 L<n> received: pause when the host sends the command that starts layer n, which
+    /// this fake recognises as the first command after `;LAYER_CHANGE` number n.
+    scheduled: Option<u32>,
+    layer_changes: u32,
+    pause_at_next_command: bool,
+}
+
+impl FakePrinter {
+    fn say(&mut self, s: &str) {
+        self.out.extend(s.as_bytes());
+        self.out.push_back(b'\n');
+    }
+
+    fn on_line(&mut self, line: &str) {
+        let line = line.trim();
+        if line.is_empty() {
+            return;
+        }
+        if !line.starts_with('N') {
+            self.realtime.push((line.to_string(), self.executed.len()));
+            match line {
+                "M110 N0" => {
+                    if self.ignore_probes > 0 {
+                        self.ignore_probes -= 1;
+                    } else {
+                        self.expected = 1;
+                        self.say("ok");
+                    }
+                }
+                "M25 S1" | "M601 S1" => {
+                    self.say("ok");
+                    self.paused = true;
+                    self.say("//action:paused");
+                }
+                "M25" | "M601" => {
+                    // Layer pause: like the firmware, stop at the next layer mark, which the
+                    // host delivers with the command after the layer's last line.
+                    self.say("ok");
+                    self.pause_at_next_command = true;
+                }
+                "M24" | "M602" => {
+                    self.say("ok");
+                    self.paused = false;
+                    self.say("//action:resumed");
+                    for _ in 0..self.held {
+                        self.say("ok");
+                    }
+                    self.held = 0;
+                }
+                "M524" => {
+                    self.say("ok");
+                    self.say("//action:cancel");
+                }
+                "M112" => {}
+                _ => self.say("ok"),
+            }
+            return;
+        }
+        if self.die_after.is_some_and(|d| self.executed.len() >= d) {
+            return;
+        }
+        let (body, cs) = line.rsplit_once('*').expect("checksum");
+        let cs: u8 = cs.parse().expect("checksum number");
+        assert_eq!(checksum(body), cs, "bad checksum on {line}");
+        let (n, cmd) = body.split_once(' ').unwrap_or((body, ""));
+        let n: u32 = n[1..].parse().expect("line number");
+        if self.corrupt_once.contains(&n) {
+            self.corrupt_once.retain(|&c| c != n);
+            self.say(&format!("Error:checksum mismatch, Last Line: {}", n - 1));
+            self.say(&format!("Resend: {n}"));
+            self.say("ok");
+            return;
+        }
+        if n != self.expected {
+            self.say(&format!(
+                "Error:Line Number is not Last Line Number+1, Last Line: {}",
+                self.expected - 1
+            ));
+            self.say(&format!("Resend: {}", self.expected));
+            self.say("ok");
+            return;
+        }
+        self.expected += 1;
+        self.executed.push(cmd.to_string());
+        if cmd == ";LAYER_CHANGE" {
+            if self.scheduled == Some(self.layer_changes) {
+                self.pause_at_next_command = true;
+            }
+            self.layer_changes += 1;
+            self.say("ok");
+            return;
+        }
+        if let Some(n) = cmd.strip_prefix("M761 L") {
+            self.scheduled = n.parse().ok();
+        }
+        let mark_pause = self.pause_at_next_command && !cmd.starts_with(';');
+        if mark_pause {
+            self.pause_at_next_command = false;
+            self.paused = true;
+            self.held += 1;
+            self.say("//action:paused");
+            return;
+        }
+        if cmd == "M115" {
+            self.say("FIRMWARE_NAME:FakeFirmware 1.0");
+            if self.layer_pause_cap {
+                self.say("Cap:LAYER_PAUSE:1");
+            }
+            self.say("Cap:EMERGENCY_PARSER:1");
+        }
+        if cmd == "M105" {
+            self.say("ok T:210.3 /215.0 B:60.1 /60.0 @:100 B@:0");
+            return;
+        }
+        if let Some(c) = self.chatter.clone() {
+            self.say(&c);
+        }
+        if self.paused {
+            self.held += 1;
+        } else {
+            self.say("ok");
+        }
+    }
+}
+
+impl Write for FakePrinter {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        for &b in buf {
+            if b == b'\n' {
+                let l = String::from_utf8_lossy(&self.inbuf).into_owned();
+                self.inbuf.clear();
+                self.on_line(&l);
+            } else {
+                self.inbuf.push(b);
+            }
+        }
+        Ok(buf.len())
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+impl Read for FakePrinter {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = buf.len().min(self.out.len());
+        for b in buf.iter_mut().take(n) {
+            *b = self.out.pop_front().unwrap_or(b'\n');
+        }
+        Ok(n)
+    }
+}
+
+fn layer(i: u32, z: f64, lines: &[&str]) -> Layer {
+    Layer {
+        number: i,
+        z_mm: Some(z),
+        print_z_mm: Some(z),
+        source: LayerSource::Comment,
+        lines: lines.iter().map(|s| s.to_string()).collect(),
+    }
+}
+
+/// Three layers of a 10 mm square, absolute E, laid out as the firmware's detector splits a
+/// PrusaSlicer file: the `;LAYER_CHANGE` marker ends the previous section and the layer starts
+/// at the first command after it (its Z move).
+fn square_job() -> Job {
+    let mut layers = Vec::new();
+    let mut e = 0.0;
+    for i in 0..3u32 {
+        let z = 0.2 * (i + 1) as f64;
+        let mut lines = vec![format!("G1 Z{z:.1} F600")];
+        for (x, y) in [(10.0, 0.0), (10.0, 10.0), (0.0, 10.0), (0.0, 0.0)] {
+            e += 0.4;
+            lines.push(format!("G1 X{x} Y{y} E{e:.2} F1800 ; wall"));
+        }
+        if i < 2 {
+            lines.push(";LAYER_CHANGE".to_string());
+        }
+        let refs: Vec<&str> = lines.iter().map(String::as_str).collect();
+        layers.push(layer(i, z, &refs));
+    }
+    Job {
+        start: vec![
+            "G28".into(),
+            "G90".into(),
+            "M82".into(),
+            "G92 E0".into(),
+            ";LAYER_CHANGE".into(),
+        ],
+        layers,
+        end: vec!["M104 S0".into(), "M84".into()],
+        warnings: vec![],
+    }
+}
+
+fn expected_stream(job: &Job, with_comments: bool) -> Vec<String> {
+    job.lines()
+        .filter_map(|(_, l)| {
+            let code = l.split(';').next().unwrap_or("").trim();
+            if code.is_empty() {
+                (with_comments && l.trim().starts_with(';')).then(|| l.trim().to_string())
+            } else {
+                Some(code.to_string())
+            }
+        })
+        .collect()
+}
+
+fn opts() -> Options {
+    Options {
+        temp_every: Duration::from_secs(3600),
+        ..Options::default()
+    }
+}
+
+/// Polls until the session ends or `max` steps of 1 ms pass; `hook` runs after every step.
+fn run<F: FnMut(&mut Session<FakePrinter>, Duration, &[Event])>(
+    s: &mut Session<FakePrinter>,
+    max: u64,
+    mut hook: F,
+) -> Vec<Event> {
+    let mut all = Vec::new();
+    for i in 0..max {
+        let now = Duration::from_millis(i);
+        s.poll(now).expect("poll");
+        let ev = s.drain_events();
+        hook(s, now, &ev);
+        all.extend(ev);
+        if s.finished() {
+            break;
+        }
+    }
+    all
+}
+
+fn job_lines(p: &FakePrinter) -> Vec<String> {
+    // Drop the handshake and the final sync.
+    p.executed
+        .iter()
+        .filter(|l| *l != "M115" && *l != "M105")
+        .cloned()
+        .collect()
+}
+
+#[test]
+fn streams_every_line_once_in_order() {
+    let job = square_job();
+    let printer = FakePrinter {
+        layer_pause_cap: true,
+        ..Default::default()
+    };
+    let mut s = Session::new(printer, job.clone(), opts());
+    let ev = run(&mut s, 10_000, |_, _, _| {});
+    assert_eq!(s.state(), &State::Done, "events: {ev:?}");
+    assert!(ev.contains(&Event::Connected(PauseMethod::Firmware)));
+    let mut expect = expected_stream(&job, true);
+    expect.push("M400".into());
+    assert_eq!(job_lines(s.port()), expect);
+}
+
+#[test]
+fn resends_corrupted_lines_without_loss_or_duplication() {
+    let job = square_job();
+    let printer = FakePrinter {
+        corrupt_once: vec![3, 7, 8, 15],
+        chatter: Some("echo:busy: processing".into()),
+        ..Default::default()
+    };
+    let mut s = Session::new(printer, job.clone(), opts());
+    let ev = run(&mut s, 10_000, |_, _, _| {});
+    assert_eq!(s.state(), &State::Done, "events: {ev:?}");
+    assert_eq!(s.progress().resends, 4);
+    let mut expect = expected_stream(&job, false);
+    // Stock firmware: moves are split, so compare only the non-move lines and the final target.
+    expect.push("M400".into());
+    let got = job_lines(s.port());
+    let non_moves = |v: &[String]| -> Vec<String> {
+        v.iter().filter(|l| !l.starts_with("G1")).cloned().collect()
+    };
+    assert_eq!(non_moves(&got), non_moves(&expect));
+}
+
+#[test]
+fn waits_for_a_booting_board() {
+    let printer = FakePrinter {
+        ignore_probes: 2,
+        layer_pause_cap: true,
+        ..Default::default()
+    };
+    let mut s = Session::new(printer, square_job(), opts());
+    run(&mut s, 20_000, |_, _, _| {});
+    assert_eq!(s.state(), &State::Done);
+    let probes = s
+        .port()
+        .realtime
+        .iter()
+        .filter(|(l, _)| l == "M110 N0")
+        .count();
+    assert_eq!(probes, 3);
+}
+
+#[test]
+fn fails_clearly_when_the_printer_goes_silent() {
+    let printer = FakePrinter {
+        die_after: Some(5),
+        layer_pause_cap: true,
+        ..Default::default()
+    };
+    let o = Options {
+        silence_timeout: Duration::from_secs(2),
+        ..opts()
+    };
+    let mut s = Session::new(printer, square_job(), o);
+    run(&mut s, 10_000, |_, _, _| {});
+    match s.state() {
+        State::Failed(m) => assert!(m.contains("no reply"), "{m}"),
+        other => panic!("expected a failure, got {other:?}"),
+    }
+}
+
+#[test]
+fn halts_on_a_fatal_printer_error() {
+    let printer = FakePrinter {
+        chatter: Some("Error:Printer halted. kill() called!".into()),
+        ..Default::default()
+    };
+    let mut s = Session::new(printer, square_job(), opts());
+    run(&mut s, 10_000, |_, _, _| {});
+    assert!(matches!(s.state(), State::Failed(m) if m.contains("halted")));
+}
+
+#[test]
+fn reads_temperatures() {
+    let printer = FakePrinter::default();
+    let o = Options {
+        temp_every: Duration::from_millis(5),
+        ..Options::default()
+    };
+    let mut s = Session::new(printer, square_job(), o);
+    run(&mut s, 10_000, |_, _, _| {});
+    assert_eq!(s.state(), &State::Done);
+    assert_eq!(s.progress().temps.hotend_c, Some(210.3));
+    assert_eq!(s.progress().temps.bed_target_c, Some(60.0));
+}
+
+#[test]
+fn firmware_pause_at_layer_stops_sending_at_the_boundary_and_resumes() {
+    let job = square_job();
+    let printer = FakePrinter {
+        layer_pause_cap: true,
+        ..Default::default()
+    };
+    let mut s = Session::new(printer, job.clone(), opts());
+    s.pause_before_layer(2);
+    let mut paused_at = None;
+    let ev = run(&mut s, 20_000, |s, now, ev| {
+        if ev.iter().any(|e| matches!(e, Event::Paused(_))) {
+            paused_at = Some(now);
+        }
+        if let Some(t) = paused_at {
+            if now > t + Duration::from_millis(50) && matches!(s.state(), State::Paused { .. }) {
+                s.request(Request::Resume, now).expect("resume");
+            }
+        }
+    });
+    assert_eq!(s.state(), &State::Done, "{ev:?}");
+    assert!(ev.contains(&Event::Paused(Some(2))), "{ev:?}");
+    let p = s.port();
+    // The pause was scheduled in the firmware (M761, same layer numbering) ...
+    assert_eq!(p.executed[1], "M761 L2");
+    // ... and the host sent every line of layers 0 and 1 (with the marker comment that the
+    // firmware's detector reads) and then only a harmless command to deliver the mark, before
+    // the printer reported the pause.
+    let trigger = p
+        .executed
+        .iter()
+        .position(|l| l == "M400")
+        .expect("trigger command");
+    let before: Vec<String> = p.executed[2..trigger].to_vec();
+    let expect_before = expected_stream(
+        &Job {
+            start: job.start.clone(),
+            layers: job.layers[..2].to_vec(),
+            end: vec![],
+            warnings: vec![],
+        },
+        true,
+    );
+    assert_eq!(before, expect_before);
+    assert!(p.realtime.iter().any(|(l, _)| l == "M24"));
+    // Nothing lost or duplicated over the whole job.
+    let all: Vec<String> = job_lines(p)
+        .into_iter()
+        .filter(|l| l != "M400" && !l.starts_with("M761"))
+        .collect();
+    assert_eq!(all, expected_stream(&job, true));
+}
+
+#[test]
+fn interactive_layer_pause_reacts_at_once_and_holds_the_next_layer() {
+    let job = square_job();
+    let printer = FakePrinter {
+        layer_pause_cap: true,
+        ..Default::default()
+    };
+    let mut s = Session::new(printer, job.clone(), opts());
+    let mut asked = false;
+    let ev = run(&mut s, 5_000, |s, now, _| {
+        if !asked && s.progress().layer == Some(1) {
+            asked = true;
+            s.request(Request::PauseAtLayer, now).expect("pause");
+        }
+    });
+    assert!(ev.contains(&Event::Paused(Some(2))), "{ev:?}");
+    let p = s.port();
+    // M25 went out at once, while layer 1 was being sent.
+    let (_, at) = p.realtime.iter().find(|(l, _)| l == "M25").expect("M25");
+    let layer1_start = p
+        .executed
+        .iter()
+        .position(|l| l == "G1 Z0.4 F600")
+        .expect("layer 1");
+    assert!(*at <= layer1_start + 1, "M25 after {at} lines");
+    // No line of layer 2 was sent.
+    assert!(!p.executed.iter().any(|l| l == "G1 Z0.6 F600"));
+}
+
+#[test]
+fn pause_now_is_sent_ahead_of_queued_lines() {
+    let printer = FakePrinter {
+        layer_pause_cap: true,
+        ..Default::default()
+    };
+    let mut s = Session::new(printer, square_job(), opts());
+    let mut asked = false;
+    let ev = run(&mut s, 3_000, |s, now, _| {
+        if !asked && s.progress().lines_sent >= 8 {
+            asked = true;
+            s.request(Request::PauseNow, now).expect("pause");
+        }
+    });
+    assert!(matches!(s.state(), State::Paused { .. }), "{ev:?}");
+    let p = s.port();
+    let (_, at) = p
+        .realtime
+        .iter()
+        .find(|(l, _)| l == "M25 S1")
+        .expect("M25 S1 sent");
+    // No job line was sent after the request.
+    assert_eq!(*at, p.executed.len());
+}
+
+#[test]
+fn host_side_pause_splits_moves_and_parks_after_the_layer() {
+    let job = square_job();
+    let printer = FakePrinter::default(); // stock firmware: no LAYER_PAUSE capability
+    let mut s = Session::new(printer, job.clone(), opts());
+    s.pause_before_layer(1);
+    let mut resumed = false;
+    let ev = run(&mut s, 50_000, |s, now, _| {
+        if !resumed && matches!(s.state(), State::Paused { .. }) {
+            resumed = true;
+            s.request(Request::Resume, now).expect("resume");
+        }
+    });
+    assert_eq!(s.state(), &State::Done, "{ev:?}");
+    assert!(ev.contains(&Event::Connected(PauseMethod::HostSide)));
+    assert!(ev.contains(&Event::Paused(Some(1))));
+    let got = job_lines(s.port());
+    // The pause sequence follows the last piece of layer 0's last move (to X0 Y0).
+    let park = got
+        .iter()
+        .position(|l| l.starts_with("G0 X235 Y235"))
+        .expect("park move");
+    assert_eq!(
+        &got[park - 5..park - 1],
+        ["M83", "G1 E-2 F1500", "M82", "G90"]
+    );
+    assert!(
+        got[park - 6].starts_with("G1 X0 Y0 E1.6"),
+        "{}",
+        got[park - 6]
+    );
+    // Every printing move of the layers is at most 0.2 mm long (10 mm sides: 50 pieces).
+    let pieces = got
+        .iter()
+        .filter(|l| l.starts_with("G1 X") && l.contains('E'))
+        .count();
+    assert_eq!(pieces, 3 * 4 * 50);
+    // Resume: back to X0 Y0, Z, un-retract, E mode and position restored.
+    let back = got
+        .iter()
+        .position(|l| l == "G0 X0 Y0 F3600")
+        .expect("return move");
+    assert_eq!(got[back + 1], "G0 Z0.2 F600");
+    assert_eq!(got[back + 2], "M83");
+    assert_eq!(got[back + 3], "G1 E2 F1500");
+    assert!(got[back + 4..back + 8].contains(&"M82".to_string()));
+    assert!(got[back + 4..back + 8].contains(&"G92 E1.6".to_string()));
+}
+
+#[test]
+fn printer_cancel_notification_ends_the_session() {
+    let printer = FakePrinter {
+        chatter: Some("//action:cancel".into()),
+        layer_pause_cap: true,
+        ..Default::default()
+    };
+    let mut s = Session::new(printer, square_job(), opts());
+    run(&mut s, 10_000, |_, _, _| {});
+    assert_eq!(s.state(), &State::Cancelled);
+}
