@@ -5,6 +5,8 @@
 
 pub mod additive;
 pub mod cli;
+pub mod job;
+pub mod sender;
 // Design compiler (ht-design).
 pub mod deform;
 pub mod gcode_read;
