@@ -3,7 +3,8 @@
 //! Bresenham over the axis with the most steps (the *major* axis), with the trapezoid integrated
 //! in closed form: the time of every [`SLICE_STEPS`]-th major step is computed exactly from the
 //! profile (one `sqrtf`), and the steps between two such points are spread evenly (integer
-//! nanosecond arithmetic). The per-event work is a handful of integer additions per axis; the
+//! nanosecond arithmetic). After a start from standstill the slices grow 1, 2, 4, 8 steps, so
+//! the first steps (√t spacing) are timed exactly. The per-event work is a handful of integer additions per axis; the
 //! square root is amortised over a slice. The MCU timer interrupt and the simulator both pull
 //! events with [`StepGen::next_event`].
 //!
@@ -152,7 +153,8 @@ pub struct ExecBlock {
     /// Stop after this many major steps (`n`, or the brake point).
     pub stop_at: u32,
     abs: [u32; AXES],
-    acc: [u32; AXES],
+    acc: [u64; AXES],
+    prof_step: u32,
     dir_mask: u8,
     prof: Profile,
     t_prof_ns: u64,
@@ -307,7 +309,8 @@ impl StepGen {
             done: 0,
             stop_at: n,
             abs,
-            acc: [n / 2; AXES],
+            acc: [u64::from(n / 2); AXES],
+            prof_step: 0,
             dir_mask: dir,
             prof,
             t_prof_ns: start,
@@ -357,6 +360,7 @@ impl StepGen {
         let len = e.planned.block.len_mm;
         let prof = Profile::brake(s_h, len, v_h, e.planned.block.accel_mm_s2);
         e.prof = prof;
+        e.prof_step = e.done;
         e.t_prof_ns = self.t_last_ns.max(now_ns);
         e.slice_end = e.done;
         if prof.v1 <= 0.0 {
@@ -389,6 +393,7 @@ impl StepGen {
                 b.accel_mm_s2,
             );
             e.stop_at = e.n;
+            e.prof_step = e.done;
             e.t_prof_ns = self.t_last_ns.max(now_ns);
             e.slice_end = e.done;
             self.t_last_ns = e.t_prof_ns;
@@ -415,7 +420,14 @@ impl StepGen {
     }
 
     fn prepare_slice(e: &mut ExecBlock, t_last_ns: u64) {
-        let k1 = (e.done + SLICE_STEPS).min(e.stop_at);
+        // Slices grow 1, 2, 4, 8 steps after a profile starts, so the first steps after a
+        // standstill get exact times (√t spacing) and later ones cost one sqrt per 8 steps.
+        let len = if e.prof.v0 <= 0.0 {
+            e.done.saturating_sub(e.prof_step).clamp(1, SLICE_STEPS)
+        } else {
+            SLICE_STEPS
+        };
+        let k1 = (e.done + len).min(e.stop_at);
         let t1 = e.t_prof_ns + secs_to_ns(e.prof.time_at(e.s_of(k1)));
         let t1 = t1.max(t_last_ns);
         let m = u64::from(k1 - e.done).max(1);
@@ -447,9 +459,9 @@ impl StepGen {
         e.done += 1;
         let mut mask = 0u8;
         for i in 0..AXES {
-            e.acc[i] += e.abs[i];
-            if e.acc[i] >= e.n {
-                e.acc[i] -= e.n;
+            e.acc[i] += u64::from(e.abs[i]);
+            if e.acc[i] >= u64::from(e.n) {
+                e.acc[i] -= u64::from(e.n);
                 mask |= 1 << i;
                 if e.dir_mask & (1 << i) != 0 {
                     self.pos[i] = self.pos[i].wrapping_add(1);

@@ -187,3 +187,26 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn step_times_from_standstill_follow_the_profile() {
+    // 10 mm X at 50 mm/s: step k at s = k/80 mm; during the ramp t = √(2s/a).
+    let mut p = planner(false);
+    mv(&mut p, 10.0, 0.0, 50.0, 1);
+    let pb = p.pop().unwrap();
+    let mut sg = StepGen::new();
+    sg.load(pb, 0);
+    let mut last = 0u64;
+    for k in 1..=800u32 {
+        let ev = sg.next_event().unwrap();
+        assert!(ev.t_ns >= last, "monotonic");
+        last = ev.t_ns;
+        let s = k as f64 / 80.0;
+        if k <= 2 || k == 4 || k == 8 || k % 8 == 0 && s <= 2.5 {
+            let exact = (2.0 * s / 500.0).sqrt();
+            let t = ev.t_ns as f64 / 1e9;
+            assert!((t - exact).abs() < 2e-6, "step {k}: {t} vs {exact}");
+        }
+    }
+    assert!(sg.next_event().is_none());
+}
