@@ -76,3 +76,34 @@ fn reports_and_errors() {
     assert!(r.out.contains("M760 R2.00"), "{}", r.out);
     assert!(r.out.contains("pause scheduled at layer 3"), "{}", r.out);
 }
+
+#[test]
+fn m600_in_the_job_pauses_there_and_resumes() {
+    let lines = [
+        "G28",
+        "G1 Z0.2 F600",
+        "G1 X20 Y20 F6000",
+        "G1 X40 Y20 E1 F1800",
+        "M600",
+        "G1 X40 Y40 E2 F1800",
+        "G1 X20 Y40 E3 F1800",
+    ];
+    let mut p = printer();
+    let r = run_gcode(&mut p, &lines, &[], 60_000_000);
+    assert_eq!(
+        p.status().state,
+        firmware::printer::State::Paused,
+        "{}",
+        r.out
+    );
+    let stop = r.records.iter().find_map(|x| match *x {
+        Record::Stopped { pos, .. } => Some(pos),
+        _ => None,
+    });
+    assert_eq!(stop, Some([3200, 1600, 80, 93]));
+    // Nothing after the M600 ran yet.
+    assert!(r.executed.iter().all(|e| e.0 <= 4), "{:?}", r.executed);
+    p.request(firmware::motion::Realtime::Resume, 70_000_000);
+    let r2 = run_gcode(&mut p, &[], &[], 200_000_000);
+    assert_eq!(r2.end, [1600, 3200, 80, 279]);
+}

@@ -327,10 +327,21 @@ impl Printer {
             G::Tool(0) | G::EnableSteppers(_) | G::DisableSteppers { .. } | G::Progress(_) => {}
             G::PrintStatsInfo { .. } | G::SetLineNumber(_) => {}
             G::Tool(n) => self.error(format_args!("T{n}: only one extruder")),
-            G::Stop { .. } | G::FilamentChange(_) => {
-                self.say(format_args!(
-                    "M0/M1/M600 not built yet: use M25 / M601 to pause"
-                ));
+            G::Stop { ms, s, .. } => {
+                if ms.is_some() || s.is_some() {
+                    match crate::machine::dwell_ms(*ms, *s) {
+                        Ok(ms) => {
+                            let _ = self.cmds.push_back(Command::Dwell { ms });
+                        }
+                        Err(e) => self.error(format_args!("{e}")),
+                    }
+                } else {
+                    let _ = self.cmds.push_back(Command::PauseHere);
+                }
+            }
+            G::FilamentChange(_) => {
+                // Park at the pause position; the user unloads/loads, then resumes (M24).
+                let _ = self.cmds.push_back(Command::PauseHere);
             }
             G::Unknown(t) => {
                 self.link.respond(Response::UnknownCommand(t));

@@ -89,6 +89,9 @@ pub enum Command {
     Sync,
     /// M761 L/Z inside the job: schedule a pause.
     SchedulePause(Schedule),
+    /// M0/M1 (without a time) and M600: stop once everything before this point has run,
+    /// then retract, lift and park like any pause, and wait for a resume.
+    PauseHere,
 }
 
 /// A scheduled pause (M761).
@@ -579,6 +582,22 @@ impl Printer {
                 Command::Sync => {
                     if !self.motion_idle() {
                         break;
+                    }
+                }
+                Command::PauseHere => {
+                    if self.planner.has_pending() {
+                        break;
+                    }
+                    if self.phase == Phase::Run {
+                        let id = self.planner.next_id();
+                        self.planner.set_barrier(id);
+                        self.phase = Phase::Stopping;
+                        self.mode = Some(PauseMode::Layer);
+                        self.barrier_layer = None;
+                        self.say(format_args!(
+                            "pause here (M0/M600): stopping after the queued moves"
+                        ));
+                        self.update_state_record();
                     }
                 }
                 Command::SchedulePause(s) => {
