@@ -98,7 +98,7 @@ impl<E: Executive> Engine<E> {
             fw,
             host,
             rec: Recorder::new(),
-            heaters: None,
+            heaters: Some(Heaters::ender3()),
             poll_tick_us: 1_000,
             stall_limit_us: 3_600_000_000,
             last_progress_us: 0,

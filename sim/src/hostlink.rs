@@ -26,6 +26,9 @@ pub struct LinkConfig {
     pub strip_comments: bool,
     /// The first line of a session (printcore: `M110` numbered `N-1`, resetting the counter).
     pub reset_line: bool,
+    /// The printer answers a realtime line with its own `ok` (the firmware's link does): the
+    /// host counts it against that line, so exactly one job line is in flight at a time.
+    pub realtime_ok: bool,
 }
 
 impl Default for LinkConfig {
@@ -36,6 +39,7 @@ impl Default for LinkConfig {
             numbered: true,
             strip_comments: true,
             reset_line: true,
+            realtime_ok: true,
         }
     }
 }
@@ -202,6 +206,7 @@ pub struct Host {
     pub resends: u64,
     /// Lines whose `ok` is still outstanding (0 or 1 with this flow control).
     pub awaiting_ok: bool,
+    realtime_oks: u32,
 }
 
 impl Host {
@@ -232,6 +237,7 @@ impl Host {
             oks: 0,
             resends: 0,
             awaiting_ok: false,
+            realtime_oks: 0,
         }
     }
 
@@ -315,7 +321,7 @@ impl Host {
             tagged.push((l, Origin::Service(self.service_count)));
             self.service_count += 1;
         }
-        if index <= self.cursor {
+        if index <= self.next_job_line().unwrap_or(self.job.len()) {
             self.inserts.extend(tagged);
             self.hold |= hold;
         } else {
@@ -325,9 +331,10 @@ impl Host {
         }
     }
 
-    /// Job line `index` has been reached with a pending [`Self::insert_and_hold_before`].
+    /// The next job line to go out has reached a pending [`Self::insert_before`] index.
     fn check_stop(&mut self) {
-        if self.stop_before.is_some_and(|i| self.cursor >= i) {
+        let next = self.next_job_line().unwrap_or(self.job.len());
+        if self.stop_before.is_some_and(|i| next >= i) {
             self.stop_before = None;
             let lines = std::mem::take(&mut self.stop_lines);
             self.inserts.extend(lines);
@@ -450,6 +457,9 @@ impl Host {
 
     /// Write a realtime request at once, unnumbered, without waiting for `ok`.
     pub fn send_realtime(&mut self, text: &str, now_us: u64) {
+        if self.cfg.realtime_ok {
+            self.realtime_oks += 1;
+        }
         self.write_line(text, Origin::Realtime, false, now_us);
     }
 
@@ -501,8 +511,13 @@ impl Host {
             }
         } else if lower.starts_with("ok") {
             self.oks += 1;
-            self.clear = true;
-            self.awaiting_ok = false;
+            if self.realtime_oks > 0 {
+                // The answer to a realtime line (in whichever order the two oks come).
+                self.realtime_oks -= 1;
+            } else {
+                self.clear = true;
+                self.awaiting_ok = false;
+            }
         }
         self.received.push(Received { t_us: now_us, text });
     }

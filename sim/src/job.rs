@@ -65,7 +65,7 @@ pub struct JobInfo {
 }
 
 /// Apply one parsed command to the host state; returns (moves, extrudes).
-pub(crate) fn apply(st: &mut HostState, cmd: &Command) -> (bool, bool) {
+fn apply(st: &mut HostState, cmd: &Command) -> (bool, bool) {
     let unit = if st.inches { 25.4 } else { 1.0 };
     match cmd {
         Command::Move { axes, feed, .. } | Command::Arc { axes, feed, .. } => {
@@ -141,9 +141,7 @@ impl JobInfo {
         let mut cur_layer: Option<u32> = None;
         for (i, line) in lines.iter().enumerate() {
             if let Some(Some(l)) = layers.get(i) {
-                if cur_layer != Some(*l) {
-                    layer_starts.push((*l, i));
-                }
+                layer_starts.push((*l, i));
                 cur_layer = Some(*l);
             }
             let start_mm = st.pos_mm;

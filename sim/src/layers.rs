@@ -1,22 +1,63 @@
-//! Layer boundaries of a job as the firmware's layer detector sees them.
-//!
-//! Stand-in until `firmware::layer` (fw-front) lands: recognises PrusaSlicer's
-//! `;LAYER_CHANGE` and Cura's `;LAYER:<n>` comments only. Replace with the firmware's detector.
+//! Layer boundaries of a job as the firmware's own layer detector ([`firmware::layer`]) sees
+//! them, run host-side over the whole file (comments included) with the firmware's machine
+//! state ([`firmware::machine`]), so the host and the printer agree on what a layer is.
 
-/// For each line, the layer number that starts there (0-based), if any.
+use firmware::config::MachineConfig;
+use firmware::gcode::parse_line;
+use firmware::layer::{LayerDetector, MoveFacts};
+use firmware::machine::MachineState;
+
+/// For each line, the layer number whose mark is placed before that line (0-based), if any.
 pub fn detect(lines: &[String]) -> Vec<Option<u32>> {
-    let mut n: u32 = 0;
-    lines
+    let cfg = MachineConfig::ENDER3;
+    let mut m = MachineState::new(&cfg);
+    let mut d = LayerDetector::new();
+    let mut out = Vec::with_capacity(lines.len());
+    for text in lines {
+        let Ok(line) = parse_line(text.as_bytes()) else {
+            out.push(None);
+            continue;
+        };
+        let before = m.position_steps(&cfg);
+        if let Some(cmd) = &line.command {
+            // A command the machine rejects changes nothing (as on the printer).
+            let _ = m.apply(cmd, &cfg);
+        }
+        let facts = MoveFacts::between(&before, &m.position_steps(&cfg), &cfg);
+        out.push(d.feed(&line, facts).map(|mark| mark.layer));
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn prusaslicer_markers() {
+        let lines: Vec<String> = [
+            "G90",
+            ";LAYER_CHANGE",
+            ";Z:0.2",
+            "G1 Z0.2",
+            "G1 X10 E1",
+            ";LAYER_CHANGE",
+            ";Z:0.4",
+            "G1 Z0.4",
+            "G1 X0 E2",
+        ]
         .iter()
-        .map(|l| {
-            let t = l.trim();
-            if t.starts_with(";LAYER_CHANGE") || t.starts_with(";LAYER:") {
-                let this = n;
-                n += 1;
-                Some(this)
-            } else {
-                None
-            }
-        })
-        .collect()
+        .map(|s| s.to_string())
+        .collect();
+        let l = detect(&lines);
+        let marks: Vec<(usize, u32)> = l
+            .iter()
+            .enumerate()
+            .filter_map(|(i, m)| m.map(|m| (i, m)))
+            .collect();
+        assert_eq!(marks.len(), 2);
+        assert_eq!(marks[0].1, 0);
+        assert_eq!(marks[1].1, 1);
+        assert!(marks[1].0 > 4 && marks[1].0 <= 7);
+    }
 }

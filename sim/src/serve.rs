@@ -1,4 +1,36 @@
-//! `sim serve`: the virtual printer on a pseudo-terminal.
+//! `sim serve`: the firmware as a virtual printer on a pseudo-terminal. Pronterface/printcore,
+//! OctoPrint or any serial host opens the device path it prints and talks to the firmware's own
+//! host link (line numbers, checksums, `ok`, `Resend:`, realtime pause/resume, `//action:`).
+//!
+//! Time runs at real time by default (`--speed N` runs the virtual clock N times faster). The
+//! session ends on Ctrl-C / SIGTERM, when the host closes the device (if nothing else holds it),
+//! or after `--exit-after-idle` seconds of an idle printer with no bytes from the host. With
+//! `--record FILE.json` every pause seen is written then, with the fields of `sim run --json`.
+//!
+//! There is no reference run here (the host decides what comes next), so the figures come from
+//! the firmware's own records: reaction = the first speed-up or brake record after the request
+//! (for the conventional policies, which neither speed up nor brake, the stop), stop = the
+//! firmware's `Stopped` record; lost/duplicated = segments missing or repeated among the
+//! executed records of each move.
+
+use crate::exec::{PrinterExec, PrinterFactory};
+use crate::metrics::PauseReport;
+use crate::port::{Executive, Lane, RunState};
+use crate::recorder::{Recorder, Scale};
+use crate::run::{Factory, Mode, Policy, Scenario};
+use crate::thermal::Heaters;
+use anyhow::Context;
+use firmware::motion::{PauseMode, Realtime};
+use firmware::printer::Record;
+use nix::fcntl::{fcntl, FcntlArg, OFlag};
+use nix::poll::{poll, PollFd, PollFlags, PollTimeout};
+use nix::sys::termios;
+use std::collections::BTreeMap;
+use std::io::Write as _;
+use std::os::fd::{AsFd, AsRawFd, OwnedFd};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
 
 /// `sim serve` options.
 #[derive(clap::Args, Debug, Clone)]
@@ -6,9 +38,408 @@ pub struct ServeArgs {
     /// Virtual seconds per real second.
     #[arg(long, default_value_t = 1.0)]
     pub speed: f64,
+    /// Write the pauses seen to this JSON file when the session ends.
+    #[arg(long)]
+    pub record: Option<PathBuf>,
+    /// Firmware policy (fifo and host-split model a conventional firmware).
+    #[arg(long, value_enum, default_value = "firmware")]
+    pub policy: Policy,
+    /// End the session after this many real seconds with an idle printer and no host bytes
+    /// (0 = never).
+    #[arg(long, default_value_t = 0.0)]
+    pub exit_after_idle: f64,
+    /// Also make a symlink to the device at this path (e.g. /tmp/printer).
+    #[arg(long)]
+    pub link: Option<PathBuf>,
 }
 
-/// Run the virtual printer.
-pub fn serve(_a: ServeArgs) -> anyhow::Result<()> {
-    anyhow::bail!("sim serve: not built yet")
+static STOP: AtomicBool = AtomicBool::new(false);
+
+extern "C" fn on_signal(_: nix::libc::c_int) {
+    STOP.store(true, Ordering::SeqCst);
+}
+
+fn install_signals() {
+    use nix::sys::signal::{sigaction, SaFlags, SigAction, SigHandler, SigSet, Signal};
+    let sa = SigAction::new(
+        SigHandler::Handler(on_signal),
+        SaFlags::empty(),
+        SigSet::empty(),
+    );
+    for s in [Signal::SIGINT, Signal::SIGTERM, Signal::SIGHUP] {
+        // SAFETY: the handler only stores to an atomic, which is async-signal-safe.
+        let _ = unsafe { sigaction(s, &sa) };
+    }
+}
+
+/// One pause as the session saw it.
+#[derive(Clone, Debug, Default)]
+struct PauseTrack {
+    mode: Option<PauseMode>,
+    t_req_us: u64,
+    pos_req: [i32; 4],
+    rec_idx_req: usize,
+    reaction_us: Option<u64>,
+    stopped: Option<(u64, [i32; 4], Option<u32>, bool)>,
+    parked_us: Option<u64>,
+    resume_req_us: Option<u64>,
+    resumed: Option<(u64, [i32; 4])>,
+}
+
+/// Lines from the host, assembled to find realtime requests (for the record only: the
+/// firmware's own link acts on them).
+#[derive(Default)]
+struct Sniffer {
+    buf: Vec<u8>,
+}
+
+impl Sniffer {
+    fn feed(&mut self, bytes: &[u8], out: &mut Vec<Realtime>) {
+        for &b in bytes {
+            if let Some(r) = firmware::link::control_byte(b) {
+                out.push(r);
+                continue;
+            }
+            if b == b'\n' || b == b'\r' {
+                let line = std::mem::take(&mut self.buf);
+                let text = String::from_utf8_lossy(&line);
+                let body = text.trim();
+                let body = match body.strip_prefix('N') {
+                    Some(rest) => rest.split_once(' ').map_or("", |x| x.1),
+                    None => body,
+                };
+                let body = body.split('*').next().unwrap_or("");
+                if let Ok(l) = firmware::gcode::parse_line(body.as_bytes()) {
+                    if let Some(r) = l.command.as_ref().and_then(firmware::link::realtime_of) {
+                        out.push(r);
+                    }
+                }
+            } else if self.buf.len() < 256 {
+                self.buf.push(b);
+            }
+        }
+    }
+}
+
+fn open_pty() -> anyhow::Result<(OwnedFd, OwnedFd, PathBuf)> {
+    let pty = nix::pty::openpty(None, None).context("openpty")?;
+    let mut t = termios::tcgetattr(&pty.slave).context("tcgetattr")?;
+    termios::cfmakeraw(&mut t);
+    termios::tcsetattr(&pty.slave, termios::SetArg::TCSANOW, &t).context("tcsetattr")?;
+    let path = nix::unistd::ttyname(&pty.slave).context("ttyname")?;
+    let flags = fcntl(&pty.master, FcntlArg::F_GETFL).context("fcntl")?;
+    fcntl(
+        &pty.master,
+        FcntlArg::F_SETFL(OFlag::from_bits_truncate(flags) | OFlag::O_NONBLOCK),
+    )
+    .context("fcntl")?;
+    Ok((pty.master, pty.slave, path))
+}
+
+/// Run the virtual printer until the session ends.
+pub fn serve(a: ServeArgs) -> anyhow::Result<()> {
+    if !(a.speed.is_finite() && a.speed > 0.0) {
+        anyhow::bail!("--speed must be a positive number");
+    }
+    let (master, slave, path) = open_pty()?;
+    if let Some(l) = &a.link {
+        let _ = std::fs::remove_file(l);
+        std::os::unix::fs::symlink(&path, l).with_context(|| format!("symlink {}", l.display()))?;
+    }
+    install_signals();
+    println!("{}", path.display());
+    let _ = std::io::stdout().flush();
+    eprintln!(
+        "sim serve: virtual printer on {} ({} policy, {}× real time); Ctrl-C ends the session",
+        path.display(),
+        a.policy.name(),
+        a.speed
+    );
+
+    let sc = Scenario::new(a.policy, Mode::Layer);
+    let mut fw: PrinterExec = PrinterFactory.make(&sc.machine, &sc.knobs());
+    fw.keep_executed = true;
+    let mut rec = Recorder::new();
+    let mut heaters = Heaters::ender3();
+    let mut sniff = Sniffer::default();
+    let mut pauses: Vec<PauseTrack> = Vec::new();
+    let start = Instant::now();
+    let mut last_rx = Instant::now();
+    let mut out = String::new();
+    let mut pending_out: Vec<u8> = Vec::new();
+    let mut buf = [0u8; 4096];
+    let mut notes_seen = 0usize;
+    let mut last_poll_us = 0u64;
+    let mut first_byte_us: Option<u64> = None;
+    let mut hung_up = false;
+    let fd = master.as_raw_fd();
+    loop {
+        if STOP.load(Ordering::SeqCst) {
+            break;
+        }
+        let now_us = (start.elapsed().as_secs_f64() * a.speed * 1e6) as u64;
+        // Host bytes.
+        loop {
+            match nix::unistd::read(master.as_fd(), &mut buf) {
+                Ok(0) => break,
+                Ok(n) => {
+                    let bytes = &buf[..n];
+                    last_rx = Instant::now();
+                    first_byte_us.get_or_insert(now_us);
+                    let mut reqs = Vec::new();
+                    sniff.feed(bytes, &mut reqs);
+                    fw.receive(bytes, now_us);
+                    for r in reqs {
+                        note_request(&mut pauses, r, now_us, &rec, &fw);
+                    }
+                }
+                Err(nix::errno::Errno::EAGAIN) => break,
+                Err(nix::errno::Errno::EIO) => {
+                    hung_up = true;
+                    break;
+                }
+                Err(e) => return Err(e).context("reading the pseudo-terminal"),
+            }
+        }
+        if hung_up {
+            break;
+        }
+        // Steps due by now.
+        let mut n = 0;
+        while let Some(t) = fw.next_step_us(now_us) {
+            if t > now_us || n > 200_000 {
+                break;
+            }
+            if let Some(ev) = fw.pop_step(t) {
+                if rec.on_step(&ev) {
+                    fw.poll(t);
+                }
+            }
+            n += 1;
+        }
+        if now_us >= last_poll_us + 1000 || n > 0 {
+            heaters.tick(&mut fw, now_us);
+            fw.poll(now_us);
+            last_poll_us = now_us;
+        }
+        rec.on_status(&fw.status(), now_us);
+        track(&mut pauses, &fw, &rec, &mut notes_seen);
+        // Output.
+        out.clear();
+        fw.take_output(&mut out);
+        pending_out.extend_from_slice(out.as_bytes());
+        if !pending_out.is_empty() {
+            match nix::unistd::write(&master, &pending_out) {
+                Ok(w) => {
+                    pending_out.drain(..w);
+                }
+                Err(nix::errno::Errno::EAGAIN) => {}
+                Err(nix::errno::Errno::EIO) => break,
+                Err(e) => return Err(e).context("writing the pseudo-terminal"),
+            }
+        }
+        // Idle exit.
+        let idle = fw.status().state == RunState::Idle && fw.next_step_us(now_us).is_none();
+        if a.exit_after_idle > 0.0
+            && idle
+            && last_rx.elapsed() > Duration::from_secs_f64(a.exit_after_idle)
+        {
+            break;
+        }
+        // Sleep until the next step is due, a byte arrives, or 2 ms pass.
+        let wait_ms = match fw.next_step_us(now_us) {
+            Some(t) if t > now_us => (((t - now_us) as f64 / a.speed) / 1000.0).min(2.0) as i32,
+            Some(_) => 0,
+            None => 2,
+        };
+        if wait_ms > 0 {
+            let mut fds = [PollFd::new(master.as_fd(), PollFlags::POLLIN)];
+            let _ = poll(&mut fds, PollTimeout::from(wait_ms.clamp(0, 2) as u16));
+        }
+    }
+    let _ = fd;
+    drop(slave);
+    let end_us = rec.last_step_us;
+    let reports = reports(&pauses, &rec, &fw, &sc, first_byte_us.unwrap_or(0), end_us);
+    if let Some(p) = &a.record {
+        std::fs::write(p, serde_json::to_string_pretty(&reports)?)
+            .with_context(|| format!("writing {}", p.display()))?;
+        eprintln!(
+            "sim serve: wrote {} pause record(s) to {}",
+            reports.len(),
+            p.display()
+        );
+    }
+    if let Some(l) = &a.link {
+        let _ = std::fs::remove_file(l);
+    }
+    Ok(())
+}
+
+fn note_request(
+    pauses: &mut Vec<PauseTrack>,
+    r: Realtime,
+    now_us: u64,
+    rec: &Recorder,
+    fw: &PrinterExec,
+) {
+    match r {
+        Realtime::Pause(mode) => {
+            let active = pauses
+                .last()
+                .is_some_and(|p| p.resumed.is_none() && p.resume_req_us.is_none());
+            let state = fw.status().state;
+            if !active && matches!(state, RunState::Printing | RunState::Pausing) {
+                pauses.push(PauseTrack {
+                    mode: Some(mode),
+                    t_req_us: now_us,
+                    pos_req: rec.pos,
+                    rec_idx_req: rec.records.len(),
+                    ..PauseTrack::default()
+                });
+            }
+        }
+        Realtime::Resume => {
+            if let Some(p) = pauses.last_mut() {
+                if p.resume_req_us.is_none() && p.stopped.is_some() {
+                    p.resume_req_us = Some(now_us);
+                }
+            }
+        }
+        _ => {}
+    }
+}
+
+fn track(pauses: &mut [PauseTrack], fw: &PrinterExec, rec: &Recorder, seen: &mut usize) {
+    let Some(p) = pauses.last_mut() else {
+        *seen = fw.notes.len();
+        return;
+    };
+    for r in fw.notes.iter().skip(*seen) {
+        match *r {
+            Record::SpeedUp { t_us } | Record::Brake { t_us, .. }
+                if t_us >= p.t_req_us && p.reaction_us.is_none() =>
+            {
+                p.reaction_us = Some(t_us);
+            }
+            Record::Stopped {
+                pos,
+                layer,
+                mid_block,
+                t_us,
+            } if p.stopped.is_none() => {
+                p.stopped = Some((t_us, pos, layer, mid_block));
+            }
+            Record::State { state, t_us }
+                if state == firmware::printer::State::Paused && p.parked_us.is_none() =>
+            {
+                p.parked_us = Some(t_us);
+            }
+            _ => {}
+        }
+    }
+    *seen = fw.notes.len();
+    if p.resume_req_us.is_some() && p.resumed.is_none() {
+        if let Some(r) = rec
+            .records
+            .iter()
+            .rev()
+            .take(4)
+            .find(|r| r.tag.lane == Lane::Job && r.t_start_us >= p.resume_req_us.unwrap_or(0))
+        {
+            p.resumed = Some((r.t_start_us, r.start));
+        }
+    }
+}
+
+fn reports(
+    pauses: &[PauseTrack],
+    rec: &Recorder,
+    fw: &PrinterExec,
+    sc: &Scenario,
+    t0_us: u64,
+    end_us: u64,
+) -> Vec<PauseReport> {
+    let scale = Scale::from_config(&sc.machine);
+    // Executed segments per move: (seq) → counts per seg, and the segment count.
+    let mut exec: BTreeMap<u32, (u32, BTreeMap<u32, u32>)> = BTreeMap::new();
+    for &(seq, seg, segs) in &fw.executed {
+        let e = exec.entry(seq).or_insert((segs, BTreeMap::new()));
+        *e.1.entry(seg).or_default() += 1;
+    }
+    let mut lost_moves = 0;
+    let mut dup_moves = 0;
+    let (mut lost_segs, mut dup_segs) = (0, 0);
+    for (segs, counts) in exec.values() {
+        let missing = (0..*segs).filter(|s| !counts.contains_key(s)).count();
+        let dups: u32 = counts.values().map(|c| c.saturating_sub(1)).sum();
+        lost_segs += missing;
+        dup_segs += dups as usize;
+        lost_moves += usize::from(missing > 0);
+        dup_moves += usize::from(dups > 0);
+    }
+    pauses
+        .iter()
+        .map(|p| {
+            let mut r = PauseReport {
+                policy: sc.policy.name().into(),
+                mode: match p.mode {
+                    Some(PauseMode::Now) => "now".into(),
+                    _ => "layer".into(),
+                },
+                request_s: Some(p.t_req_us as f64 * 1e-6),
+                lost_moves,
+                duplicated_moves: dup_moves,
+                lost_segments: lost_segs,
+                duplicated_segments: dup_segs,
+                executed_in_order: lost_segs == 0 && dup_segs == 0,
+                print_time_s: end_us.saturating_sub(t0_us) as f64 * 1e-6,
+                finished: fw.status().state == RunState::Idle,
+                steps: rec.steps,
+                parked_s: p.parked_us.map(|t| t as f64 * 1e-6),
+                ..PauseReport::default()
+            };
+            if let Some((t_stop, pos, layer, mid)) = p.stopped {
+                r.stop_s = Some(t_stop.saturating_sub(p.t_req_us) as f64 * 1e-6);
+                r.reaction_s =
+                    Some(p.reaction_us.unwrap_or(t_stop).saturating_sub(p.t_req_us) as f64 * 1e-6);
+                r.pause_point_steps = Some(pos);
+                r.stopped_at_layer_boundary = layer.is_some() && !mid;
+                r.stop_layer = layer.and_then(|l| l.checked_sub(1));
+                r.first_boundary_after_request = r.stopped_at_layer_boundary;
+                r.extrusion_after_request_mm = Some(scale.e_mm(&p.pos_req, &pos));
+                // Travel: block pieces between the request and the stop.
+                let mut travel = 0.0;
+                let mut at = p.pos_req;
+                for s in rec.records.iter().skip(p.rec_idx_req.saturating_sub(1)) {
+                    if s.t_start_us > t_stop {
+                        break;
+                    }
+                    if s.tag.lane != Lane::Job {
+                        continue;
+                    }
+                    let from = if s.t_start_us < p.t_req_us {
+                        at
+                    } else {
+                        s.start
+                    };
+                    travel += scale.xyz_dist_mm(&from, &s.end);
+                    at = s.end;
+                }
+                r.travel_after_request_mm = Some(travel);
+                if let Some((t_res, start)) = p.resumed {
+                    r.resumed_s = Some(t_res as f64 * 1e-6);
+                    r.paused_s = Some(t_res.saturating_sub(t_stop) as f64 * 1e-6);
+                    r.resume_position_error_steps = Some(
+                        pos.iter()
+                            .zip(start.iter())
+                            .map(|(a, b)| (i64::from(*a) - i64::from(*b)).abs())
+                            .max()
+                            .unwrap_or(0),
+                    );
+                }
+            }
+            r
+        })
+        .collect()
 }

@@ -14,6 +14,17 @@ pub trait HeaterPlant {
     fn temperature_c(&self) -> f32;
 }
 
+impl HeaterPlant for crate::heater::HeaterModel {
+    fn advance(&mut self, duty: f32, dt_s: f32) -> f32 {
+        self.step(duty, dt_s);
+        self.sensor_c()
+    }
+
+    fn temperature_c(&self) -> f32 {
+        self.sensor_c()
+    }
+}
+
 /// Hotend and bed plants plus the duties last asked for.
 pub struct Heaters {
     hotend: Box<dyn HeaterPlant + Send>,
@@ -34,6 +45,15 @@ impl Heaters {
             sample_period_us: 100_000,
             last_us: None,
         }
+    }
+
+    /// The Ender-3-class hot end and bed of [`crate::heater::HeaterParams`], at ambient.
+    pub fn ender3() -> Self {
+        use crate::heater::{HeaterModel, HeaterParams};
+        Self::new(
+            Box::new(HeaterModel::new(HeaterParams::ENDER3_HOTEND)),
+            Box::new(HeaterModel::new(HeaterParams::ENDER3_BED)),
+        )
     }
 
     /// A heater is on (time must keep passing for it).
