@@ -12,6 +12,12 @@ use super::{gcode, Job, JobError, Layer};
 /// Heights closer than this are the same plane, mm.
 pub const Z_TOL_MM: f64 = 0.005;
 
+/// Lowest flow factor a Z-matching correction applies (a thinner remainder is printed at this
+/// flow rather than as a near-empty layer).
+pub const MIN_FLOW: f64 = 0.5;
+/// Highest flow factor a Z-matching correction applies.
+pub const MAX_FLOW: f64 = 2.0;
+
 /// Host-side prompt line: the sender does not send it; it waits for the user (resume key or
 /// `--resume-after`). OctoPrint spells host commands with a leading `@` the same way.
 pub const PROMPT_PREFIX: &str = "@pause";
@@ -57,7 +63,7 @@ pub struct SwapReport {
 /// already covers are skipped (Z ≤ top), and when the first remaining layer's plane does not
 /// line up with the printed top, its extrusion is scaled to the missing height (a layer thinner
 /// than half its sliced height is merged into the next one, which then fills the missing height
-/// with more flow). The end code becomes `new`'s end code.
+/// with more flow), within [`MIN_FLOW`]..=[`MAX_FLOW`]. The end code becomes `new`'s end code.
 pub fn continue_with(job: &mut Job, at: usize, new: &Job) -> Result<SwapReport, JobError> {
     check_at(job, at)?;
     let top = top_at(job, at);
@@ -85,7 +91,7 @@ pub fn continue_with(job: &mut Job, at: usize, new: &Job) -> Result<SwapReport, 
         k += 1;
     }
     let (z, h) = height_of(k);
-    let mut flow = (z - top) / h;
+    let mut flow = ((z - top) / h).clamp(MIN_FLOW, MAX_FLOW);
     if (flow - 1.0).abs() < 0.02 {
         flow = 1.0;
     }
