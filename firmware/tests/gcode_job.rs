@@ -107,3 +107,46 @@ fn m600_in_the_job_pauses_there_and_resumes() {
     let r2 = run_gcode(&mut p, &[], &[], 200_000_000);
     assert_eq!(r2.end, [1600, 3200, 80, 279]);
 }
+
+#[test]
+fn layer_pause_during_start_heater_wait_then_homing() {
+    // Cura-style start: heater wait, then G28; the pause arrives during the wait.
+    let lines = [
+        "M104 S200",
+        "M109 S200",
+        "G28",
+        "G1 Z15 F6000",
+        "G92 E0",
+        ";LAYER:0",
+        "G0 F3600 X50 Y50 Z0.3",
+        "G1 F1800 X60 Y50 E1",
+        "G1 X60 Y60 E2",
+        ";LAYER:1",
+        "G0 X50 Y50 Z0.5",
+        "G1 X60 Y50 E3",
+    ];
+    let mut p = printer();
+    let r = run_gcode(
+        &mut p,
+        &lines,
+        &[(1_000_000, "M25\n"), (2_000_000, "M108\n")],
+        60_000_000,
+    );
+    assert_eq!(
+        p.status().state,
+        firmware::printer::State::Paused,
+        "{}",
+        r.out
+    );
+    let stop = r.records.iter().find_map(|x| match *x {
+        Record::Stopped { layer, .. } => Some(layer),
+        _ => None,
+    });
+    assert_eq!(stop, Some(Some(0)), "stopped at the first layer boundary");
+    // The start code ran (homing, Z up 15 mm); the job's first layer did not.
+    let stop_pos = r.records.iter().find_map(|x| match *x {
+        Record::Stopped { pos, .. } => Some(pos),
+        _ => None,
+    });
+    assert_eq!(stop_pos, Some([0, 0, 6000, 0]));
+}

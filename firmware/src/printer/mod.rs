@@ -532,7 +532,9 @@ impl Printer {
                     self.check_schedule(mark);
                 }
                 Command::Home { mask } => {
-                    if !self.motion_idle() || self.phase != Phase::Run {
+                    // Homing runs before a pending layer barrier (it is part of the job before
+                    // the boundary); never while parked or returning.
+                    if !self.motion_idle() || !matches!(self.phase, Phase::Run | Phase::Stopping) {
                         break;
                     }
                     let mut target = self.stepgen.position();
@@ -560,7 +562,7 @@ impl Printer {
                     self.break_wait = false;
                 }
                 Command::SetPosition(pos) => {
-                    if !self.motion_idle() {
+                    if !self.motion_idle() || !matches!(self.phase, Phase::Run | Phase::Stopping) {
                         break;
                     }
                     self.planner.set_position(pos);
