@@ -10,8 +10,8 @@
 //!   such as `M862.3` makes an [`Command::Unknown`]), or a Klipper-style extended command name
 //!   (`SET_PRINT_STATS_INFO CURRENT_LAYER=3`; any other name is [`Command::Unknown`]);
 //! - parameter words: a letter and a decimal number (`X-1.5`, `E.03321`, `F7800`), no exponent
-//!   (`X1E5` is X=1, E=5), magnitude at most [`MAX_ABS_VALUE`]; some letters are flags that may
-//!   stand alone (`G28 X Y`);
+//!   (`X1E5` is X=1, E=5), magnitude at most [`MAX_ABS_VALUE`] and, unless zero, at least
+//!   [`MIN_ABS_VALUE`]; some letters are flags that may stand alone (`G28 X Y`);
 //! - comments: `;` to the end of the line, and `( … )` anywhere between words;
 //! - text commands (M117, M118): the rest of the line up to `;`, at most [`TEXT_CAP`] bytes.
 //!
@@ -43,7 +43,7 @@ use core::fmt;
 
 pub use emit::write_command;
 use number::Num;
-pub use number::{MAX_ABS_VALUE, MAX_NUMBER_LEN, MAX_SIG_DIGITS};
+pub use number::{MAX_ABS_VALUE, MAX_NUMBER_LEN, MAX_SIG_DIGITS, MIN_ABS_VALUE};
 
 /// Capacity in bytes of the text of M117/M118 and of an [`Command::Unknown`] command's text.
 /// Longer text is a [`ParseError`] (never truncated). 96 bytes fit every LCD message and the
@@ -381,7 +381,8 @@ pub enum ParseErrorKind {
     TooManyDigits,
     /// A number longer than [`MAX_NUMBER_LEN`] characters.
     NumberTooLong,
-    /// A number beyond ±[`MAX_ABS_VALUE`] or its parameter's range.
+    /// A number beyond ±[`MAX_ABS_VALUE`], a non-zero number smaller than [`MIN_ABS_VALUE`], or
+    /// beyond its parameter's range.
     OutOfRange,
     /// A number where only a whole number makes sense has a fraction.
     NotWhole,

@@ -11,6 +11,11 @@ use super::ParseErrorKind;
 /// filament in absolute E mode still fits, `1e30`-style garbage does not.
 pub const MAX_ABS_VALUE: f32 = 1.0e7;
 
+/// Smallest non-zero magnitude accepted (anything smaller is no printer quantity, and this
+/// bound keeps every value's shortest decimal short enough for the parser: the emitter's output
+/// always parses back).
+pub const MIN_ABS_VALUE: f32 = 1.0e-12;
+
 /// Most significant digits a number may have (exactly representable in the u64 mantissa).
 pub const MAX_SIG_DIGITS: u8 = 19;
 
@@ -117,7 +122,7 @@ impl Num {
         } else {
             slow_f32(line, self)?
         };
-        if !mag.is_finite() || mag > MAX_ABS_VALUE {
+        if !mag.is_finite() || mag > MAX_ABS_VALUE || (mag != 0.0 && mag < MIN_ABS_VALUE) {
             return Err(ParseErrorKind::OutOfRange);
         }
         Ok(if self.neg { -mag } else { mag })
@@ -200,6 +205,8 @@ mod tests {
         assert_eq!(f("-"), Err(ParseErrorKind::MissingNumber));
         assert_eq!(f("."), Err(ParseErrorKind::MissingNumber));
         assert_eq!(f("10000001"), Err(ParseErrorKind::OutOfRange));
+        assert_eq!(f("-.0000000000001"), Err(ParseErrorKind::OutOfRange));
+        assert_eq!(f("-.000000000000000000000000000000"), Ok(-0.0));
         assert_eq!(
             f("1000000000000000000000000000000"),
             Err(ParseErrorKind::TooManyDigits)
@@ -241,11 +248,15 @@ mod tests {
 
         /// Shortest round-trip text of any in-range f32 parses back to the same bits.
         #[test]
-        fn display_round_trips(v in -1.0e7f32..1.0e7) {
+        fn display_round_trips(v in -1.0e7f32..1.0e7, tiny in 1.0e-12f32..1.0e-6) {
             let mut s = heapless::String::<64>::new();
             use core::fmt::Write;
             write!(s, "{}", v).unwrap();
             prop_assert_eq!(f(&s).map(f32::to_bits), Ok(v.to_bits()), "{}", s);
+            let mut s = heapless::String::<64>::new();
+            write!(s, "-{}", tiny).unwrap();
+            prop_assert!(s.len() <= MAX_NUMBER_LEN);
+            prop_assert_eq!(f(&s).map(f32::to_bits), Ok((-tiny).to_bits()), "{}", s);
         }
     }
 }

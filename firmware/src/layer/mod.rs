@@ -35,12 +35,12 @@
 //! # Markers accepted
 //! | source | spelling | mark placed |
 //! |---|---|---|
-//! | PrusaSlicer, SuperSlicer, OrcaSlicer, Bambu | `;LAYER_CHANGE` (height from a following `;Z:<mm>`; `;HEIGHT:` is ignored — it also appears mid-layer) | before the first command after the marker, i.e. before the layer's Z move |
-//! | Cura, ideaMaker | `;LAYER:<n>` (`;LAYER_COUNT:` is not a marker; a following `;Z:` gives the height) | before the first command after the marker; Cura has already moved Z, so the Z move sits just before the mark, the first extrusion after it |
-//! | Simplify3D | `; layer <n>, Z = <mm>` | before the first command after the marker |
+//! | PrusaSlicer, SuperSlicer, OrcaSlicer, Bambu | `;LAYER_CHANGE` (height from a following `;Z:<mm>`; `;HEIGHT:` is ignored — it also appears mid-layer) | before the first motion command after the marker, i.e. before the layer's Z move |
+//! | Cura, ideaMaker | `;LAYER:<n>` (`;LAYER_COUNT:` is not a marker; a following `;Z:` gives the height, else the first move after the marker) | before the first motion command after the marker; Cura has already moved Z (except before layer 0), so the Z move sits just before the mark, the first extrusion after it |
+//! | Simplify3D | `; layer <n>, Z = <mm>` | before the first motion command after the marker |
 //! | Klipper macros | `SET_PRINT_STATS_INFO CURRENT_LAYER=<n>` | before that command |
 //! | Orca/Bambu/Prusa progress | `M73 L<n>` | before that command |
-//! | this project's host compiler (helical prints) | `;TURN` or `;TURN:<n>`, one per helix turn | before the first command after the marker ([`LayerSource::Turn`]) |
+//! | this project's host compiler (helical prints) | `;TURN` or `;TURN:<n>`, one per helix turn | before the first motion command after the marker ([`LayerSource::Turn`]) |
 //! | none of the above | Z higher at the start of an extruding move than at the end of the previous extruding move (first extruding move: layer 0) | before that extruding move |
 //!
 //! An *extruding move* moves X or Y and advances E. Z-hops (up, travel, down, extrude at the
@@ -49,7 +49,7 @@
 //! # The boundary
 //! For every source: every extruding move of layer k is before the mark of layer k+1 and every
 //! extruding move of layer k+1 after it. Non-extruding moves between the two layers (retract,
-//! Z move, travel) sit on either side depending on the slicer: PrusaSlicer's marker precedes its
+//! Z move, travel) and commands that do not move (fan, temperature) sit on either side depending on the slicer: PrusaSlicer's marker precedes its
 //! Z move, Cura's follows it, the Z-rise fallback can only tell at the first extrusion. A pause
 //! held at the mark therefore always stops after the last extrusion of layer k and before the
 //! first of layer k+1.
@@ -81,6 +81,8 @@ pub struct MoveFacts {
     pub z_end_um: i32,
     /// The command moved X or Y and advanced E (a printing move).
     pub extrudes: bool,
+    /// The command moved any axis.
+    pub moved: bool,
 }
 
 impl MoveFacts {
@@ -105,6 +107,7 @@ impl MoveFacts {
             z_start_um: z(before[zi]),
             z_end_um: z(after[zi]),
             extrudes: after[e] > before[e] && (after[x] != before[x] || after[y] != before[y]),
+            moved: after != before,
         }
     }
 }
@@ -185,9 +188,13 @@ impl LayerDetector {
         let Some(cmd) = &line.command else {
             return out;
         };
-        // A command line: a pending mark goes before it.
-        if out.is_none() {
-            out = self.pending.take().map(|p| self.emit(p));
+        // A motion command: a pending mark goes before it, with the height this move reaches
+        // if the marker gave none (Cura's first layer moves Z after `;LAYER:0`).
+        if out.is_none() && facts.moved {
+            out = self.pending.take().map(|mut p| {
+                p.z_um = p.z_um.or(Some(facts.z_end_um));
+                self.emit(p)
+            });
         }
         // Command markers.
         let numbered = match cmd {

@@ -54,7 +54,9 @@ fn cura_marker_follows_the_z_move() {
              G0 X20 Y20 Z0.5\n;TIME_ELAPSED:10\n;LAYER:1\nG1 X10 Y20 E2\n";
     let m = marks(p);
     assert_eq!(m.len(), 2, "{m:?}");
-    assert_eq!(m[0].0, 2);
+    // Layer 0: Cura moves Z after the marker: the mark goes before that move.
+    assert_eq!(m[0].0, 3);
+    assert_eq!(m[0].1.z_um, Some(300));
     assert_eq!(m[1].0, 9);
     // Height: Cura has moved Z already.
     assert_eq!(m[1].1.z_um, Some(500));
@@ -79,7 +81,7 @@ fn families_do_not_double_count() {
     let p = ";LAYER_CHANGE\n;Z:0.2\nM73 L1\nG1 Z0.2\nG1 X5 E1\n;LAYER_CHANGE\n;Z:0.4\nM73 L2\nG1 Z0.4\nG1 X6 E2\nG1 Z1\nG1 X7 E3";
     let m = marks(p);
     assert_eq!(m.len(), 2, "{m:?}");
-    assert_eq!(m[0].0, 2);
+    assert_eq!(m[0].0, 3);
     // Klipper macro alone, repeated with the same number: one layer each.
     let p =
         "SET_PRINT_STATS_INFO CURRENT_LAYER=1\nG1 X5 E1\nSET_PRINT_STATS_INFO CURRENT_LAYER=1\n\
