@@ -156,6 +156,16 @@ impl HeaterModel {
         self.sensor_c
     }
 
+    /// What the firmware would be told in °C (`Printer::thermal_sample` / `Thermal::update`):
+    /// the thermistor's temperature, or the sensor-fault markers −∞ (open) and +∞ (short).
+    pub fn reading_c(&self) -> f32 {
+        match self.fault {
+            Some(HeaterFault::SensorOpen) => f32::NEG_INFINITY,
+            Some(HeaterFault::SensorShort) => f32::INFINITY,
+            _ => self.sensor_c,
+        }
+    }
+
     /// The 12-bit reading the board's ADC would take now.
     pub fn adc(&self) -> u16 {
         match self.fault {
@@ -189,8 +199,10 @@ mod tests {
         let mut m = HeaterModel::new(HeaterParams::ENDER3_HOTEND);
         m.set_fault(Some(HeaterFault::SensorOpen));
         assert_eq!(m.adc(), ADC_MAX);
+        assert_eq!(m.reading_c(), f32::NEG_INFINITY);
         m.set_fault(Some(HeaterFault::SensorShort));
         assert_eq!(m.adc(), 0);
+        assert_eq!(m.reading_c(), f32::INFINITY);
         m.set_fault(Some(HeaterFault::HeaterDead));
         m.step(1.0, 60.0);
         assert!((m.temperature_c() - 25.0).abs() < 1e-3);
