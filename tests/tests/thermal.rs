@@ -378,3 +378,63 @@ fn bad_targets_are_refused() {
     assert!(t.set_target(HeaterId::Bed, 110.0).is_ok());
     assert_eq!(t.target_c(HeaterId::Hotend), 0.0);
 }
+
+mod properties {
+    use firmware::thermal::{HeaterId, Thermal, ThermalConfig};
+    use proptest::prelude::*;
+
+    fn sample() -> impl Strategy<Value = f32> {
+        prop_oneof![
+            -50.0f32..400.0,
+            Just(f32::NAN),
+            Just(f32::INFINITY),
+            Just(f32::NEG_INFINITY),
+            any::<f32>(),
+        ]
+    }
+
+    proptest! {
+        /// Whatever the samples, targets and timing: duty stays within 0..=1, a fault never
+        /// clears, and after a fault every duty is 0.
+        #[test]
+        fn duty_bounded_and_fault_latched(
+            steps in proptest::collection::vec(
+                (any::<bool>(), sample(), 0u64..2_000_000, proptest::option::of(-10.0f32..300.0)),
+                1..300,
+            )
+        ) {
+            let mut t = Thermal::new(&ThermalConfig::ENDER3);
+            let mut now = 0u64;
+            let mut faulted = false;
+            for (bed, c, dt, target) in steps {
+                let id = if bed { HeaterId::Bed } else { HeaterId::Hotend };
+                if let Some(target) = target {
+                    let r = t.set_target(id, target);
+                    if faulted {
+                        prop_assert!(r.is_err());
+                    }
+                }
+                now += dt;
+                let duty = t.update(id, c, now);
+                prop_assert!((0.0..=1.0).contains(&duty), "duty {duty}");
+                if faulted {
+                    prop_assert_eq!(duty, 0.0);
+                    prop_assert!(t.fault().is_some());
+                }
+                faulted = t.fault().is_some();
+            }
+        }
+
+        /// Every ADC reading converts to a finite temperature or a sensor fault.
+        #[test]
+        fn any_adc_reading_is_handled(raw in any::<u16>()) {
+            let table = firmware::thermal::ThermistorTable::new(
+                &firmware::thermal::Thermistor::NTC_100K_3950,
+            );
+            match table.celsius(raw) {
+                Ok(c) => prop_assert!(c.is_finite()),
+                Err(_) => prop_assert!(raw <= 20 || raw >= 4075),
+            }
+        }
+    }
+}
