@@ -1,0 +1,129 @@
+//! The pause side of the planner: the barrier (where the plan must stop), the speed-up of the
+//! rest of the layer, and the release of held blocks on resume.
+
+use super::{Barrier, Planner};
+
+impl Planner {
+    /// Place the barrier before block `id` and replan to stop there.
+    pub fn set_barrier(&mut self, id: u32) {
+        self.barrier = Barrier::At(id);
+        if self.fast {
+            // The speed-up ends at the barrier: later blocks keep their speed.
+            self.fast = false;
+        }
+        self.replan_all();
+    }
+
+    /// Place the barrier at the next layer mark that will be queued.
+    pub fn set_barrier_next_mark(&mut self) {
+        self.barrier = Barrier::NextMark;
+    }
+
+    /// Speed up every planned block before the barrier (and, with the barrier still waiting
+    /// for its mark, every block queued until then) to its `fast` speed, and replan.
+    pub fn speed_up(&mut self) {
+        let end = self.plan_len();
+        if self.barrier == Barrier::NextMark || self.barrier == Barrier::None {
+            self.fast = true;
+        }
+        let mut prev_nom = f32::INFINITY;
+        for k in 0..end {
+            let i = self.idx(k);
+            let b = &mut self.ring[i];
+            b.nominal_v2 = b.fast_v2;
+            if k > 0 {
+                b.entry_max_v2 = b.junction_v2.min(prev_nom).min(b.nominal_v2);
+            }
+            prev_nom = b.nominal_v2;
+        }
+        if end == self.len && self.len > 0 {
+            self.prev_nominal_v2 = prev_nom;
+        }
+        self.replan_all();
+    }
+
+    /// Withdraw the barrier and the speed-up while moving (a pause request taken back before
+    /// it stopped): the head's entry stays fixed, the rest is replanned.
+    pub fn clear_barrier(&mut self) {
+        self.barrier = Barrier::None;
+        self.fast = false;
+        let mut prev_nom = f32::INFINITY;
+        for k in 0..self.len {
+            let i = self.idx(k);
+            let b = &mut self.ring[i];
+            b.nominal_v2 = b.base_v2;
+            if k > 0 {
+                b.entry_max_v2 = b.junction_v2.min(prev_nom).min(b.nominal_v2);
+            }
+            prev_nom = b.nominal_v2;
+        }
+        if self.len > 0 {
+            self.prev_nominal_v2 = prev_nom;
+        }
+        self.replan_all();
+    }
+
+    /// True when the plan stands at the barrier: the next block to execute is the barrier's.
+    pub fn at_barrier(&self) -> bool {
+        match self.barrier {
+            Barrier::At(id) => {
+                let head_id = if self.len > 0 {
+                    self.ring[self.head].id
+                } else {
+                    self.next_id
+                };
+                (head_id.wrapping_sub(id) as i32) >= 0
+            }
+            _ => false,
+        }
+    }
+
+    /// Remove the barrier and the speed-up and replan from the held state. `exec_rem` is the
+    /// unexecuted part of a block held mid-way by a feed hold: (remaining mm, accel mm/s²,
+    /// nominal²). Returns the exit speed² for that held block (the new head's entry).
+    pub fn release(&mut self, exec_rem: Option<(f32, f32, f32)>) -> f32 {
+        self.barrier = Barrier::None;
+        self.fast = false;
+        let mut prev_nom = f32::INFINITY;
+        for k in 0..self.len {
+            let i = self.idx(k);
+            let b = &mut self.ring[i];
+            b.nominal_v2 = b.base_v2;
+            if k > 0 {
+                b.entry_max_v2 = b.junction_v2.min(prev_nom).min(b.nominal_v2);
+            }
+            prev_nom = b.nominal_v2;
+        }
+        if self.len > 0 {
+            self.prev_nominal_v2 = prev_nom;
+            // Head entry: from standstill, or reachable from the held remainder.
+            let h = self.head;
+            let max = match exec_rem {
+                Some((rem, a, nom)) => {
+                    let b = &self.ring[h];
+                    b.junction_v2.min(nom).min(b.nominal_v2).min(2.0 * a * rem)
+                }
+                None => 0.0,
+            };
+            // Plan the ring with a temporarily free head, then fix it.
+            let end = self.plan_len();
+            let mut next_entry = self.tail_exit_v2(end);
+            let mut k = end;
+            while k > 0 {
+                k -= 1;
+                let i = self.idx(k);
+                let b = &mut self.ring[i];
+                let cap = if k == 0 { max } else { b.entry_max_v2 };
+                let v = cap.min(next_entry + 2.0 * b.accel_mm_s2 * b.len_mm);
+                b.entry_v2 = v;
+                next_entry = v;
+            }
+            self.planned = 0;
+            self.recalculate();
+            self.ring[h].entry_v2
+        } else {
+            self.prev_nominal_v2 = 0.0;
+            0.0
+        }
+    }
+}
