@@ -150,3 +150,46 @@ fn layer_pause_during_start_heater_wait_then_homing() {
     });
     assert_eq!(stop_pos, Some([0, 0, 6000, 0]));
 }
+
+#[test]
+fn job_lines_sent_while_paused_queue_behind_the_barrier() {
+    // A long job in relative coordinates; the pause comes early, so most lines arrive while
+    // the printer is pausing or paused and must keep their meaning.
+    let mut v = vec![
+        "G28".to_string(),
+        "G1 Z0.2 F600".to_string(),
+        "G1 X20 Y20 F6000".to_string(),
+        "G91".to_string(),
+    ];
+    for layer in 0..4 {
+        v.push(";LAYER_CHANGE".into());
+        v.push("G1 Z0.2 F600".into());
+        for k in 0..20 {
+            let (dx, dy) = if k % 2 == 0 { (10, 1) } else { (-10, 1) };
+            v.push(format!("G1 X{dx} Y{dy} E0.4 F1800"));
+        }
+        v.push(format!("G1 Y-{} F6000", 20));
+        let _ = layer;
+    }
+    let lines: Vec<&str> = v.iter().map(|s| s.as_str()).collect();
+    let base = run_gcode(&mut printer(), &lines, &[], 200_000_000);
+    // First part, then a pause; the second part (fits the command queue) is sent while
+    // parked; then resume and send the rest.
+    let (first, rest) = lines.split_at(12);
+    let (second, third) = rest.split_at(25);
+    let mut p = printer();
+    let r1 = run_gcode(&mut p, first, &[(500_000, "M25 S1\n")], 200_000_000);
+    assert!(r1.out.contains("//action:paused"), "{}", r1.out);
+    let r2 = run_gcode(&mut p, second, &[], 200_000_000);
+    assert_eq!(p.status().state, firmware::printer::State::Paused);
+    assert!(r2.executed.is_empty());
+    p.request(firmware::motion::Realtime::Resume, 300_000_000);
+    let r3 = run_gcode(&mut p, third, &[], 900_000_000);
+    let mut executed = r1.executed.clone();
+    executed.extend(r3.executed.iter().copied());
+    let mut job_pos = r1.job_pos.clone();
+    job_pos.extend(r3.job_pos.iter().copied());
+    assert_eq!(executed, base.executed);
+    assert_eq!(job_pos, base.job_pos);
+    assert_eq!(r3.end, base.end);
+}

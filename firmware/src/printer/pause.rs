@@ -1,7 +1,7 @@
 //! The pause state machine: requests (pause, resume, cancel, stops), the stop detection, the
 //! park and return sequences in the service lane, and the release of the held blocks.
 
-use super::{steps, Phase, Printer, Record, ServiceMove};
+use super::{steps, PausedLines, Phase, Printer, Record, ServiceMove};
 use crate::link::HostAction;
 use crate::motion::{Axis, PauseMode};
 use crate::planner::{Barrier, BlockKind};
@@ -301,11 +301,14 @@ impl Printer {
                     return;
                 }
                 self.phase = Phase::Parked;
-                // The job's modal state is kept aside; manual commands while paused start
-                // from the parked position and cannot change what the job resumes with.
-                self.saved_machine = Some(self.machine);
-                let here = self.stepgen.position();
-                self.machine.set_position_steps(&here, &self.cfg);
+                if self.policy.paused_lines == PausedLines::Manual {
+                    // The job's modal state is kept aside; manual commands while paused start
+                    // from the parked position and cannot change what the job resumes with.
+                    // (With `Queue`, lines while paused are job lines: the state runs on.)
+                    self.saved_machine = Some(self.machine);
+                    let here = self.stepgen.position();
+                    self.machine.set_position_steps(&here, &self.cfg);
+                }
                 self.thermal.pause_idle_start(self.now_us);
                 self.action(HostAction::Paused);
                 if self.deferred_resume {
