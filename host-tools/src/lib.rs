@@ -8,12 +8,16 @@ pub mod cli;
 pub mod job;
 pub mod sender;
 // Design compiler (ht-design).
+pub mod checks;
 pub mod deform;
 pub mod gcode_read;
 pub mod model;
 pub mod modulate;
 pub mod motion;
 pub mod parts;
+pub mod preview;
 pub mod profile;
+pub mod script;
+pub mod stats;
 pub mod turtle;
 pub mod writer;

@@ -199,7 +199,7 @@ impl Default for Globe {
             cross_mm2: 0.16,
             speed_mm_s: 25.0,
             contrast: DEFAULT_CONTRAST,
-            thin_min_len_mm: 0.3,
+            thin_min_len_mm: 0.2,
         }
     }
 }

@@ -130,8 +130,9 @@ impl Helix {
     }
 }
 
-/// A flat disc filled by an Archimedean spiral from the rim inwards, `spacing_mm` between
-/// rings, chords no longer than `max_seg_mm`.
+/// A flat disc filled by an Archimedean spiral from the centre outwards, `spacing_mm` between
+/// rings, chords no longer than `max_seg_mm`. It ends on the rim at angle 0 (+X), where a
+/// helix of the same radius starts, so a cylinder's wall follows without a travel.
 #[allow(clippy::too_many_arguments)]
 pub fn disc(
     center_xy: [f64; 2],
@@ -154,24 +155,24 @@ pub fn disc(
         z_mm,
         height_mm: z_mm,
     });
-    let r_end = 0.5 * spacing_mm;
-    if radius_mm <= r_end {
+    let r_min = 0.5 * spacing_mm;
+    if radius_mm <= r_min {
         return Ok(m);
     }
-    let turns = (radius_mm - r_end) / spacing_mm;
-    // Walk the angle with steps that keep chords ≤ max_seg_mm at the current radius.
+    // r(a) = radius + spacing·a/2π for a from −a0 (r = r_min) up to 0 (r = radius).
+    let a0 = (radius_mm - r_min) / spacing_mm * TAU;
     let at = |a: f64| {
-        let r = radius_mm - spacing_mm * a / TAU;
+        let r = radius_mm + spacing_mm * a / TAU;
         DVec3::new(center_xy[0] + r * a.cos(), center_xy[1] + r * a.sin(), z_mm)
     };
-    let a_end = turns * TAU;
-    let mut a = 0.0;
-    let mut prev = at(0.0);
+    let mut a = -a0;
+    let mut prev = at(a);
     let mut count = 0usize;
-    while a < a_end {
-        let r = (radius_mm - spacing_mm * a / TAU).max(r_end);
-        let da = (max_seg_mm / r).min(TAU / 8.0);
-        a = (a + da).min(a_end);
+    while a < 0.0 {
+        let r = (radius_mm + spacing_mm * a / TAU).max(r_min);
+        // The radius grows along the step: size it for the larger end.
+        let da = (0.95 * max_seg_mm / (r + spacing_mm)).min(TAU / 8.0);
+        a = (a + da).min(0.0);
         let p = at(a);
         m.push(Step::String(Str::line(prev, p, cross_mm2, speed_mm_s)));
         prev = p;
@@ -259,6 +260,17 @@ mod tests {
         for s in m.strings() {
             assert!((s.end.truncate() - glam::DVec2::new(50.0, 50.0)).length() <= 10.0 + 1e-9);
             assert!(s.len_mm() <= 1.0 + 1e-9);
+        }
+        let last = m.strings().last().map(|s| s.end).unwrap_or_default();
+        assert!((last - DVec3::new(60.0, 50.0, 0.3)).length() < 1e-9);
+    }
+
+    #[test]
+    fn cylinder_wall_follows_the_bottom_without_travel() {
+        let m = cylinder([50.0, 50.0], 0.2, 10.0, 5.0, 0.4, 72, 0.2, 20.0).expect("cyl");
+        let strs: Vec<_> = m.strings().collect();
+        for w in strs.windows(2) {
+            assert!((w[0].end - w[1].start).length() < 1e-9);
         }
     }
 }

@@ -1,10 +1,77 @@
-//! `host-tools stats` (not built yet).
+//! `host-tools stats FILE.gcode [--json] [--printer PROFILE]`: layers (or turns), moves,
+//! acceleration-aware print time, filament, bounding box and time per layer.
+
+use crate::profile::Profile;
+use crate::stats::{hms, stats};
+use anyhow::Context;
+use std::path::PathBuf;
 
 /// Arguments of `host-tools stats`.
 #[derive(clap::Args, Debug)]
-pub struct Args {}
+pub struct Args {
+    /// G-code file.
+    pub file: PathBuf,
+    /// Print JSON (fields: layers, moves, print_time_s, filament_mm, bbox_mm, ...).
+    #[arg(long)]
+    pub json: bool,
+    /// Printer profile whose limits time the moves: built-in name or TOML file.
+    #[arg(long, default_value = "ender3")]
+    pub printer: String,
+    /// List the time of every layer (text output).
+    #[arg(long)]
+    pub layers: bool,
+}
 
 /// Runs the subcommand.
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`stats` is not built yet; see the README's table of what works")
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let profile = Profile::load(&args.printer)?;
+    let data =
+        std::fs::read(&args.file).with_context(|| format!("reading {}", args.file.display()))?;
+    let s = stats(&data, &profile).map_err(|e| anyhow::anyhow!("{}: {e}", args.file.display()))?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&s)?);
+        return Ok(());
+    }
+    let b = &s.bbox_mm;
+    println!("file          {}", args.file.display());
+    println!("layers        {} (from {})", s.layers, s.layer_source);
+    println!(
+        "moves         {} ({} printing, {} travel, {} extruder-only)",
+        s.moves, s.print_moves, s.travel_moves, s.extruder_moves
+    );
+    println!(
+        "print time    {} ({:.1} s, acceleration-aware, profile {})",
+        hms(s.print_time_s),
+        s.print_time_s,
+        profile.name
+    );
+    println!(
+        "filament      {:.1} mm, {:.0} mm³, {:.1} g",
+        s.filament_mm, s.filament_volume_mm3, s.filament_mass_g
+    );
+    println!(
+        "bbox          ({:.2}, {:.2}, {:.2}) – ({:.2}, {:.2}, {:.2}) mm",
+        b.min[0], b.min[1], b.min[2], b.max[0], b.max[1], b.max[2]
+    );
+    println!(
+        "paths         {:.0} mm printing, {:.0} mm travel",
+        s.print_path_mm, s.travel_path_mm
+    );
+    if !s.layer_times.is_empty() {
+        let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
+        for l in &s.layer_times {
+            lo = lo.min(l.time_s);
+            hi = hi.max(l.time_s);
+        }
+        println!("layer time    {lo:.1} s – {hi:.1} s");
+    }
+    if args.layers {
+        for l in &s.layer_times {
+            match l.z_mm {
+                Some(z) => println!("  layer {:>5}  z {:>8.3}  {:>8.2} s", l.layer, z, l.time_s),
+                None => println!("  layer {:>5}  z        ?  {:>8.2} s", l.layer, l.time_s),
+            }
+        }
+    }
+    Ok(())
 }

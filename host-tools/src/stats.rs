@@ -1,0 +1,232 @@
+//! Statistics of a G-code job: layers (or turns), moves, an acceleration-aware print time
+//! (the [`crate::motion`] model with the profile's limits), filament length/volume/mass,
+//! bounding box of the printed material and time per layer.
+//!
+//! Layers come from the slicer's markers (`;LAYER_CHANGE`, `;LAYER:n` — our writer emits one
+//! per helix turn); a file without markers counts a layer whenever an extruding move starts
+//! higher than the current layer.
+
+use crate::motion::{plan_gcode, MotionLimits, MoveKind, Segment};
+use crate::profile::Profile;
+use serde::Serialize;
+
+/// Bounding box in JSON form.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct BBoxMm {
+    /// Lowest X, Y, Z, mm.
+    pub min: [f64; 3],
+    /// Highest X, Y, Z, mm.
+    pub max: [f64; 3],
+}
+
+/// Time spent in one layer.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct LayerTime {
+    /// Layer index (1 = first layer; 0 = before the first marker).
+    pub layer: u32,
+    /// Height of the layer when known, mm.
+    pub z_mm: Option<f64>,
+    /// Time from this layer's start to the next one's, s.
+    pub time_s: f64,
+}
+
+/// Statistics of one job.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Stats {
+    /// Layers (or turns of a layer-free print).
+    pub layers: u32,
+    /// Where the layers came from: "markers" or "z".
+    pub layer_source: &'static str,
+    /// Moves (arcs count per chord).
+    pub moves: u64,
+    /// Extruding moves.
+    pub print_moves: u64,
+    /// Moves without extrusion.
+    pub travel_moves: u64,
+    /// Extruder-only moves (retract/prime).
+    pub extruder_moves: u64,
+    /// Estimated print time, s.
+    pub print_time_s: f64,
+    /// Net filament pushed, mm.
+    pub filament_mm: f64,
+    /// Filament volume, mm³.
+    pub filament_volume_mm3: f64,
+    /// Filament mass, g.
+    pub filament_mass_g: f64,
+    /// Bounding box of extruding moves (all moves if nothing extrudes), mm.
+    pub bbox_mm: BBoxMm,
+    /// Path length of extruding moves, mm.
+    pub print_path_mm: f64,
+    /// Path length of travels, mm.
+    pub travel_path_mm: f64,
+    /// Lines read.
+    pub lines: u64,
+    /// Bytes read.
+    pub bytes: u64,
+    /// Time per layer.
+    pub layer_times: Vec<LayerTime>,
+}
+
+/// Computes statistics of `input` for `profile`.
+pub fn stats(input: &[u8], profile: &Profile) -> Result<Stats, crate::gcode_read::ReadError> {
+    let limits = MotionLimits::from_profile(profile);
+    let mut print_moves = 0u64;
+    let mut travel_moves = 0u64;
+    let mut extruder_moves = 0u64;
+    let mut net_e = 0.0f64;
+    let mut print_path = 0.0;
+    let mut travel_path = 0.0;
+    let mut bb_print = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    let mut bb_all = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    // Time per layer by markers (index = marker layer).
+    let mut marker_time: Vec<f64> = vec![0.0];
+    let mut marker_z: Vec<Option<f64>> = vec![None];
+    // Z-detected layers.
+    let mut z_layers: Vec<LayerTime> = Vec::new();
+    let mut z_cur = f64::NEG_INFINITY;
+    let grow = |bb: &mut ([f64; 3], [f64; 3]), p: &[f64; 4]| {
+        for (k, v) in p.iter().take(3).enumerate() {
+            bb.0[k] = bb.0[k].min(*v);
+            bb.1[k] = bb.1[k].max(*v);
+        }
+    };
+    let mut seg_sink = |s: Segment| {
+        let d = s.duration_s();
+        net_e += s.end[3] - s.start[3];
+        grow(&mut bb_all, &s.end);
+        match s.kind {
+            MoveKind::Print => {
+                print_moves += 1;
+                print_path += s.len_mm;
+                grow(&mut bb_print, &s.start);
+                grow(&mut bb_print, &s.end);
+                if s.start[2] > z_cur + 1e-6 {
+                    z_cur = s.start[2];
+                    z_layers.push(LayerTime {
+                        layer: z_layers.len() as u32 + 1,
+                        z_mm: Some(z_cur),
+                        time_s: 0.0,
+                    });
+                }
+            }
+            MoveKind::Travel => {
+                travel_moves += 1;
+                travel_path += s.len_mm;
+            }
+            MoveKind::Extruder => extruder_moves += 1,
+        }
+        if let Some(l) = z_layers.last_mut() {
+            l.time_s += d;
+        }
+        let li = s.layer as usize;
+        if li >= marker_time.len() {
+            marker_time.resize(li + 1, 0.0);
+            marker_z.resize(li + 1, None);
+        }
+        marker_time[li] += d;
+    };
+    let mut zs: Vec<(u32, f64)> = Vec::new();
+    let mut layer_sink = |layer: u32, z: Option<f64>, _t: f64| {
+        if let Some(z) = z {
+            zs.push((layer, z));
+        }
+    };
+    let totals = plan_gcode(input, limits, &mut seg_sink, &mut layer_sink)?;
+    let marks = totals.layer_marks as usize;
+    if marker_time.len() <= marks {
+        marker_time.resize(marks + 1, 0.0);
+        marker_z.resize(marks + 1, None);
+    }
+    for (l, z) in zs {
+        if let Some(slot) = marker_z.get_mut(l as usize) {
+            *slot = Some(z);
+        }
+    }
+    let (layers, source, layer_times) = if totals.layer_marks > 0 {
+        let lt = marker_time
+            .iter()
+            .zip(&marker_z)
+            .enumerate()
+            .filter(|(i, (t, _))| *i > 0 || **t > 0.0)
+            .map(|(i, (t, z))| LayerTime {
+                layer: i as u32,
+                z_mm: *z,
+                time_s: *t,
+            })
+            .collect();
+        (totals.layer_marks, "markers", lt)
+    } else {
+        (z_layers.len() as u32, "z", z_layers)
+    };
+    let bb = if print_moves > 0 { bb_print } else { bb_all };
+    let bbox_mm = if bb.0[0].is_finite() {
+        BBoxMm {
+            min: bb.0,
+            max: bb.1,
+        }
+    } else {
+        BBoxMm {
+            min: [0.0; 3],
+            max: [0.0; 3],
+        }
+    };
+    let filament_mm = net_e.max(0.0);
+    let vol = filament_mm * profile.filament_area_mm2();
+    Ok(Stats {
+        layers,
+        layer_source: source,
+        moves: totals.moves,
+        print_moves,
+        travel_moves,
+        extruder_moves,
+        print_time_s: totals.time_s,
+        filament_mm,
+        filament_volume_mm3: vol,
+        filament_mass_g: vol * profile.filament_density_g_cm3 / 1000.0,
+        bbox_mm,
+        print_path_mm: print_path,
+        travel_path_mm: travel_path,
+        lines: totals.lines,
+        bytes: input.len() as u64,
+        layer_times,
+    })
+}
+
+/// `h:mm:ss` for a duration in seconds.
+pub fn hms(s: f64) -> String {
+    let t = s.max(0.0).round() as u64;
+    format!("{}:{:02}:{:02}", t / 3600, (t / 60) % 60, t % 60)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn counts_layers_time_and_filament() {
+        let g = b"G90\nM82\nG92 E0\n;LAYER_CHANGE\n;Z:0.2\nG0 X0 Y0 Z0.2 F6000\nG1 X100 E5 F3000\n\
+                  ;LAYER_CHANGE\n;Z:0.4\nG1 Z0.4\nG1 X0 E10\n";
+        let s = stats(g, &Profile::ender3()).expect("stats");
+        assert_eq!(s.layers, 2);
+        assert_eq!(s.layer_source, "markers");
+        assert!((s.filament_mm - 10.0).abs() < 1e-9);
+        assert_eq!(s.bbox_mm.max[0], 100.0);
+        assert!(
+            s.print_time_s > 4.0 && s.print_time_s < 6.0,
+            "{}",
+            s.print_time_s
+        );
+        assert_eq!(s.layer_times.len(), 2);
+        assert_eq!(s.layer_times[1].z_mm, Some(0.4));
+        let sum: f64 = s.layer_times.iter().map(|l| l.time_s).sum();
+        assert!((sum - s.print_time_s).abs() < 1e-9);
+    }
+
+    #[test]
+    fn z_layers_without_markers() {
+        let g = b"G1 Z0.2 F600\nG1 X10 E1 F1200\nG1 Z0.4\nG1 X0 E2\nG1 Z0.6\nG1 X10 E3\n";
+        let s = stats(g, &Profile::ender3()).expect("stats");
+        assert_eq!(s.layer_source, "z");
+        assert_eq!(s.layers, 3);
+    }
+}
