@@ -62,6 +62,15 @@ impl Printer {
                 return;
             }
             if !manual && !self.line_room() {
+                // Paused with a full queue: the host's line waits for its `ok`; keep the host
+                // from timing out.
+                if self.phase != Phase::Run
+                    && self.link.lines_waiting() > 0
+                    && self.now_us.saturating_sub(self.last_busy_us) >= super::BUSY_PERIOD_US
+                {
+                    self.last_busy_us = self.now_us;
+                    self.link.respond(Response::Busy);
+                }
                 return;
             }
             let Some(line) = self.link.pop_line() else {
