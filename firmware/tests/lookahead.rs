@@ -210,3 +210,53 @@ fn step_times_from_standstill_follow_the_profile() {
     }
     assert!(sg.next_event().is_none());
 }
+
+#[test]
+fn speed_up_is_bounded_by_axis_limits_and_volumetric_flow() {
+    use firmware::planner::{kinematics, sped_up_mm_s};
+    let c = cfg();
+    // 10 mm X with 0.5 mm of filament: 0.05 mm filament per mm; 1.75 mm filament area
+    // 2.405 mm² → 0.1203 mm³ per mm of path; 12 mm³/s allows 99.8 mm/s.
+    let k = kinematics(&c, &[800, 0, 0, (0.5 * 93.0) as i32], 40.0).unwrap();
+    let v = sped_up_mm_s(&k, 3.0, 12.0, 1.75);
+    let area = std::f32::consts::PI * 0.875 * 0.875;
+    let limit = 12.0 / (area * k.e_per_mm);
+    assert!((v - limit).abs() < 0.01 && v < 120.0, "{v} vs {limit}");
+    // Travel (no E): ×3 up to the axis limit.
+    let t = kinematics(&c, &[800, 0, 0, 0], 40.0).unwrap();
+    assert_eq!(sped_up_mm_s(&t, 3.0, 12.0, 1.75), 120.0);
+    let fast = kinematics(&c, &[800, 0, 0, 0], 400.0).unwrap();
+    assert_eq!(sped_up_mm_s(&fast, 3.0, 12.0, 1.75), 500.0);
+    // Never slower than nominal, and factor 1 is off.
+    let slow = kinematics(&c, &[800, 0, 0, 930], 40.0).unwrap();
+    assert_eq!(sped_up_mm_s(&slow, 3.0, 1.0, 1.75), slow.nominal_mm_s);
+    assert_eq!(sped_up_mm_s(&t, 1.0, 12.0, 1.75), 40.0);
+}
+
+#[test]
+fn layer_request_speeds_up_blocks_before_the_barrier_only() {
+    use firmware::motion::{LayerMark, LayerSource};
+    let mut p = planner(true);
+    mv(&mut p, 4.0, 0.0, 20.0, 1);
+    p.push_mark(LayerMark {
+        layer: 1,
+        z_um: None,
+        source: LayerSource::Comment,
+    })
+    .unwrap();
+    mv(&mut p, 4.0, 4.0, 20.0, 2);
+    let first_id = p.get(0).unwrap().id;
+    p.set_barrier(first_id + 20);
+    p.speed_up();
+    for k in 0..p.len() {
+        let b = p.get(k).unwrap();
+        if b.seq == 1 {
+            assert_eq!(b.nominal_v2, 60.0 * 60.0, "sped up ×3");
+        } else {
+            assert_eq!(b.nominal_v2, 20.0 * 20.0, "behind the barrier: untouched");
+        }
+    }
+    // The plan stops at the barrier: the last block before it can stop.
+    let last = p.get(19).unwrap();
+    assert!(last.entry_v2 <= 2.0 * last.accel_mm_s2 * last.len_mm * 1.0001);
+}
