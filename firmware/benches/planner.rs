@@ -69,6 +69,21 @@ fn bench(c: &mut Criterion) {
     g.bench_function("segment_incl_lookahead", |b| {
         b.iter(|| plan(&cfg, black_box(&moves)))
     });
+    // Worst case for the lookahead: a straight line sent as separate 0.2 mm moves at
+    // 150 mm/s: the ring (12.8 mm) is shorter than the braking distance (22.5 mm), so every new
+    // block raises every entry and the backward pass covers the whole ring each time.
+    let worst: Vec<MoveRequest> = (1..=2000)
+        .map(|k| MoveRequest {
+            target: [k * 16, 8000, 0, 0],
+            feed_mm_s: 150.0,
+            seq: k as u32,
+        })
+        .collect();
+    let wsegs = plan(&cfg, &worst);
+    g.throughput(Throughput::Elements(wsegs as u64));
+    g.bench_function("segment_worst_case_short_moves", |b| {
+        b.iter(|| plan(&cfg, black_box(&worst)))
+    });
     g.finish();
 
     // Step events: one 50 mm diagonal move with extrusion, cut into 0.2 mm segments.
