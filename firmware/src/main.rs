@@ -71,28 +71,24 @@ mod image {
     static USB_OUT: Pipe<CriticalSectionRawMutex, OUT_PIPE> = Pipe::new();
     static UART_OUT: Pipe<CriticalSectionRawMutex, OUT_PIPE> = Pipe::new();
 
-    /// Executive time = board time − offset (homing runs outside the executive's timeline and
-    /// shifts it). Frozen while homing.
-    struct TimeBase {
-        offset_ns: u64,
-        frozen_ns: Option<u64>,
-    }
-    static TIME: critical_section::Mutex<core::cell::Cell<(u64, Option<u64>)>> =
-        critical_section::Mutex::new(core::cell::Cell::new((0, None)));
+    /// Step events run this much later than the executive stamped them (ns). The executive's
+    /// clock is the board's clock; only its motion timeline is shifted, after a G28 whose
+    /// physical homing took longer than the planned homing move. Back to 0 whenever motion
+    /// comes to rest (the next block then starts from the current time).
+    static MOTION_OFFSET_NS: critical_section::Mutex<core::cell::Cell<u64>> =
+        critical_section::Mutex::new(core::cell::Cell::new(0));
 
-    fn timebase() -> TimeBase {
-        let (offset_ns, frozen_ns) = critical_section::with(|cs| TIME.borrow(cs).get());
-        TimeBase {
-            offset_ns,
-            frozen_ns,
-        }
+    fn motion_offset_ns() -> u64 {
+        critical_section::with(|cs| MOTION_OFFSET_NS.borrow(cs).get())
     }
 
-    /// The executive's clock, ns.
+    fn set_motion_offset_ns(v: u64) {
+        critical_section::with(|cs| MOTION_OFFSET_NS.borrow(cs).set(v));
+    }
+
+    /// The executive's clock, ns (the board's TIM5 time base).
     fn printer_now_ns() -> u64 {
-        let tb = timebase();
-        tb.frozen_ns
-            .unwrap_or_else(|| clock::now_ns().saturating_sub(tb.offset_ns))
+        clock::now_ns()
     }
 
     fn printer_now_us() -> u64 {
@@ -274,7 +270,7 @@ mod image {
         held: &mut Option<StepEvent>,
     ) -> Option<(u64, u8)> {
         let now = printer_now_ns();
-        let offset = timebase().offset_ns;
+        let offset = motion_offset_ns();
         let to_pin = |ev: &StepEvent| PinEvent {
             t_ticks: (ev.t_ns + offset) / clock::NS_PER_TICK,
             axis_mask: ev.axis_mask,
@@ -291,7 +287,7 @@ mod image {
         }
         while producer.ready() {
             let Some(t) = p.next_step_ns() else { break };
-            if t > now + LOOKAHEAD_NS && homing_end.is_none() {
+            if t + offset > now + LOOKAHEAD_NS && homing_end.is_none() {
                 break;
             }
             let Some(ev) = p.next_step() else { break };
@@ -314,6 +310,14 @@ mod image {
         if queued {
             stepper::with(|s| s.pins.set_enabled(true));
             stepper::kick();
+        } else if offset != 0
+            && held.is_none()
+            && homing_end.is_none()
+            && p.next_step_ns().is_none()
+            && !stepper::with(|s| s.running).unwrap_or(false)
+        {
+            // Motion is at rest: the next block starts from the current time.
+            set_motion_offset_ns(0);
         }
         homing_end
     }
@@ -336,13 +340,10 @@ mod image {
     }
 
     /// G28: waits for queued steps to finish, then homes the axes in `mask` (X, Y, then Z) on
-    /// their endstops and resumes the executive's timeline where its homing block ended.
+    /// their endstops, and shifts the executive's motion timeline so that what follows its
+    /// homing move starts now. The executive's clock keeps running meanwhile (the heaters and
+    /// their protection are sampled as usual).
     async fn home_all(printer: Shared, homing_end_ns: u64, mask: u8) {
-        let freeze = printer_now_ns();
-        critical_section::with(|cs| {
-            let (off, _) = TIME.borrow(cs).get();
-            TIME.borrow(cs).set((off, Some(freeze)));
-        });
         // Let the interrupt drain everything before the homing block.
         while stepper::with(|s| s.running).unwrap_or(false) {
             Timer::after_micros(500).await;
@@ -402,12 +403,8 @@ mod image {
                 s.homed = 0;
             }
         });
-        // Resume the executive's time where its homing block ended.
-        let resume_at = homing_end_ns.max(freeze);
-        let now = clock::now_ns();
-        critical_section::with(|cs| {
-            TIME.borrow(cs).set((now.saturating_sub(resume_at), None));
-        });
+        // What the executive planned after its homing move starts now.
+        set_motion_offset_ns(clock::now_ns().saturating_sub(homing_end_ns));
         let mut p = printer.borrow_mut();
         if !ok {
             p.request(Realtime::EmergencyStop, printer_now_us());
