@@ -24,7 +24,9 @@ pub struct LinkConfig {
     pub numbered: bool,
     /// Drop comments and blank lines before sending (printcore and OctoPrint do).
     pub strip_comments: bool,
-    /// The first line of a session (printcore: `M110` numbered `N-1`, resetting the counter).
+    /// Start the session with `M110 N0` (unnumbered, resetting the printer's line counter; the
+    /// job then starts at `N1`). printcore writes `N-1 M110` instead, which the firmware's link
+    /// rejects as a bad line number (and then takes `N0` for a duplicate): see docs/sim.md.
     pub reset_line: bool,
     /// The printer answers a realtime line with its own `ok` (the firmware's link does): the
     /// host counts it against that line, so exactly one job line is in flight at a time.
@@ -396,10 +398,10 @@ impl Host {
         if !self.started {
             self.started = true;
             if self.cfg.reset_line && numbered {
-                // printcore: `N-1 M110*..` resets the printer's line counter to -1.
-                self.next_n = -1;
-                self.first_n = -1;
-                self.write_line("M110", Origin::Setup, true, now_us);
+                // `M110 N0`: the printer's last line number is now 0, the job starts at N1.
+                self.next_n = 1;
+                self.first_n = 1;
+                self.write_line("M110 N0", Origin::Setup, false, now_us);
                 self.clear = false;
                 self.awaiting_ok = true;
                 return;
@@ -571,29 +573,29 @@ mod tests {
         let mut h = Host::new(LinkConfig::default(), job);
         h.pump(0);
         assert_eq!(h.sent().len(), 1);
-        assert_eq!(h.sent()[0].wire, numbered_line(-1, "M110"));
+        assert_eq!(h.sent()[0].wire, "M110 N0");
         // Nothing more until ok.
         h.pump(10);
         assert_eq!(h.sent().len(), 1);
         let t = answer(&mut h, 1000, "ok");
         assert_eq!(h.sent().len(), 2);
-        assert_eq!(h.sent()[1].wire, numbered_line(0, "G28"));
+        assert_eq!(h.sent()[1].wire, numbered_line(1, "G28"));
         assert_eq!(h.sent()[1].origin, Origin::Job(0));
         let t = answer(&mut h, t, "ok");
         assert_eq!(h.sent()[2].origin, Origin::Job(3));
-        assert_eq!(h.sent()[2].n, Some(1));
-        // The printer asks for line 1 again.
-        let t = answer(&mut h, t, "Resend: 1");
+        assert_eq!(h.sent()[2].n, Some(2));
+        // The printer asks for line 2 again.
+        let t = answer(&mut h, t, "Resend: 2");
         assert_eq!(h.sent().len(), 3);
         let t = answer(&mut h, t, "ok");
-        assert_eq!(h.sent()[3].wire, numbered_line(1, "G1 X1"));
+        assert_eq!(h.sent()[3].wire, numbered_line(2, "G1 X1"));
         assert_eq!(h.resends, 1);
         let t = answer(&mut h, t, "ok");
-        assert_eq!(h.sent()[4].wire, numbered_line(2, "G1 X2"));
+        assert_eq!(h.sent()[4].wire, numbered_line(3, "G1 X2"));
         assert!(!h.done());
         answer(&mut h, t, "ok");
         assert!(h.done());
-        assert_eq!(h.origin_of(2), Some(Origin::Job(4)));
+        assert_eq!(h.origin_of(3), Some(Origin::Job(4)));
     }
 
     #[test]

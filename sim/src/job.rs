@@ -43,7 +43,7 @@ impl Default for HostState {
 pub struct LineInfo {
     /// A G0/G1/G2/G3 with some axis motion.
     pub is_move: bool,
-    /// Moves X/Y (or Z) while E advances: deposits plastic.
+    /// Moves X or Y while E advances by at least one step (the firmware's definition).
     pub extrudes: bool,
     /// Layer the line belongs to (`None` before the first layer).
     pub layer: Option<u32>,
@@ -136,25 +136,25 @@ impl JobInfo {
     pub fn parse(lines: &[String]) -> Self {
         let mut st = HostState::default();
         let mut out = Vec::with_capacity(lines.len());
-        let layers = crate::layers::detect(lines);
+        let facts = crate::layers::analyse(lines);
         let mut layer_starts = Vec::new();
         let mut cur_layer: Option<u32> = None;
         for (i, line) in lines.iter().enumerate() {
-            if let Some(Some(l)) = layers.get(i) {
-                layer_starts.push((*l, i));
-                cur_layer = Some(*l);
+            let f = facts.get(i).copied().unwrap_or_default();
+            if let Some(l) = f.mark {
+                layer_starts.push((l, i));
+                cur_layer = Some(l);
             }
             let start_mm = st.pos_mm;
-            let (is_move, extrudes, parse_error) = match parse_line(line.as_bytes()) {
+            let (is_move, parse_error) = match parse_line(line.as_bytes()) {
                 Ok(l) => match l.command {
-                    Some(cmd) => {
-                        let (m, e) = apply(&mut st, &cmd);
-                        (m, e, false)
-                    }
-                    None => (false, false, false),
+                    Some(cmd) => (apply(&mut st, &cmd).0, false),
+                    None => (false, false),
                 },
-                Err(_) => (false, false, true),
+                Err(_) => (false, true),
             };
+            // Extruding as the firmware counts it (at least one E step with XY motion).
+            let extrudes = f.extrudes;
             out.push(LineInfo {
                 is_move,
                 extrudes,

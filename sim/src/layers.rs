@@ -9,13 +9,30 @@ use firmware::machine::MachineState;
 
 /// For each line, the layer number whose mark is placed before that line (0-based), if any.
 pub fn detect(lines: &[String]) -> Vec<Option<u32>> {
+    analyse(lines).into_iter().map(|l| l.mark).collect()
+}
+
+/// What the firmware's front end makes of one line.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LineFacts {
+    /// Layer mark placed before the line.
+    pub mark: Option<u32>,
+    /// The line moves X or Y and advances E by at least one step (the firmware's definition of
+    /// an extruding move).
+    pub extrudes: bool,
+    /// The line moves some axis by at least one step.
+    pub moved: bool,
+}
+
+/// Run the firmware's machine state and layer detector over the job.
+pub fn analyse(lines: &[String]) -> Vec<LineFacts> {
     let cfg = MachineConfig::ENDER3;
     let mut m = MachineState::new(&cfg);
     let mut d = LayerDetector::new();
     let mut out = Vec::with_capacity(lines.len());
     for text in lines {
         let Ok(line) = parse_line(text.as_bytes()) else {
-            out.push(None);
+            out.push(LineFacts::default());
             continue;
         };
         let before = m.position_steps(&cfg);
@@ -24,7 +41,11 @@ pub fn detect(lines: &[String]) -> Vec<Option<u32>> {
             let _ = m.apply(cmd, &cfg);
         }
         let facts = MoveFacts::between(&before, &m.position_steps(&cfg), &cfg);
-        out.push(d.feed(&line, facts).map(|mark| mark.layer));
+        out.push(LineFacts {
+            mark: d.feed(&line, facts).map(|mark| mark.layer),
+            extrudes: facts.extrudes,
+            moved: before != m.position_steps(&cfg),
+        });
     }
     out
 }

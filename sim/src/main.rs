@@ -79,6 +79,10 @@ struct RunArgs {
     /// Also measure the print-time cost of segmentation (one more run without it).
     #[arg(long)]
     seg_cost: bool,
+    /// Send comments too (printcore and OctoPrint strip them; the firmware then finds layers
+    /// by Z rise instead of the slicer's markers).
+    #[arg(long)]
+    keep_comments: bool,
 }
 
 #[derive(clap::Args)]
@@ -157,6 +161,7 @@ fn cmd_run(a: RunArgs) -> anyhow::Result<()> {
         None
     };
     sc.link.baud = a.baud.max(300);
+    sc.link.strip_comments = !a.keep_comments;
     sc.queue_limit = a.buffer.max(2);
     sc.segment_len_mm = a.segment;
     sc.split_mm = a.split;

@@ -242,6 +242,12 @@ pub fn compute<E: Executive>(
     rep.pause_point_steps = Some(stop_pos);
     if let Some(t) = facts.t_req_us {
         rep.stop_s = Some(t_stop.saturating_sub(t) as f64 * 1e-6);
+        // Motion identical to the reference up to the stop: the stop itself is the first change.
+        if let (Some(r), Some(s)) = (rep.reaction_s, rep.stop_s) {
+            if r > s {
+                rep.reaction_s = Some(s);
+            }
+        }
         // Travel: the part of the block in progress at the request, then whole blocks.
         let mut travel = 0.0;
         if facts.records_before_req > 0 {

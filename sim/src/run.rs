@@ -177,11 +177,15 @@ pub struct Outcome<E: Executive> {
     pub timeline: Vec<TimelineEvent>,
 }
 
-/// Make a job ready for a policy: host-split pre-splits it.
-pub fn prepare_job(policy: Policy, job: &[String], split_mm: f64) -> Vec<String> {
+/// Make a job ready for a policy: host-split pre-splits it. Returns the lines to send and,
+/// for each, the line of the original job it came from.
+pub fn prepare_job(policy: Policy, job: &[String], split_mm: f64) -> (Vec<String>, Vec<usize>) {
     match policy {
-        Policy::HostSplit => split::split_job(job, split_mm).lines,
-        _ => job.to_vec(),
+        Policy::HostSplit => {
+            let s = split::split_job(job, split_mm);
+            (s.lines, s.source)
+        }
+        _ => (job.to_vec(), (0..job.len()).collect()),
     }
 }
 
@@ -191,12 +195,13 @@ fn new_engine<F: Factory>(f: &F, sc: &Scenario, job: Vec<String>) -> Engine<F::E
     Engine::new(fw, host)
 }
 
-/// Time at `fraction` of the execution of job line `line`, from a trial run.
+/// Time at `fraction` of the execution of the sent lines `lines` (the pieces of one original
+/// line), from a trial run.
 fn line_time<F: Factory>(
     f: &F,
     sc: &Scenario,
     job: &[String],
-    line: usize,
+    lines: std::ops::RangeInclusive<usize>,
     fraction: f64,
 ) -> Option<u64> {
     let mut e = new_engine(f, sc, job.to_vec());
@@ -204,7 +209,10 @@ fn line_time<F: Factory>(
     loop {
         match e.advance(sc.max_time_us, true) {
             Stop::Step(ev) => {
-                let here = e.origin_of_seq(ev.tag.seq) == Some(Origin::Job(line));
+                let here = matches!(
+                    e.origin_of_seq(ev.tag.seq),
+                    Some(Origin::Job(l)) if lines.contains(&l)
+                );
                 match (t0, here) {
                     (None, true) => t0 = Some(ev.t_us),
                     (Some(t), false) => {
@@ -234,7 +242,7 @@ pub fn run<F: Factory>(
     job_lines: &[String],
 ) -> anyhow::Result<Outcome<F::Exec>> {
     let wall = std::time::Instant::now();
-    let job = prepare_job(sc.policy, job_lines, sc.split_mm);
+    let (job, source) = prepare_job(sc.policy, job_lines, sc.split_mm);
     let info = JobInfo::parse(&job);
     let mut a = new_engine(f, sc, job.clone());
     let mut b = new_engine(f, sc, job.clone());
@@ -252,7 +260,13 @@ pub fn run<F: Factory>(
         None => None,
         Some(PauseWhen::AtUs(t)) => Some(t),
         Some(PauseWhen::DuringLine { line, fraction }) => {
-            Some(line_time(f, sc, &job, line, fraction).ok_or_else(|| {
+            let first = source.iter().position(|&s| s == line);
+            let last = source.iter().rposition(|&s| s == line);
+            let range = first
+                .zip(last)
+                .map(|(a, b)| a..=b)
+                .unwrap_or(usize::MAX..=usize::MAX);
+            Some(line_time(f, sc, &job, range, fraction).ok_or_else(|| {
                 anyhow::anyhow!("job line {line} never executes: no moment to pause in")
             })?)
         }
@@ -327,9 +341,6 @@ pub fn run<F: Factory>(
         }
         // Lock-step until the motion differs.
         facts.reaction_us = lockstep(&mut a, &mut b, t, sc.max_time_us);
-        if let Some(r) = facts.reaction_us {
-            note(r, "first change of motion (reaction)".into());
-        }
     } else if let Some(PauseWhen::AtLayer(_)) = sc.pause {
         facts.t_req_us = None;
     }
@@ -376,6 +387,12 @@ pub fn run<F: Factory>(
         c.run_to_end(sc.max_time_us);
         let t_plain = c.rec.last_step_us as f64 * 1e-6;
         report.segmentation_cost_s = Some(report.print_time_unpaused_s - t_plain);
+    }
+    if let Some((r, t)) = report.reaction_s.zip(facts.t_req_us) {
+        note(
+            t + (r * 1e6) as u64,
+            "first change of motion (reaction)".into(),
+        );
     }
     if let Some(ts) = report.stop_s.zip(facts.t_req_us) {
         note(

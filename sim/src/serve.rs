@@ -27,7 +27,7 @@ use nix::poll::{poll, PollFd, PollFlags, PollTimeout};
 use nix::sys::termios;
 use std::collections::BTreeMap;
 use std::io::Write as _;
-use std::os::fd::{AsFd, AsRawFd, OwnedFd};
+use std::os::fd::{AsFd, OwnedFd};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -83,6 +83,7 @@ struct PauseTrack {
     stopped: Option<(u64, [i32; 4], Option<u32>, bool)>,
     parked_us: Option<u64>,
     resume_req_us: Option<u64>,
+    rec_idx_resume: usize,
     resumed: Option<(u64, [i32; 4])>,
 }
 
@@ -136,8 +137,21 @@ fn open_pty() -> anyhow::Result<(OwnedFd, OwnedFd, PathBuf)> {
     Ok((pty.master, pty.slave, path))
 }
 
-/// Run the virtual printer until the session ends.
+/// Run the virtual printer until the session ends; prints the device path on stdout.
 pub fn serve(a: ServeArgs) -> anyhow::Result<()> {
+    serve_with(a, |path| {
+        println!("{}", path.display());
+        let _ = std::io::stdout().flush();
+    })
+    .map(|_| ())
+}
+
+/// Run the virtual printer until the session ends, calling `ready` with the device path once
+/// it can be opened. Returns the pause records (also written to `--record` if given).
+pub fn serve_with(
+    a: ServeArgs,
+    ready: impl FnOnce(&std::path::Path),
+) -> anyhow::Result<Vec<PauseReport>> {
     if !(a.speed.is_finite() && a.speed > 0.0) {
         anyhow::bail!("--speed must be a positive number");
     }
@@ -147,8 +161,7 @@ pub fn serve(a: ServeArgs) -> anyhow::Result<()> {
         std::os::unix::fs::symlink(&path, l).with_context(|| format!("symlink {}", l.display()))?;
     }
     install_signals();
-    println!("{}", path.display());
-    let _ = std::io::stdout().flush();
+    ready(&path);
     eprintln!(
         "sim serve: virtual printer on {} ({} policy, {}× real time); Ctrl-C ends the session",
         path.display(),
@@ -172,7 +185,6 @@ pub fn serve(a: ServeArgs) -> anyhow::Result<()> {
     let mut last_poll_us = 0u64;
     let mut first_byte_us: Option<u64> = None;
     let mut hung_up = false;
-    let fd = master.as_raw_fd();
     loop {
         if STOP.load(Ordering::SeqCst) {
             break;
@@ -257,7 +269,6 @@ pub fn serve(a: ServeArgs) -> anyhow::Result<()> {
             let _ = poll(&mut fds, PollTimeout::from(wait_ms.clamp(0, 2) as u16));
         }
     }
-    let _ = fd;
     drop(slave);
     let end_us = rec.last_step_us;
     let reports = reports(&pauses, &rec, &fw, &sc, first_byte_us.unwrap_or(0), end_us);
@@ -273,7 +284,7 @@ pub fn serve(a: ServeArgs) -> anyhow::Result<()> {
     if let Some(l) = &a.link {
         let _ = std::fs::remove_file(l);
     }
-    Ok(())
+    Ok(reports)
 }
 
 fn note_request(
@@ -303,6 +314,7 @@ fn note_request(
             if let Some(p) = pauses.last_mut() {
                 if p.resume_req_us.is_none() && p.stopped.is_some() {
                     p.resume_req_us = Some(now_us);
+                    p.rec_idx_resume = rec.records.len().saturating_sub(1);
                 }
             }
         }
@@ -340,12 +352,12 @@ fn track(pauses: &mut [PauseTrack], fw: &PrinterExec, rec: &Recorder, seen: &mut
     }
     *seen = fw.notes.len();
     if p.resume_req_us.is_some() && p.resumed.is_none() {
+        let t_res = p.resume_req_us.unwrap_or(0);
         if let Some(r) = rec
             .records
             .iter()
-            .rev()
-            .take(4)
-            .find(|r| r.tag.lane == Lane::Job && r.t_start_us >= p.resume_req_us.unwrap_or(0))
+            .skip(p.rec_idx_resume)
+            .find(|r| r.tag.lane == Lane::Job && r.t_start_us >= t_res)
         {
             p.resumed = Some((r.t_start_us, r.start));
         }
