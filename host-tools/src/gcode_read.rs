@@ -170,6 +170,83 @@ impl Words {
     }
 }
 
+/// Centre of an arc from `from` to `to` given I/J offsets (already scaled) or a radius R
+/// (negative R = the long way round).
+fn arc_center(
+    from: Pos4,
+    to: Pos4,
+    ij: Option<(f64, f64)>,
+    r: Option<f64>,
+    ccw: bool,
+) -> Result<(f64, f64), &'static str> {
+    match (ij, r) {
+        (Some((i, j)), _) => Ok((from[0] + i, from[1] + j)),
+        (None, Some(r)) => {
+            let (dx, dy) = (to[0] - from[0], to[1] - from[1]);
+            let d = (dx * dx + dy * dy).sqrt();
+            if d < 1e-9 || d > 2.0 * r.abs() + 1e-6 {
+                return Err("arc radius too small for its end point");
+            }
+            let h = (r * r - 0.25 * d * d).max(0.0).sqrt();
+            let sgn = if (r > 0.0) == ccw { 1.0 } else { -1.0 };
+            Ok((
+                from[0] + 0.5 * dx - sgn * h * dy / d,
+                from[1] + 0.5 * dy + sgn * h * dx / d,
+            ))
+        }
+        (None, None) => Err("G2/G3 needs I/J or R"),
+    }
+}
+
+/// Emits an arc as chords no longer than `seg_mm`.
+#[allow(clippy::too_many_arguments)]
+fn expand_arc(
+    from: Pos4,
+    to: Pos4,
+    c: (f64, f64),
+    ccw: bool,
+    seg_mm: f64,
+    feed_mm_s: f64,
+    line: u32,
+    sink: &mut dyn FnMut(Event),
+) {
+    let (cx, cy) = c;
+    let r = (from[0] - cx).hypot(from[1] - cy);
+    let a0 = (from[1] - cy).atan2(from[0] - cx);
+    let a1 = (to[1] - cy).atan2(to[0] - cx);
+    let mut sweep = a1 - a0;
+    if ccw {
+        if sweep <= 1e-9 {
+            sweep += std::f64::consts::TAU;
+        }
+    } else if sweep >= -1e-9 {
+        sweep -= std::f64::consts::TAU;
+    }
+    let n = ((sweep.abs() * r / seg_mm).ceil() as usize).clamp(1, 10_000);
+    let mut prev = from;
+    for k in 1..=n {
+        let t = k as f64 / n as f64;
+        let p = if k == n {
+            to
+        } else {
+            let a = a0 + sweep * t;
+            [
+                cx + r * a.cos(),
+                cy + r * a.sin(),
+                from[2] + (to[2] - from[2]) * t,
+                from[3] + (to[3] - from[3]) * t,
+            ]
+        };
+        sink(Event::Move {
+            from: prev,
+            to: p,
+            feed_mm_s,
+            line,
+        });
+        prev = p;
+    }
+}
+
 impl FastReader {
     fn arc(
         &mut self,
@@ -179,72 +256,27 @@ impl FastReader {
         line: u32,
         sink: &mut dyn FnMut(Event),
     ) -> Result<(), ReadError> {
-        let from = self.pos;
         let scale = if self.inch { 25.4 } else { 1.0 };
-        let (cx, cy) = match (w.get(b'I'), w.get(b'J'), w.get(b'R')) {
-            (i, j, None) if i.is_some() || j.is_some() => (
-                from[0] + i.unwrap_or(0.0) * scale,
-                from[1] + j.unwrap_or(0.0) * scale,
-            ),
-            (None, None, Some(r)) => {
-                // R form: centre on the perpendicular bisector; negative R = long way round.
-                let r = r * scale;
-                let (dx, dy) = (to[0] - from[0], to[1] - from[1]);
-                let d = (dx * dx + dy * dy).sqrt();
-                if d < 1e-9 || d > 2.0 * r.abs() + 1e-6 {
-                    return Err(ReadError {
-                        line,
-                        msg: "arc radius too small for its end point".into(),
-                    });
-                }
-                let h = (r * r - 0.25 * d * d).max(0.0).sqrt();
-                let sgn = if (r > 0.0) == ccw { 1.0 } else { -1.0 };
-                (
-                    from[0] + 0.5 * dx - sgn * h * dy / d,
-                    from[1] + 0.5 * dy + sgn * h * dx / d,
-                )
-            }
-            _ => {
-                return Err(ReadError {
-                    line,
-                    msg: "G2/G3 needs I/J or R".into(),
-                })
-            }
+        let ij = match (w.get(b'I'), w.get(b'J')) {
+            (None, None) => None,
+            (i, j) => Some((i.unwrap_or(0.0) * scale, j.unwrap_or(0.0) * scale)),
         };
-        let r = (from[0] - cx).hypot(from[1] - cy);
-        let a0 = (from[1] - cy).atan2(from[0] - cx);
-        let a1 = (to[1] - cy).atan2(to[0] - cx);
-        let mut sweep = a1 - a0;
-        if ccw {
-            if sweep <= 1e-9 {
-                sweep += std::f64::consts::TAU;
-            }
-        } else if sweep >= -1e-9 {
-            sweep -= std::f64::consts::TAU;
-        }
-        let n = ((sweep.abs() * r / self.arc_seg_mm).ceil() as usize).clamp(1, 10_000);
-        let mut prev = from;
-        for k in 1..=n {
-            let t = k as f64 / n as f64;
-            let p = if k == n {
-                to
-            } else {
-                let a = a0 + sweep * t;
-                [
-                    cx + r * a.cos(),
-                    cy + r * a.sin(),
-                    from[2] + (to[2] - from[2]) * t,
-                    from[3] + (to[3] - from[3]) * t,
-                ]
-            };
-            sink(Event::Move {
-                from: prev,
-                to: p,
-                feed_mm_s: self.feed_mm_s,
+        let c = arc_center(self.pos, to, ij, w.get(b'R').map(|r| r * scale), ccw).map_err(|m| {
+            ReadError {
                 line,
-            });
-            prev = p;
-        }
+                msg: m.into(),
+            }
+        })?;
+        expand_arc(
+            self.pos,
+            to,
+            c,
+            ccw,
+            self.arc_seg_mm,
+            self.feed_mm_s,
+            line,
+            sink,
+        );
         self.pos = to;
         Ok(())
     }
@@ -459,6 +491,175 @@ impl GcodeReader for FastReader {
                 if !self.command(c, n, &words, line_no, sink)? {
                     counts.skipped += 1;
                 }
+            }
+        }
+        Ok(counts)
+    }
+}
+
+/// Reader over the firmware's own parser (`firmware::gcode::parse_line`), so the host reads
+/// exactly what the printer reads. Values arrive as `f32` (the firmware's precision) and are
+/// tracked in `f64`. Any line the firmware rejects is an error with its line number.
+#[derive(Clone, Debug)]
+pub struct FirmwareReader {
+    pos: Pos4,
+    abs_xyz: bool,
+    abs_e: bool,
+    inch: bool,
+    feed_mm_s: f64,
+    /// Longest chord used to expand G2/G3 arcs, mm.
+    pub arc_seg_mm: f64,
+}
+
+impl Default for FirmwareReader {
+    fn default() -> Self {
+        FirmwareReader {
+            pos: [0.0; 4],
+            abs_xyz: true,
+            abs_e: true,
+            inch: false,
+            feed_mm_s: 25.0,
+            arc_seg_mm: 0.5,
+        }
+    }
+}
+
+impl FirmwareReader {
+    fn target(&self, axes: &firmware::gcode::AxisWords) -> Pos4 {
+        let scale = if self.inch { 25.4 } else { 1.0 };
+        let mut to = self.pos;
+        for (k, v) in axes.0.iter().enumerate().take(4) {
+            if let Some(v) = v {
+                let v = *v as f64 * scale;
+                let abs = if k == 3 { self.abs_e } else { self.abs_xyz };
+                to[k] = if abs { v } else { to[k] + v };
+            }
+        }
+        to
+    }
+
+    fn set_feed(&mut self, f: Option<f32>) {
+        if let Some(f) = f {
+            let scale = if self.inch { 25.4 } else { 1.0 };
+            if f > 0.0 {
+                self.feed_mm_s = f as f64 * scale / 60.0;
+            }
+        }
+    }
+}
+
+impl GcodeReader for FirmwareReader {
+    fn read(&mut self, input: &[u8], sink: &mut dyn FnMut(Event)) -> Result<ReadCounts, ReadError> {
+        use firmware::gcode::{parse_line, Command};
+        let mut counts = ReadCounts::default();
+        let mut line_no: u32 = 0;
+        for raw in input.split(|&b| b == b'\n') {
+            line_no = line_no.saturating_add(1);
+            let raw = raw.strip_suffix(b"\r").unwrap_or(raw);
+            if raw.is_empty() {
+                continue;
+            }
+            counts.lines += 1;
+            let line = parse_line(raw).map_err(|e| ReadError {
+                line: line_no,
+                msg: format!("{e:?}"),
+            })?;
+            if let Some(c) = line.comment {
+                FastReader::default().comment(c, line_no, sink);
+            }
+            let Some(cmd) = line.command else { continue };
+            match cmd {
+                Command::Move { axes, feed, .. } => {
+                    self.set_feed(feed);
+                    let to = self.target(&axes);
+                    if to != self.pos {
+                        sink(Event::Move {
+                            from: self.pos,
+                            to,
+                            feed_mm_s: self.feed_mm_s,
+                            line: line_no,
+                        });
+                        self.pos = to;
+                    }
+                }
+                Command::Arc {
+                    clockwise,
+                    axes,
+                    i,
+                    j,
+                    r,
+                    feed,
+                } => {
+                    self.set_feed(feed);
+                    let to = self.target(&axes);
+                    let scale = if self.inch { 25.4 } else { 1.0 };
+                    let ij = match (i, j) {
+                        (None, None) => None,
+                        (i, j) => Some((
+                            i.unwrap_or(0.0) as f64 * scale,
+                            j.unwrap_or(0.0) as f64 * scale,
+                        )),
+                    };
+                    let c = arc_center(self.pos, to, ij, r.map(|r| r as f64 * scale), !clockwise)
+                        .map_err(|m| ReadError {
+                        line: line_no,
+                        msg: m.into(),
+                    })?;
+                    expand_arc(
+                        self.pos,
+                        to,
+                        c,
+                        !clockwise,
+                        self.arc_seg_mm,
+                        self.feed_mm_s,
+                        line_no,
+                        sink,
+                    );
+                    self.pos = to;
+                }
+                Command::Dwell { ms, s } => {
+                    let t = s.unwrap_or(0.0) as f64 + ms.unwrap_or(0.0) as f64 / 1000.0;
+                    if t > 0.0 {
+                        sink(Event::Dwell(t));
+                    }
+                }
+                Command::Inches => self.inch = true,
+                Command::Millimetres => self.inch = false,
+                Command::Absolute => {
+                    self.abs_xyz = true;
+                    self.abs_e = true;
+                }
+                Command::Relative => {
+                    self.abs_xyz = false;
+                    self.abs_e = false;
+                }
+                Command::AbsoluteE => self.abs_e = true,
+                Command::RelativeE => self.abs_e = false,
+                Command::SetPosition(axes) => {
+                    let scale = if self.inch { 25.4 } else { 1.0 };
+                    if axes.0.iter().all(|a| a.is_none()) {
+                        self.pos = [0.0; 4];
+                    }
+                    for (k, v) in axes.0.iter().enumerate().take(4) {
+                        if let Some(v) = v {
+                            self.pos[k] = *v as f64 * scale;
+                        }
+                    }
+                }
+                Command::Home(flags) => {
+                    for k in 0..3 {
+                        if flags.is_empty() || flags.0[k] {
+                            self.pos[k] = 0.0;
+                        }
+                    }
+                }
+                Command::SetAcceleration {
+                    print, travel, s, ..
+                } => sink(Event::Accel {
+                    print_mm_s2: print.or(s).map(f64::from),
+                    travel_mm_s2: travel.or(s).map(f64::from),
+                }),
+                _ => counts.skipped += 1,
             }
         }
         Ok(counts)

@@ -1,0 +1,129 @@
+//! Every paper example in `host-tools/examples/` compiles, and its G-code reads back with both
+//! our reader and the firmware's parser; a few examples' printability results are pinned.
+
+use host_tools::checks::{check, CheckOptions, IssueKind};
+use host_tools::profile::Profile;
+use host_tools::script::ScriptRunner;
+use host_tools::stats::stats;
+use host_tools::writer::{GcodeWriter, WriteOptions};
+use std::path::PathBuf;
+
+fn examples_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("examples")
+}
+
+fn compile(name: &str) -> (host_tools::model::Model, String) {
+    let p = Profile::ender3();
+    let out = ScriptRunner::new(p.clone())
+        .run_file(&examples_dir().join(name))
+        .unwrap_or_else(|e| panic!("{name}: {e}"));
+    let w = GcodeWriter::new(&p, WriteOptions::default());
+    let (g, _) = w
+        .to_string(&out.model)
+        .unwrap_or_else(|e| panic!("{name}: {e}"));
+    (out.model, g)
+}
+
+const ALL: &[&str] = &[
+    "spiral_cylinder.rhai",
+    "twisted_square_pyramid.rhai",
+    "widening_pattern.rhai",
+    "fractal_tree.rhai",
+    "growing_angle.rhai",
+    "cup.rhai",
+    "dish.rhai",
+    "dish_closures.rhai",
+    "sphere.rhai",
+    "globe.rhai",
+    "heart_dish.rhai",
+    "twisted_vase.rhai",
+];
+
+#[test]
+fn every_example_compiles_inside_the_bed() {
+    let listed: std::collections::BTreeSet<String> = std::fs::read_dir(examples_dir())
+        .map(|d| {
+            d.filter_map(|e| e.ok())
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .filter(|n| n.ends_with(".rhai"))
+                .collect()
+        })
+        .unwrap_or_default();
+    for n in &listed {
+        assert!(
+            ALL.contains(&n.as_str()),
+            "example {n} is not in the test list"
+        );
+    }
+    let p = Profile::ender3();
+    for name in ALL {
+        let (m, g) = compile(name);
+        assert!(
+            m.string_count() > 100,
+            "{name}: {} strings",
+            m.string_count()
+        );
+        let rep = check(&m, &p, &CheckOptions::default());
+        assert_eq!(rep.count(IssueKind::OutsideBed), 0, "{name}");
+        assert_eq!(rep.count(IssueKind::FlowTooHigh), 0, "{name}");
+        let s = stats(g.as_bytes(), &p).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert!(s.print_time_s > 10.0, "{name}");
+        assert!(s.layers >= 3, "{name}: {} layers", s.layers);
+        assert!(!g.contains("NaN") && !g.contains("inf"), "{name}");
+    }
+}
+
+#[test]
+fn spiral_cylinder_matches_the_paper() {
+    // 16 turns × 72 steps of 5°, 0.4 mm per turn.
+    let (m, g) = compile("spiral_cylinder.rhai");
+    assert_eq!(m.string_count(), 16 * 72);
+    let bb = m.bbox();
+    assert!((bb.max.z - bb.min.z - 6.4).abs() < 1e-9);
+    assert_eq!(g.matches(";LAYER_CHANGE").count(), 16);
+    assert!(check(&m, &Profile::ender3(), &CheckOptions::default()).is_clean());
+}
+
+#[test]
+fn fractal_tree_returns_by_travel() {
+    // pop() travels back: there are as many travels as branch returns, none extrudes.
+    let (m, _) = compile("fractal_tree.rhai");
+    let travels = m
+        .steps
+        .iter()
+        .filter(|s| matches!(s, host_tools::model::Step::Travel { .. }))
+        .count();
+    // 3 layers × (2^7 − 1 branches, each popped back except the trunk) + 3 moves between layers
+    assert!(travels > 3 * 100, "{travels}");
+    let rep = check(&m, &Profile::ender3(), &CheckOptions::default());
+    // The returns cross printed branches: the stringing the paper describes is reported.
+    assert!(rep.count(IssueKind::TravelCrossesPrint) > 0);
+    assert_eq!(rep.count(IssueKind::Unsupported), 0);
+}
+
+#[test]
+fn globe_has_45000_strings_and_turn_markers() {
+    let (m, g) = compile("globe.rhai");
+    assert_eq!(m.string_count(), 45_000);
+    assert_eq!(g.matches(";LAYER_CHANGE").count(), 150);
+    // thinning at emission leaves fewer G1 lines than strings
+    let g1 = g.lines().filter(|l| l.starts_with("G1 X")).count();
+    assert!(g1 < 45_000 && g1 > 25_000, "{g1}");
+}
+
+#[test]
+fn widening_too_fast_is_reported() {
+    let src = std::fs::read_to_string(examples_dir().join("widening_pattern.rhai"))
+        .unwrap_or_default()
+        .replace("let growth = 0.00005;", "let growth = 0.001;");
+    let p = Profile::ender3();
+    let out = ScriptRunner::new(p.clone())
+        .run("fast.rhai", &src, &examples_dir())
+        .unwrap_or_else(|e| panic!("{e}"));
+    let rep = check(&out.model, &p, &CheckOptions::default());
+    assert!(
+        rep.count(IssueKind::WideningTooFast) > 0,
+        "{:?}",
+        rep.counts
+    );
+}

@@ -1,0 +1,150 @@
+//! Golden tests: small designs whose exact G-code is checked line by line.
+
+use glam::DVec3;
+use host_tools::model::{Arc, MarkerKind, Model, Step, Str};
+use host_tools::profile::{EMode, Profile};
+use host_tools::turtle::Turtle;
+use host_tools::writer::{GcodeWriter, WriteOptions};
+
+fn bare(profile: &Profile, m: &Model) -> String {
+    let w = GcodeWriter::new(
+        profile,
+        WriteOptions {
+            bare: true,
+            header: None,
+        },
+    );
+    w.to_string(m)
+        .map(|(s, _)| s)
+        .unwrap_or_else(|e| format!("ERROR {e}"))
+}
+
+/// A 10 mm square drawn by the turtle: 0.2 mm² strings with 1.75 mm filament give
+/// E = 0.2 × 10 / (π 0.875²) = 0.83158 mm per side; then a pen-up move (travel ≥ 1.5 mm:
+/// retract 5 mm, G0, prime) and one more string at a new speed.
+#[test]
+fn turtle_square_absolute_e() {
+    let mut t = Turtle::at(DVec3::new(10.0, 10.0, 0.2), 0.2, 20.0);
+    t.mark_layer(0.2);
+    for _ in 0..4 {
+        t.forward(10.0, 0.0).ok();
+        t.left(90.0).ok();
+    }
+    t.pen_up();
+    t.forward(5.0, 0.0).ok();
+    t.pen_down();
+    t.set_velocity(30.0).ok();
+    t.forward(5.0, 0.0).ok();
+    let got = bare(&Profile::ender3(), &t.into_model());
+    let want = "\
+M82
+G92 E0
+;LAYER_CHANGE
+;Z:0.2
+;HEIGHT:0.2
+G0 F7200 X10 Y10 Z0.2
+G1 X20 E0.832 F1200
+G1 Y20 E1.663
+G1 X10 E2.495
+G1 Y10 E3.326
+G1 F2400 E-1.674
+G0 F7200 X15
+G1 F2400 E3.326
+G1 X20 E3.742 F1800
+";
+    assert_eq!(got, want, "got:\n{got}");
+}
+
+/// The same in relative E (SKR 2 profile, 1 mm retraction at 35 mm/s).
+#[test]
+fn turtle_square_relative_e() {
+    let mut t = Turtle::at(DVec3::new(10.0, 10.0, 0.2), 0.2, 20.0);
+    for _ in 0..2 {
+        t.forward(10.0, 0.0).ok();
+        t.left(90.0).ok();
+    }
+    t.pen_up();
+    t.forward(5.0, 0.0).ok();
+    t.pen_down();
+    t.forward(5.0, 0.0).ok();
+    let p = Profile::builtin("skr2").expect("skr2");
+    assert_eq!(p.e_mode, EMode::Relative);
+    let got = bare(&p, &t.into_model());
+    let want = "\
+M83
+G92 E0
+G0 F9000 X10 Y10 Z0.2
+G1 X20 E0.832 F1200
+G1 Y20 E0.831
+G1 F2100 E-1
+G0 F9000 X15
+G1 F2100 E1
+G1 X10 E0.416 F1200
+";
+    assert_eq!(got, want, "got:\n{got}");
+}
+
+/// A helical arc (true G3 with Z), a turn marker, a fan and a temperature change.
+#[test]
+fn arc_and_state_changes() {
+    let mut m = Model::new([50.0, 50.0]);
+    m.push(Step::State(host_tools::model::StateChange::Fan(0.5)));
+    m.push(Step::Marker {
+        kind: MarkerKind::Turn,
+        z_mm: 0.3,
+        height_mm: 0.4,
+    });
+    m.push(Step::Type("External perimeter".into()));
+    m.push(Step::String(Str {
+        start: DVec3::new(60.0, 50.0, 0.3),
+        end: DVec3::new(50.0, 60.0, 0.4),
+        cross_mm2: 0.2,
+        speed_mm_s: 25.0,
+        arc: Some(Arc {
+            center_xy: [50.0, 50.0],
+            ccw: true,
+        }),
+    }));
+    m.push(Step::State(host_tools::model::StateChange::HotendTemp {
+        celsius: 210.0,
+        wait: false,
+    }));
+    let got = bare(&Profile::ender3(), &m);
+    // quarter circle r = 10: 15.708 mm in XY, 0.1 mm in Z → 15.70828 mm; E = 1.30629
+    let want = "\
+M82
+G92 E0
+M106 S128
+;LAYER_CHANGE
+;Z:0.3
+;HEIGHT:0.4
+;TYPE:External perimeter
+G0 F7200 X60 Y50 Z0.3
+G3 X50 Y60 Z0.4 I-10 J0 E1.306 F1500
+M104 S210
+";
+    assert_eq!(got, want, "got:\n{got}");
+}
+
+/// With start/end code: temperatures set by the design's `init` fill the start code and are
+/// not repeated; the header comment comes first.
+#[test]
+fn start_code_takes_the_design_temperatures() {
+    let mut t = Turtle::init(1.75, 215.0, 55.0, 0.2, 10.0, 10.0, 0.2).expect("init");
+    t.forward(10.0, 0.0).ok();
+    let p = Profile::ender3();
+    let w = GcodeWriter::new(
+        &p,
+        WriteOptions {
+            bare: false,
+            header: Some("hello".into()),
+        },
+    );
+    let (got, sum) = w.to_string(&t.into_model()).expect("write");
+    assert!(got.starts_with("; hello\nG90 ; absolute XYZ\nM140 S55\nM104 S215\n"));
+    assert!(got.contains("M109 S215\n"));
+    assert_eq!(got.matches("M109").count(), 1, "{got}");
+    assert!(got.ends_with("M84\n"));
+    assert_eq!(sum.strings, 1);
+    assert!((sum.filament_mm - 0.2 * 10.0 / (std::f64::consts::PI * 0.875 * 0.875)).abs() < 1e-12);
+}
