@@ -23,6 +23,18 @@ use crate::job::{Job, Section};
 use fallback::HostPause;
 use protocol::{frame, strip_comment, Action, Response, Temps};
 
+/// How long to wait for `//action:resumed` after `M24` before streaming anyway.
+pub const RESUME_WAIT: Duration = Duration::from_secs(60);
+
+/// Give up when the printer asks for the same line this many times in a row.
+pub const MAX_RESENDS: u32 = 10;
+
+/// Longest framed line (`N<n> <line>*<cs>`) sent to our firmware (`firmware::link::LINE_CAP`).
+pub const LINE_CAP_FIRMWARE: usize = firmware::link::LINE_CAP;
+
+/// Longest framed line sent to stock firmware (Marlin's `MAX_CMD_SIZE` is 96 bytes).
+pub const LINE_CAP_STOCK: usize = 96;
+
 /// How many sent lines are kept for `Resend:` requests.
 pub const HISTORY_LINES: usize = 1024;
 
@@ -100,6 +112,8 @@ pub enum State {
     Cancelled,
     /// Stopped on an error.
     Failed(String),
+    /// Resume requested from the firmware; waiting for `//action:resumed`.
+    Resuming,
 }
 
 /// Something worth telling the user.
@@ -171,6 +185,9 @@ enum Pending {
 
 #[derive(Clone, Debug, PartialEq)]
 enum Sync {
+    /// The harmless command that delivers the layer mark at the gate (firmware pause): once it
+    /// is acknowledged the mark is queued, and a realtime `M25` stops exactly there.
+    Trigger,
     /// M400 sent before the host pause sequence (pause now, host-side).
     HostDrain,
     /// M400 sent after the host pause sequence: paused when acknowledged.
@@ -251,6 +268,8 @@ pub struct Session<P: Read + Write> {
     log_rx: bool,
     rx_log: Vec<String>,
     rt_oks: usize,
+    last_resend: (u32, u32),
+    resume_requested_at: Option<Duration>,
 }
 
 impl<P: Read + Write> Session<P> {
@@ -286,6 +305,8 @@ impl<P: Read + Write> Session<P> {
             log_rx: false,
             rx_log: Vec::new(),
             rt_oks: 0,
+            last_resend: (0, 0),
+            resume_requested_at: None,
         };
         s.refresh_estimates();
         s
@@ -493,9 +514,14 @@ impl<P: Read + Write> Session<P> {
                         .push(Event::Message("resume ignored: not paused".to_string()));
                     return Ok(());
                 };
+                let mut next = State::Printing;
                 if prompt.is_none() {
                     if self.paused_by_firmware {
                         self.write_realtime("M24", true)?;
+                        // Job lines wait until the firmware reports it is back at the pause
+                        // point, so none is interpreted while it is still returning.
+                        next = State::Resuming;
+                        self.resume_requested_at = Some(now);
                     } else if let Some(m) = self.paused_modal.take() {
                         let seq = fallback::resume_sequence(&m, &self.opts.host_pause);
                         self.queue.extend(seq.into_iter().map(Out::plain));
@@ -503,7 +529,7 @@ impl<P: Read + Write> Session<P> {
                 }
                 self.paused_by_firmware = false;
                 self.pending = None;
-                self.state = State::Printing;
+                self.state = next;
                 self.events.push(Event::Resumed);
             }
         }
@@ -567,6 +593,19 @@ impl<P: Read + Write> Session<P> {
                         self.opts.silence_timeout.as_secs()
                     ));
                     return Ok(());
+                }
+            }
+            State::Resuming => {
+                if self
+                    .resume_requested_at
+                    .is_some_and(|t| now.saturating_sub(t) > RESUME_WAIT)
+                {
+                    self.events.push(Event::Message(format!(
+                        "no //action:resumed after {} s: streaming again",
+                        RESUME_WAIT.as_secs()
+                    )));
+                    self.state = State::Printing;
+                    self.resume_requested_at = None;
                 }
             }
             State::Paused { .. } | State::Identifying => {}
@@ -644,17 +683,6 @@ impl<P: Read + Write> Session<P> {
                         if self.caps.has("AUTOREPORT_TEMP") {
                             self.queue.push_back(Out::plain("M155 S2"));
                         }
-                        if let (PauseMethod::Firmware, Some(Pending::AtLayer { gate })) =
-                            (method, &self.pending)
-                        {
-                            // The firmware counts layers with the same detector over the same
-                            // stream: schedule the pause there too, so it holds exactly at the
-                            // mark even if the host is ahead.
-                            if let Some(l) = self.job.layers.get(*gate) {
-                                self.queue
-                                    .push_back(Out::plain(format!("M761 L{}", l.number)));
-                            }
-                        }
                         self.events.push(Event::Connected(method));
                     }
                     _ => {
@@ -677,6 +705,17 @@ impl<P: Read + Write> Session<P> {
             }
             Response::Resend(n) => {
                 self.progress.resends += 1;
+                if self.last_resend.0 == n {
+                    self.last_resend.1 += 1;
+                } else {
+                    self.last_resend = (n, 1);
+                }
+                if self.last_resend.1 > MAX_RESENDS {
+                    self.fail(format!(
+                        "the printer rejected line {n} {MAX_RESENDS} times in a row"
+                    ));
+                    return Ok(());
+                }
                 self.events.push(Event::Resend(n));
                 if n >= self.next_no {
                     // Never sent: nothing to repeat.
@@ -716,12 +755,19 @@ impl<P: Read + Write> Session<P> {
                 self.events.push(Event::Action(a.clone()));
                 match a {
                     Action::Paused => self.on_firmware_paused(),
+                    Action::Resumed if self.state == State::Resuming => {
+                        self.state = State::Printing;
+                        self.resume_requested_at = None;
+                    }
                     Action::Cancel if !self.finished() => {
                         self.state = State::Cancelled;
                         self.events.push(Event::Cancelled);
                     }
                     Action::Pause => self.request(Request::PauseAtLayer, now)?,
-                    Action::Resume => self.request(Request::Resume, now)?,
+                    // The printer asks to resume (its button) or announces its own return.
+                    Action::Resume if matches!(self.state, State::Paused { .. }) => {
+                        self.request(Request::Resume, now)?
+                    }
                     Action::Notification(t) => self.events.push(Event::Message(t)),
                     _ => {}
                 }
@@ -763,6 +809,11 @@ impl<P: Read + Write> Session<P> {
 
     fn on_synced(&mut self, kind: Sync) -> std::io::Result<()> {
         match kind {
+            Sync::Trigger => {
+                if self.state == State::Pausing {
+                    self.write_realtime("M25", true)?;
+                }
+            }
             Sync::HostDrain => {
                 let m = self.modal.clone();
                 let seq = fallback::pause_sequence(&m, &self.opts.host_pause);
@@ -868,7 +919,7 @@ impl<P: Read + Write> Session<P> {
                             // mark before the next command. A harmless command delivers it, so
                             // the firmware stops at this boundary without any line of the next
                             // layer (which may still be edited).
-                            self.send_numbered("M400".into(), None)
+                            self.send_numbered("M400".into(), Some(Sync::Trigger))
                         }
                         _ => {
                             let m = self.modal.clone();
@@ -909,13 +960,28 @@ impl<P: Read + Write> Session<P> {
                 continue;
             }
             let code = strip_comment(trimmed);
+            let cap = match self.method {
+                Some(PauseMethod::Firmware) => LINE_CAP_FIRMWARE,
+                _ => LINE_CAP_STOCK,
+            };
             if code.is_empty() {
-                // Our firmware's layer detector reads slicer comments: send comment-only lines.
-                if self.method == Some(PauseMethod::Firmware) && trimmed.starts_with(';') {
+                // Our firmware's layer detector reads slicer comments: send comment-only lines
+                // (layer markers are short; long comments such as the slicer's settings dump
+                // are skipped).
+                if self.method == Some(PauseMethod::Firmware)
+                    && trimmed.starts_with(';')
+                    && frame(self.next_no, trimmed).len() < cap
+                {
                     let line = trimmed.to_string();
                     return self.send_numbered(line, None);
                 }
                 continue;
+            }
+            if frame(self.next_no, code).len() >= cap {
+                self.fail(format!(
+                    "job line {code:?} is longer than the printer accepts ({cap} bytes with line number and checksum)"
+                ));
+                return Ok(());
             }
             let code = code.to_string();
             if self.method == Some(PauseMethod::HostSide) && matches!(self.sec, Section::Layer(_)) {
