@@ -35,11 +35,12 @@ struct FakePrinter {
     /// Paused: held lines are not acknowledged.
     paused: bool,
     held: usize,
-    /// M761 L<n> received: pause when the host sends the command that starts layer n, which
-    /// this fake recognises as the first command after `;LAYER_CHANGE` number n.
-    scheduled: Option<u32>,
-    layer_changes: u32,
-    pause_at_next_command: bool,
+    /// A `;LAYER_CHANGE` came; the mark is placed before the next command (as the firmware's
+    /// detector does).
+    pending_mark: bool,
+    /// The last command received was the one a mark was placed before.
+    mark_just_delivered: bool,
+    pause_at_next_mark: bool,
 }
 
 impl FakePrinter {
@@ -70,10 +71,15 @@ impl FakePrinter {
                     self.say("//action:paused");
                 }
                 "M25" | "M601" => {
-                    // Layer pause: like the firmware, stop at the next layer mark, which the
-                    // host delivers with the command after the layer's last line.
+                    // Layer pause, as the firmware does it (with instant execution): stop at
+                    // the mark just delivered, else at the next one.
                     self.say("ok");
-                    self.pause_at_next_command = true;
+                    if self.mark_just_delivered {
+                        self.paused = true;
+                        self.say("//action:paused");
+                    } else {
+                        self.pause_at_next_mark = true;
+                    }
                 }
                 "M24" | "M602" => {
                     self.say("ok");
@@ -119,20 +125,15 @@ impl FakePrinter {
         }
         self.expected += 1;
         self.executed.push(cmd.to_string());
-        if cmd == ";LAYER_CHANGE" {
-            if self.scheduled == Some(self.layer_changes) {
-                self.pause_at_next_command = true;
-            }
-            self.layer_changes += 1;
+        if cmd.starts_with(';') {
+            self.pending_mark |= cmd == ";LAYER_CHANGE";
             self.say("ok");
             return;
         }
-        if let Some(n) = cmd.strip_prefix("M761 L") {
-            self.scheduled = n.parse().ok();
-        }
-        let mark_pause = self.pause_at_next_command && !cmd.starts_with(';');
-        if mark_pause {
-            self.pause_at_next_command = false;
+        self.mark_just_delivered = std::mem::take(&mut self.pending_mark);
+        if self.mark_just_delivered && self.pause_at_next_mark {
+            // Stop at the mark: this command is held until resume.
+            self.pause_at_next_mark = false;
             self.paused = true;
             self.held += 1;
             self.say("//action:paused");
@@ -404,17 +405,16 @@ fn firmware_pause_at_layer_stops_sending_at_the_boundary_and_resumes() {
     assert_eq!(s.state(), &State::Done, "{ev:?}");
     assert!(ev.contains(&Event::Paused(Some(2))), "{ev:?}");
     let p = s.port();
-    // The pause was scheduled in the firmware (M761, same layer numbering) ...
-    assert_eq!(p.executed[1], "M761 L2");
-    // ... and the host sent every line of layers 0 and 1 (with the marker comment that the
-    // firmware's detector reads) and then only a harmless command to deliver the mark, before
-    // the printer reported the pause.
+    // The host sent every line of layers 0 and 1 (with the marker comment that the firmware's
+    // detector reads), then only a harmless command to deliver the mark, then M25.
     let trigger = p
         .executed
         .iter()
         .position(|l| l == "M400")
         .expect("trigger command");
-    let before: Vec<String> = p.executed[2..trigger].to_vec();
+    let before: Vec<String> = p.executed[1..trigger].to_vec();
+    let (_, m25_at) = p.realtime.iter().find(|(l, _)| l == "M25").expect("M25");
+    assert_eq!(*m25_at, trigger + 1);
     let expect_before = expected_stream(
         &Job {
             start: job.start.clone(),
@@ -427,10 +427,7 @@ fn firmware_pause_at_layer_stops_sending_at_the_boundary_and_resumes() {
     assert_eq!(before, expect_before);
     assert!(p.realtime.iter().any(|(l, _)| l == "M24"));
     // Nothing lost or duplicated over the whole job.
-    let all: Vec<String> = job_lines(p)
-        .into_iter()
-        .filter(|l| l != "M400" && !l.starts_with("M761"))
-        .collect();
+    let all: Vec<String> = job_lines(p).into_iter().filter(|l| l != "M400").collect();
     assert_eq!(all, expected_stream(&job, true));
 }
 
