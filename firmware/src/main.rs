@@ -308,7 +308,7 @@ mod image {
             queued = true;
         }
         if queued {
-            stepper::with(|s| s.pins.set_enabled(true));
+            stepper::with(|s| s.exec.pins.set_enabled(true));
             stepper::kick();
         } else if offset != 0
             && held.is_none()
@@ -349,7 +349,7 @@ mod image {
             Timer::after_micros(500).await;
         }
         let cfg = *printer.borrow().config();
-        stepper::with(|s| s.pins.set_enabled(true));
+        stepper::with(|s| s.exec.pins.set_enabled(true));
         let mut ok = true;
         for axis in [Axis::X, Axis::Y, Axis::Z] {
             let i = axis.index();
@@ -364,12 +364,12 @@ mod image {
                         stepper::with(|s| {
                             // Min endstops: towards the switch is the negative direction.
                             let dir = if toward { 0 } else { 1 << i };
-                            if s.pins.set_dirs(1 << i, dir) {
+                            if s.exec.pins.set_dirs(1 << i, dir) {
                                 cortex_m::asm::delay(stepper::cycles(stepper::DIR_SETUP_NS));
                             }
-                            s.pins.step_high(1 << i);
+                            s.exec.pins.step_high(1 << i);
                             cortex_m::asm::delay(stepper::cycles(stepper::PULSE_NS));
-                            s.pins.step_low();
+                            s.exec.pins.step_low();
                         });
                         Timer::after_micros(u64::from(period_us)).await;
                     }
@@ -394,13 +394,13 @@ mod image {
         stepper::with(|s| {
             for (i, (min, _)) in limits.iter().enumerate() {
                 if mask & (1 << i) != 0 {
-                    s.pos[i] = *min;
-                    s.homed |= 1 << i;
+                    s.exec.pos[i] = *min;
+                    s.exec.homed |= 1 << i;
                 }
             }
-            s.limits = limits;
+            s.exec.limits = limits;
             if !ok {
-                s.homed = 0;
+                s.exec.homed = 0;
             }
         });
         // What the executive planned after its homing move starts now.
@@ -444,7 +444,7 @@ mod image {
                         defmt::error!("halted: motion stopped, heaters off");
                         stepper::with(|s| {
                             s.flush = true;
-                            s.pins.set_enabled(false);
+                            s.exec.pins.set_enabled(false);
                         });
                         stepper::kick();
                     }
@@ -454,9 +454,9 @@ mod image {
                 let busy =
                     p.state() != State::Idle || stepper::with(|s| s.running).unwrap_or(false);
                 if idle.update(busy, now_us) {
-                    stepper::with(|s| s.pins.set_enabled(false));
+                    stepper::with(|s| s.exec.pins.set_enabled(false));
                 }
-                if let Some(n) = stepper::with(|s| core::mem::take(&mut s.refused)) {
+                if let Some(n) = stepper::with(|s| core::mem::take(&mut s.exec.refused)) {
                     if n > 0 {
                         defmt::warn!("{} steps refused (not homed or outside the volume)", n);
                     }

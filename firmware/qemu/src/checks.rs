@@ -272,28 +272,57 @@ pub fn run() -> Result<u32, CheckFailed> {
     Ok(n)
 }
 
-/// Fake BSRR register for [`pin_cost`].
+/// Fake BSRR register for [`isr_cost`].
 static mut BSRR: u32 = 0;
 
-/// Drives STEP/DIR for `events` synthetic step events on register-writing pins (direction
-/// reversal every 64 events), calling `mark` before and after, so the caller can time it.
-pub fn pin_cost(events: u32, mut mark: impl FnMut(bool)) {
+#[derive(Clone, Copy)]
+struct Ev {
+    t_ticks: u64,
+    axis_mask: u8,
+    dir_mask: u8,
+}
+
+/// The step interrupt's work per event without the busy-wait delays: the queue pop (as in
+/// `board::stepper`), the due-time comparison, and `StepExecutor::fire` (limits, DIR, STEP
+/// high/low, position) on register-writing pins. Events are queued in batches of 200 (not
+/// timed: that is the motion loop's side); `mark(true/false)` brackets each consuming batch.
+pub fn isr_cost(events: u32, mut mark: impl FnMut(bool)) -> u32 {
     let reg = core::ptr::addr_of_mut!(BSRR);
     let pin = |bit| RegPin { reg, bit };
-    let mut s = StepperPins::new(
+    let pins = StepperPins::new(
         [pin(0), pin(1), pin(2), pin(3)],
         [pin(4), pin(5), pin(6), pin(7)],
         [pin(8), pin(9), pin(10), pin(11)],
         0b1111,
     );
-    s.set_enabled(true);
-    mark(true);
-    for i in 0..events {
-        let dir = if (i / 64) % 2 == 0 { 0b0011 } else { 0b0000 };
-        let mask = 0b0011 | ((i & 1) as u8) << 3;
-        s.set_dirs(mask, dir);
-        s.step_high(mask);
-        s.step_low();
+    let mut exec = drivers::StepExecutor::new(pins);
+    exec.homed = 0b111;
+    exec.pins.set_enabled(true);
+    let mut queue: heapless::spsc::Queue<Ev, 256> = heapless::spsc::Queue::new();
+    let (mut producer, mut consumer) = queue.split();
+    let mut stepped = 0u32;
+    let mut i = 0u32;
+    while i < events {
+        for _ in 0..200 {
+            let dir = if (i / 64) % 2 == 0 { 0b0011 } else { 0b0000 };
+            let _ = producer.enqueue(Ev {
+                t_ticks: u64::from(i),
+                axis_mask: 0b0011 | (((i & 1) as u8) << 3),
+                dir_mask: dir,
+            });
+            i += 1;
+        }
+        mark(true);
+        let now = core::hint::black_box(u64::MAX - 1);
+        while let Some(ev) = consumer.peek().copied() {
+            if ev.t_ticks > now + 1 {
+                break;
+            }
+            let _ = consumer.dequeue();
+            let m = exec.fire(ev.axis_mask, ev.dir_mask, 650, 1000, |_| {});
+            stepped += u32::from(m != 0);
+        }
+        mark(false);
     }
-    mark(false);
+    stepped
 }

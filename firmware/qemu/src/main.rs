@@ -223,20 +223,22 @@ mod target {
             idle_poll as u32,
             ((plan + poll - idle_poll * polls).max(0.0) / blocks) as u32
         );
-        // Driving the pins for one event (DIR when it changes, STEP high, STEP low).
-        const PIN_EVENTS: u32 = 100_000;
-        let mut t_pins = (0u64, 0u64);
-        checks::pin_cost(PIN_EVENTS, |start| {
+        // The step interrupt's own work per event (queue pop, limits, pins), delays excluded.
+        const ISR_EVENTS: u32 = 100_000;
+        let mut isr_ticks = 0u64;
+        let mut isr_t0 = 0u64;
+        let stepped = checks::isr_cost(ISR_EVENTS, |start| {
             if start {
-                t_pins.0 = ticks();
+                isr_t0 = ticks();
             } else {
-                t_pins.1 = ticks();
+                isr_ticks += ticks() - isr_t0;
             }
         });
-        let pins = (t_pins.1 - t_pins.0) as f64 / ticks_per_insn / PIN_EVENTS as f64;
+        let isr = isr_ticks as f64 / ticks_per_insn / f64::from(ISR_EVENTS.max(1));
         hprintln!(
-            "qemu-core: instructions per step event to drive STEP/DIR (StepperPins over register writes): {}",
-            pins as u32
+            "qemu-core: instructions per step event in the step interrupt (queue pop, limits, DIR/STEP pins; busy-wait delays excluded): {} ({} events stepped)",
+            isr as u32,
+            stepped
         );
         if digest == EXPECTED {
             hprintln!(

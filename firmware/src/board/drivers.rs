@@ -87,6 +87,86 @@ impl<P: OutputPin> StepperPins<P> {
     }
 }
 
+/// What the step interrupt does with one event, portable: software limits and "no motion
+/// before homing" per axis, DIR changes with their setup time, the STEP pulse, and the
+/// position in steps. `delay_ns` is the board's busy wait.
+pub struct StepExecutor<P: OutputPin> {
+    /// The driver pins.
+    pub pins: StepperPins<P>,
+    /// Position in steps as executed.
+    pub pos: [i32; AXES],
+    /// Software limits in steps for X, Y, Z (enforced on homed axes).
+    pub limits: [(i32, i32); 3],
+    /// Homed axes (bit i = axis i); X/Y/Z steps of unhomed axes are refused.
+    pub homed: u8,
+    /// Steps refused (outside the limits or before homing) since last taken.
+    pub refused: u32,
+}
+
+impl<P: OutputPin> StepExecutor<P> {
+    /// Nothing homed, no limits yet.
+    pub fn new(pins: StepperPins<P>) -> Self {
+        StepExecutor {
+            pins,
+            pos: [0; AXES],
+            limits: [(i32::MIN, i32::MAX); 3],
+            homed: 0,
+            refused: 0,
+        }
+    }
+
+    /// Executes one event: the axes in `axis_mask` step in the directions of `dir_mask`
+    /// (bit set = positive), X/Y/Z only if homed and inside the limits. Returns the axes that
+    /// stepped.
+    pub fn fire(
+        &mut self,
+        axis_mask: u8,
+        dir_mask: u8,
+        dir_setup_ns: u32,
+        pulse_ns: u32,
+        mut delay_ns: impl FnMut(u32),
+    ) -> u8 {
+        let mut mask = axis_mask & 0x0F;
+        for axis in 0..3 {
+            let bit = 1u8 << axis;
+            if mask & bit == 0 {
+                continue;
+            }
+            let next = if dir_mask & bit != 0 {
+                self.pos[axis].saturating_add(1)
+            } else {
+                self.pos[axis].saturating_sub(1)
+            };
+            let allowed =
+                self.homed & bit != 0 && next >= self.limits[axis].0 && next <= self.limits[axis].1;
+            if !allowed {
+                mask &= !bit;
+                self.refused = self.refused.saturating_add(1);
+            }
+        }
+        if mask == 0 {
+            return 0;
+        }
+        if self.pins.set_dirs(mask, dir_mask) {
+            delay_ns(dir_setup_ns);
+        }
+        self.pins.step_high(mask);
+        for (axis, p) in self.pos.iter_mut().enumerate() {
+            let bit = 1u8 << axis;
+            if mask & bit != 0 {
+                *p = if dir_mask & bit != 0 {
+                    p.saturating_add(1)
+                } else {
+                    p.saturating_sub(1)
+                };
+            }
+        }
+        delay_ns(pulse_ns);
+        self.pins.step_low();
+        mask
+    }
+}
+
 /// The X, Y and Z endstop inputs.
 pub struct Endstops<I: InputPin> {
     pins: [I; 3],

@@ -20,7 +20,7 @@ use embassy_stm32::pac;
 use heapless::spsc::{Consumer, Producer, Queue};
 
 use super::clock;
-use super::drivers::{Endstops, StepperPins};
+use super::drivers::{Endstops, StepExecutor, StepperPins};
 
 /// Events buffered ahead of the interrupt (each 16 B). At 100 k events/s this is 2.5 ms.
 pub const QUEUE_LEN: usize = 256;
@@ -49,19 +49,11 @@ pub struct PinEvent {
 
 /// The interrupt's state.
 pub struct StepIsr {
-    /// The stepper outputs.
-    pub pins: StepperPins<Output<'static>>,
+    /// Pins, position, limits (the portable part, `drivers::StepExecutor`).
+    pub exec: StepExecutor<Output<'static>>,
     /// The endstops (read by homing; polled here only for reports).
     pub endstops: Endstops<Input<'static>>,
     consumer: Consumer<'static, PinEvent>,
-    /// Position in steps as executed.
-    pub pos: [i32; 4],
-    /// Software limits in steps for X, Y, Z (enforced on homed axes).
-    pub limits: [(i32, i32); 3],
-    /// Homed axes (bit i = axis i); X/Y/Z steps of unhomed axes are refused.
-    pub homed: u8,
-    /// Steps refused (outside the limits or before homing) since last taken.
-    pub refused: u32,
     /// Drop every queued event (halt / quick stop).
     pub flush: bool,
     /// True while the compare interrupt is armed.
@@ -80,13 +72,9 @@ pub fn init(
     let (producer, consumer) = QUEUE.init(Queue::new()).split();
     critical_section::with(|cs| {
         ISR.borrow(cs).replace(Some(StepIsr {
-            pins,
+            exec: StepExecutor::new(pins),
             endstops,
             consumer,
-            pos: [0; 4],
-            limits: [(i32::MIN, i32::MAX); 3],
-            homed: 0,
-            refused: 0,
             flush: false,
             running: false,
         }))
@@ -108,46 +96,6 @@ pub fn cycles(ns: u32) -> u32 {
 }
 
 impl StepIsr {
-    fn fire(&mut self, ev: PinEvent) {
-        let mut mask = ev.axis_mask & 0x0F;
-        for axis in 0..3 {
-            let bit = 1u8 << axis;
-            if mask & bit == 0 {
-                continue;
-            }
-            let next = if ev.dir_mask & bit != 0 {
-                self.pos[axis].saturating_add(1)
-            } else {
-                self.pos[axis].saturating_sub(1)
-            };
-            let allowed =
-                self.homed & bit != 0 && next >= self.limits[axis].0 && next <= self.limits[axis].1;
-            if !allowed {
-                mask &= !bit;
-                self.refused = self.refused.saturating_add(1);
-            }
-        }
-        if mask == 0 {
-            return;
-        }
-        if self.pins.set_dirs(mask, ev.dir_mask) {
-            cortex_m::asm::delay(cycles(DIR_SETUP_NS));
-        }
-        self.pins.step_high(mask);
-        for (axis, p) in self.pos.iter_mut().enumerate() {
-            let bit = 1u8 << axis;
-            if mask & bit != 0 {
-                *p = if ev.dir_mask & bit != 0 {
-                    p.saturating_add(1)
-                } else {
-                    p.saturating_sub(1)
-                };
-            }
-        }
-        cortex_m::asm::delay(cycles(PULSE_NS));
-        self.pins.step_low();
-    }
-
     fn run(&mut self, cs: critical_section::CriticalSection) {
         let tim = pac::TIM5;
         tim.sr().modify(|w| w.set_ccif(0, false));
@@ -173,7 +121,10 @@ impl StepIsr {
                 continue;
             }
             let _ = self.consumer.dequeue();
-            self.fire(ev);
+            self.exec
+                .fire(ev.axis_mask, ev.dir_mask, DIR_SETUP_NS, PULSE_NS, |ns| {
+                    cortex_m::asm::delay(cycles(ns))
+                });
         }
         // Many events due at once (catching up): come back right away.
         interrupt::TIM5.pend();
