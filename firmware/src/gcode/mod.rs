@@ -460,14 +460,15 @@ impl fmt::Display for ParseError {
     }
 }
 
-/// Most parameter words one command may carry (one per letter).
-const MAX_WORDS: usize = 26;
+/// Most distinct parameter letters one line may carry (known commands take at most 8; more is
+/// an [`ParseErrorKind::UnexpectedLetter`], or text for an unknown command).
+const MAX_WORDS: usize = 16;
 
 /// A parameter word: letter index 0..26 and its number, if any.
 #[derive(Clone, Copy, Debug, Default)]
 struct Word {
-    letter: u8,
     num: Option<Num>,
+    letter: u8,
     at: u16,
 }
 
@@ -475,10 +476,24 @@ struct Word {
 struct Words<'a> {
     line: &'a [u8],
     mask: u32,
-    n: usize,
-    words: [Word; MAX_WORDS],
+    /// Index into `words` of each letter present (valid where `mask` has the bit).
+    slot: [u8; 26],
+    /// Filled lazily (no per-line initialisation of every slot).
+    words: heapless::Vec<Word, MAX_WORDS>,
     /// Position of the first repeated letter, reported by `check` after the per-word errors.
     dup: Option<usize>,
+}
+
+impl<'a> Words<'a> {
+    fn new(line: &'a [u8]) -> Self {
+        Words {
+            line,
+            mask: 0,
+            slot: [0; 26],
+            words: heapless::Vec::new(),
+            dup: None,
+        }
+    }
 }
 
 /// Bit of a letter in a letter mask.
@@ -502,17 +517,15 @@ impl<'a> Words<'a> {
         if self.mask & bit(c) == 0 {
             return None;
         }
-        self.words
-            .iter()
-            .take(self.n)
-            .find(|w| w.letter == c - b'A')
+        let i = self.slot.get(usize::from(c - b'A'))?;
+        self.words.get(usize::from(*i))
     }
 
     /// Check the letters: only `allowed`; letters outside `flags` need a number.
     fn check(&self, allowed: &[u8], flags: &[u8]) -> Result<(), ParseError> {
         let allowed_m = mask(allowed);
         let flags_m = mask(flags);
-        for w in self.words.iter().take(self.n) {
+        for w in self.words.iter() {
             let b = 1u32 << w.letter;
             if allowed_m & b == 0 {
                 return Err(err(ParseErrorKind::UnexpectedLetter, usize::from(w.at)));
@@ -648,38 +661,47 @@ fn split_comment(line: &[u8]) -> (&[u8], Option<&[u8]>) {
 ///
 /// Returns the command (if any) and the comment text. Never panics, never allocates.
 pub fn parse_line(line: &[u8]) -> Result<Line<'_>, ParseError> {
-    let (code, semi) = split_comment(line);
+    // One pass: the `;` comment is found where the words end (text commands and unknown
+    // commands look for it themselves).
     let mut i = 0;
-    while code.get(i).copied().is_some_and(is_space) {
+    while line.get(i).copied().is_some_and(is_space) {
         i += 1;
     }
     let mut paren_comment: Option<&[u8]> = None;
     // Leading ( comments.
-    while code.get(i) == Some(&b'(') {
-        let (c, next) = paren(code, i)?;
+    while line.get(i) == Some(&b'(') {
+        let (c, next) = paren(line, i)?;
         paren_comment = paren_comment.or(Some(c));
         i = next;
-        while code.get(i).copied().is_some_and(is_space) {
+        while line.get(i).copied().is_some_and(is_space) {
             i += 1;
         }
     }
-    let comment = semi.or(paren_comment);
-    let Some(&first) = code.get(i) else {
-        return Ok(Line {
-            command: None,
-            comment,
-        });
+    let first = match line.get(i) {
+        None | Some(b'\r' | b'\n') => {
+            return Ok(Line {
+                command: None,
+                comment: paren_comment,
+            })
+        }
+        Some(b';') => {
+            return Ok(Line {
+                command: None,
+                comment: Some(trim_end(line.get(i + 1..).unwrap_or(&[]))),
+            })
+        }
+        Some(&c) => c,
     };
-    let second = code.get(i + 1).copied();
+    let second = line.get(i + 1).copied().filter(|c| *c != b';');
     let upper = first.to_ascii_uppercase();
-    let classic = matches!(upper, b'G' | b'M' | b'T')
-        && second.is_some_and(|c| c.is_ascii_digit() || is_space(c));
-    let command = if classic || (matches!(upper, b'G' | b'M' | b'T') && second.is_none()) {
-        parse_classic(code, i, &mut paren_comment)?
+    let gmt = matches!(upper, b'G' | b'M' | b'T');
+    let (command, semi) = if gmt && second.is_none_or(|c| c.is_ascii_digit() || is_space(c)) {
+        parse_classic(line, i, &mut paren_comment)?
     } else if (first.is_ascii_alphabetic() || first == b'_')
         && second.is_some_and(|c| c.is_ascii_alphabetic() || c == b'_')
     {
-        parse_extended(code, i)?
+        let (code, semi) = split_comment(line);
+        (parse_extended(code, i)?, semi)
     } else {
         return Err(err(ParseErrorKind::NoCommand, i));
     };
@@ -689,21 +711,24 @@ pub fn parse_line(line: &[u8]) -> Result<Line<'_>, ParseError> {
     })
 }
 
-/// A `( … )` comment starting at `i`: (content, position after `)`).
+/// A `( … )` comment starting at `i`: (content, position after `)`). A `;` before the `)`
+/// leaves it unclosed.
 fn paren(code: &[u8], i: usize) -> Result<(&[u8], usize), ParseError> {
     let rest = code.get(i + 1..).unwrap_or(&[]);
-    match rest.iter().position(|&c| c == b')') {
-        Some(p) => Ok((rest.get(..p).unwrap_or(&[]), i + 2 + p)),
-        None => Err(err(ParseErrorKind::UnclosedComment, i)),
+    match rest.iter().position(|&c| c == b')' || c == b';') {
+        Some(p) if rest.get(p) == Some(&b')') => Ok((rest.get(..p).unwrap_or(&[]), i + 2 + p)),
+        _ => Err(err(ParseErrorKind::UnclosedComment, i)),
     }
 }
 
 /// Parse `G`/`M`/`T` + code and its words.
+/// Returns the command and the `;` comment text.
 fn parse_classic<'a>(
-    code: &'a [u8],
+    line: &'a [u8],
     start: usize,
     paren_comment: &mut Option<&'a [u8]>,
-) -> Result<Command, ParseError> {
+) -> Result<(Command, Option<&'a [u8]>), ParseError> {
+    let code = line;
     let letter = code.get(start).map_or(b'G', u8::to_ascii_uppercase);
     // The code number: digits, optional `.digits` subcode.
     let mut i = start + 1;
@@ -740,36 +765,42 @@ fn parse_classic<'a>(
     let cmd_code = (letter, num as u16);
     if !sub {
         if let (b'M', 117 | 118) = cmd_code {
+            let (code, semi) = split_comment(line);
             let text = parse_text(code, code_end)?;
-            return Ok(if num == 117 {
+            let c = if num == 117 {
                 Command::Message(text)
             } else {
                 Command::Echo(text)
-            });
+            };
+            return Ok((c, semi));
         }
     }
     if sub {
         // Subcodes (`M862.3`) are never known; their arguments are free text.
-        return unknown(code, start);
+        let (code, semi) = split_comment(line);
+        return Ok((unknown(code, start)?, semi));
     }
-    let words = match scan_words(code, code_end, paren_comment) {
-        Ok(w) => w,
+    let mut words = Words::new(line);
+    let semi_at = match scan_words(line, code_end, paren_comment, &mut words) {
+        Ok(at) => at,
         Err(e) => {
-            let empty = Words {
-                line: code,
-                mask: 0,
-                n: 0,
-                words: [Word::default(); MAX_WORDS],
-                dup: None,
-            };
             // Unknown commands are never executed: their arguments are kept as text.
-            return match build_known(cmd_code, &empty) {
-                None => unknown(code, start),
+            let (code, semi) = split_comment(line);
+            return match build_known(cmd_code, &Words::new(line)) {
+                None => Ok((unknown(code, start)?, semi)),
                 Some(_) => Err(e),
             };
         }
     };
-    build_known(cmd_code, &words).unwrap_or_else(|| unknown(code, start))
+    let semi = semi_at.map(|p| trim_end(line.get(p + 1..).unwrap_or(&[])));
+    let c = match build_known(cmd_code, &words) {
+        Some(r) => r?,
+        None => {
+            let code = line.get(..semi_at.unwrap_or(line.len())).unwrap_or(line);
+            unknown(code, start)?
+        }
+    };
+    Ok((c, semi))
 }
 
 /// The text argument of M117/M118: after the code and one run of spaces, to the end (the `;`
@@ -813,15 +844,12 @@ fn scan_words<'a>(
     code: &'a [u8],
     mut i: usize,
     paren_comment: &mut Option<&'a [u8]>,
-) -> Result<Words<'a>, ParseError> {
-    let mut w = Words {
-        line: code,
-        mask: 0,
-        n: 0,
-        words: [Word::default(); MAX_WORDS],
-        dup: None,
-    };
+    w: &mut Words<'a>,
+) -> Result<Option<usize>, ParseError> {
     while let Some(&c) = code.get(i) {
+        if c == b';' {
+            return Ok(Some(i));
+        }
         if is_space(c) || c == b'\r' || c == b'\n' {
             i += 1;
             continue;
@@ -851,25 +879,30 @@ fn scan_words<'a>(
             if !(after.is_ascii_alphabetic()
                 || is_space(after)
                 || after == b'('
+                || after == b';'
                 || after == b'\r'
                 || after == b'\n')
             {
                 return Err(err(ParseErrorKind::BadByte, next));
             }
         }
-        // Bounded by the mask: at most 26 distinct letters.
-        if let (false, Some(slot)) = (dup, w.words.get_mut(w.n)) {
-            *slot = Word {
-                letter: up - b'A',
-                num,
-                at: i.min(usize::from(u16::MAX)) as u16,
-            };
-            w.n += 1;
+        if !dup {
+            let idx = w.words.len() as u8;
+            w.words
+                .push(Word {
+                    letter: up - b'A',
+                    num,
+                    at: i.min(usize::from(u16::MAX)) as u16,
+                })
+                .map_err(|_| err(ParseErrorKind::UnexpectedLetter, i))?;
+            if let Some(s) = w.slot.get_mut(usize::from(up - b'A')) {
+                *s = idx;
+            }
         }
         w.mask |= b;
         i = next;
     }
-    Ok(w)
+    Ok(None)
 }
 
 /// Build a known command from its code and words; `None` = unknown code.
@@ -1120,7 +1153,7 @@ fn build_known(code: (u8, u16), w: &Words<'_>) -> Option<Result<Command, ParseEr
             }
             (b'M', 761) => {
                 w.check(b"LZC", b"C")?;
-                if w.n > 1 {
+                if w.words.len() > 1 {
                     return Err(err(ParseErrorKind::BadValue, 0));
                 }
                 let s = if w.has(b'C') {

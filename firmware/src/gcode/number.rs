@@ -54,59 +54,73 @@ pub(crate) struct Num {
 /// Lex a number starting at `pos` in `line`. Returns the number and the position after it, or
 /// `Ok(None)` if no number starts there (no sign, digit or point).
 pub(crate) fn lex(line: &[u8], pos: usize) -> Result<Option<(Num, usize)>, ParseErrorKind> {
-    let mut i = pos;
-    let mut neg = false;
-    match line.get(i) {
-        Some(b'-') => {
-            neg = true;
-            i += 1;
-        }
-        Some(b'+') => i += 1,
-        Some(c) if c.is_ascii_digit() || *c == b'.' => {}
+    let rest = line.get(pos..).unwrap_or(&[]);
+    let (neg, body) = match rest.first() {
+        Some(b'-') => (true, rest.get(1..).unwrap_or(&[])),
+        Some(b'+') => (false, rest.get(1..).unwrap_or(&[])),
+        Some(c) if c.is_ascii_digit() || *c == b'.' => (false, rest),
         _ => return Ok(None),
-    }
+    };
+    let sign_len = rest.len() - body.len();
     let mut mant: u64 = 0;
-    let mut sig: u8 = 0;
-    let mut digits = 0usize;
-    let mut scale: u32 = 0;
-    let mut seen_point = false;
-    while let Some(&c) = line.get(i) {
-        if c.is_ascii_digit() {
-            digits += 1;
-            if mant != 0 || c != b'0' {
-                sig = sig.saturating_add(1);
-                if sig > MAX_SIG_DIGITS {
-                    return Err(ParseErrorKind::TooManyDigits);
-                }
-            }
-            // Cannot overflow: at most 19 significant digits.
-            mant = mant * 10 + u64::from(c - b'0');
-            if seen_point {
-                scale += 1;
-            }
-        } else if c == b'.' && !seen_point {
-            seen_point = true;
-        } else {
-            break;
-        }
-        i += 1;
-        if i - pos > MAX_NUMBER_LEN {
-            return Err(ParseErrorKind::NumberTooLong);
-        }
+    let mut k = 0usize;
+    // Integer digits, then an optional point and fraction digits. Wrapping arithmetic: the
+    // result is exact whenever there are at most 19 significant digits, checked below.
+    while let Some(d) = body
+        .get(k)
+        .map(|c| c.wrapping_sub(b'0'))
+        .filter(|d| *d <= 9)
+    {
+        mant = mant.wrapping_mul(10).wrapping_add(u64::from(d));
+        k += 1;
     }
+    let int_digits = k;
+    let mut scale = 0usize;
+    if body.get(k) == Some(&b'.') {
+        k += 1;
+        let fs = k;
+        while let Some(d) = body
+            .get(k)
+            .map(|c| c.wrapping_sub(b'0'))
+            .filter(|d| *d <= 9)
+        {
+            mant = mant.wrapping_mul(10).wrapping_add(u64::from(d));
+            k += 1;
+        }
+        scale = k - fs;
+    }
+    let digits = int_digits + scale;
     if digits == 0 {
         return Err(ParseErrorKind::MissingNumber);
     }
-    // `i - pos <= MAX_NUMBER_LEN` so scale fits in u8 and positions in u16 for any line the
-    // link accepts; longer lines are only parsed by host tools, so saturate rather than wrap.
+    if digits > usize::from(MAX_SIG_DIGITS) {
+        // Leading zeros do not count.
+        let zeros = body
+            .get(..k)
+            .unwrap_or(&[])
+            .iter()
+            .take_while(|&&c| c == b'0' || c == b'.')
+            .filter(|&&c| c == b'0')
+            .count();
+        if digits - zeros > usize::from(MAX_SIG_DIGITS) {
+            return Err(ParseErrorKind::TooManyDigits);
+        }
+    }
+    let len = sign_len + k;
+    if len > MAX_NUMBER_LEN {
+        return Err(ParseErrorKind::NumberTooLong);
+    }
+    let end = pos + len;
+    // `len <= MAX_NUMBER_LEN`, so scale fits in u8; positions saturate for the long lines only
+    // host tools parse.
     let num = Num {
         mant,
-        scale: scale.min(u32::from(u8::MAX)) as u8,
+        scale: scale as u8,
         neg,
         start: pos.min(usize::from(u16::MAX)) as u16,
-        end: i.min(usize::from(u16::MAX)) as u16,
+        end: end.min(usize::from(u16::MAX)) as u16,
     };
-    Ok(Some((num, i)))
+    Ok(Some((num, end)))
 }
 
 impl Num {

@@ -92,7 +92,7 @@ impl MoveFacts {
         let z = |s: i32| {
             let spm = f64::from(cfg.axis(Axis::Z).steps_per_mm);
             if spm > 0.0 {
-                libm::round(f64::from(s) * 1000.0 / spm) as i32
+                crate::machine::round_i32(f64::from(s) * 1000.0 / spm).unwrap_or(0)
             } else {
                 0
             }

@@ -244,19 +244,38 @@ impl HostLink {
 
     /// Feed received bytes (any amount, any split). Never blocks, never panics.
     pub fn receive(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            if let Some(rt) = control_byte(b) {
-                self.push_realtime(rt);
+        let mut rest = bytes;
+        let mut scan = 0;
+        loop {
+            // The next C0 byte: a line end, a control byte, or another control character
+            // (that one stays in the line, for the parser to reject).
+            let tail = rest.get(scan..).unwrap_or(&[]);
+            let j = scan + first_c0(tail);
+            let Some(&b) = rest.get(j) else {
+                self.append(rest);
+                return;
+            };
+            let rt = control_byte(b);
+            if rt.is_none() && b != b'\n' && b != b'\r' {
+                scan = j + 1;
                 continue;
             }
-            match b {
-                b'\n' | b'\r' => self.end_line(),
-                _ => {
-                    if self.buf.push(b).is_err() {
-                        self.overlong = true;
-                    }
-                }
+            self.append(rest.get(..j).unwrap_or(&[]));
+            match rt {
+                Some(rt) => self.push_realtime(rt),
+                None => self.end_line(),
             }
+            rest = rest.get(j + 1..).unwrap_or(&[]);
+            scan = 0;
+        }
+    }
+
+    /// Add line bytes; past [`LINE_CAP`] the line is marked over-long (its head is kept).
+    fn append(&mut self, text: &[u8]) {
+        if !self.overlong && self.buf.extend_from_slice(text).is_err() {
+            let room = LINE_CAP - self.buf.len();
+            let _ = self.buf.extend_from_slice(text.get(..room).unwrap_or(&[]));
+            self.overlong = true;
         }
     }
 
@@ -288,15 +307,23 @@ impl HostLink {
     /// [`LinkStats::output_dropped`], if it does not fit the output ring: it is then dropped
     /// whole, never cut.
     pub fn respond(&mut self, r: Response<'_>) -> bool {
-        let mut count = Counter(0);
-        // Counting cannot fail.
-        let _ = write!(count, "{r}");
-        if count.0 + 1 > self.output_free() {
+        let before = self.out.len();
+        let written = match r {
+            // The most frequent answer, without the formatting machinery.
+            Response::Ok if self.output_free() >= 3 => {
+                for b in *b"ok\n" {
+                    let _ = self.out.push_back(b);
+                }
+                Ok(())
+            }
+            r => writeln!(Ring(&mut self.out), "{r}"),
+        };
+        if written.is_err() {
+            // Did not fit: take back what was written, so a response is never cut.
+            self.out.truncate(before);
             self.stats.output_dropped = self.stats.output_dropped.saturating_add(1);
             return false;
         }
-        let mut w = Ring(&mut self.out);
-        let _ = writeln!(w, "{r}");
         true
     }
 
@@ -371,66 +398,21 @@ impl HostLink {
 
     /// A line end arrived: check and route the line in `buf`.
     fn end_line(&mut self) {
-        let buf = core::mem::take(&mut self.buf);
         let overlong = core::mem::replace(&mut self.overlong, false);
-        let raw = trim(&buf);
-        let (number, rest) = split_number(raw);
-        if overlong {
-            self.reject("Line too long (max 128 bytes)", number.is_some());
-            return;
-        }
-        if raw.is_empty() {
-            return;
-        }
-        let number = match number {
-            Some(Ok(n)) => Some(n),
-            Some(Err(())) => {
-                self.reject("Bad line number", false);
-                return;
-            }
-            None => None,
-        };
-        // Checksum: the last `*` followed only by 1-3 digits.
-        let (body, cs) = split_checksum(rest);
-        let text = trim(body);
-        match (number, cs) {
-            (Some(_), None) => {
-                self.reject("No Checksum with line number", true);
-                return;
-            }
-            (n, Some(cs)) => {
-                let star = raw.len() - (rest.len() - body.len());
-                if checksum(raw.get(..star).unwrap_or(&[])) != cs {
-                    self.reject("checksum mismatch", n.is_some());
-                    return;
-                }
-            }
-            (None, None) => {}
-        }
-        // Commands the link handles itself: M110 and the realtime requests.
-        let special = match text.first() {
-            Some(b'M' | b'm') => match gcode::parse_line(text) {
-                Ok(gcode::Line {
-                    command: Some(c), ..
-                }) => match c {
-                    Command::SetLineNumber(m) => Some(Err(m)),
-                    c => realtime_of(&c).map(Ok),
-                },
-                _ => None,
-            },
-            _ => None,
-        };
-        match special {
-            Some(Err(m110)) => {
-                if let Some(l) = m110.or(number) {
+        match classify(&self.buf, overlong) {
+            Verdict::Empty => {}
+            Verdict::Reject(msg, resend) => self.reject(msg, resend),
+            Verdict::SetLineNumber(l) => {
+                if let Some(l) = l {
                     self.last_line = l;
                 }
                 self.early = None;
                 self.respond(Response::Ok);
             }
-            Some(Ok(rt)) => self.realtime_line(number, rt),
-            None => self.command_line(number, text),
+            Verdict::Realtime(number, rt) => self.realtime_line(number, rt),
+            Verdict::Command(number, start, end) => self.command_line(number, start, end),
         }
+        self.buf.clear();
     }
 
     fn seq(&self, n: u32) -> Seq {
@@ -473,7 +455,8 @@ impl HostLink {
         }
     }
 
-    fn command_line(&mut self, number: Option<u32>, text: &[u8]) {
+    /// A checked command line: `buf[start..end]` is its text.
+    fn command_line(&mut self, number: Option<u32>, start: usize, end: usize) {
         if let Some(n) = number {
             match self.seq(n) {
                 Seq::Next => {}
@@ -489,8 +472,8 @@ impl HostLink {
             }
         }
         let mut t = Vec::new();
-        // `text` is part of a line of at most LINE_CAP bytes, so it fits.
-        let _ = t.extend_from_slice(text);
+        // Part of a line of at most LINE_CAP bytes, so it fits.
+        let _ = t.extend_from_slice(self.buf.get(start..end).unwrap_or(&[]));
         let line = ReceivedLine { text: t, number };
         if self.lines.push_back(line).is_err() {
             self.reject("Line queue full (send one line per ok)", number.is_some());
@@ -501,6 +484,93 @@ impl HostLink {
         }
         self.stats.lines = self.stats.lines.saturating_add(1);
     }
+}
+
+/// What a complete line is, decided without changing any state.
+enum Verdict {
+    /// Blank: ignored, no `ok`.
+    Empty,
+    /// Refused: message, and whether to ask for a resend.
+    Reject(&'static str, bool),
+    /// M110: the new last line number, if one was given.
+    SetLineNumber(Option<u32>),
+    /// A realtime request (line number, request).
+    Realtime(Option<u32>, Realtime),
+    /// A command line for the FIFO: line number and the text's range in the buffer.
+    Command(Option<u32>, usize, usize),
+}
+
+fn classify(buf: &[u8], overlong: bool) -> Verdict {
+    let raw = trim(buf);
+    let (number, rest) = split_number(raw);
+    if overlong {
+        return Verdict::Reject("Line too long (max 128 bytes)", number.is_some());
+    }
+    if raw.is_empty() {
+        return Verdict::Empty;
+    }
+    let number = match number {
+        Some(Ok(n)) => Some(n),
+        Some(Err(())) => return Verdict::Reject("Bad line number", false),
+        None => None,
+    };
+    // Checksum: `*` and 1-3 digits at the end.
+    let (body, cs) = split_checksum(rest);
+    match (number, cs) {
+        (Some(_), None) => return Verdict::Reject("No Checksum with line number", true),
+        (n, Some(cs)) => {
+            let star = raw.len() - rest.len() + body.len();
+            if checksum(raw.get(..star).unwrap_or(&[])) != cs {
+                return Verdict::Reject("checksum mismatch", n.is_some());
+            }
+        }
+        (None, None) => {}
+    }
+    let text = trim(body);
+    // `text` is a sub-slice of `buf`: its offset, without indexing arithmetic on `buf`.
+    // (An empty `text` may be a static empty slice: then offset 0.)
+    let start = if text.is_empty() {
+        0
+    } else {
+        (text.as_ptr() as usize).saturating_sub(buf.as_ptr() as usize)
+    };
+    // Commands the link handles itself: M110 and the realtime requests.
+    if let Some(b'M' | b'm') = text.first() {
+        if let Ok(gcode::Line {
+            command: Some(c), ..
+        }) = gcode::parse_line(text)
+        {
+            if let Command::SetLineNumber(m) = c {
+                return Verdict::SetLineNumber(m.or(number));
+            }
+            if let Some(rt) = realtime_of(&c) {
+                return Verdict::Realtime(number, rt);
+            }
+        }
+    }
+    Verdict::Command(number, start, start + text.len())
+}
+
+/// Index of the first byte below 0x20 (or the length), eight bytes at a time.
+fn first_c0(s: &[u8]) -> usize {
+    const LOW: u64 = 0x2020_2020_2020_2020;
+    const HIGH: u64 = 0x8080_8080_8080_8080;
+    let mut chunks = s.chunks_exact(8);
+    let mut i = 0;
+    for c in &mut chunks {
+        let mut a = [0u8; 8];
+        a.copy_from_slice(c);
+        let w = u64::from_le_bytes(a);
+        // Sets the high bit of every byte < 0x20 (bytes >= 0x80 are masked by !w); borrows
+        // only spill upwards, so the lowest flagged byte is a true one.
+        let m = w.wrapping_sub(LOW) & !w & HIGH;
+        if m != 0 {
+            return i + (m.trailing_zeros() / 8) as usize;
+        }
+        i += 8;
+    }
+    let r = chunks.remainder();
+    i + r.iter().position(|&b| b < 0x20).unwrap_or(r.len())
 }
 
 /// Trim spaces and tabs at both ends.
@@ -531,32 +601,46 @@ fn split_number(raw: &[u8]) -> (Option<Result<u32, ()>>, &[u8]) {
     (Some(Ok(n as u32)), raw.get(i..).unwrap_or(&[]))
 }
 
-/// Split a trailing `*<1-3 digits>` checksum: (body before `*`, checksum).
+/// Split a trailing `*<1-3 digits>` checksum (spaces allowed after it): (body before `*`,
+/// checksum). Looks at the end of the line only.
 fn split_checksum(s: &[u8]) -> (&[u8], Option<u8>) {
-    let Some(star) = s.iter().rposition(|&c| c == b'*') else {
-        return (s, None);
-    };
-    let digits = trim(s.get(star + 1..).unwrap_or(&[]));
-    if digits.is_empty() || digits.len() > 3 || !digits.iter().all(u8::is_ascii_digit) {
+    let t = trim(s);
+    let tail_digits = t
+        .iter()
+        .rev()
+        .take(4)
+        .take_while(|c| c.is_ascii_digit())
+        .count();
+    if tail_digits == 0 || tail_digits > 3 {
         return (s, None);
     }
-    let v = digits
+    let Some(star) = t.len().checked_sub(tail_digits + 1) else {
+        return (s, None);
+    };
+    if t.get(star) != Some(&b'*') {
+        return (s, None);
+    }
+    let v = t
+        .get(star + 1..)
+        .unwrap_or(&[])
         .iter()
         .fold(0u32, |a, d| a * 10 + u32::from(d - b'0'));
     match u8::try_from(v) {
-        Ok(cs) => (s.get(..star).unwrap_or(&[]), Some(cs)),
+        // `t` starts where `s` does after leading spaces.
+        Ok(cs) => {
+            let lead = s.len() - trim_start(s).len();
+            (s.get(..lead + star).unwrap_or(&[]), Some(cs))
+        }
         Err(_) => (s, None),
     }
 }
 
-/// Counts the bytes a response will take in the ring.
-struct Counter(usize);
-
-impl Write for Counter {
-    fn write_str(&mut self, s: &str) -> fmt::Result {
-        self.0 += s.chars().count();
-        Ok(())
-    }
+fn trim_start(s: &[u8]) -> &[u8] {
+    let a = s
+        .iter()
+        .position(|c| !matches!(c, b' ' | b'\t'))
+        .unwrap_or(s.len());
+    s.get(a..).unwrap_or(&[])
 }
 
 /// Writes into the output ring, ASCII only (others become `?`).
@@ -564,6 +648,12 @@ struct Ring<'a>(&'a mut Deque<u8, OUT_CAP>);
 
 impl Write for Ring<'_> {
     fn write_str(&mut self, s: &str) -> fmt::Result {
+        if s.is_ascii() {
+            for &b in s.as_bytes() {
+                self.0.push_back(b).map_err(|_| fmt::Error)?;
+            }
+            return Ok(());
+        }
         for ch in s.chars() {
             let b = if ch.is_ascii() { ch as u8 } else { b'?' };
             self.0.push_back(b).map_err(|_| fmt::Error)?;

@@ -337,3 +337,21 @@ proptest! {
         prop_assert_eq!(got, lines);
     }
 }
+
+#[test]
+fn number_and_checksum_only() {
+    let mut l = HostLink::new();
+    l.receive(numbered(1, "").as_bytes());
+    l.receive(b"0\n*5\n");
+    assert_eq!(l.last_line(), 1);
+    assert_eq!(pop_text(&mut l).as_deref(), Some(""));
+    let _ = out(&mut l);
+}
+
+proptest! {
+    #[test]
+    fn first_c0_matches_naive(b in proptest::collection::vec(any::<u8>(), 0..40)) {
+        let naive = b.iter().position(|&c| c < 0x20).unwrap_or(b.len());
+        prop_assert_eq!(first_c0(&b), naive);
+    }
+}

@@ -164,6 +164,8 @@ pub struct MachineState {
     retracted: bool,
     /// Sequence number of the next move.
     next_seq: u32,
+    /// `pos_mm` in steps (rounded once per commit).
+    steps: StepPos,
 }
 
 impl MachineState {
@@ -183,6 +185,7 @@ impl MachineState {
             logical_e_mm: 0.0,
             retracted: false,
             next_seq: 1,
+            steps: [0; AXES],
         }
     }
 
@@ -214,13 +217,19 @@ impl MachineState {
             }
             Command::Home(flags) => {
                 let mut done = [false; AXES];
+                let mut pos = self.pos_mm;
                 for axis in [Axis::X, Axis::Y, Axis::Z] {
                     if flags.includes(axis) {
-                        let i = axis.index();
                         let min = cfg.axis(axis).min_mm;
-                        self.pos_mm[i] = if min.is_finite() { f64::from(min) } else { 0.0 };
+                        pos[axis.index()] = if min.is_finite() { f64::from(min) } else { 0.0 };
+                        done[axis.index()] = true;
+                    }
+                }
+                self.steps = to_steps(&pos, cfg)?;
+                self.pos_mm = pos;
+                for (i, d) in done.iter().enumerate() {
+                    if *d {
                         self.offset_mm[i] = 0.0;
-                        done[i] = true;
                     }
                 }
                 Ok(Action::Home(AxisFlags(done)))
@@ -325,10 +334,11 @@ impl MachineState {
         let (pos, logical_e) = self.target(axes);
         check_bounds(&pos, cfg)?;
         let target = to_steps(&pos, cfg)?;
-        let before = to_steps(&self.pos_mm, cfg)?;
+        let before = self.steps;
         // Commit.
         self.feed_mm_s = feed_mm_s;
         self.pos_mm = pos;
+        self.steps = target;
         self.logical_e_mm = logical_e;
         if target == before {
             return Ok(Action::None);
@@ -365,7 +375,7 @@ impl MachineState {
         let plan = arc::plan(&self.pos_mm, &end, centre, clockwise)?;
         check_bounds(&end, cfg)?;
         plan.check_bounds(cfg)?;
-        to_steps(&end, cfg)?;
+        let end_steps = to_steps(&end, cfg)?;
         let n = plan.segments();
         // Commit.
         self.feed_mm_s = feed_mm_s;
@@ -379,6 +389,7 @@ impl MachineState {
             cfg,
         );
         self.pos_mm = end;
+        self.steps = end_steps;
         self.logical_e_mm = logical_e;
         Ok(Action::Arc(moves))
     }
@@ -396,6 +407,7 @@ impl MachineState {
         pos[Axis::E.index()] += if retract { -len } else { len };
         let target = to_steps(&pos, cfg)?;
         self.pos_mm = pos;
+        self.steps = target;
         self.retracted = retract;
         let seq = self.take_seq(1);
         Ok(Action::Move(MoveRequest {
@@ -411,10 +423,11 @@ impl MachineState {
         s
     }
 
-    /// The commanded machine position in steps (where the last queued move ends).
-    pub fn position_steps(&self, cfg: &MachineConfig) -> StepPos {
-        // In range: every committed position passed `to_steps`.
-        to_steps(&self.pos_mm, cfg).unwrap_or([0; AXES])
+    /// The commanded machine position in steps (where the last queued move ends). The
+    /// configuration argument is kept for symmetry with the other conversions; the steps are
+    /// computed once when a position is committed.
+    pub fn position_steps(&self, _cfg: &MachineConfig) -> StepPos {
+        self.steps
     }
 
     /// The commanded machine position in mm (X Y Z machine coordinates; E = filament fed).
@@ -451,6 +464,7 @@ impl MachineState {
             }
             self.pos_mm[i] = mm;
         }
+        self.steps = *steps;
     }
 
     /// The modal feed in mm/s, before the M220 override.
@@ -539,13 +553,30 @@ pub(crate) fn to_steps(pos: &[f64; AXES], cfg: &MachineConfig) -> Result<StepPos
     let mut out = [0i32; AXES];
     for axis in Axis::ALL {
         let i = axis.index();
-        let s = libm::round(pos[i] * f64::from(cfg.axis(axis).steps_per_mm));
-        if !(s >= f64::from(i32::MIN) && s <= f64::from(i32::MAX)) {
-            return Err(MachineError::StepOverflow(axis));
-        }
-        out[i] = s as i32;
+        out[i] = round_i32(pos[i] * f64::from(cfg.axis(axis).steps_per_mm))
+            .ok_or(MachineError::StepOverflow(axis))?;
     }
     Ok(out)
+}
+
+/// Round half away from zero to an `i32`, or `None` outside its range (and for NaN). Exact:
+/// for |x| < 2^31 the truncation and the fraction `x - trunc(x)` are exact in `f64`; the same
+/// result as `libm::round`, without its bit twiddling (property-tested).
+pub(crate) fn round_i32(x: f64) -> Option<i32> {
+    if !(x > f64::from(i32::MIN) - 0.5 && x < f64::from(i32::MAX) + 0.5) {
+        return None;
+    }
+    // In range: the casts cannot saturate.
+    let t = x as i64;
+    let frac = x - t as f64;
+    let r = if frac >= 0.5 {
+        t + 1
+    } else if frac <= -0.5 {
+        t - 1
+    } else {
+        t
+    };
+    i32::try_from(r).ok()
 }
 
 #[cfg(test)]

@@ -244,6 +244,16 @@ fn line() -> impl Strategy<Value = String> {
 }
 
 proptest! {
+    #[test]
+    fn round_i32_matches_libm(x in -3.0e9f64..3.0e9, f in prop_oneof![Just(0.5), Just(-0.5), Just(0.0), -1.0f64..1.0]) {
+        let v = libm::round(x.trunc() + f);
+        let want = if v >= f64::from(i32::MIN) && v <= f64::from(i32::MAX) { Some(v as i32) } else { None };
+        prop_assert_eq!(round_i32(x.trunc() + f), want);
+        let v = libm::round(x);
+        let want = if v >= f64::from(i32::MIN) && v <= f64::from(i32::MAX) { Some(v as i32) } else { None };
+        prop_assert_eq!(round_i32(x), want);
+    }
+
     /// Random command sequences: no panic; an error changes nothing; a success keeps the
     /// commanded position in the build volume and the step position consistent with it.
     #[test]
