@@ -71,18 +71,19 @@ mod image {
     static USB_OUT: Pipe<CriticalSectionRawMutex, OUT_PIPE> = Pipe::new();
     static UART_OUT: Pipe<CriticalSectionRawMutex, OUT_PIPE> = Pipe::new();
 
-    /// Step events run this much later than the executive stamped them (ns). The executive's
-    /// clock is the board's clock; only its motion timeline is shifted, after a G28 whose
-    /// physical homing took longer than the planned homing move. Back to 0 whenever motion
-    /// comes to rest (the next block then starts from the current time).
-    static MOTION_OFFSET_NS: critical_section::Mutex<core::cell::Cell<u64>> =
+    /// Step events run this much later (or earlier, if negative) than the executive stamped
+    /// them (ns). The executive's clock is the board's clock; only its motion timeline is
+    /// shifted, after a G28, so that what follows the planned homing move starts when the
+    /// physical homing ends. Back to 0 whenever motion comes to rest (the next block then
+    /// starts from the current time).
+    static MOTION_OFFSET_NS: critical_section::Mutex<core::cell::Cell<i64>> =
         critical_section::Mutex::new(core::cell::Cell::new(0));
 
-    fn motion_offset_ns() -> u64 {
+    fn motion_offset_ns() -> i64 {
         critical_section::with(|cs| MOTION_OFFSET_NS.borrow(cs).get())
     }
 
-    fn set_motion_offset_ns(v: u64) {
+    fn set_motion_offset_ns(v: i64) {
         critical_section::with(|cs| MOTION_OFFSET_NS.borrow(cs).set(v));
     }
 
@@ -271,8 +272,9 @@ mod image {
     ) -> Option<(u64, u8)> {
         let now = printer_now_ns();
         let offset = motion_offset_ns();
+        let board_ns = |t_ns: u64| t_ns.saturating_add_signed(offset);
         let to_pin = |ev: &StepEvent| PinEvent {
-            t_ticks: (ev.t_ns + offset) / clock::NS_PER_TICK,
+            t_ticks: board_ns(ev.t_ns) / clock::NS_PER_TICK,
             axis_mask: ev.axis_mask,
             dir_mask: ev.dir_mask,
         };
@@ -287,7 +289,7 @@ mod image {
         }
         while producer.ready() {
             let Some(t) = p.next_step_ns() else { break };
-            if t + offset > now + LOOKAHEAD_NS && homing_end.is_none() {
+            if board_ns(t) > now + LOOKAHEAD_NS && homing_end.is_none() {
                 break;
             }
             let Some(ev) = p.next_step() else { break };
@@ -404,7 +406,8 @@ mod image {
             }
         });
         // What the executive planned after its homing move starts now.
-        set_motion_offset_ns(clock::now_ns().saturating_sub(homing_end_ns));
+        let shift = i128::from(clock::now_ns()) - i128::from(homing_end_ns);
+        set_motion_offset_ns(shift.clamp(i128::from(i64::MIN), i128::from(i64::MAX)) as i64);
         let mut p = printer.borrow_mut();
         if !ok {
             p.request(Realtime::EmergencyStop, printer_now_us());
