@@ -309,6 +309,10 @@ impl Driver {
             Event::Paused(b) => {
                 self.paused_since = Some(now);
                 match b {
+                    Some(b) if s.pause_was_now() => self.log(
+                        now,
+                        format!("paused now (mid-layer); edits apply from layer {b}, the first not yet sent"),
+                    ),
                     Some(b) => self.log(now, format!("paused at the boundary before layer {b}")),
                     None => self.log(now, "paused".into()),
                 }

@@ -270,6 +270,7 @@ pub struct Session<P: Read + Write> {
     rt_oks: usize,
     last_resend: (u32, u32),
     resume_requested_at: Option<Duration>,
+    pause_now: bool,
 }
 
 impl<P: Read + Write> Session<P> {
@@ -307,6 +308,7 @@ impl<P: Read + Write> Session<P> {
             rt_oks: 0,
             last_resend: (0, 0),
             resume_requested_at: None,
+            pause_now: false,
         };
         s.refresh_estimates();
         s
@@ -433,6 +435,12 @@ impl<P: Read + Write> Session<P> {
         self.pending = Some(Pending::AtLayer { gate: index });
     }
 
+    /// True when the last pause was requested as "pause now" (it may have stopped mid-layer;
+    /// edits then apply from the first layer not yet sent).
+    pub fn pause_was_now(&self) -> bool {
+        self.pause_now
+    }
+
     /// The underlying port.
     pub fn port(&self) -> &P {
         &self.port
@@ -490,6 +498,7 @@ impl<P: Read + Write> Session<P> {
                     return Ok(());
                 }
                 self.pause_requested_at = Some(now);
+                self.pause_now = r == Request::PauseNow;
                 if r == Request::PauseNow {
                     self.pending = Some(Pending::Now);
                     if self.method == Some(PauseMethod::Firmware) {
