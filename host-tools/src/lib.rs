@@ -4,6 +4,9 @@
 #![deny(missing_docs)]
 
 pub mod additive;
+pub mod grow;
+pub mod cure;
+pub mod timebased;
 pub mod cli;
 pub mod job;
 pub mod sender;

@@ -198,3 +198,86 @@ pub fn check(base: &Mesh, job: &Job, p: &JobParams) -> Option<Collision> {
     let samples = BaseSamples::new(base, p.collision_step_mm, p.head.max_radius_mm());
     check_path(&samples, &p.head, &job.tip_polyline(), p.collision_step_mm)
 }
+
+/// Speeds of the emitted paths, mm/s.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Speeds {
+    /// First layer (on the base part).
+    pub first_layer_mm_s: f64,
+    /// Walls.
+    pub wall_mm_s: f64,
+    /// Infill.
+    pub infill_mm_s: f64,
+}
+
+impl Default for Speeds {
+    fn default() -> Self {
+        Speeds {
+            first_layer_mm_s: 15.0,
+            wall_mm_s: 25.0,
+            infill_mm_s: 40.0,
+        }
+    }
+}
+
+/// The job as a design-compiler model (strings of cross-section `line width × layer height`),
+/// ready for the shared G-code writer. Layer markers carry the height along the face normal.
+pub fn to_model(job: &Job, p: &JobParams, speeds: &Speeds) -> crate::model::Model {
+    use crate::model::{MarkerKind, Model, Step, Str};
+    let mut m = Model::new([job.frame.origin.x, job.frame.origin.y]);
+    m.push(Step::Comment(format!(
+        "additive job on base face {} (tilt {:.2} deg), frame origin {:.3},{:.3},{:.3} normal {:.4},{:.4},{:.4}",
+        job.face_index,
+        job.frame.tilt_deg(),
+        job.frame.origin.x,
+        job.frame.origin.y,
+        job.frame.origin.z,
+        job.frame.z.x,
+        job.frame.z.y,
+        job.frame.z.z
+    )));
+    let cross = p.fill.line_width_mm * p.layer_mm;
+    let mut layer = usize::MAX;
+    let mut kind: Option<PathKind> = None;
+    for path in &job.paths {
+        if path.layer != layer {
+            layer = path.layer;
+            kind = None;
+            m.push(Step::Marker {
+                kind: MarkerKind::Layer,
+                z_mm: (layer as f64 + 1.0) * p.layer_mm,
+                height_mm: p.layer_mm,
+            });
+        }
+        if kind != Some(path.kind) {
+            kind = Some(path.kind);
+            m.push(Step::Type(
+                match path.kind {
+                    PathKind::Wall(0) => "External perimeter",
+                    PathKind::Wall(_) => "Perimeter",
+                    PathKind::Infill => "Solid infill",
+                }
+                .into(),
+            ));
+        }
+        let speed = if layer == 0 {
+            speeds.first_layer_mm_s
+        } else if path.kind == PathKind::Infill {
+            speeds.infill_mm_s
+        } else {
+            speeds.wall_mm_s
+        };
+        if let Some(first) = path.points.first() {
+            m.push(Step::Travel {
+                to: *first,
+                speed_mm_s: None,
+            });
+        }
+        for w in path.points.windows(2) {
+            if w[0] != w[1] {
+                m.push(Step::String(Str::line(w[0], w[1], cross, speed)));
+            }
+        }
+    }
+    m
+}

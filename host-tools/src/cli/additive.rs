@@ -1,10 +1,191 @@
-//! `host-tools additive` (not built yet).
+//! `host-tools additive`: print a shape onto a face of an existing part (polygon frame).
+
+use crate::additive::collision::HeadModel;
+use crate::additive::fill::FillParams;
+use crate::additive::frame::Placement;
+use crate::additive::job::{check, plan, to_model, FaceChoice, JobParams, Speeds};
+use crate::additive::stl::read_stl;
+use crate::profile::Profile;
+use crate::writer::{GcodeWriter, WriteOptions};
+use anyhow::Context;
+use glam::{DVec2, DVec3};
+use std::path::PathBuf;
 
 /// Arguments of `host-tools additive`.
 #[derive(clap::Args, Debug)]
-pub struct Args {}
+pub struct Args {
+    /// The existing part (STL, binary or ASCII), in printer coordinates.
+    #[arg(long)]
+    pub base: PathBuf,
+    /// Base triangle to print on, by index.
+    #[arg(long, conflicts_with = "at", required_unless_present = "at")]
+    pub face: Option<usize>,
+    /// Base triangle to print on: the one nearest to this point, `x,y,z` mm.
+    #[arg(long, value_parser = parse_xyz, allow_hyphen_values = true)]
+    pub at: Option<DVec3>,
+    /// The shape to add (STL); its XY bounding-box centre and lowest point stand on the face.
+    #[arg(long)]
+    pub shape: PathBuf,
+    /// Offset of the shape in the face frame, `x,y` mm.
+    #[arg(long, value_parser = parse_xy, default_value = "0,0", allow_hyphen_values = true)]
+    pub offset: DVec2,
+    /// Rotation of the shape about its local Z, degrees.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub rotate: f64,
+    /// Number of walls.
+    #[arg(long, default_value_t = 2)]
+    pub walls: usize,
+    /// Infill density, per cent (0 = hollow like the paper, 100 = solid).
+    #[arg(long, default_value_t = 30.0)]
+    pub infill: f64,
+    /// Solid bottom and top layers.
+    #[arg(long, default_value_t = 3)]
+    pub solid_layers: usize,
+    /// Layer height along the face normal, mm.
+    #[arg(long, default_value_t = 0.2)]
+    pub layer_height: f64,
+    /// Line width, mm.
+    #[arg(long, default_value_t = 0.45)]
+    pub line_width: f64,
+    /// Printer profile (built-in name or TOML path).
+    #[arg(long, default_value = "ender3")]
+    pub printer: String,
+    /// Nozzle tip radius, mm (collision model).
+    #[arg(long, default_value_t = 0.5)]
+    pub tip_radius: f64,
+    /// Nozzle cone half angle, degrees.
+    #[arg(long, default_value_t = 45.0)]
+    pub nozzle_angle: f64,
+    /// Free nozzle length below the heater block / shroud, mm.
+    #[arg(long, default_value_t = 8.0)]
+    pub nozzle_length: f64,
+    /// Radius of the cylinder modelling heater block, shroud and carriage, mm.
+    #[arg(long, default_value_t = 20.0)]
+    pub carriage_radius: f64,
+    /// Height of that cylinder, mm.
+    #[arg(long, default_value_t = 60.0)]
+    pub carriage_height: f64,
+    /// Output G-code.
+    #[arg(short, long)]
+    pub output: PathBuf,
+}
+
+fn parse_nums(s: &str, n: usize) -> Result<Vec<f64>, String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|t| {
+            t.trim()
+                .parse::<f64>()
+                .map_err(|_| format!("bad number `{t}`"))
+        })
+        .collect::<Result<_, _>>()?;
+    if v.len() != n || v.iter().any(|x| !x.is_finite()) {
+        return Err(format!(
+            "expected {n} finite comma-separated numbers, got `{s}`"
+        ));
+    }
+    Ok(v)
+}
+
+fn parse_xyz(s: &str) -> Result<DVec3, String> {
+    parse_nums(s, 3).map(|v| DVec3::new(v[0], v[1], v[2]))
+}
+
+fn parse_xy(s: &str) -> Result<DVec2, String> {
+    parse_nums(s, 2).map(|v| DVec2::new(v[0], v[1]))
+}
 
 /// Runs the subcommand.
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`additive` is not built yet; see the README's table of what works")
+pub fn run(a: Args) -> anyhow::Result<()> {
+    let profile = Profile::load(&a.printer)?;
+    let base = read_stl(&a.base)?;
+    let shape = read_stl(&a.shape)?;
+    let face = match (a.face, a.at) {
+        (Some(i), _) => FaceChoice::Index(i),
+        (None, Some(p)) => FaceChoice::At(p),
+        (None, None) => anyhow::bail!("give --face N or --at x,y,z"),
+    };
+    let params = JobParams {
+        face,
+        placement: Placement {
+            offset_mm: a.offset,
+            rotate_deg: a.rotate,
+        },
+        layer_mm: a.layer_height,
+        fill: FillParams {
+            line_width_mm: a.line_width,
+            walls: a.walls,
+            infill_percent: a.infill,
+            solid_layers: a.solid_layers,
+            ..FillParams::default()
+        },
+        head: HeadModel {
+            tip_radius_mm: a.tip_radius,
+            cone_half_angle_deg: a.nozzle_angle,
+            cone_height_mm: a.nozzle_length,
+            carriage_radius_mm: a.carriage_radius,
+            carriage_height_mm: a.carriage_height,
+        },
+        ..JobParams::default()
+    };
+    let job = plan(&base, &shape, &params)?;
+    println!("base:  {}", job.base_report.summary());
+    println!("shape: {}", job.shape_report.summary());
+    let f = &job.frame;
+    println!(
+        "face {}: tilt {:.2}°, origin ({:.3}, {:.3}, {:.3}), X' ({:.4}, {:.4}, {:.4}), Y' ({:.4}, {:.4}, {:.4}), Z' ({:.4}, {:.4}, {:.4}){}",
+        job.face_index,
+        f.tilt_deg(),
+        f.origin.x, f.origin.y, f.origin.z,
+        f.x.x, f.x.y, f.x.z,
+        f.y.x, f.y.y, f.y.z,
+        f.z.x, f.z.y, f.z.z,
+        if f.horizontal_fallback { " (horizontal face: Y' = global Y projected)" } else { "" }
+    );
+    println!(
+        "head: largest printable face tilt {:.1}° (cone {}°, {} mm below a carriage of radius {} mm)",
+        job.max_tilt_deg, a.nozzle_angle, a.nozzle_length, a.carriage_radius
+    );
+    if job.open_chains > 0 {
+        println!(
+            "warning: {} slice chains could not be closed (open shape mesh) and were dropped",
+            job.open_chains
+        );
+    }
+    if let Some(c) = check(&base, &job, &params) {
+        anyhow::bail!(
+            "refused: the {} hits the base part at ({:.2}, {:.2}, {:.2}) with the nozzle at ({:.2}, {:.2}, {:.2}) (toolpath point {}); the face tilt is {:.1}°, the head can print on up to {:.1}°",
+            c.part,
+            c.base_point[0], c.base_point[1], c.base_point[2],
+            c.tip[0], c.tip[1], c.tip[2],
+            c.path_index,
+            f.tilt_deg(),
+            job.max_tilt_deg
+        );
+    }
+    let model = to_model(&job, &params, &Speeds::default());
+    let writer = GcodeWriter::new(
+        &profile,
+        WriteOptions {
+            bare: false,
+            header: Some(format!(
+                "host-tools additive --base {} --shape {}",
+                a.base.display(),
+                a.shape.display()
+            )),
+        },
+    );
+    let file = std::fs::File::create(&a.output)
+        .with_context(|| format!("creating {}", a.output.display()))?;
+    let summary = writer.write(&model, std::io::BufWriter::new(file))?;
+    println!(
+        "collision check passed; wrote {}: {} layers, {} paths, {} strings, {} travels, filament {:.0} mm",
+        a.output.display(),
+        job.layers,
+        job.paths.len(),
+        summary.strings,
+        summary.travels,
+        summary.filament_mm
+    );
+    Ok(())
 }

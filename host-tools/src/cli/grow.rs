@@ -1,10 +1,235 @@
-//! `host-tools grow` (not built yet).
+//! `host-tools grow`: differential growth filling a region with one continuous stroke.
+
+use crate::grow::{
+    builtin_boundary, grow, read_boundary, to_model, verify_simple, Boundary, GrowParams,
+    StackParams,
+};
+use crate::profile::Profile;
+use crate::writer::{GcodeWriter, WriteOptions};
+use anyhow::Context;
+use glam::DVec2;
+use std::path::PathBuf;
+use std::time::Instant;
 
 /// Arguments of `host-tools grow`.
 #[derive(clap::Args, Debug)]
-pub struct Args {}
+pub struct Args {
+    /// Boundary: `circle`, `square`, `blob`, or a file (SVG polygon/polyline/path, or `x y`
+    /// lines).
+    #[arg(long)]
+    pub boundary: String,
+    /// Size of a built-in boundary (diameter or side), mm.
+    #[arg(long, default_value_t = 120.0)]
+    pub size: f64,
+    /// Covered fraction of the area, 0 < d ≤ 1: stroke spacing = line width ÷ density.
+    #[arg(long, default_value_t = 0.5)]
+    pub density: f64,
+    /// Extruded line width, mm (paste printers: about 10).
+    #[arg(long, default_value_t = 0.45)]
+    pub line_width: f64,
+    /// Layers to stack.
+    #[arg(long, default_value_t = 1)]
+    pub layers: usize,
+    /// Layer height, mm.
+    #[arg(long, default_value_t = 0.2)]
+    pub layer_height: f64,
+    /// Stop growing at this many nodes (also stops when the region is full).
+    #[arg(long, default_value_t = 50_000)]
+    pub nodes: usize,
+    /// Iteration limit.
+    #[arg(long, default_value_t = 20_000)]
+    pub max_iterations: usize,
+    /// Print speed, mm/s (paste, ArchiFAB-like: 16.7 = 1000 mm/min).
+    #[arg(long, default_value_t = 25.0)]
+    pub speed: f64,
+    /// Printer profile: built-in name or TOML path (e.g. host-tools/profiles/paste.toml).
+    #[arg(long, default_value = "ender3")]
+    pub printer: String,
+    /// Seed of the symmetry-breaking jitter.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Output G-code.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Also write the stroke inside its boundary as an SVG drawing.
+    #[arg(long)]
+    pub svg: Option<PathBuf>,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
 
 /// Runs the subcommand.
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`grow` is not built yet; see the README's table of what works")
+pub fn run(a: Args) -> anyhow::Result<()> {
+    if !(a.density > 0.0 && a.density <= 1.0) {
+        anyhow::bail!("--density must be in (0, 1], got {}", a.density);
+    }
+    for (name, v) in [
+        ("--line-width", a.line_width),
+        ("--layer-height", a.layer_height),
+        ("--speed", a.speed),
+        ("--size", a.size),
+    ] {
+        if !v.is_finite() || v <= 0.0 {
+            anyhow::bail!("{name} must be a positive number, got {v}");
+        }
+    }
+    let profile = Profile::load(&a.printer)?;
+    let polygon = match builtin_boundary(&a.boundary, a.size) {
+        Some(p) => p,
+        None => {
+            let text = std::fs::read_to_string(&a.boundary).with_context(|| {
+                format!(
+                    "--boundary {}: not circle/square/blob and not a readable file",
+                    a.boundary
+                )
+            })?;
+            read_boundary(&text).with_context(|| format!("reading boundary {}", a.boundary))?
+        }
+    };
+    let boundary = Boundary::new(polygon, 512)?;
+    let spacing = a.line_width / a.density;
+    let params = GrowParams {
+        max_nodes: a.nodes,
+        max_iterations: a.max_iterations,
+        seed: a.seed,
+        ..GrowParams::with_spacing(spacing)
+    };
+    let bar = if a.quiet {
+        indicatif::ProgressBar::hidden()
+    } else {
+        indicatif::ProgressBar::new(a.nodes as u64)
+    };
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("growing {bar:40} {pos}/{len} nodes {elapsed}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    // Grow, verify, and on the rare self-contact retry with the next seed (up to 3 runs).
+    let mut attempt = 0;
+    let (g, grow_s, verify_s) = loop {
+        let t0 = Instant::now();
+        let g = grow(
+            &boundary,
+            &GrowParams {
+                seed: a.seed + attempt,
+                ..params
+            },
+            |n| bar.set_position(n as u64),
+        )?;
+        let grow_s = t0.elapsed().as_secs_f64();
+        let t1 = Instant::now();
+        let crossing = verify_simple(&g.nodes, true);
+        let verify_s = t1.elapsed().as_secs_f64();
+        match crossing {
+            None => break (g, grow_s, verify_s),
+            Some((i, j)) if attempt >= 2 => {
+                bar.finish_and_clear();
+                anyhow::bail!(
+                    "growth produced a self-intersecting stroke 3 times (last: edges {i} and {j} at {:?}); try another --seed or a lower --density",
+                    g.nodes.get(i)
+                );
+            }
+            Some((i, j)) => {
+                eprintln!(
+                    "seed {}: edges {i} and {j} cross (verification); growing again with seed {}",
+                    a.seed + attempt,
+                    a.seed + attempt + 1
+                );
+                attempt += 1;
+            }
+        }
+    };
+    bar.finish_and_clear();
+    // Built-in shapes are centred on the origin: put them at the bed centre.
+    let offset = if builtin_boundary(&a.boundary, a.size).is_some() {
+        DVec2::from(profile.bed_center())
+    } else {
+        DVec2::ZERO
+    };
+    let stack = StackParams {
+        layers: a.layers,
+        layer_mm: a.layer_height,
+        line_width_mm: a.line_width,
+        speed_mm_s: a.speed,
+    };
+    let model = to_model(&g.nodes, offset, &stack);
+    let writer = GcodeWriter::new(
+        &profile,
+        WriteOptions {
+            bare: false,
+            header: Some(format!(
+                "host-tools grow --boundary {} --density {} (spacing {:.3} mm)",
+                a.boundary, a.density, spacing
+            )),
+        },
+    );
+    let file = std::fs::File::create(&a.output)
+        .with_context(|| format!("creating {}", a.output.display()))?;
+    let summary = writer.write(&model, std::io::BufWriter::new(file))?;
+    if let Some(svg) = &a.svg {
+        std::fs::write(svg, stroke_svg(&g.nodes, &boundary.polygon, a.line_width))
+            .with_context(|| format!("writing {}", svg.display()))?;
+    }
+    let len: f64 = (0..g.nodes.len())
+        .map(|i| g.nodes[i].distance(g.nodes[(i + 1) % g.nodes.len()]))
+        .sum();
+    let area = boundary.area_mm2();
+    println!(
+        "mean spacing (boundary area / stroke length) {:.3} mm; meaningful once the region is full",
+        area / len.max(1e-9)
+    );
+    println!(
+        "grew {} nodes in {} iterations, {:.2} s ({:.0} nodes/s; stopped: {}); stroke {:.0} mm per layer, spacing {:.3} mm; verified single closed stroke without self-intersection in {:.3} s",
+        g.nodes.len(),
+        g.iterations,
+        grow_s,
+        g.nodes.len() as f64 / grow_s.max(1e-9),
+        g.stop,
+        len,
+        spacing,
+        verify_s
+    );
+    println!(
+        "wrote {} ({} layers, {} strings, {} travels, {} retractions, filament {:.0} mm)",
+        a.output.display(),
+        a.layers,
+        summary.strings,
+        summary.travels,
+        summary.retractions,
+        summary.filament_mm
+    );
+    Ok(())
+}
+
+/// An SVG drawing of the stroke inside its boundary.
+pub fn stroke_svg(nodes: &[DVec2], boundary: &[DVec2], width_mm: f64) -> String {
+    let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+    for p in boundary.iter().chain(nodes) {
+        lo = lo.min(*p);
+        hi = hi.max(*p);
+    }
+    let pad = (hi - lo).max_element() * 0.02 + width_mm;
+    let (lo, hi) = (lo - DVec2::splat(pad), hi + DVec2::splat(pad));
+    let pts = |v: &[DVec2]| {
+        v.iter()
+            .map(|p| format!("{:.3},{:.3}", p.x, hi.y - (p.y - lo.y)))
+            .collect::<Vec<_>>()
+            .join(" ")
+    };
+    format!(
+        "<svg xmlns=\"http://www.w3.org/2000/svg\" viewBox=\"{:.3} {:.3} {:.3} {:.3}\" width=\"800\" height=\"{:.0}\">\n<rect x=\"{:.3}\" y=\"{:.3}\" width=\"{:.3}\" height=\"{:.3}\" fill=\"white\"/>\n<polygon points=\"{}\" fill=\"none\" stroke=\"#888\" stroke-width=\"{:.3}\"/>\n<polygon points=\"{}\" fill=\"none\" stroke=\"#b5542c\" stroke-width=\"{:.3}\" stroke-linejoin=\"round\"/>\n</svg>\n",
+        lo.x,
+        lo.y,
+        hi.x - lo.x,
+        hi.y - lo.y,
+        800.0 * (hi.y - lo.y) / (hi.x - lo.x),
+        lo.x,
+        lo.y,
+        hi.x - lo.x,
+        hi.y - lo.y,
+        pts(boundary),
+        width_mm * 0.3,
+        pts(nodes),
+        width_mm
+    )
 }

@@ -1,10 +1,58 @@
-//! `host-tools timebased` (not built yet).
+//! `host-tools timebased`: resample a toolpath at a fixed period (time-based G-code).
+
+use crate::motion::{MotionLimits, Trajectory};
+use crate::profile::Profile;
+use crate::timebased::{write_timebased, TimedPath};
+use anyhow::Context;
+use std::path::PathBuf;
 
 /// Arguments of `host-tools timebased`.
 #[derive(clap::Args, Debug)]
-pub struct Args {}
+pub struct Args {
+    /// Input G-code (ours or a slicer's).
+    pub input: PathBuf,
+    /// Output time-based G-code.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Sample period, ms.
+    #[arg(long, default_value_t = 100.0)]
+    pub period_ms: f64,
+    /// Printer profile whose motion limits time the moves (built-in name or TOML path).
+    #[arg(long, default_value = "ender3")]
+    pub printer: String,
+}
 
 /// Runs the subcommand.
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`timebased` is not built yet; see the README's table of what works")
+pub fn run(a: Args) -> anyhow::Result<()> {
+    if !a.period_ms.is_finite() || a.period_ms <= 0.0 {
+        anyhow::bail!("--period-ms must be a positive number");
+    }
+    let profile = Profile::load(&a.printer)?;
+    let input =
+        std::fs::read(&a.input).with_context(|| format!("reading {}", a.input.display()))?;
+    let traj = Trajectory::from_gcode(&input, MotionLimits::from_profile(&profile))
+        .map_err(|e| anyhow::anyhow!("{}: {e}", a.input.display()))?;
+    let period_s = a.period_ms / 1000.0;
+    let n = (traj.duration_s() / period_s).floor() + 1.0;
+    if n > 50e6 {
+        anyhow::bail!(
+            "{:.0} samples at {} ms: choose a longer --period-ms",
+            n,
+            a.period_ms
+        );
+    }
+    let samples = traj.samples(period_s);
+    let text = write_timebased(&samples, period_s, &a.input.display().to_string());
+    std::fs::write(&a.output, &text).with_context(|| format!("writing {}", a.output.display()))?;
+    let deposited = samples.iter().filter(|s| s.extruding).count();
+    println!(
+        "{} samples every {} ms over {:.1} s ({} depositing) -> {} ({} bytes)",
+        samples.len(),
+        a.period_ms,
+        traj.duration_s(),
+        deposited,
+        a.output.display(),
+        text.len()
+    );
+    Ok(())
 }

@@ -1,0 +1,261 @@
+//! Time-based G-code (SPEC §4, Nagura et al.): the toolpath resampled at a fixed period, so a
+//! sample's index *is* its time (`t = index × period`).
+//!
+//! Resampling uses the acceleration-aware motion model of `stats`
+//! ([`crate::motion::Trajectory`], ht-design's), reached through the small [`TimedPath`]
+//! trait, so another model can be slotted in without touching the resampler or the cure check.
+//!
+//! # Output format
+//! ```text
+//! ;TIMEBASED period_ms=100 samples=N
+//! ;FORMAT line k (k = 0..N-1) of the motion lines below is the head position at t = k*period;
+//! ;FORMAT G1 moves reach it in one period (F = distance / period), G4 P<period> = head still
+//! G90
+//! M82
+//! G92 E0
+//! G1 X.. Y.. Z.. E.. F..      <- sample 0
+//! ;LAYER_CHANGE / ;Z:..       <- where the source's layer changes (not a sample)
+//! G1 X.. Y.. E.. F..          <- sample 1, only changed axes written
+//! G4 P100                     <- sample k while the head stands still (dwell, heating)
+//! ```
+//! E is absolute (a running total, as the motion model reports it). A sample is *extruding*
+//! when E grows towards it; travels and retractions do not deposit material. The file is
+//! ordinary G-code that any firmware runs at the right pace, and `cure-check` reads it back
+//! sample by sample (with the same reader as `stats`).
+
+use crate::gcode_read::{default_reader, Event, GcodeReader};
+use crate::motion::{MoveKind, Trajectory};
+use glam::DVec3;
+use std::fmt::Write as _;
+
+/// The first line of a time-based file.
+pub const HEADER_TAG: &str = ";TIMEBASED";
+
+/// One sample of the toolpath.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sample {
+    /// Head position, mm.
+    pub pos: DVec3,
+    /// Absolute E (filament pushed so far), mm.
+    pub e_mm: f64,
+    /// True when material is deposited while reaching this sample.
+    pub extruding: bool,
+    /// Layer index from the source's layer marks (0 before the first).
+    pub layer: u32,
+}
+
+/// Anything that can say where the head is at a given time.
+pub trait TimedPath {
+    /// Length of the job, s.
+    fn duration_s(&self) -> f64;
+    /// Samples at `t = k·period_s`, `k = 0..=⌊duration/period⌋`.
+    fn samples(&self, period_s: f64) -> Vec<Sample>;
+}
+
+impl TimedPath for Trajectory {
+    fn duration_s(&self) -> f64 {
+        self.duration_s
+    }
+
+    fn samples(&self, period_s: f64) -> Vec<Sample> {
+        self.sample(period_s)
+            .map(|(t, p, idx)| {
+                let seg = self.segments.get(idx);
+                let moving = seg.is_some_and(|s| t >= s.t_start_s && t <= s.t_end_s() + 1e-9);
+                Sample {
+                    pos: DVec3::new(p[0], p[1], p[2]),
+                    e_mm: p[3],
+                    extruding: moving && seg.is_some_and(|s| s.kind == MoveKind::Print),
+                    layer: seg.map_or(0, |s| s.layer),
+                }
+            })
+            .collect()
+    }
+}
+
+/// Writes samples as time-based G-code (see the module docs for the format).
+pub fn write_timebased(samples: &[Sample], period_s: f64, source: &str) -> String {
+    let mut out = String::with_capacity(samples.len() * 40 + 512);
+    let period_ms = period_s * 1000.0;
+    let _ = writeln!(
+        out,
+        "{HEADER_TAG} period_ms={} samples={} source={}",
+        fmt_num(period_ms, 3),
+        samples.len(),
+        source.replace(['\n', '\r'], " ")
+    );
+    out.push_str(";FORMAT line k (k = 0..N-1) of the motion lines below is the head position at t = k*period;\n");
+    out.push_str(";FORMAT G1 moves reach it in one period (F = distance / period), G4 P<period> = head still\n");
+    out.push_str("G90\nM82\nG92 E0\n");
+    let mut prev: Option<Sample> = None;
+    let mut last_layer = 0u32;
+    let mut last_f = f64::NAN;
+    for s in samples {
+        if s.layer != last_layer {
+            last_layer = s.layer;
+            let _ = writeln!(out, ";LAYER_CHANGE\n;Z:{}", fmt_num(s.pos.z, 3));
+        }
+        let Some(p) = prev else {
+            let _ = writeln!(
+                out,
+                "G1 X{} Y{} Z{} E{} F{}",
+                fmt_num(s.pos.x, 3),
+                fmt_num(s.pos.y, 3),
+                fmt_num(s.pos.z, 3),
+                fmt_num(s.e_mm, 5),
+                fmt_num(6000.0, 1)
+            );
+            last_f = 6000.0;
+            prev = Some(*s);
+            continue;
+        };
+        let d = s.pos - p.pos;
+        let de = s.e_mm - p.e_mm;
+        let (x, y, z, e) = (
+            round_to(s.pos.x, 3) != round_to(p.pos.x, 3),
+            round_to(s.pos.y, 3) != round_to(p.pos.y, 3),
+            round_to(s.pos.z, 3) != round_to(p.pos.z, 3),
+            round_to(s.e_mm, 5) != round_to(p.e_mm, 5),
+        );
+        if !(x || y || z || e) {
+            let _ = writeln!(out, "G4 P{}", fmt_num(period_ms, 3));
+            prev = Some(*s);
+            continue;
+        }
+        let dist = if x || y || z { d.length() } else { de.abs() };
+        let f = round_to(dist / period_s * 60.0, 1).max(0.1);
+        out.push_str("G1");
+        for (on, axis, v, dec) in [
+            (x, 'X', s.pos.x, 3),
+            (y, 'Y', s.pos.y, 3),
+            (z, 'Z', s.pos.z, 3),
+            (e, 'E', s.e_mm, 5),
+        ] {
+            if on {
+                let _ = write!(out, " {axis}{}", fmt_num(v, dec));
+            }
+        }
+        if f != last_f {
+            let _ = write!(out, " F{}", fmt_num(f, 1));
+            last_f = f;
+        }
+        out.push('\n');
+        prev = Some(*s);
+    }
+    out
+}
+
+fn round_to(v: f64, dec: i32) -> f64 {
+    let s = 10f64.powi(dec);
+    (v * s).round() / s
+}
+
+/// `v` with at most `dec` decimals, trailing zeros trimmed.
+fn fmt_num(v: f64, dec: usize) -> String {
+    let s = format!("{v:.dec$}");
+    let s = if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    };
+    if s == "-0" {
+        "0".into()
+    } else {
+        s
+    }
+}
+
+/// True when `text` starts with the time-based header.
+pub fn is_timebased(text: &[u8]) -> bool {
+    text.starts_with(HEADER_TAG.as_bytes())
+}
+
+/// Period declared in a time-based header, s.
+pub fn header_period_s(text: &[u8]) -> Option<f64> {
+    let line = text.split(|&b| b == b'\n').next()?;
+    let line = std::str::from_utf8(line).ok()?;
+    let v = line
+        .split_whitespace()
+        .find_map(|w| w.strip_prefix("period_ms="))?;
+    let ms: f64 = v.parse().ok()?;
+    (ms.is_finite() && ms > 0.0).then_some(ms / 1000.0)
+}
+
+/// Sample count declared in a time-based header.
+pub fn header_samples(text: &[u8]) -> Option<usize> {
+    let line = text.split(|&b| b == b'\n').next()?;
+    let line = std::str::from_utf8(line).ok()?;
+    line.split_whitespace()
+        .find_map(|w| w.strip_prefix("samples="))?
+        .parse()
+        .ok()
+}
+
+/// Reads a time-based file back into samples with the tools' G-code reader: every motion
+/// event (G1 or G4) after the header is one sample.
+pub fn read_timebased(text: &[u8]) -> anyhow::Result<(f64, Vec<Sample>)> {
+    let period = header_period_s(text).ok_or_else(|| {
+        anyhow::anyhow!("not a time-based file: missing `{HEADER_TAG} period_ms=`")
+    })?;
+    let mut samples = Vec::new();
+    let mut layer = 0u32;
+    let mut last = Sample {
+        pos: DVec3::ZERO,
+        e_mm: 0.0,
+        extruding: false,
+        layer: 0,
+    };
+    let declared = header_samples(text);
+    let mut first_from: Option<DVec3> = None;
+    let mut reader = default_reader();
+    reader
+        .read(text, &mut |ev| match ev {
+            Event::Move { from, to, .. } => {
+                if first_from.is_none() {
+                    first_from = Some(DVec3::new(from[0], from[1], from[2]));
+                }
+                let moved = (0..3).any(|k| (to[k] - from[k]).abs() > 1e-9);
+                last = Sample {
+                    pos: DVec3::new(to[0], to[1], to[2]),
+                    e_mm: to[3],
+                    // The first sample is where the job starts: nothing deposited yet.
+                    extruding: !samples.is_empty() && moved && to[3] > from[3] + 1e-9,
+                    layer,
+                };
+                samples.push(last);
+            }
+            Event::Dwell(_) => {
+                last.extruding = false;
+                last.layer = layer;
+                samples.push(last);
+            }
+            Event::Layer { .. } => layer += 1,
+            _ => {}
+        })
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    // A first sample at the reader's start position is a zero-length move that the reader
+    // does not report: put it back so indices stay times.
+    if declared == Some(samples.len() + 1) {
+        samples.insert(
+            0,
+            Sample {
+                pos: first_from.unwrap_or(DVec3::ZERO),
+                e_mm: 0.0,
+                extruding: false,
+                layer: 0,
+            },
+        );
+        if let Some(s) = samples.get_mut(1) {
+            s.extruding = false;
+        }
+    }
+    if let Some(n) = declared {
+        if n != samples.len() {
+            anyhow::bail!(
+                "time-based file declares {n} samples but holds {}: edited or truncated?",
+                samples.len()
+            );
+        }
+    }
+    Ok((period, samples))
+}

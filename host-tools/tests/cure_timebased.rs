@@ -1,0 +1,206 @@
+//! Time-based resampling and the cure check, on synthetic paths whose times are known exactly.
+
+use glam::DVec3;
+use host_tools::cure::{check, heat_map_svg, CureParams};
+use host_tools::motion::{MotionLimits, Trajectory};
+use host_tools::profile::Profile;
+use host_tools::timebased::{is_timebased, read_timebased, write_timebased, Sample, TimedPath};
+
+/// `layers` layers of a square loop of `per_layer` samples (side 40 mm, so samples are
+/// 160/per_layer mm apart), each layer exactly above the previous, with `wait` still samples
+/// (not depositing) after every layer.
+fn stacked_square(layers: usize, per_layer: usize, wait: usize, layer_mm: f64) -> Vec<Sample> {
+    let mut out = Vec::new();
+    for l in 0..layers {
+        let z = (l + 1) as f64 * layer_mm;
+        for k in 0..per_layer {
+            let t = k as f64 / per_layer as f64 * 4.0;
+            let side = t.floor();
+            let f = t - side;
+            let (x, y) = match side as u32 {
+                0 => (40.0 * f, 0.0),
+                1 => (40.0, 40.0 * f),
+                2 => (40.0 * (1.0 - f), 40.0),
+                _ => (0.0, 40.0 * (1.0 - f)),
+            };
+            out.push(Sample {
+                pos: DVec3::new(x, y, z),
+                e_mm: 0.0,
+                extruding: true,
+                layer: l as u32 + 1,
+            });
+        }
+        let last = *out.last().unwrap();
+        for _ in 0..wait {
+            out.push(Sample {
+                extruding: false,
+                ..last
+            });
+        }
+    }
+    out
+}
+
+#[test]
+fn elapsed_is_index_difference_times_period() {
+    let (layers, per_layer, wait) = (5, 400, 30);
+    let samples = stacked_square(layers, per_layer, wait, 0.5);
+    let period = 0.1;
+    // Directly below every sample of layer ≥ 2 is the same XY one layer earlier:
+    // (per_layer + wait) samples ago.
+    let exact = (per_layer + wait) as f64 * period;
+    let base = CureParams {
+        period_s: period,
+        cure_s: exact + 1e-6,
+        radius_mm: 0.2,
+        min_dz_mm: 0.1,
+    };
+    let r = check(&samples, &base);
+    assert_eq!(r.samples, layers * (per_layer + wait));
+    assert_eq!(r.deposited, layers * per_layer);
+    assert_eq!(r.supported, (layers - 1) * per_layer);
+    assert_eq!(r.violation_count, (layers - 1) * per_layer);
+    assert!((r.min_elapsed_s.unwrap() - exact).abs() < 1e-9);
+    for v in &r.violations {
+        assert_eq!(v.index - v.below_index, per_layer + wait);
+        assert!((v.elapsed_s - exact).abs() < 1e-9);
+    }
+    // Just below the exact time: no violation at all.
+    let ok = check(
+        &samples,
+        &CureParams {
+            cure_s: exact - 1e-6,
+            ..base
+        },
+    );
+    assert_eq!(ok.violation_count, 0);
+    assert_eq!(ok.layers.len(), layers);
+    assert!(
+        ok.layers[0].min_elapsed_s.is_none(),
+        "first layer rests on nothing"
+    );
+    assert!(heat_map_svg(&samples, &r).contains("<svg"));
+}
+
+#[test]
+fn radius_and_height_filters() {
+    let mut samples = stacked_square(2, 400, 0, 0.5);
+    // Shift the second layer sideways by 1 mm: nothing within 0.5 mm below any sample of the
+    // straight sides parallel to the shift.
+    for s in samples.iter_mut().skip(400) {
+        s.pos.x += 1.0;
+    }
+    let p = CureParams {
+        period_s: 0.1,
+        cure_s: 100.0,
+        radius_mm: 0.5,
+        min_dz_mm: 0.1,
+    };
+    let r = check(&samples, &p);
+    // On the sides along X the layer below runs along the same line (samples 0.4 mm apart),
+    // so every shifted sample has one within 0.5 mm; on the sides along Y (x = 0 and 40,
+    // shifted to 1 and 41) nothing is within 0.5 mm except next to the corners.
+    for v in &r.violations {
+        assert!(v.y < 0.5 || v.y > 39.5, "{v:?}");
+    }
+    assert!(r.supported > 0 && r.supported < 400);
+    // A min_dz larger than the layer height: nothing counts as below.
+    let r = check(
+        &samples,
+        &CureParams {
+            min_dz_mm: 0.6,
+            ..p
+        },
+    );
+    assert_eq!(r.supported, 0);
+}
+
+#[test]
+fn same_layer_never_counts_as_below() {
+    // A tilted layer: z rises along the path, consecutive samples are close and lower.
+    let samples: Vec<Sample> = (0..200)
+        .map(|i| Sample {
+            pos: DVec3::new(i as f64 * 0.1, 0.0, 1.0 + i as f64 * 0.1),
+            e_mm: 0.0,
+            extruding: true,
+            layer: 1,
+        })
+        .collect();
+    let r = check(
+        &samples,
+        &CureParams {
+            period_s: 0.1,
+            cure_s: 10.0,
+            radius_mm: 0.5,
+            min_dz_mm: 0.05,
+        },
+    );
+    assert_eq!(r.supported, 0);
+}
+
+#[test]
+fn timebased_file_round_trip() {
+    let samples = stacked_square(3, 200, 5, 0.4);
+    let text = write_timebased(&samples, 0.1, "synthetic");
+    assert!(is_timebased(text.as_bytes()));
+    assert!(text.contains("G4 P100"));
+    let (period, back) = read_timebased(text.as_bytes()).unwrap();
+    assert!((period - 0.1).abs() < 1e-12);
+    assert_eq!(back.len(), samples.len());
+    for (a, b) in samples.iter().zip(&back).skip(1) {
+        assert!((a.pos - b.pos).length() < 2e-3, "{a:?} {b:?}");
+        assert_eq!(a.layer, b.layer);
+    }
+    // Every moving sample of the source deposits (E grows), every still one does not.
+    let deposited = back.iter().filter(|s| s.extruding).count();
+    assert!(deposited >= 3 * 199 && deposited <= 3 * 200, "{deposited}");
+    // Truncated files are refused, not misread.
+    let cut = &text[..text.len() / 2];
+    let cut = &cut[..cut.rfind('\n').unwrap() + 1];
+    assert!(read_timebased(cut.as_bytes()).is_err());
+}
+
+#[test]
+fn resampling_real_gcode_times_a_layer() {
+    // Two layers of a 40 mm square at 10 mm/s: one layer takes 16 s plus the acceleration
+    // ramps at the four corners (v/a = 10/500 s each way: +0.02 s per corner).
+    let mut g = String::from("G90\nM82\nG92 E0\nG0 X10 Y10 Z0.2 F6000\n;LAYER_CHANGE\n;Z:0.2\n");
+    let mut e = 0.0;
+    for layer in 0..2 {
+        if layer == 1 {
+            g.push_str(";LAYER_CHANGE\n;Z:0.4\nG0 Z0.4\n");
+        }
+        for (x, y) in [(50, 10), (50, 50), (10, 50), (10, 10)] {
+            e += 1.0;
+            g.push_str(&format!("G1 X{x} Y{y} E{e} F600\n"));
+        }
+    }
+    let profile = Profile::ender3();
+    let traj = Trajectory::from_gcode(g.as_bytes(), MotionLimits::from_profile(&profile)).unwrap();
+    let samples = traj.samples(0.1);
+    let r = check(
+        &samples,
+        &CureParams {
+            period_s: 0.1,
+            cure_s: 20.0,
+            radius_mm: 0.6,
+            min_dz_mm: 0.1,
+        },
+    );
+    let m = r.min_elapsed_s.expect("second layer lies on the first");
+    assert!(m > 15.9 && m < 16.6, "{m}");
+    assert!(
+        r.violation_count > 100,
+        "every spot of layer 2 is laid within 20 s"
+    );
+    let ok = check(
+        &samples,
+        &CureParams {
+            period_s: 0.1,
+            cure_s: 15.0,
+            radius_mm: 0.6,
+            min_dz_mm: 0.1,
+        },
+    );
+    assert_eq!(ok.violation_count, 0);
+}
