@@ -372,12 +372,21 @@ pub fn run<F: Factory>(
         }
     }
     let a_done = a.run_to_end(sc.max_time_us);
-    let b_done = b.run_to_end(sc.max_time_us);
+    // Without a pause the reference is the run itself: do not simulate it twice.
+    let b_done = if sc.pause.is_some() {
+        b.run_to_end(sc.max_time_us)
+    } else {
+        a_done
+    };
     facts.finished = a_done;
     facts.reference_finished = b_done;
     facts.wall_s = wall.elapsed().as_secs_f64();
 
-    let mut report = metrics::compute(sc, &info, &a, &b, &facts);
+    let mut report = if sc.pause.is_some() {
+        metrics::compute(sc, &info, &a, &b, &facts)
+    } else {
+        metrics::compute(sc, &info, &a, &a, &facts)
+    };
     if sc.measure_segmentation_cost && sc.policy == Policy::Firmware {
         let mut knobs = sc.knobs();
         knobs.segment_len_mm = None;
