@@ -71,14 +71,21 @@ pub fn deform_xyz_try(
             Err(invalid(p, format!("point mapped to {q:?}")))
         }
     };
+    let mut pieces = Vec::new();
+    // Consecutive strings share end points: map each point once.
+    let mut last: Option<(DVec3, DVec3)> = None;
     for step in model.steps {
         match step {
             Step::String(s) => {
-                let a = map(s.start, fd)?;
+                let a = match last {
+                    Some((p, q)) if p == s.start => q,
+                    _ => map(s.start, fd)?,
+                };
                 let b = map(s.end, fd)?;
-                let mut pieces = Vec::new();
+                last = Some((s.end, b));
+                pieces.clear();
                 subdivide(s.start, s.end, a, b, tol, 0, fd, &mut pieces)?;
-                for (p0, p1, q0, q1) in pieces {
+                for &(p0, p1, q0, q1) in &pieces {
                     let mid = 0.5 * (p0 + p1);
                     let c = fc(s.cross_mm2, mid)?;
                     let v = fv(s.speed_mm_s, mid)?;
@@ -184,7 +191,7 @@ pub fn deform_xyz(
 pub fn to_cyl(p: DVec3, axis: [f64; 2]) -> DVec3 {
     let dx = p.x - axis[0];
     let dy = p.y - axis[1];
-    DVec3::new(dx.hypot(dy), dy.atan2(dx), p.z)
+    DVec3::new((dx * dx + dy * dy).sqrt(), dy.atan2(dx), p.z)
 }
 
 /// Cartesian point of cylindrical `(r, θ, z)` about `axis`.
@@ -202,11 +209,23 @@ pub fn deform_cylinder_try(
     chord_tol_mm: Option<f64>,
 ) -> Result<Model, DeformError> {
     let axis = model.axis_xy;
+    // fc and fv are called on the same midpoint one after the other: convert it once.
+    let last = std::cell::Cell::new((DVec3::NAN, DVec3::NAN));
+    let cyl = |p: DVec3| {
+        let (q, c) = last.get();
+        if q == p {
+            c
+        } else {
+            let c = to_cyl(p, axis);
+            last.set((p, c));
+            c
+        }
+    };
     deform_xyz_try(
         model,
         &mut |p| Ok(from_cyl(fd(to_cyl(p, axis))?, axis)),
-        &mut |c, p| fc(c, to_cyl(p, axis)),
-        &mut |v, p| fv(v, to_cyl(p, axis)),
+        &mut |c, p| fc(c, cyl(p)),
+        &mut |v, p| fv(v, cyl(p)),
         chord_tol_mm,
     )
 }

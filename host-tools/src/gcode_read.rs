@@ -124,11 +124,10 @@ fn parse_num(b: &[u8]) -> Option<(f64, usize)> {
             break;
         }
     }
-    let mut v = if digits <= 18 {
-        int as f64
-    } else {
-        int as f64 * 10f64.powi(digits - 18)
-    };
+    if digits > 18 {
+        return None; // beyond any machine's range; also keeps `int` exact
+    }
+    let mut v = int as f64;
     if b.get(i) == Some(&b'.') {
         i += 1;
         let mut frac: u64 = 0;
@@ -157,16 +156,33 @@ fn parse_num(b: &[u8]) -> Option<(f64, usize)> {
     Some((if neg { -v } else { v }, i))
 }
 
-/// Words of one command line (letters A–Z, value); `None` where absent.
-#[derive(Default)]
+/// Words of one command line (letters A–Z, value): a presence mask and the values.
 struct Words {
-    v: [Option<f64>; 26],
+    mask: u32,
+    v: [f64; 26],
+}
+
+impl Default for Words {
+    #[inline]
+    fn default() -> Self {
+        Words {
+            mask: 0,
+            v: [0.0; 26],
+        }
+    }
 }
 
 impl Words {
     #[inline]
     fn get(&self, c: u8) -> Option<f64> {
-        self.v[(c - b'A') as usize]
+        let k = (c - b'A') as usize;
+        (self.mask & (1 << k) != 0).then(|| self.v[k])
+    }
+    #[inline]
+    fn set(&mut self, c: u8, v: f64) {
+        let k = (c - b'A') as usize;
+        self.mask |= 1 << k;
+        self.v[k] = v;
     }
 }
 
@@ -407,7 +423,11 @@ impl GcodeReader for FastReader {
     fn read(&mut self, input: &[u8], sink: &mut dyn FnMut(Event)) -> Result<ReadCounts, ReadError> {
         let mut counts = ReadCounts::default();
         let mut line_no: u32 = 0;
-        for raw in input.split(|&b| b == b'\n') {
+        let mut start = 0usize;
+        let ends = memchr::memchr_iter(b'\n', input).chain(std::iter::once(input.len()));
+        for end in ends {
+            let raw = &input[start..end];
+            start = end + 1;
             line_no = line_no.saturating_add(1);
             if raw.is_empty() {
                 continue;
@@ -467,14 +487,14 @@ impl GcodeReader for FastReader {
                             }
                             cmd = Some((c, v as u32));
                         } else {
-                            words.v[(c - b'A') as usize] = Some(v);
+                            words.set(c, v);
                         }
                         i += skip + used;
                     }
                     None => {
                         if cmd.is_some() && (c == b'X' || c == b'Y' || c == b'Z' || c == b'E') {
                             // G28 X / G92 E without a number.
-                            words.v[(c - b'A') as usize] = Some(0.0);
+                            words.set(c, 0.0);
                         } else if cmd.is_none() {
                             return Err(ReadError {
                                 line: line_no,
