@@ -209,7 +209,14 @@ pub struct Host {
     /// Lines whose `ok` is still outstanding (0 or 1 with this flow control).
     pub awaiting_ok: bool,
     realtime_oks: u32,
+    last_resend: Option<(i64, u32)>,
+    /// Set when the host gave up (the same line was asked for again too often), with why.
+    pub aborted: Option<String>,
 }
+
+/// Consecutive `Resend:` requests for the same line after which the host gives up (OctoPrint
+/// also stops on a resend storm rather than looping forever).
+pub const MAX_RESENDS_OF_ONE_LINE: u32 = 8;
 
 impl Host {
     /// A host about to stream `job` (one entry per line of the file).
@@ -240,6 +247,8 @@ impl Host {
             resends: 0,
             awaiting_ok: false,
             realtime_oks: 0,
+            last_resend: None,
+            aborted: None,
         }
     }
 
@@ -276,6 +285,9 @@ impl Host {
 
     /// All job lines sent, all inserted lines sent, and every `ok` received.
     pub fn done(&self) -> bool {
+        if self.aborted.is_some() {
+            return self.tx.is_idle();
+        }
         self.next_job_line().is_none()
             && self.inserts.is_empty()
             && !self.awaiting_ok
@@ -391,7 +403,7 @@ impl Host {
 
     /// Send the next line if the printer has cleared us to (the `ok` flow control).
     pub fn pump(&mut self, now_us: u64) {
-        if !self.clear {
+        if !self.clear || self.aborted.is_some() {
             return;
         }
         let numbered = self.cfg.numbered;
@@ -509,7 +521,30 @@ impl Host {
                 .take_while(|c| c.is_ascii_digit() || *c == '-')
                 .collect();
             if let Ok(n) = digits.parse::<i64>() {
-                self.resend_from = Some(n);
+                let count = match self.last_resend {
+                    Some((m, k)) if m == n => k + 1,
+                    _ => 1,
+                };
+                self.last_resend = Some((n, count));
+                if count > MAX_RESENDS_OF_ONE_LINE {
+                    let line = usize::try_from(n - self.first_n)
+                        .ok()
+                        .and_then(|i| self.numbered.get(i))
+                        .map(|l| l.wire.clone())
+                        .unwrap_or_default();
+                    self.aborted = Some(format!(
+                        "the printer asked for line {n} {count} times in a row; gave up \
+                         (line: {line:?}, last error: {:?})",
+                        self.received
+                            .iter()
+                            .rev()
+                            .find(|r| r.text.starts_with("Error"))
+                            .map(|r| r.text.clone())
+                            .unwrap_or_default()
+                    ));
+                } else {
+                    self.resend_from = Some(n);
+                }
             }
         } else if lower.starts_with("ok") {
             self.oks += 1;
@@ -596,6 +631,23 @@ mod tests {
         answer(&mut h, t, "ok");
         assert!(h.done());
         assert_eq!(h.origin_of(3), Some(Origin::Job(4)));
+    }
+
+    #[test]
+    fn gives_up_on_a_resend_storm() {
+        let mut h = Host::new(LinkConfig::default(), vec!["G1 X1".into(), "G1 X2".into()]);
+        h.pump(0);
+        let mut t = answer(&mut h, 0, "ok");
+        for _ in 0..MAX_RESENDS_OF_ONE_LINE + 1 {
+            t = answer(&mut h, t, "Error:checksum mismatch, Last Line: 0");
+            t = answer(&mut h, t, "Resend: 1");
+            t = answer(&mut h, t, "ok");
+        }
+        assert!(h.aborted.is_some());
+        assert!(h.done());
+        let n = h.sent().len();
+        h.pump(t);
+        assert_eq!(h.sent().len(), n, "nothing more is sent after giving up");
     }
 
     #[test]

@@ -303,7 +303,11 @@ pub fn run<F: Factory>(
 
     let mut facts = RunFacts::default();
     if let Some(t) = t_req {
-        if a.advance(t, false) == Stop::Finished {
+        let stop = a.advance(t, false);
+        if let Some(why) = &a.host.aborted {
+            anyhow::bail!("host link: {why}");
+        }
+        if stop == Stop::Finished {
             anyhow::bail!(
                 "the job finished at {:.3} s, before the pause request at {:.3} s",
                 a.now_us as f64 * 1e-6,
@@ -372,6 +376,9 @@ pub fn run<F: Factory>(
         }
     }
     let a_done = a.run_to_end(sc.max_time_us);
+    if let Some(why) = &a.host.aborted {
+        anyhow::bail!("host link: {why}");
+    }
     // Without a pause the reference is the run itself: do not simulate it twice.
     let b_done = if sc.pause.is_some() {
         b.run_to_end(sc.max_time_us)
