@@ -388,7 +388,7 @@ pub fn heat_map_svg(samples: &[Sample], r: &CureReport) -> String {
     for (row, (layer, idx)) in rows.iter().enumerate() {
         let y = 30.0 + h - (row as f64 + 1.0) * row_h;
         let mut bins: Vec<Option<f64>> = vec![None; BINS];
-        let mut seen = vec![false; BINS];
+        let mut seen = [false; BINS];
         for (k, &i) in idx.iter().enumerate() {
             let b = k * BINS / idx.len();
             seen[b] = true;

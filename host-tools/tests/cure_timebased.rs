@@ -11,6 +11,7 @@ use host_tools::timebased::{is_timebased, read_timebased, write_timebased, Sampl
 /// (not depositing) after every layer.
 fn stacked_square(layers: usize, per_layer: usize, wait: usize, layer_mm: f64) -> Vec<Sample> {
     let mut out = Vec::new();
+    let mut e = 0.0;
     for l in 0..layers {
         let z = (l + 1) as f64 * layer_mm;
         for k in 0..per_layer {
@@ -23,9 +24,10 @@ fn stacked_square(layers: usize, per_layer: usize, wait: usize, layer_mm: f64) -
                 2 => (40.0 * (1.0 - f), 40.0),
                 _ => (0.0, 40.0 * (1.0 - f)),
             };
+            e += 0.01;
             out.push(Sample {
                 pos: DVec3::new(x, y, z),
-                e_mm: 0.0,
+                e_mm: e,
                 extruding: true,
                 layer: l as u32 + 1,
             });
@@ -153,7 +155,7 @@ fn timebased_file_round_trip() {
     }
     // Every moving sample of the source deposits (E grows), every still one does not.
     let deposited = back.iter().filter(|s| s.extruding).count();
-    assert!(deposited >= 3 * 199 && deposited <= 3 * 200, "{deposited}");
+    assert!((3 * 199..=3 * 200).contains(&deposited), "{deposited}");
     // Truncated files are refused, not misread.
     let cut = &text[..text.len() / 2];
     let cut = &cut[..cut.rfind('\n').unwrap() + 1];
@@ -187,12 +189,18 @@ fn resampling_real_gcode_times_a_layer() {
             min_dz_mm: 0.1,
         },
     );
-    let m = r.min_elapsed_s.expect("second layer lies on the first");
-    assert!(m > 15.9 && m < 16.6, "{m}");
-    assert!(
-        r.violation_count > 100,
-        "every spot of layer 2 is laid within 20 s"
-    );
+    // Away from the seam at (10, 10), the spot below was laid one layer time earlier.
+    let mid: Vec<_> = r
+        .violations
+        .iter()
+        .filter(|v| v.x > 20.0 && v.x < 40.0 && (v.y - 10.0).abs() < 1e-6)
+        .collect();
+    assert!(mid.len() >= 15, "every spot of layer 2 is laid within 20 s");
+    for v in &mid {
+        assert!(v.elapsed_s > 15.9 && v.elapsed_s < 16.6, "{v:?}");
+    }
+    // At the seam, layer 2 starts right on top of where layer 1 just ended.
+    assert!(r.min_elapsed_s.unwrap() < 1.0);
     let ok = check(
         &samples,
         &CureParams {
@@ -202,5 +210,15 @@ fn resampling_real_gcode_times_a_layer() {
             min_dz_mm: 0.1,
         },
     );
-    assert_eq!(ok.violation_count, 0);
+    assert!(
+        ok.violation_count > 0 && ok.violation_count < 10,
+        "{}",
+        ok.violation_count
+    );
+    for v in &ok.violations {
+        assert!(
+            (v.x - 10.0).hypot(v.y - 10.0) < 1.0,
+            "only at the seam: {v:?}"
+        );
+    }
 }
