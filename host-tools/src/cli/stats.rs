@@ -4,6 +4,8 @@
 use crate::profile::Profile;
 use crate::stats::{hms, stats};
 use anyhow::Context;
+use std::fmt::Write as _;
+use std::io::Write as _;
 use std::path::PathBuf;
 
 /// Arguments of `host-tools stats`.
@@ -29,49 +31,66 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         std::fs::read(&args.file).with_context(|| format!("reading {}", args.file.display()))?;
     let s = stats(&data, &profile).map_err(|e| anyhow::anyhow!("{}: {e}", args.file.display()))?;
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&s)?);
-        return Ok(());
+        return emit(serde_json::to_string_pretty(&s)? + "\n");
     }
+    let mut o = String::new();
     let b = &s.bbox_mm;
-    println!("file          {}", args.file.display());
-    println!("layers        {} (from {})", s.layers, s.layer_source);
-    println!(
+    writeln!(o, "file          {}", args.file.display())?;
+    writeln!(o, "layers        {} (from {})", s.layers, s.layer_source)?;
+    writeln!(
+        o,
         "moves         {} ({} printing, {} travel, {} extruder-only)",
         s.moves, s.print_moves, s.travel_moves, s.extruder_moves
-    );
-    println!(
+    )?;
+    writeln!(
+        o,
         "print time    {} ({:.1} s, acceleration-aware, profile {})",
         hms(s.print_time_s),
         s.print_time_s,
         profile.name
-    );
-    println!(
+    )?;
+    writeln!(
+        o,
         "filament      {:.1} mm, {:.0} mm³, {:.1} g",
         s.filament_mm, s.filament_volume_mm3, s.filament_mass_g
-    );
-    println!(
+    )?;
+    writeln!(
+        o,
         "bbox          ({:.2}, {:.2}, {:.2}) – ({:.2}, {:.2}, {:.2}) mm",
         b.min[0], b.min[1], b.min[2], b.max[0], b.max[1], b.max[2]
-    );
-    println!(
+    )?;
+    writeln!(
+        o,
         "paths         {:.0} mm printing, {:.0} mm travel",
         s.print_path_mm, s.travel_path_mm
-    );
+    )?;
     if !s.layer_times.is_empty() {
         let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
         for l in &s.layer_times {
             lo = lo.min(l.time_s);
             hi = hi.max(l.time_s);
         }
-        println!("layer time    {lo:.1} s – {hi:.1} s");
+        writeln!(o, "layer time    {lo:.1} s – {hi:.1} s")?;
     }
     if args.layers {
         for l in &s.layer_times {
             match l.z_mm {
-                Some(z) => println!("  layer {:>5}  z {:>8.3}  {:>8.2} s", l.layer, z, l.time_s),
-                None => println!("  layer {:>5}  z        ?  {:>8.2} s", l.layer, l.time_s),
+                Some(z) => writeln!(
+                    o,
+                    "  layer {:>5}  z {:>8.3}  {:>8.2} s",
+                    l.layer, z, l.time_s
+                )?,
+                None => writeln!(o, "  layer {:>5}  z        ?  {:>8.2} s", l.layer, l.time_s)?,
             }
         }
     }
-    Ok(())
+    emit(o)
+}
+
+/// Writes to stdout; a closed pipe (`| head`) is not an error.
+fn emit(text: String) -> anyhow::Result<()> {
+    match std::io::stdout().lock().write_all(text.as_bytes()) {
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        r => Ok(r?),
+    }
 }
