@@ -65,6 +65,9 @@ pub struct Args {
     /// Height of that cylinder, mm.
     #[arg(long, default_value_t = 60.0)]
     pub carriage_height: f64,
+    /// Also render the G-code with `preview` (top, side, isometric) to this .svg/.png.
+    #[arg(long)]
+    pub preview: Option<PathBuf>,
     /// Output G-code.
     #[arg(short, long)]
     pub output: PathBuf,
@@ -178,6 +181,15 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let file = std::fs::File::create(&a.output)
         .with_context(|| format!("creating {}", a.output.display()))?;
     let summary = writer.write(&model, std::io::BufWriter::new(file))?;
+    if let Some(pv) = &a.preview {
+        let bytes = std::fs::read(&a.output)?;
+        crate::preview::render(
+            &bytes,
+            &profile,
+            pv,
+            &crate::preview::PreviewOptions::default(),
+        )?;
+    }
     println!(
         "collision check passed; wrote {}: {} layers, {} paths, {} strings, {} travels, filament {:.0} mm",
         a.output.display(),

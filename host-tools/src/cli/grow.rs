@@ -54,6 +54,9 @@ pub struct Args {
     /// Also write the stroke inside its boundary as an SVG drawing.
     #[arg(long)]
     pub svg: Option<PathBuf>,
+    /// Also render the G-code with `preview` (top, side, isometric) to this .svg/.png.
+    #[arg(long)]
+    pub preview: Option<PathBuf>,
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
@@ -169,6 +172,15 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if let Some(svg) = &a.svg {
         std::fs::write(svg, stroke_svg(&g.nodes, &boundary.polygon, a.line_width))
             .with_context(|| format!("writing {}", svg.display()))?;
+    }
+    if let Some(pv) = &a.preview {
+        let bytes = std::fs::read(&a.output)?;
+        crate::preview::render(
+            &bytes,
+            &profile,
+            pv,
+            &crate::preview::PreviewOptions::default(),
+        )?;
     }
     let len: f64 = (0..g.nodes.len())
         .map(|i| g.nodes[i].distance(g.nodes[(i + 1) % g.nodes.len()]))
