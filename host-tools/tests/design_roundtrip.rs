@@ -119,3 +119,22 @@ fn firmware_layer_detector_sees_one_layer_per_turn() {
     assert!(d.has_explicit_markers());
     assert_eq!(marks, 12, "one layer mark per helix turn");
 }
+
+#[test]
+fn both_readers_agree_on_the_slicer_fixtures() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/fixtures/slicer");
+    for name in ["prusaslicer.gcode", "cura.gcode", "slic3r.gcode"] {
+        let Ok(g) = std::fs::read_to_string(dir.join(name)) else {
+            continue; // fixtures belong to the firmware front end; absent in partial checkouts
+        };
+        let a = moves(&mut FastReader::default(), &g);
+        let b = moves(&mut FirmwareReader::default(), &g);
+        assert_eq!(a.len(), b.len(), "{name}");
+        for (p, q) in a.iter().zip(&b) {
+            for k in 0..4 {
+                let tol = 1e-4 * p[k].abs().max(1.0);
+                assert!((p[k] - q[k]).abs() <= tol, "{name}: {p:?} vs {q:?}");
+            }
+        }
+    }
+}
