@@ -15,7 +15,7 @@
 //! step.
 
 use crate::motion::{StepPos, AXES};
-use crate::planner::{Block, BlockKind, PlannedBlock};
+use crate::planner::{fmax, fmin, sqrtf, Block, BlockKind, PlannedBlock};
 
 /// Major-axis steps per slice (one exact profile time per slice).
 pub const SLICE_STEPS: u32 = 8;
@@ -63,14 +63,14 @@ pub struct Profile {
 impl Profile {
     /// The fastest trapezoid from `v0` to `v1` over `s0..s_end` with cruise at most `vmax`.
     pub fn new(s0: f32, s_end: f32, v0: f32, vmax: f32, v1: f32, a: f32) -> Self {
-        let d = (s_end - s0).max(0.0);
+        let d = fmax(s_end - s0, 0.0);
         let a = if a > 0.0 { a } else { 1.0 };
-        let mut vc = vmax.max(v0).max(v1);
+        let mut vc = fmax(fmax(vmax, v0), v1);
         let mut d_acc = (vc * vc - v0 * v0) / (2.0 * a);
         let mut d_dec = (vc * vc - v1 * v1) / (2.0 * a);
         if d_acc + d_dec > d {
             let vc2 = (2.0 * a * d + v0 * v0 + v1 * v1) * 0.5;
-            vc = libm::sqrtf(vc2).max(v0).max(v1);
+            vc = fmax(fmax(sqrtf(vc2), v0), v1);
             d_acc = ((vc * vc - v0 * v0) / (2.0 * a)).clamp(0.0, d);
             d_dec = d - d_acc;
         }
@@ -78,7 +78,7 @@ impl Profile {
             s0,
             s_end,
             v0,
-            vc: vc.max(1.0e-3),
+            vc: fmax(vc, 1.0e-3),
             v1,
             a,
             d_acc,
@@ -90,18 +90,14 @@ impl Profile {
     pub fn brake(s0: f32, s_end: f32, v0: f32, a: f32) -> Self {
         let a = if a > 0.0 { a } else { 1.0 };
         let stop = s0 + v0 * v0 / (2.0 * a);
-        let end = stop.min(s_end);
-        let v1_2 = (v0 * v0 - 2.0 * a * (end - s0)).max(0.0);
-        let v1 = if stop <= s_end {
-            0.0
-        } else {
-            libm::sqrtf(v1_2)
-        };
+        let end = fmin(stop, s_end);
+        let v1_2 = fmax(v0 * v0 - 2.0 * a * (end - s0), 0.0);
+        let v1 = if stop <= s_end { 0.0 } else { sqrtf(v1_2) };
         Profile {
             s0,
             s_end: end,
             v0,
-            vc: v0.max(1.0e-3),
+            vc: fmax(v0, 1.0e-3),
             v1,
             a,
             d_acc: 0.0,
@@ -116,13 +112,13 @@ impl Profile {
         let t_acc = (self.vc - self.v0) / self.a;
         let cruise = d - self.d_acc - self.d_dec;
         if x <= self.d_acc {
-            (libm::sqrtf(self.v0 * self.v0 + 2.0 * self.a * x) - self.v0) / self.a
+            (sqrtf(self.v0 * self.v0 + 2.0 * self.a * x) - self.v0) / self.a
         } else if x <= self.d_acc + cruise {
             t_acc + (x - self.d_acc) / self.vc
         } else {
             let y = x - self.d_acc - cruise;
-            let r = (self.vc * self.vc - 2.0 * self.a * y).max(0.0);
-            t_acc + cruise.max(0.0) / self.vc + (self.vc - libm::sqrtf(r)) / self.a
+            let r = fmax(self.vc * self.vc - 2.0 * self.a * y, 0.0);
+            t_acc + fmax(cruise, 0.0) / self.vc + (self.vc - sqrtf(r)) / self.a
         }
     }
 
@@ -131,12 +127,12 @@ impl Profile {
         let x = (s - self.s0).clamp(0.0, self.s_end - self.s0);
         let d = self.s_end - self.s0;
         if x <= self.d_acc {
-            libm::sqrtf(self.v0 * self.v0 + 2.0 * self.a * x)
+            sqrtf(self.v0 * self.v0 + 2.0 * self.a * x)
         } else if x <= d - self.d_dec {
             self.vc
         } else {
             let y = x - (d - self.d_dec);
-            libm::sqrtf((self.vc * self.vc - 2.0 * self.a * y).max(0.0))
+            sqrtf(fmax(self.vc * self.vc - 2.0 * self.a * y, 0.0))
         }
     }
 }
@@ -153,16 +149,16 @@ pub struct ExecBlock {
     /// Stop after this many major steps (`n`, or the brake point).
     pub stop_at: u32,
     abs: [u32; AXES],
-    acc: [u64; AXES],
+    acc: [u32; AXES],
     prof_step: u32,
     dir_mask: u8,
     prof: Profile,
     t_prof_ns: u64,
     slice_end: u32,
-    slice_m: u64,
+    slice_m: u32,
     slice_dt_ns: u64,
-    slice_rem: u64,
-    slice_acc: u64,
+    slice_rem: u32,
+    slice_acc: u32,
 }
 
 impl ExecBlock {
@@ -196,10 +192,43 @@ pub struct StepGen {
 
 fn secs_to_ns(t: f32) -> u64 {
     if t.is_finite() && t > 0.0 {
-        (t * 1.0e9) as u64
+        let ns = t * 1.0e9;
+        // Below 2³² the 32-bit conversion (one VCVT on the MCU) truncates to the same integer
+        // as the 64-bit one (a library call there).
+        if ns < 4_294_967_296.0 {
+            u64::from(ns as u32)
+        } else {
+            ns as u64
+        }
     } else {
         0
     }
+}
+
+/// Quotient and remainder of `n / d` (`d ≥ 1`), exact, with 32-bit divisions only when
+/// `d < 2¹⁶` (three hardware UDIVs on a Cortex-M instead of the ~100-instruction 64-bit
+/// division routine); other divisors use the plain 64-bit division.
+#[inline]
+pub fn div_small(n: u64, d: u32) -> (u64, u32) {
+    let d = d.max(1);
+    if n >> 32 == 0 {
+        let n = n as u32;
+        return (u64::from(n / d), n % d);
+    }
+    if d >= 1 << 16 {
+        return (n / u64::from(d), (n % u64::from(d)) as u32);
+    }
+    // Long division in 32/16-bit digits: every partial dividend is r·2¹⁶ + digit < 2³².
+    let hi = (n >> 32) as u32;
+    let (q_hi, r) = (hi / d, hi % d);
+    let mid = (r << 16) | ((n >> 16) as u32 & 0xFFFF);
+    let (q_mid, r) = (mid / d, mid % d);
+    let lo = (r << 16) | (n as u32 & 0xFFFF);
+    let (q_lo, r) = (lo / d, lo % d);
+    (
+        (u64::from(q_hi) << 32) + (u64::from(q_mid) << 16) + u64::from(q_lo),
+        r,
+    )
 }
 
 impl StepGen {
@@ -284,7 +313,7 @@ impl StepGen {
         let v0 = if self.braking {
             self.v_end
         } else {
-            libm::sqrtf(pb.entry_v2.max(0.0))
+            sqrtf(fmax(pb.entry_v2, 0.0))
         };
         let prof = if self.braking {
             Profile::brake(0.0, len, v0, a)
@@ -293,8 +322,8 @@ impl StepGen {
                 0.0,
                 len,
                 v0,
-                libm::sqrtf(b.nominal_v2.max(0.0)),
-                libm::sqrtf(pb.exit_v2.max(0.0)),
+                sqrtf(fmax(b.nominal_v2, 0.0)),
+                sqrtf(fmax(pb.exit_v2, 0.0)),
                 a,
             )
         };
@@ -309,7 +338,7 @@ impl StepGen {
             done: 0,
             stop_at: n,
             abs,
-            acc: [u64::from(n / 2); AXES],
+            acc: [n / 2; AXES],
             prof_step: 0,
             dir_mask: dir,
             prof,
@@ -337,7 +366,7 @@ impl StepGen {
         let k = if k >= e.n as f32 {
             e.n
         } else {
-            k.max(0.0) as u32
+            fmax(k, 0.0) as u32
         };
         k.max(e.done).min(e.n)
     }
@@ -383,12 +412,12 @@ impl StepGen {
         if let Some(e) = self.exec.as_mut() {
             let s = e.s_of(e.done);
             let b = e.planned.block;
-            let v1 = libm::sqrtf(exit_v2.max(0.0));
+            let v1 = sqrtf(fmax(exit_v2, 0.0));
             e.prof = Profile::new(
                 s,
                 b.len_mm,
                 0.0,
-                libm::sqrtf(b.nominal_v2.max(0.0)),
+                sqrtf(fmax(b.nominal_v2, 0.0)),
                 v1,
                 b.accel_mm_s2,
             );
@@ -430,12 +459,15 @@ impl StepGen {
         let k1 = (e.done + len).min(e.stop_at);
         let t1 = e.t_prof_ns + secs_to_ns(e.prof.time_at(e.s_of(k1)));
         let t1 = t1.max(t_last_ns);
-        let m = u64::from(k1 - e.done).max(1);
+        // At most SLICE_STEPS.
+        let m = (k1 - e.done).max(1);
         let span = t1 - t_last_ns;
         e.slice_end = k1;
         e.slice_m = m;
-        e.slice_dt_ns = span / m;
-        e.slice_rem = span % m;
+        // m ≤ SLICE_STEPS.
+        let (dt, rem) = div_small(span, m);
+        e.slice_dt_ns = dt;
+        e.slice_rem = rem;
         e.slice_acc = 0;
     }
 
@@ -459,9 +491,10 @@ impl StepGen {
         e.done += 1;
         let mut mask = 0u8;
         for i in 0..AXES {
-            e.acc[i] += u64::from(e.abs[i]);
-            if e.acc[i] >= u64::from(e.n) {
-                e.acc[i] -= u64::from(e.n);
+            // acc < n and abs ≤ n ≤ 2³¹: the sum fits in u32.
+            e.acc[i] += e.abs[i];
+            if e.acc[i] >= e.n {
+                e.acc[i] -= e.n;
                 mask |= 1 << i;
                 if e.dir_mask & (1 << i) != 0 {
                     self.pos[i] = self.pos[i].wrapping_add(1);
@@ -471,7 +504,7 @@ impl StepGen {
             }
         }
         Some(StepEvent {
-            t_us: t / 1000,
+            t_us: div_small(t, 1000).0,
             t_ns: t,
             axis_mask: mask,
             dir_mask: e.dir_mask,

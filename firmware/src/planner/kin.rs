@@ -5,6 +5,61 @@
 use crate::config::MachineConfig;
 use crate::motion::{Axis, AXES};
 
+/// Correctly rounded single-precision square root, the same bits on every target.
+///
+/// On ARM with a hardware FPU (`eabihf`: the Cortex-M4F's FPv4-SP) this is one `VSQRT.F32`
+/// instruction, which IEEE 754 requires to be correctly rounded, exactly like `libm::sqrtf`
+/// (musl's correctly rounded software square root) that every other target uses. `libm` has no
+/// hardware path on 32-bit ARM, where its bit-by-bit loop costs a few hundred instructions.
+#[inline(always)]
+pub fn sqrtf(x: f32) -> f32 {
+    #[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
+    {
+        let bits: u32;
+        // SAFETY: saves S0, takes the square root in it and restores it; touches nothing else
+        // (registers named in the template, so no `sreg` operand: stable Rust does not expose
+        // the `vfp2` target feature that operand class needs, the assembler knows the FPU).
+        unsafe {
+            core::arch::asm!(
+                "vpush {{s0}}",
+                "vmov s0, {x}",
+                "vsqrt.f32 s0, s0",
+                "vmov {r}, s0",
+                "vpop {{s0}}",
+                x = in(reg) x.to_bits(),
+                r = lateout(reg) bits,
+                options(pure, nomem),
+            );
+        }
+        f32::from_bits(bits)
+    }
+    #[cfg(not(all(target_arch = "arm", target_abi = "eabihf")))]
+    {
+        libm::sqrtf(x)
+    }
+}
+
+/// `a.min(b)` (the other value when one is NaN) as two compares: `f32::min` is a library call
+/// (`fminf`) on cores without VMINNM such as the Cortex-M4.
+#[inline(always)]
+pub fn fmin(a: f32, b: f32) -> f32 {
+    if a.is_nan() || b < a {
+        b
+    } else {
+        a
+    }
+}
+
+/// `a.max(b)` (the other value when one is NaN) as two compares; see [`fmin`].
+#[inline(always)]
+pub fn fmax(a: f32, b: f32) -> f32 {
+    if a.is_nan() || b > a {
+        b
+    } else {
+        a
+    }
+}
+
 /// Kinematic summary of one straight move (or of every segment of it: the segments of one move
 /// share direction, nominal speed and acceleration).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -38,7 +93,7 @@ pub fn kinematics(cfg: &MachineConfig, delta: &[i32; AXES], feed_mm_s: f32) -> O
         } else {
             cfg.accel_travel_mm_s2
         };
-        (libm::sqrtf(xyz2), a)
+        (sqrtf(xyz2), a)
     } else if delta[e] != 0 {
         (libm::fabsf(mm[e]), cfg.accel_retract_mm_s2)
     } else {
@@ -60,14 +115,14 @@ pub fn kinematics(cfg: &MachineConfig, delta: &[i32; AXES], feed_mm_s: f32) -> O
         unit[i] = mm[i] * inv;
         let r = libm::fabsf(unit[i]);
         if r > 0.0 {
-            cap = cap.min(cfg.axes[i].max_feed_mm_s / r);
-            accel = accel.min(cfg.axes[i].max_accel_mm_s2 / r);
+            cap = fmin(cap, cfg.axes[i].max_feed_mm_s / r);
+            accel = fmin(accel, cfg.axes[i].max_accel_mm_s2 / r);
         }
     }
     Some(Kin {
         len_mm: len,
         unit,
-        nominal_mm_s: feed.min(cap),
+        nominal_mm_s: fmin(feed, cap),
         cap_mm_s: cap,
         accel_mm_s2: accel,
         e_per_mm: libm::fabsf(unit[e]),
@@ -91,7 +146,7 @@ pub fn junction_v2(prev: &[f32; AXES], next: &[f32; AXES], dev_mm: f32, accel_mm
     if cos_theta < -0.999_999 {
         return f32::INFINITY;
     }
-    let sin_half = libm::sqrtf(0.5 * (1.0 - cos_theta));
+    let sin_half = sqrtf(0.5 * (1.0 - cos_theta));
     accel_mm_s2 * dev_mm * sin_half / (1.0 - sin_half)
 }
 

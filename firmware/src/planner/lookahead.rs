@@ -2,7 +2,7 @@
 //! bounded by grbl's planned pointer, and the exit speed allowed at its end (0 at the barrier,
 //! or what the uncut remainder of the pending move allows).
 
-use super::{Barrier, Planner};
+use super::{fmin, Barrier, Planner};
 
 impl Planner {
     /// Number of ring blocks before the barrier (the part of the ring that is planned).
@@ -43,7 +43,7 @@ impl Planner {
                 } else {
                     f32::INFINITY
                 };
-                nom.min(j).min(2.0 * p.kin.accel_mm_s2 * rem)
+                fmin(fmin(nom, j), 2.0 * p.kin.accel_mm_s2 * rem)
             }
             None => 0.0,
         }
@@ -66,19 +66,18 @@ impl Planner {
             k -= 1;
             let i = self.idx(k);
             let b = &mut self.ring[i];
-            let v = b
-                .entry_max_v2
-                .min(next_entry + 2.0 * b.accel_mm_s2 * b.len_mm);
+            let v = fmin(b.entry_max_v2, next_entry + 2.0 * b.accel_mm_s2 * b.len_mm);
             b.entry_v2 = v;
             next_entry = v;
         }
         let mut k = self.planned;
         while k + 1 < end {
-            let cur = self.ring[self.idx(k)];
+            let cur = &self.ring[self.idx(k)];
+            let (cur_entry_v2, cur_reach_v2) = (cur.entry_v2, 2.0 * cur.accel_mm_s2 * cur.len_mm);
             let ni = self.idx(k + 1);
             let nxt = &mut self.ring[ni];
-            if cur.entry_v2 < nxt.entry_v2 {
-                let v = cur.entry_v2 + 2.0 * cur.accel_mm_s2 * cur.len_mm;
+            if cur_entry_v2 < nxt.entry_v2 {
+                let v = cur_entry_v2 + cur_reach_v2;
                 if v < nxt.entry_v2 {
                     nxt.entry_v2 = v;
                     self.planned = k + 1;

@@ -22,7 +22,7 @@ mod barrier;
 mod kin;
 mod lookahead;
 
-pub use kin::{junction_v2, kinematics, sped_up_mm_s, Kin};
+pub use kin::{fmax, fmin, junction_v2, kinematics, sped_up_mm_s, sqrtf, Kin};
 
 use crate::config::MachineConfig;
 use crate::motion::{LayerMark, MoveRequest, StepPos, AXES};
@@ -138,10 +138,18 @@ impl Default for PlannerPolicy {
 struct Pending {
     seq: u32,
     kind: BlockKind,
-    from: StepPos,
-    to: StepPos,
     n: u32,
     next: u32,
+    /// Position after segment `next - 1`: `from + floor((to - from) · next / n)` per axis,
+    /// tracked incrementally (quotient and remainder) so cutting a segment needs no 64-bit
+    /// division (a library call of ~100 instructions on a Cortex-M).
+    cur: [i64; AXES],
+    /// `(to - from) · next mod n` per axis.
+    cur_rem: [u32; AXES],
+    /// `(to - from).div_euclid(n)` per axis: whole steps added per segment.
+    step_q: [i64; AXES],
+    /// `(to - from).rem_euclid(n)` per axis.
+    step_r: [u32; AXES],
     kin: Kin,
     seg_len_mm: f32,
     first_junction_v2: f32,
@@ -336,13 +344,25 @@ impl Planner {
             junction = 0.0;
             self.stop_next = false;
         }
+        let mut cur = [0i64; AXES];
+        let mut step_q = [0i64; AXES];
+        let mut step_r = [0u32; AXES];
+        for i in 0..AXES {
+            let d = i64::from(req.target[i]) - i64::from(self.end_pos[i]);
+            cur[i] = i64::from(self.end_pos[i]);
+            step_q[i] = d.div_euclid(i64::from(n));
+            // In 0..n, n ≤ 1e6.
+            step_r[i] = d.rem_euclid(i64::from(n)) as u32;
+        }
         self.pending = Some(Pending {
             seq: req.seq,
             kind,
-            from: self.end_pos,
-            to: req.target,
             n,
             next: 0,
+            cur,
+            cur_rem: [0; AXES],
+            step_q,
+            step_r,
             kin,
             seg_len_mm: kin.len_mm / n as f32,
             first_junction_v2: junction,
@@ -386,22 +406,28 @@ impl Planner {
     /// blocks added.
     pub fn refill(&mut self) -> usize {
         let mut added = 0;
-        while let Some(mut p) = self.pending {
+        let Some(mut p) = self.pending else {
+            return 0;
+        };
+        while p.next < p.n {
             if self.room() == 0 {
                 break;
             }
             let j = p.next + 1;
-            let mut from = [0i32; AXES];
-            let mut to = [0i32; AXES];
-            for i in 0..AXES {
-                let d = i64::from(p.to[i]) - i64::from(p.from[i]);
-                let n = i64::from(p.n);
-                from[i] = (i64::from(p.from[i]) + (d * i64::from(p.next)).div_euclid(n)) as i32;
-                to[i] = (i64::from(p.from[i]) + (d * i64::from(j)).div_euclid(n)) as i32;
-            }
             let mut delta = [0i32; AXES];
-            for i in 0..AXES {
-                delta[i] = to[i].wrapping_sub(from[i]);
+            for (i, d) in delta.iter_mut().enumerate() {
+                // to = from + floor(d · j / n), from the previous segment's end by adding
+                // floor(d / n) and carrying the remainder (exact, same as dividing).
+                let mut to = p.cur[i] + p.step_q[i];
+                let r = p.cur_rem[i] + p.step_r[i];
+                p.cur_rem[i] = if r >= p.n {
+                    to += 1;
+                    r - p.n
+                } else {
+                    r
+                };
+                *d = (to as i32).wrapping_sub(p.cur[i] as i32);
+                p.cur[i] = to;
             }
             let base = p.kin.nominal_mm_s;
             let fast = p.fast_mm_s;
@@ -431,7 +457,7 @@ impl Planner {
                 base_v2,
                 fast_v2,
                 junction_v2: junction,
-                entry_max_v2: junction.min(prev_nom).min(nominal_v2),
+                entry_max_v2: fmin(fmin(junction, prev_nom), nominal_v2),
                 entry_v2: if self.len == 0 && self.executing {
                     self.head_entry_v2
                 } else {
@@ -444,9 +470,9 @@ impl Planner {
             self.next_id = self.next_id.wrapping_add(1);
             self.prev_nominal_v2 = nominal_v2;
             p.next = j;
-            self.pending = if j >= p.n { None } else { Some(p) };
             added += 1;
         }
+        self.pending = if p.next >= p.n { None } else { Some(p) };
         if added > 0 {
             self.recalculate();
         }

@@ -205,7 +205,8 @@ impl Printer {
     }
 
     fn t_us(&self) -> u64 {
-        self.now_us.max(self.stepgen.last_time_ns() / 1000)
+        self.now_us
+            .max(crate::stepgen::div_small(self.stepgen.last_time_ns(), 1000).0)
     }
 
     fn record(&mut self, r: Record) {
@@ -305,8 +306,25 @@ impl Printer {
         self.planner.is_empty() && self.stepgen.current().is_none()
     }
 
-    /// Move commands from the command queue into the planner while it has room.
+    /// Move commands from the command queue into the planner while it has room. Returns at
+    /// once, without touching the (large) planner state, when nothing could move: the main
+    /// loop calls this every tick, mostly with a full ring.
+    #[inline]
     fn feed_planner(&mut self) {
+        let stuck = match self.cmds.front() {
+            None => !self.planner.has_pending(),
+            Some(Command::Move(_)) => self.planner.room() == 0,
+            Some(Command::Layer(_)) => self.planner.has_pending() && self.planner.room() == 0,
+            Some(_) => false,
+        };
+        if stuck && self.fifo_countdown != Some(0) {
+            return;
+        }
+        self.feed_planner_now();
+    }
+
+    #[inline(never)]
+    fn feed_planner_now(&mut self) {
         if self.halted {
             return;
         }
@@ -490,7 +508,11 @@ impl Printer {
         if self.halted {
             return;
         }
-        self.process_lines();
+        // Lines are taken only when one waits (or an arc is being cut): the idle tick costs
+        // a compare instead of the line handler's frame.
+        if self.arc.is_some() || self.link.lines_waiting() > 0 {
+            self.process_lines();
+        }
         self.feed_planner();
         self.retire_finished();
         self.update_pause();
@@ -513,7 +535,8 @@ impl Printer {
 
     /// Time of the next step event, µs.
     pub fn next_step_us(&mut self) -> Option<u64> {
-        self.next_step_ns().map(|t| t / 1000)
+        self.next_step_ns()
+            .map(|t| crate::stepgen::div_small(t, 1000).0)
     }
 
     /// Take the next step event (the one [`Printer::next_step_ns`] announced). The driver
@@ -535,7 +558,7 @@ impl Printer {
                 if b.kind != BlockKind::Service {
                     self.planner.exec_done();
                 }
-                let t_us = self.stepgen.last_time_ns() / 1000;
+                let t_us = crate::stepgen::div_small(self.stepgen.last_time_ns(), 1000).0;
                 let pos = self.stepgen.position();
                 self.record(Record::Executed {
                     seq: b.seq,
