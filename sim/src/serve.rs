@@ -44,8 +44,8 @@ pub struct ServeArgs {
     /// Firmware policy (fifo and host-split model a conventional firmware).
     #[arg(long, value_enum, default_value = "firmware")]
     pub policy: Policy,
-    /// End the session after this many real seconds with an idle printer and no host bytes
-    /// (0 = never).
+    /// End the session after this many real seconds without host bytes while nothing moves
+    /// (idle, paused or halted printer; 0 = never).
     #[arg(long, default_value_t = 0.0)]
     pub exit_after_idle: f64,
     /// Also make a symlink to the device at this path (e.g. /tmp/printer).
@@ -251,7 +251,13 @@ pub fn serve_with(
             }
         }
         // Idle exit.
-        let idle = fw.status().state == RunState::Idle && fw.next_step_us(now_us).is_none();
+        // No motion (idle, paused, halted, cancelled: anything but a running job or a wait).
+        let st = fw.status().state;
+        let idle = fw.next_step_us(now_us).is_none()
+            && !matches!(
+                st,
+                RunState::Printing | RunState::Pausing | RunState::Resuming
+            );
         if a.exit_after_idle > 0.0
             && idle
             && last_rx.elapsed() > Duration::from_secs_f64(a.exit_after_idle)
