@@ -40,7 +40,7 @@ mod image {
     use firmware::config::MachineConfig;
     use firmware::motion::{Axis, Realtime};
     use firmware::planner::BlockKind;
-    use firmware::printer::{Command, Printer, State};
+    use firmware::printer::{Command, Printer, State, StepperRequest};
     use firmware::stepgen::StepEvent;
     use firmware::thermal::HeaterId;
     use heapless::spsc::Producer;
@@ -425,6 +425,7 @@ mod image {
         let mut ticker = Ticker::every(Duration::from_millis(1));
         let mut button = PauseButton::new();
         let mut idle = IdleTimeout::new(STEPPER_IDLE_S);
+        let mut pending_disable: Option<u8> = None;
         let mut halted = false;
         let mut blink: u32 = 0;
         let mut held: Option<StepEvent> = None;
@@ -454,8 +455,40 @@ mod image {
                 } else {
                     homing = feed_steps(&mut p, &mut producer, &mut held);
                 }
-                let busy =
-                    p.state() != State::Idle || stepper::with(|s| s.running).unwrap_or(false);
+                let running = stepper::with(|s| s.running).unwrap_or(false);
+                // M17/M18/M84 from the executive, in job order. A disable waits until the
+                // step queue has run dry (the executive issues it once the planner is done;
+                // up to 2 ms of steps may still be queued here).
+                if pending_disable.is_none() {
+                    while let Some(r) = p.take_stepper_request() {
+                        match r {
+                            StepperRequest::Enable { mask } => {
+                                stepper::with(|s| s.exec.pins.set_axes_enabled(mask, true));
+                            }
+                            StepperRequest::Disable { mask } => {
+                                pending_disable = Some(mask);
+                                break;
+                            }
+                            StepperRequest::IdleTimeout { s } => idle.set_timeout_s(s),
+                        }
+                    }
+                }
+                if let Some(mask) = pending_disable {
+                    if !running {
+                        pending_disable = None;
+                        let on = stepper::with(|s| {
+                            s.exec.pins.set_axes_enabled(mask, false);
+                            s.exec.pins.enabled_mask()
+                        })
+                        .unwrap_or(0);
+                        defmt::info!(
+                            "steppers disabled: {=u8:#06b}, still on: {=u8:#06b}",
+                            mask,
+                            on
+                        );
+                    }
+                }
+                let busy = p.state() != State::Idle || running;
                 if idle.update(busy, now_us) {
                     stepper::with(|s| s.exec.pins.set_enabled(false));
                 }

@@ -111,6 +111,19 @@ pub fn run() -> Result<u32, CheckFailed> {
     check(levels.get() & 0xF00 == 0xF00, "drivers start disabled")?;
     s.set_enabled(true);
     check(levels.get() & 0xF00 == 0, "enable drives EN low")?;
+    // M18 X E: only those drivers go off; M17 X brings X back.
+    s.set_axes_enabled(0b1001, false);
+    check(
+        levels.get() & 0xF00 == 0x900 && s.enabled_mask() == 0b0110,
+        "M18 X E disables X and E only",
+    )?;
+    s.set_axes_enabled(0b0001, true);
+    check(
+        levels.get() & 0xF00 == 0x800 && s.enabled_mask() == 0b0111,
+        "M17 X enables X",
+    )?;
+    s.set_enabled(true);
+    check(levels.get() & 0xF00 == 0, "enable all")?;
     check(
         s.set_dirs(0b1001, 0b1001),
         "first direction change reported",

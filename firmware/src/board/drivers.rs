@@ -14,7 +14,8 @@ pub struct StepperPins<P: OutputPin> {
     /// Bit i set: DIR of axis i is high for positive moves; clear: inverted wiring.
     dir_high_positive: u8,
     dir_mask: u8,
-    enabled: bool,
+    /// Bit i set: the driver of axis i is enabled.
+    enabled: u8,
 }
 
 impl<P: OutputPin> StepperPins<P> {
@@ -27,7 +28,7 @@ impl<P: OutputPin> StepperPins<P> {
             enable,
             dir_high_positive,
             dir_mask: 0,
-            enabled: true,
+            enabled: 0b1111,
         };
         s.set_enabled(false);
         for d in s.dir.iter_mut() {
@@ -38,13 +39,29 @@ impl<P: OutputPin> StepperPins<P> {
 
     /// Switches every driver on (M17, any move) or off (M18/M84, idle timeout, halt).
     pub fn set_enabled(&mut self, on: bool) {
-        if self.enabled == on {
-            return;
-        }
-        for en in self.enable.iter_mut() {
+        self.set_axes_enabled(0b1111, on);
+    }
+
+    /// Switches the drivers of the axes in `mask` (bit i = axis i) on or off (M17/M18/M84
+    /// with axes); the others keep their state.
+    pub fn set_axes_enabled(&mut self, mask: u8, on: bool) {
+        for (i, en) in self.enable.iter_mut().enumerate() {
+            let bit = 1u8 << i;
+            if mask & bit == 0 || (self.enabled & bit != 0) == on {
+                continue;
+            }
             let _ = if on { en.set_low() } else { en.set_high() };
+            if on {
+                self.enabled |= bit;
+            } else {
+                self.enabled &= !bit;
+            }
         }
-        self.enabled = on;
+    }
+
+    /// Bit i set: the driver of axis i is enabled.
+    pub fn enabled_mask(&self) -> u8 {
+        self.enabled
     }
 
     /// Sets DIR for the axes in `axis_mask` to the directions in `dir_mask` (bit set =
@@ -279,6 +296,14 @@ impl IdleTimeout {
         IdleTimeout {
             timeout_us: timeout_s as u64 * 1_000_000,
             last_activity_us: 0,
+        }
+    }
+
+    /// Change the timeout (M18/M84 `S<seconds>`; 0 = never). Negative or non-finite values
+    /// are ignored (the executive already rejects them).
+    pub fn set_timeout_s(&mut self, s: f32) {
+        if s.is_finite() && s >= 0.0 {
+            self.timeout_us = (s * 1.0e6) as u64;
         }
     }
 

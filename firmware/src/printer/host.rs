@@ -2,7 +2,7 @@
 //! state, fed to the layer detector and queued as [`Command`]s; commands that are not motion
 //! (temperatures, reports, M760/M761, ...) are answered here.
 
-use super::{Command, PausedLines, Phase, Printer, Schedule, LINE_LEN};
+use super::{Command, PausedLines, Phase, Printer, Schedule, StepperRequest, LINE_LEN};
 use crate::gcode::{self, Heater, PauseSchedule};
 use crate::layer::MoveFacts;
 use crate::link::{PositionReport, ReceivedLine, Response};
@@ -333,7 +333,27 @@ impl Printer {
                     self.error(format_args!("{e}"));
                 }
             }
-            G::Tool(0) | G::EnableSteppers(_) | G::DisableSteppers { .. } | G::Progress(_) => {}
+            G::EnableSteppers(axes) => {
+                let mask = axis_mask(axes);
+                let _ = self
+                    .cmds
+                    .push_back(Command::Steppers(StepperRequest::Enable { mask }));
+            }
+            G::DisableSteppers { axes, s, .. } => match s {
+                Some(s) if s.is_finite() && *s >= 0.0 => {
+                    let _ = self
+                        .cmds
+                        .push_back(Command::Steppers(StepperRequest::IdleTimeout { s: *s }));
+                }
+                Some(_) => self.error(format_args!("M84 S: timeout must be >= 0 s")),
+                None => {
+                    let mask = axis_mask(axes);
+                    let _ = self
+                        .cmds
+                        .push_back(Command::Steppers(StepperRequest::Disable { mask }));
+                }
+            },
+            G::Tool(0) | G::Progress(_) => {}
             G::PrintStatsInfo { .. } | G::SetLineNumber(_) => {}
             G::Tool(n) => self.error(format_args!("T{n}: only one extruder")),
             G::Stop { ms, s, .. } => {
@@ -454,4 +474,15 @@ impl Printer {
             }
         }
     }
+}
+
+/// Axis flags as a mask (bit i = axis i); no axis named = every axis.
+fn axis_mask(axes: &gcode::AxisFlags) -> u8 {
+    let mut mask = 0u8;
+    for i in 0..crate::motion::AXES {
+        if axes.is_empty() || axes.0.get(i).copied().unwrap_or(false) {
+            mask |= 1 << i;
+        }
+    }
+    mask
 }

@@ -19,7 +19,7 @@ mod host;
 mod pause;
 mod types;
 
-pub use types::{Command, PausedLines, Policy, Record, Schedule, State, Status};
+pub use types::{Command, PausedLines, Policy, Record, Schedule, State, Status, StepperRequest};
 mod service;
 
 pub use service::ServiceMove;
@@ -37,6 +37,8 @@ use heapless::{Deque, String};
 
 /// Command queue capacity (commands after parsing; each ≈ 32 B).
 pub const CMD_CAPACITY: usize = 32;
+/// Stepper-driver requests kept until the board takes them.
+pub const STEPPER_REQ_CAPACITY: usize = 4;
 /// Execution records kept until the driver takes them.
 pub const RECORD_CAPACITY: usize = 256;
 /// Longest message line the executive formats.
@@ -85,6 +87,7 @@ pub struct Printer {
     last_activity_us: u64,
     last_state: State,
     records: Deque<Record, RECORD_CAPACITY>,
+    stepper_reqs: Deque<StepperRequest, STEPPER_REQ_CAPACITY>,
     records_dropped: u32,
     link: HostLink,
     machine: MachineState,
@@ -143,6 +146,7 @@ impl Printer {
             last_activity_us: 0,
             last_state: State::Idle,
             records: Deque::new(),
+            stepper_reqs: Deque::new(),
             records_dropped: 0,
             link: HostLink::new(),
             machine: MachineState::new(&cfg),
@@ -215,6 +219,19 @@ impl Printer {
             self.records_dropped = self.records_dropped.saturating_add(1);
         }
         let _ = self.records.push_back(r);
+    }
+
+    /// Take the oldest stepper-driver request (M17/M18/M84) for the board to act on. When the
+    /// board does not take them, the oldest is dropped beyond [`STEPPER_REQ_CAPACITY`].
+    pub fn take_stepper_request(&mut self) -> Option<StepperRequest> {
+        self.stepper_reqs.pop_front()
+    }
+
+    fn push_stepper_request(&mut self, r: StepperRequest) {
+        if self.stepper_reqs.is_full() {
+            let _ = self.stepper_reqs.pop_front();
+        }
+        let _ = self.stepper_reqs.push_back(r);
     }
 
     /// Take the oldest execution record.
@@ -418,6 +435,12 @@ impl Printer {
                         ));
                         self.update_state_record();
                     }
+                }
+                Command::Steppers(r) => {
+                    if matches!(r, StepperRequest::Disable { .. }) && !self.motion_idle() {
+                        break;
+                    }
+                    self.push_stepper_request(r);
                 }
                 Command::SchedulePause(s) => {
                     self.schedule = Some(s);

@@ -54,6 +54,33 @@ pub enum Command {
     /// M0/M1 (without a time) and M600: stop once everything before this point has run,
     /// then retract, lift and park like any pause, and wait for a resume.
     PauseHere,
+    /// M17/M18/M84: a request for the board's stepper drivers, passed on in job order
+    /// (a disable waits until the motion before it has run).
+    Steppers(StepperRequest),
+}
+
+/// A request for the board's stepper drivers (M17/M18/M84), taken with
+/// [`super::Printer::take_stepper_request`]. The portable executive has no driver pins: the
+/// board (or the sim) acts on these.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum StepperRequest {
+    /// M17 `[X Y Z E]`: enable the drivers of these axes (bit i = axis i; no axis named = all).
+    Enable {
+        /// Axes, bit i = axis i.
+        mask: u8,
+    },
+    /// M18/M84 `[X Y Z E]` without `S`: disable these axes' drivers (no axis named = all),
+    /// issued once every move queued before it has been stepped.
+    Disable {
+        /// Axes, bit i = axis i.
+        mask: u8,
+    },
+    /// M18/M84 `S<seconds>`: the idle time after which the board disables every driver
+    /// (0 = never), as Marlin.
+    IdleTimeout {
+        /// Seconds.
+        s: f32,
+    },
 }
 
 /// A scheduled pause (M761).

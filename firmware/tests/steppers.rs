@@ -1,0 +1,85 @@
+//! M17/M18/M84 reach the board as stepper requests, in job order: a disable only once the
+//! moves before it have been stepped.
+
+use firmware::config::MachineConfig;
+use firmware::printer::{Printer, StepperRequest};
+
+fn send(p: &mut Printer, line: &str, now_us: u64) {
+    let mut l = String::from(line);
+    l.push('\n');
+    p.receive(l.as_bytes(), now_us);
+    p.poll(now_us);
+}
+
+/// Poll and step until nothing moves; returns the time reached, µs.
+fn drain(p: &mut Printer, mut now_us: u64) -> u64 {
+    for _ in 0..100_000 {
+        p.poll(now_us);
+        while let Some(t) = p.next_step_ns() {
+            if t > (now_us + 1000) * 1000 {
+                break;
+            }
+            p.next_step();
+        }
+        now_us += 1000;
+        if p.next_step_ns().is_none() && p.status().queue_depth == 0 {
+            p.poll(now_us);
+            break;
+        }
+    }
+    now_us
+}
+
+#[test]
+fn enable_disable_and_timeout() {
+    let mut p = Printer::new(MachineConfig::ENDER3);
+    send(&mut p, "M17", 0);
+    assert_eq!(
+        p.take_stepper_request(),
+        Some(StepperRequest::Enable { mask: 0b1111 })
+    );
+    send(&mut p, "M18 X E", 1000);
+    assert_eq!(
+        p.take_stepper_request(),
+        Some(StepperRequest::Disable { mask: 0b1001 })
+    );
+    send(&mut p, "M84 S30", 2000);
+    assert_eq!(
+        p.take_stepper_request(),
+        Some(StepperRequest::IdleTimeout { s: 30.0 })
+    );
+    send(&mut p, "M84", 3000);
+    assert_eq!(
+        p.take_stepper_request(),
+        Some(StepperRequest::Disable { mask: 0b1111 })
+    );
+    assert_eq!(p.take_stepper_request(), None);
+}
+
+#[test]
+fn bad_timeout_is_an_error_not_a_request() {
+    let mut p = Printer::new(MachineConfig::ENDER3);
+    send(&mut p, "M84 S-5", 0);
+    assert_eq!(p.take_stepper_request(), None);
+    let mut out = String::new();
+    p.write_output(&mut out).unwrap();
+    assert!(out.contains("Error"), "{out}");
+}
+
+#[test]
+fn disable_waits_for_the_moves_before_it() {
+    let mut p = Printer::new(MachineConfig::ENDER3);
+    send(&mut p, "G28", 0);
+    let t = drain(&mut p, 1000);
+    send(&mut p, "G1 X50 F3000", t);
+    send(&mut p, "M84", t);
+    // Moving: the disable is held back.
+    assert_eq!(p.take_stepper_request(), None);
+    assert!(p.next_step_ns().is_some());
+    let t = drain(&mut p, t + 1000);
+    assert_eq!(
+        p.take_stepper_request(),
+        Some(StepperRequest::Disable { mask: 0b1111 })
+    );
+    assert!(t > 0);
+}
