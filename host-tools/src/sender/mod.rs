@@ -271,6 +271,7 @@ pub struct Session<P: Read + Write> {
     last_resend: (u32, u32),
     resume_requested_at: Option<Duration>,
     pause_now: bool,
+    scheduled: bool,
 }
 
 impl<P: Read + Write> Session<P> {
@@ -309,6 +310,7 @@ impl<P: Read + Write> Session<P> {
             last_resend: (0, 0),
             resume_requested_at: None,
             pause_now: false,
+            scheduled: false,
         };
         s.refresh_estimates();
         s
@@ -527,6 +529,11 @@ impl<P: Read + Write> Session<P> {
                 if prompt.is_none() {
                     if self.paused_by_firmware {
                         self.write_realtime("M24", true)?;
+                        if std::mem::take(&mut self.scheduled) {
+                            // A schedule hit while a pause was already in progress stays set
+                            // in the firmware: clear it before the next layer arrives.
+                            self.queue.push_back(Out::plain("M761 C"));
+                        }
                         // Job lines wait until the firmware reports it is back at the pause
                         // point, so none is interpreted while it is still returning.
                         next = State::Resuming;
@@ -691,6 +698,18 @@ impl<P: Read + Write> Session<P> {
                         self.last_temp_req = now;
                         if self.caps.has("AUTOREPORT_TEMP") {
                             self.queue.push_back(Out::plain("M155 S2"));
+                        }
+                        if let (PauseMethod::Firmware, Some(Pending::AtLayer { gate })) =
+                            (method, &self.pending)
+                        {
+                            // The firmware counts layers with the same detector over the same
+                            // stream: schedule the pause there too (M761), so it holds at the
+                            // mark however fast it drains its queue.
+                            if let Some(l) = self.job.layers.get(*gate) {
+                                let line = format!("M761 L{}", l.number);
+                                self.queue.push_back(Out::plain(line));
+                                self.scheduled = true;
+                            }
                         }
                         self.events.push(Event::Connected(method));
                     }
