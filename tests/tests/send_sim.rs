@@ -120,7 +120,7 @@ impl Drop for Sim {
 }
 
 fn send(device: &str, args: &[&str]) -> (bool, String) {
-    let mut child = Command::new(bin("host-tools", "host-tools"))
+    let child = Command::new(bin("host-tools", "host-tools"))
         .arg("send")
         .args(args)
         .args(["--port", device, "--plain", "--connect-timeout", "20"])
