@@ -14,6 +14,7 @@
 #![deny(missing_docs)]
 
 pub mod config;
+pub mod drivers;
 pub mod motion;
 
 // Front end: host link, G-code parsing, modal machine state, layer detection.

@@ -1,11 +1,7 @@
-//! Checks of the board's portable drivers (`firmware/src/board/drivers.rs`, generic over
+//! Checks of the board's portable drivers (`firmware::drivers`, generic over
 //! `embedded-hal`), run on the emulated Cortex-M4 and on the host with pins supplied here,
 //! plus the cost of driving the pins for one step event.
 #![cfg_attr(not(target_os = "none"), allow(dead_code))]
-
-#[allow(dead_code)]
-#[path = "../../src/board/drivers.rs"]
-pub mod drivers;
 
 use core::cell::Cell;
 use core::convert::Infallible;
@@ -13,6 +9,7 @@ use drivers::{
     Endstops, Homing, HomingConfig, HomingError, HomingStep, IdleTimeout, PauseButton, StepperPins,
 };
 use embedded_hal::digital::{ErrorType, InputPin, OutputPin};
+use firmware::drivers;
 use firmware::motion::{PauseMode, Realtime};
 
 /// An output that records its level in a shared bit field.

@@ -3,8 +3,8 @@
 //! embassy or register access, so a simulator or a test can supply its own pins. The board
 //! instantiates them with embassy-stm32's `Output`/`Input`.
 
+use crate::motion::{PauseMode, Realtime, AXES};
 use embedded_hal::digital::{InputPin, OutputPin};
-use firmware::motion::{PauseMode, Realtime, AXES};
 
 /// STEP/DIR/EN outputs of the four stepper drivers (STEP/DIR mode, EN active low).
 pub struct StepperPins<P: OutputPin> {
