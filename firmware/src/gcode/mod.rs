@@ -1052,7 +1052,17 @@ fn build_known(code: (u8, u16), w: &Words<'_>) -> Option<Result<Command, ParseEr
             }
             (b'M', 110) => {
                 w.check(b"N", b"")?;
-                Command::SetLineNumber(w.u32(b'N')?)
+                // printcore opens a session with `N-1 M110` / `M110 N-1` (Marlin accepts it):
+                // -1 is "before line 0", kept as u32::MAX so the next expected line wraps to 0.
+                let n = match w.u32(b'N') {
+                    Ok(n) => n,
+                    Err(e) if w.i32(b'N') == Ok(Some(-1)) => {
+                        let _ = e;
+                        Some(u32::MAX)
+                    }
+                    Err(e) => return Err(e),
+                };
+                Command::SetLineNumber(n)
             }
             (b'M', 112) => {
                 none()?;

@@ -95,7 +95,7 @@ fn errors_are_specific() {
     assert_eq!(kind("1234"), ParseErrorKind::NoCommand);
     assert_eq!(kind("G999999"), ParseErrorKind::BadCode);
     assert_eq!(kind("M110 N1.5"), ParseErrorKind::NotWhole);
-    assert_eq!(kind("M110 N-1"), ParseErrorKind::Negative);
+    assert_eq!(kind("M110 N-2"), ParseErrorKind::Negative);
     assert_eq!(kind("M106 S300"), ParseErrorKind::OutOfRange);
     assert_eq!(kind("M761 L3 Z2"), ParseErrorKind::BadValue);
     assert_eq!(kind("M25 S2"), ParseErrorKind::BadValue);

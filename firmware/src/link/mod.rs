@@ -585,6 +585,13 @@ fn trim(s: &[u8]) -> &[u8] {
 
 /// Split a leading `N<digits>`: (number or error, rest). `None` when the line has no number.
 fn split_number(raw: &[u8]) -> (Option<Result<u32, ()>>, &[u8]) {
+    // `N-1` (printcore's `N-1 M110` at connect, accepted by Marlin): the line before 0, kept as
+    // u32::MAX so that `last_line + 1` wraps to 0. Any other negative number is refused.
+    if let (Some(b'N' | b'n'), Some(b'-'), Some(b'1')) = (raw.first(), raw.get(1), raw.get(2)) {
+        if !raw.get(3).is_some_and(u8::is_ascii_digit) {
+            return (Some(Ok(u32::MAX)), raw.get(3..).unwrap_or(&[]));
+        }
+    }
     match (raw.first(), raw.get(1)) {
         (Some(b'N' | b'n'), Some(d)) if d.is_ascii_digit() => {}
         _ => return (None, raw),

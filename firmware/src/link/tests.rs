@@ -355,3 +355,32 @@ proptest! {
         prop_assert_eq!(first_c0(&b), naive);
     }
 }
+
+#[test]
+fn printcore_session_start_with_line_minus_one() {
+    // printcore opens with `N-1 M110*cs`; Marlin accepts it and expects N0 next.
+    let mut l = HostLink::new();
+    l.receive(numbered(7, "M110").as_bytes());
+    assert_eq!(l.last_line(), 7);
+    assert_eq!(out(&mut l), "ok\n");
+    let body = "N-1 M110";
+    l.receive(format!("{body}*{}\n", checksum(body.as_bytes())).as_bytes());
+    assert_eq!(out(&mut l), "ok\n");
+    l.receive(numbered(0, "G28").as_bytes());
+    assert_eq!(
+        out(&mut l),
+        "",
+        "N0 must be accepted as the next line, not a duplicate"
+    );
+    assert_eq!(l.lines_waiting(), 1);
+    assert_eq!(l.last_line(), 0);
+    // The parameter form too.
+    l.receive(b"M110 N-1\n");
+    assert_eq!(out(&mut l), "ok\n");
+    l.receive(numbered(0, "G1 X1").as_bytes());
+    assert_eq!(out(&mut l), "");
+    assert_eq!(l.lines_waiting(), 2);
+    // Other negative numbers stay errors.
+    l.receive(b"N-2 G1 X1*0\n");
+    assert!(out(&mut l).starts_with("Error:"));
+}
