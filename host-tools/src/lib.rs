@@ -4,12 +4,12 @@
 #![deny(missing_docs)]
 
 pub mod additive;
-pub mod grow;
-pub mod cure;
-pub mod timebased;
 pub mod cli;
+pub mod cure;
+pub mod grow;
 pub mod job;
 pub mod sender;
+pub mod timebased;
 // Design compiler (ht-design).
 pub mod checks;
 pub mod deform;
