@@ -26,16 +26,7 @@ impl Planner {
         if self.barrier == Barrier::NextMark || self.barrier == Barrier::None {
             self.fast = true;
         }
-        let mut prev_nom = f32::INFINITY;
-        for k in 0..end {
-            let i = self.idx(k);
-            let b = &mut self.ring[i];
-            b.nominal_v2 = b.fast_v2;
-            if k > 0 {
-                b.entry_max_v2 = b.junction_v2.min(prev_nom).min(b.nominal_v2);
-            }
-            prev_nom = b.nominal_v2;
-        }
+        let prev_nom = self.set_nominals(end, true);
         if end == self.len && self.len > 0 {
             self.prev_nominal_v2 = prev_nom;
         }
@@ -47,16 +38,7 @@ impl Planner {
     pub fn clear_barrier(&mut self) {
         self.barrier = Barrier::None;
         self.fast = false;
-        let mut prev_nom = f32::INFINITY;
-        for k in 0..self.len {
-            let i = self.idx(k);
-            let b = &mut self.ring[i];
-            b.nominal_v2 = b.base_v2;
-            if k > 0 {
-                b.entry_max_v2 = b.junction_v2.min(prev_nom).min(b.nominal_v2);
-            }
-            prev_nom = b.nominal_v2;
-        }
+        let prev_nom = self.set_nominals(self.len, false);
         if self.len > 0 {
             self.prev_nominal_v2 = prev_nom;
         }
@@ -84,16 +66,7 @@ impl Planner {
     pub fn release(&mut self, exec_rem: Option<(f32, f32, f32)>) -> f32 {
         self.barrier = Barrier::None;
         self.fast = false;
-        let mut prev_nom = f32::INFINITY;
-        for k in 0..self.len {
-            let i = self.idx(k);
-            let b = &mut self.ring[i];
-            b.nominal_v2 = b.base_v2;
-            if k > 0 {
-                b.entry_max_v2 = b.junction_v2.min(prev_nom).min(b.nominal_v2);
-            }
-            prev_nom = b.nominal_v2;
-        }
+        let prev_nom = self.set_nominals(self.len, false);
         if self.len > 0 {
             self.prev_nominal_v2 = prev_nom;
             // Head entry: from standstill, or reachable from the held remainder.
@@ -125,5 +98,22 @@ impl Planner {
             self.prev_nominal_v2 = 0.0;
             0.0
         }
+    }
+
+    /// Give the first `end` queued blocks their fast (speed-up) or base nominal speed and
+    /// recompute their entry limits from it (the head's entry stays fixed). Returns the last
+    /// block's nominal speed² (infinity when `end` is 0).
+    fn set_nominals(&mut self, end: usize, fast: bool) -> f32 {
+        let mut prev_nom = f32::INFINITY;
+        for k in 0..end {
+            let i = self.idx(k);
+            let b = &mut self.ring[i];
+            b.nominal_v2 = if fast { b.fast_v2 } else { b.base_v2 };
+            if k > 0 {
+                b.entry_max_v2 = b.junction_v2.min(prev_nom).min(b.nominal_v2);
+            }
+            prev_nom = b.nominal_v2;
+        }
+        prev_nom
     }
 }
