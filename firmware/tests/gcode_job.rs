@@ -193,3 +193,56 @@ fn job_lines_sent_while_paused_queue_behind_the_barrier() {
     assert_eq!(job_pos, base.job_pos);
     assert_eq!(r3.end, base.end);
 }
+
+#[test]
+fn manual_policy_job_lines_during_the_return_keep_the_job_state() {
+    use firmware::config::MachineConfig;
+    use firmware::printer::{PausedLines, Policy, Printer};
+    // Relative coordinates, so a line interpreted in the wrong (parked) state lands elsewhere.
+    let mut v = vec![
+        "G28".to_string(),
+        "G1 Z0.2 F600".to_string(),
+        "G1 X20 Y20 F6000".to_string(),
+        "G91".to_string(),
+        "M83".to_string(),
+    ];
+    for _ in 0..3 {
+        v.push(";LAYER_CHANGE".into());
+        v.push("G1 Z0.2 F600".into());
+        for k in 0..16 {
+            let dx = if k % 2 == 0 { 10 } else { -10 };
+            v.push(format!("G1 X{dx} Y1 E0.4 F1800"));
+        }
+        v.push("G1 Y-16 F6000".into());
+    }
+    let lines: Vec<&str> = v.iter().map(|s| s.as_str()).collect();
+    let manual = Policy {
+        paused_lines: PausedLines::Manual,
+        ..Policy::FIRMWARE
+    };
+    let base = run_gcode(
+        &mut Printer::with_policy(MachineConfig::ENDER3, manual),
+        &lines,
+        &[],
+        300_000_000,
+    );
+    let (first, rest) = lines.split_at(14);
+    let mut p = Printer::with_policy(MachineConfig::ENDER3, manual);
+    let r1 = run_gcode(&mut p, first, &[(600_000, "M25 S1\n")], 200_000_000);
+    assert!(r1.out.contains("//action:paused"), "{}", r1.out);
+    // While parked the host jogs and purges (manual commands, relative).
+    let r2 = run_gcode(&mut p, &["G1 X-5 Z3 F3000", "G1 E3 F300"], &[], 200_000_000);
+    assert!(!r2.out.contains("Error"), "{}", r2.out);
+    assert_eq!(p.status().state, firmware::printer::State::Paused);
+    // Resume, and stream the rest at once: these lines arrive while the head returns.
+    p.request(firmware::motion::Realtime::Resume, 210_000_000);
+    let r3 = run_gcode(&mut p, rest, &[], 900_000_000);
+    assert!(!r3.out.contains("Error"), "{}", r3.out);
+    let mut executed = r1.executed.clone();
+    executed.extend(r3.executed.iter().copied());
+    let mut job_pos = r1.job_pos.clone();
+    job_pos.extend(r3.job_pos.iter().copied());
+    assert_eq!(executed, base.executed);
+    assert_eq!(job_pos, base.job_pos);
+    assert_eq!(r3.end, base.end);
+}

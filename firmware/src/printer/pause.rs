@@ -326,9 +326,6 @@ impl Printer {
                     self.finish_cancel();
                     return;
                 }
-                if let Some(m) = self.saved_machine.take() {
-                    self.machine = m;
-                }
                 // Logical E: the job continues from the held E count (no E jump).
                 let mut pos = self.stepgen.position();
                 pos[Axis::E.index()] = self.held_pos[Axis::E.index()];
@@ -390,6 +387,12 @@ impl Printer {
 
     pub(super) fn start_resume(&mut self) {
         self.phase = Phase::Returning;
+        // From here on host lines are job lines again (they queue behind the held blocks while
+        // the head returns): they must be interpreted in the job's modal state, not in the
+        // parked one manual commands used.
+        if let Some(m) = self.saved_machine.take() {
+            self.machine = m;
+        }
         // A nozzle cooled by the pause idle timeout must be hot again before the return.
         self.reheat_wait = self.thermal.pause_idle_end().is_some();
         self.service.clear();
