@@ -342,3 +342,72 @@ fn manual_moves_while_paused_do_not_disturb_the_job() {
     assert_eq!(r.end, b.end);
     assert!(r.trace.iter().any(|&(_, pos)| pos == held));
 }
+
+#[test]
+fn scheduled_pause_met_by_a_pause_in_progress_is_not_repeated() {
+    // The schedule asks for layer 1; the user's layer request (before layer 1 is queued)
+    // stops at the same boundary. After the resume the job must not pause again at layer 2.
+    let cfg = MachineConfig::ENDER3;
+    let mut cmds = vec![Command::SchedulePause(Schedule::Layer(1))];
+    cmds.extend(commands(&cfg, &job(3)));
+    let mut p = printer();
+    let r = run(
+        &mut p,
+        &cmds,
+        &[req(500_000, LAYER), req(20_000_000, Realtime::Resume)],
+        120_000_000,
+    );
+    let layers: Vec<Option<u32>> = r
+        .records
+        .iter()
+        .filter_map(|x| match *x {
+            Record::Stopped { layer, .. } => Some(layer),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(layers, vec![Some(1)], "{}", r.out);
+    assert!(r.out.contains("scheduled pause met"), "{}", r.out);
+    assert_eq!(p.scheduled_pause(), None);
+    assert_eq!(r.executed, base().executed);
+}
+
+#[test]
+fn schedule_due_during_a_pause_stops_at_its_layer_after_the_resume() {
+    // Short layers (8 mm, 40 segments, under the 64-block ring): the user's layer pause stops
+    // before layer 1 and layer 2's mark enters the ring behind that barrier, so the schedule
+    // (layer 2) comes due while the pause is in progress. After the resume the job must stop
+    // before layer 2, not a layer later.
+    let cfg = MachineConfig::ENDER3;
+    let mut items = Vec::new();
+    let mut e = 0.0;
+    for l in 0..5u32 {
+        items.push(Item::Layer(l));
+        let z = 0.2 * (l + 1) as f32;
+        for (x, y) in [(12.0, 10.0), (12.0, 12.0), (10.0, 12.0), (10.0, 10.0)] {
+            e += 0.1;
+            items.push(Item::Move([x, y, z, e], 5.0));
+        }
+    }
+    let mut cmds = vec![Command::SchedulePause(Schedule::Layer(2))];
+    cmds.extend(commands(&cfg, &items));
+    let base = run(&mut printer(), &cmds, &[], 120_000_000);
+    let mut p = printer();
+    let r = run(
+        &mut p,
+        &cmds,
+        &[req(300_000, LAYER), req(20_000_000, Realtime::Resume)],
+        120_000_000,
+    );
+    let layers: Vec<Option<u32>> = r
+        .records
+        .iter()
+        .filter_map(|x| match *x {
+            Record::Stopped { layer, .. } => Some(layer),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(layers, vec![Some(1), Some(2)], "{}", r.out);
+    assert_eq!(p.status().state, State::Paused);
+    // Up to the scheduled stop the run matches the unpaused one (which stopped there too).
+    assert_eq!(r.executed, base.executed);
+}

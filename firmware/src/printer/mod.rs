@@ -459,13 +459,20 @@ impl Printer {
         }
     }
 
-    fn check_schedule(&mut self, mark: LayerMark) {
-        let hit = match self.schedule {
+    /// Whether the pause schedule asks to stop before `mark`.
+    fn schedule_hit(&self, mark: &LayerMark) -> bool {
+        match self.schedule {
             Some(Schedule::Layer(n)) => mark.layer >= n,
             Some(Schedule::Z(z)) => mark.z_um.is_some_and(|mz| mz >= z),
             None => false,
-        };
-        if hit && self.phase == Phase::Run {
+        }
+    }
+
+    /// A layer mark entered the planner: a matching schedule becomes the barrier. While a pause
+    /// is already in progress the schedule waits: it is met by that pause if it stops at a
+    /// matching boundary, or looked for again among the queued marks when the job resumes.
+    fn check_schedule(&mut self, mark: LayerMark) {
+        if self.schedule_hit(&mark) && self.phase == Phase::Run {
             self.schedule = None;
             if let Some((id, _)) = self.planner.marks().last() {
                 self.planner.set_barrier(id);
@@ -489,18 +496,13 @@ impl Printer {
     }
 
     /// Apply the schedule to the layer marks already queued in the planner.
-    fn schedule_queued_marks(&mut self) {
+    pub(super) fn schedule_queued_marks(&mut self) {
         if self.schedule.is_none() || self.phase != Phase::Run {
             return;
         }
         let mut hit = None;
         for (id, m) in self.planner.marks() {
-            let matches = match self.schedule {
-                Some(Schedule::Layer(n)) => m.layer >= n,
-                Some(Schedule::Z(z)) => m.z_um.is_some_and(|mz| mz >= z),
-                None => false,
-            };
-            if matches {
+            if self.schedule_hit(&m) {
                 hit = Some((id, m));
                 break;
             }

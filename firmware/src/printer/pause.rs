@@ -282,6 +282,18 @@ impl Printer {
                     mid_block: mid,
                     t_us,
                 });
+                // A layer stop at a boundary the schedule asks for meets the schedule too.
+                if layer.is_some() {
+                    if let Some((_, m)) = self.planner.first_mark() {
+                        if self.schedule_hit(&m) {
+                            self.schedule = None;
+                            self.say(format_args!(
+                                "scheduled pause met by this pause (layer {})",
+                                m.layer
+                            ));
+                        }
+                    }
+                }
                 if self.withdraw_after_stop && !self.cancel_pending {
                     self.withdraw_after_stop = false;
                     self.release_held();
@@ -355,6 +367,8 @@ impl Printer {
         self.mode = None;
         self.barrier_layer = None;
         self.feed_planner();
+        // A schedule that came due while this pause was in progress stops at its boundary.
+        self.schedule_queued_marks();
     }
 
     pub(super) fn start_park(&mut self) {
