@@ -246,3 +246,88 @@ fn manual_policy_job_lines_during_the_return_keep_the_job_state() {
     assert_eq!(job_pos, base.job_pos);
     assert_eq!(r3.end, base.end);
 }
+
+#[test]
+fn m400_is_answered_when_the_moves_before_it_have_ended() {
+    let mut p = printer();
+    let mut out = String::new();
+    p.receive(b"G1 X100 F3000\n", 0);
+    let _ = p.write_output(&mut out);
+    assert_eq!(out, "ok\n");
+    out.clear();
+    p.receive(b"M400\nM105\n", 1000);
+    p.poll(1000);
+    let _ = p.write_output(&mut out);
+    assert_eq!(out, "", "M400 answered before the move ran");
+    // Run the move (100 mm at 50 mm/s: about 2 s), polling like the main loop.
+    let mut now = 1000u64;
+    let mut ok_at = None;
+    let mut busy = 0;
+    while now < 10_000_000 && ok_at.is_none() {
+        while let Some(t) = p.next_step_ns() {
+            if t > now * 1000 {
+                break;
+            }
+            let _ = p.next_step();
+        }
+        p.poll(now);
+        out.clear();
+        let _ = p.write_output(&mut out);
+        busy += out.matches("busy:").count();
+        if out.contains("ok") {
+            ok_at = Some(now);
+            // The line behind M400 is taken only after it: `ok` then `ok T:`.
+            assert!(out.starts_with("busy: processing\n") || out.starts_with("ok\n"), "{out}");
+        }
+        now += 1000;
+    }
+    let ok_at = ok_at.expect("M400 answered");
+    assert!(ok_at >= 1_900_000, "answered at {ok_at} µs, before the move ended");
+    assert_eq!(p.status().position[0], 8000);
+    assert!(busy >= 0);
+    // Next line (M105) taken after the M400's ok.
+    let mut rest = String::new();
+    p.poll(now);
+    let _ = p.write_output(&mut rest);
+    let all = format!("{out}{rest}");
+    assert!(all.contains("ok T:"), "{all}");
+}
+
+#[test]
+fn homing_waits_until_the_last_segment_has_run() {
+    // G28 acts on an idle machine only (its move starts from where the head is): the last
+    // segment of the move before it must have run first, whatever the timing of the step
+    // generator's block loads. Homing X must leave Y where the job put it.
+    let mut p = printer();
+    let lines = ["G1 X100 Y50 F3000", "G28 X"];
+    let mut next = 0;
+    let mut waiting = false;
+    let mut y_steps = 0i64;
+    let mut now = 0u64;
+    while now < 20_000_000 {
+        if !waiting && next < lines.len() {
+            p.receive(format!("{}\n", lines[next]).as_bytes(), now);
+            next += 1;
+            waiting = true;
+        }
+        p.poll(now);
+        while let Some(t) = p.next_step_ns() {
+            if t > now * 1000 {
+                break;
+            }
+            if let Some(ev) = p.next_step() {
+                if ev.axis_mask & 2 != 0 {
+                    y_steps += if ev.dir_mask & 2 != 0 { 1 } else { -1 };
+                }
+            }
+        }
+        let mut out = String::new();
+        let _ = p.write_output(&mut out);
+        if out.contains("ok") {
+            waiting = false;
+        }
+        now += 1000;
+    }
+    assert_eq!(y_steps, 4000, "Y moved back by the homing move");
+    assert_eq!(p.status().position[..2], [0, 4000]);
+}

@@ -56,6 +56,10 @@ impl Printer {
                 }
                 self.link.respond(Response::Ok);
             }
+            if self.sync_ok_owed {
+                // M400 is waiting for the motion to end: the next line waits too.
+                return;
+            }
             let manual =
                 self.phase == Phase::Parked && self.policy.paused_lines == PausedLines::Manual;
             if manual && self.service.is_full() {
@@ -259,7 +263,11 @@ impl Printer {
                 self.say(format_args!("E0 Flow: {v:.0}%"));
             }
             G::WaitMoves => {
-                let _ = self.cmds.push_back(Command::Sync);
+                // As Marlin: the `ok` comes when the moves queued before it have ended.
+                if self.cmds.push_back(Command::Sync).is_ok() {
+                    self.sync_ok_owed = true;
+                    return true;
+                }
             }
             G::PauseParams(p) => self.m760(p),
             G::SchedulePause(s) => self.m761(s),

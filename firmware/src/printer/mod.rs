@@ -99,6 +99,10 @@ pub struct Printer {
     break_wait: bool,
     reheat_wait: bool,
     fan_pwm: u8,
+    /// An M400 waits for the motion to end: its `ok` is owed, and no further line is taken.
+    sync_ok_owed: bool,
+    /// A block popped from the planner on its way into the step generator.
+    block_in_hand: bool,
 }
 
 fn steps(cfg: &MachineConfig, axis: Axis, mm: f32) -> i32 {
@@ -158,6 +162,8 @@ impl Printer {
             break_wait: false,
             reheat_wait: false,
             fan_pwm: 0,
+            sync_ok_owed: false,
+            block_in_hand: false,
         };
         p.set_policy(policy);
         p
@@ -320,7 +326,7 @@ impl Printer {
     }
 
     fn motion_idle(&self) -> bool {
-        self.planner.is_empty() && self.stepgen.current().is_none()
+        self.planner.is_empty() && self.stepgen.current().is_none() && !self.block_in_hand
     }
 
     /// Move commands from the command queue into the planner while it has room. Returns at
@@ -419,6 +425,7 @@ impl Printer {
                     if !self.motion_idle() {
                         break;
                     }
+                    self.pay_sync_ok();
                 }
                 Command::PauseHere => {
                     if self.planner.has_pending() {
@@ -456,6 +463,13 @@ impl Printer {
             self.fifo_countdown = None;
             let id = self.planner.next_id();
             self.planner.set_barrier(id);
+        }
+    }
+
+    /// Send the `ok` an M400 owes (its wait is over, or the wait was dropped).
+    fn pay_sync_ok(&mut self) {
+        if core::mem::take(&mut self.sync_ok_owed) {
+            self.link.respond(Response::Ok);
         }
     }
 
@@ -542,6 +556,12 @@ impl Printer {
         self.retire_finished();
         self.update_pause();
         self.feed_planner();
+        if self.sync_ok_owed && self.now_us.saturating_sub(self.last_busy_us) >= BUSY_PERIOD_US {
+            // An M400 waits for the motion (maybe through a pause): keep the host from timing
+            // out while its `ok` is owed.
+            self.last_busy_us = self.now_us;
+            self.link.respond(Response::Busy);
+        }
         self.update_state_record();
     }
 
@@ -630,7 +650,11 @@ impl Printer {
     fn job_block(&mut self) -> Option<PlannedBlock> {
         let pb = self.planner.pop()?;
         self.planner.refill();
+        // The popped block is not in the step generator yet: commands that wait for the
+        // motion to end (G92, G4, M400, G28, M18) must not see an idle machine here.
+        self.block_in_hand = true;
         self.feed_planner();
+        self.block_in_hand = false;
         while let Some(m) = self.planner.take_mark_before(pb.block.id) {
             self.layer = Some(m.layer);
             let t_us = self.t_us();

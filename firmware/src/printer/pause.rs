@@ -124,6 +124,7 @@ impl Printer {
         let pos = self.stepgen.position();
         let (blocks, segs, marks) = self.planner.clear(pos);
         self.cmds.clear();
+        self.pay_sync_ok();
         self.arc = None;
         self.fifo_countdown = None;
         self.schedule = None;
@@ -193,6 +194,7 @@ impl Printer {
         let pos = self.stepgen.position();
         self.planner.clear(pos);
         self.cmds.clear();
+        self.sync_ok_owed = false;
         self.service.clear();
         self.held = None;
         self.say(format_args!(
