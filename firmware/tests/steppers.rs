@@ -83,3 +83,54 @@ fn disable_waits_for_the_moves_before_it() {
     );
     assert!(t > 0);
 }
+
+#[test]
+fn steppers_off_lose_the_position_until_homed_and_the_pause_does_not_park_there() {
+    use firmware::motion::{PauseMode, Realtime};
+    use firmware::printer::State;
+    let mut p = Printer::new(MachineConfig::ENDER3);
+    send(&mut p, "G1 X50 Y50 Z1 F6000", 0);
+    let t = drain(&mut p, 0);
+    assert_eq!(p.status().position_lost, 0);
+    send(&mut p, "M18 X Y", t);
+    let t = drain(&mut p, t);
+    assert_eq!(p.status().position_lost, 0b011);
+    let mut out = String::new();
+    let _ = p.write_output(&mut out);
+    assert!(out.contains("X Y position lost until G28"), "{out}");
+    // A long move, paused now: retract and lift, but no park to bed coordinates.
+    send(&mut p, "G1 X150 E5 F1200", t);
+    let t = drain_until(&mut p, t, 500_000);
+    p.request(Realtime::Pause(PauseMode::Now), t);
+    let t = drain(&mut p, t);
+    assert_eq!(p.status().state, State::Paused);
+    let held = p.status().paused_at.expect("paused");
+    let here = p.status().position;
+    assert_eq!(here[..2], held[..2], "parked although X/Y were lost");
+    assert!(here[2] > held[2], "lifted");
+    out.clear();
+    let _ = p.write_output(&mut out);
+    assert!(out.contains("not parking"), "{out}");
+    // Homing X and Y makes them trusted again.
+    p.request(Realtime::Cancel, t);
+    let t = drain(&mut p, t);
+    send(&mut p, "G28 X Y", t);
+    let _ = drain(&mut p, t);
+    assert_eq!(p.status().position_lost, 0);
+}
+
+/// Poll and step for `us` microseconds from `now_us`; returns the time reached.
+fn drain_until(p: &mut Printer, mut now_us: u64, us: u64) -> u64 {
+    let end = now_us + us;
+    while now_us < end {
+        p.poll(now_us);
+        while let Some(t) = p.next_step_ns() {
+            if t > (now_us + 1000) * 1000 {
+                break;
+            }
+            p.next_step();
+        }
+        now_us += 1000;
+    }
+    now_us
+}

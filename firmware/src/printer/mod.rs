@@ -103,6 +103,8 @@ pub struct Printer {
     sync_ok_owed: bool,
     /// A block popped from the planner on its way into the step generator.
     block_in_hand: bool,
+    /// Axes (bit i = X, Y, Z) whose drivers were switched off since they were last homed.
+    position_lost: u8,
 }
 
 fn steps(cfg: &MachineConfig, axis: Axis, mm: f32) -> i32 {
@@ -164,6 +166,7 @@ impl Printer {
             fan_pwm: 0,
             sync_ok_owed: false,
             block_in_hand: false,
+            position_lost: 0,
         };
         p.set_policy(policy);
         p
@@ -384,6 +387,7 @@ impl Printer {
                             target[ax.index()] = steps(&self.cfg, ax, min);
                         }
                     }
+                    self.position_lost &= !mask;
                     let req = MoveRequest {
                         target,
                         feed_mm_s: self.cfg.pause.park_feed_mm_s,
@@ -446,6 +450,27 @@ impl Printer {
                 Command::Steppers(r) => {
                     if matches!(r, StepperRequest::Disable { .. }) && !self.motion_idle() {
                         break;
+                    }
+                    if let StepperRequest::Disable { mask } = r {
+                        // A switched-off motor can be pushed by hand: the position in steps
+                        // means nothing until the axis is homed again (Marlin: "not trusted").
+                        let lost = mask & 0b111;
+                        if lost & !self.position_lost != 0 {
+                            self.position_lost |= lost;
+                            let name = |i: usize| {
+                                if lost & (1 << i) != 0 {
+                                    ["X ", "Y ", "Z "][i]
+                                } else {
+                                    ""
+                                }
+                            };
+                            self.say(format_args!(
+                                "steppers off: {}{}{}position lost until G28",
+                                name(0),
+                                name(1),
+                                name(2)
+                            ));
+                        }
                     }
                     self.push_stepper_request(r);
                 }
@@ -773,6 +798,7 @@ impl Printer {
                 _ => None,
             },
             pause_mode: self.mode,
+            position_lost: self.position_lost,
         }
     }
 

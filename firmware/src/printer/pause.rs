@@ -393,6 +393,12 @@ impl Printer {
             target: cur,
             feed_mm_s: c.axis(Axis::Z).max_feed_mm_s,
         });
+        if self.position_lost & 0b011 != 0 {
+            // X/Y not homed since their motors were off: a park to bed coordinates could
+            // drive into a frame end. Retract and lift only.
+            self.say(format_args!("pause: X/Y position lost (M18/M84), not parking"));
+            return;
+        }
         cur[Axis::X.index()] = steps(&c, Axis::X, c.pause.park_x_mm);
         cur[Axis::Y.index()] = steps(&c, Axis::Y, c.pause.park_y_mm);
         let _ = self.service.push_back(ServiceMove {

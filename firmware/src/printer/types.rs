@@ -235,4 +235,7 @@ pub struct Status {
     pub paused_at: Option<StepPos>,
     /// Mode of the current pause.
     pub pause_mode: Option<PauseMode>,
+    /// Axes whose position is lost because their drivers were switched off (M18/M84) and not
+    /// homed since: bit i = axis i (X, Y, Z). The pause does not park on a lost X/Y.
+    pub position_lost: u8,
 }
