@@ -277,12 +277,18 @@ fn m400_is_answered_when_the_moves_before_it_have_ended() {
         if out.contains("ok") {
             ok_at = Some(now);
             // The line behind M400 is taken only after it: `ok` then `ok T:`.
-            assert!(out.starts_with("busy: processing\n") || out.starts_with("ok\n"), "{out}");
+            assert!(
+                out.starts_with("busy: processing\n") || out.starts_with("ok\n"),
+                "{out}"
+            );
         }
         now += 1000;
     }
     let ok_at = ok_at.expect("M400 answered");
-    assert!(ok_at >= 1_900_000, "answered at {ok_at} µs, before the move ended");
+    assert!(
+        ok_at >= 1_900_000,
+        "answered at {ok_at} µs, before the move ended"
+    );
     assert_eq!(p.status().position[0], 8000);
     assert!(busy >= 0);
     // Next line (M105) taken after the M400's ok.

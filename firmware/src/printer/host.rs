@@ -264,10 +264,9 @@ impl Printer {
             }
             G::WaitMoves => {
                 // As Marlin: the `ok` comes when the moves queued before it have ended.
-                if self.cmds.push_back(Command::Sync).is_ok() {
-                    self.sync_ok_owed = true;
-                    return true;
-                }
+                let queued = self.cmds.push_back(Command::Sync).is_ok();
+                self.sync_ok_owed = queued;
+                return queued;
             }
             G::PauseParams(p) => self.m760(p),
             G::SchedulePause(s) => self.m761(s),

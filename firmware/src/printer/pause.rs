@@ -396,7 +396,9 @@ impl Printer {
         if self.position_lost & 0b011 != 0 {
             // X/Y not homed since their motors were off: a park to bed coordinates could
             // drive into a frame end. Retract and lift only.
-            self.say(format_args!("pause: X/Y position lost (M18/M84), not parking"));
+            self.say(format_args!(
+                "pause: X/Y position lost (M18/M84), not parking"
+            ));
             return;
         }
         cur[Axis::X.index()] = steps(&c, Axis::X, c.pause.park_x_mm);
