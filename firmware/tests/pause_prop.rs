@@ -156,38 +156,90 @@ fn check(items: &[Item], policy: Policy, mode: PauseMode, frac_permille: u64, wa
                 _ => None,
             })
             .unwrap();
-        // Path travelled from the request to the stop: through the block ends in between.
-        let req_us = r.req_times[0];
-        let req_ns = req_us * 1000;
+        // Path travelled from the request to the stop, in the planner's own metric: a move
+        // from A to B cut into n segments has segments of |AB|/n, and inside a block the head's
+        // progress is the fraction of its major-axis steps done (Bresenham). The step lattice
+        // itself stays within one step of that path on every axis.
+        let req_ns = r.req_times[0] * 1000;
         let at_req = r
             .trace
             .iter()
             .take_while(|(t, _)| *t <= req_ns)
             .last()
             .map_or([0; 4], |x| x.1);
-        let mut pts = vec![at_req];
-        for x in &r.records {
-            match *x {
-                Record::Executed { t_us, pos, .. } if t_us * 1000 > req_ns => pts.push(pos),
-                Record::Stopped { .. } => break,
-                _ => {}
+        let stop_idx = r
+            .records
+            .iter()
+            .position(|x| matches!(x, Record::Stopped { .. }))
+            .unwrap();
+        // Job blocks in order: (t_us, seq, segs, end position, after the stop?).
+        let recs: Vec<(u64, u32, u32, StepPos, bool)> = r
+            .records
+            .iter()
+            .enumerate()
+            .filter_map(|(i, x)| match *x {
+                Record::Executed {
+                    kind: firmware::planner::BlockKind::Job,
+                    t_us,
+                    seq,
+                    segs,
+                    pos,
+                    ..
+                } => Some((t_us, seq, segs, pos, i > stop_idx)),
+                _ => None,
+            })
+            .collect();
+        let start_of = |k: usize| if k == 0 { [0; 4] } else { recs[k - 1].3 };
+        let mm_dist = |a: StepPos, b: StepPos| -> f64 {
+            (0..3)
+                .map(|i| ((b[i] - a[i]) as f64 / cfg.axes[i].steps_per_mm as f64).powi(2))
+                .sum::<f64>()
+                .sqrt()
+        };
+        let seg_len = |k: usize| -> f64 {
+            let seq = recs[k].1;
+            let first = recs.iter().position(|x| x.1 == seq).unwrap();
+            let last = recs.iter().rposition(|x| x.1 == seq).unwrap();
+            mm_dist(start_of(first), recs[last].3) / recs[k].2.max(1) as f64
+        };
+        let frac = |k: usize, p: StepPos| -> f64 {
+            let (from, to) = (start_of(k), recs[k].3);
+            let major = (0..4)
+                .max_by_key(|&i| (to[i] - from[i]).unsigned_abs())
+                .unwrap();
+            let n = (to[major] - from[major]) as f64;
+            if n == 0.0 {
+                0.0
+            } else {
+                (p[major] - from[major]) as f64 / n
             }
-        }
-        pts.push(pos);
-        let mut travel = 0.0f64;
-        for w in pts.windows(2) {
-            let d: f64 = (0..3)
-                .map(|i| ((w[1][i] - w[0][i]) as f64 / cfg.axes[i].steps_per_mm as f64).powi(2))
-                .sum();
-            travel += d.sqrt();
-        }
+        };
+        // The block executing at the request: the first to end after it.
+        let k0 = recs
+            .iter()
+            .position(|x| x.0 * 1000 > req_ns || x.4)
+            .unwrap();
+        let travel = if recs[k0].4 {
+            // Stopped inside that block (it is the held one).
+            seg_len(k0) * (frac(k0, pos) - frac(k0, at_req))
+        } else {
+            let mut t = seg_len(k0) * (1.0 - frac(k0, at_req));
+            let mut k = k0 + 1;
+            while k < recs.len() && !recs[k].4 {
+                t += seg_len(k);
+                k += 1;
+            }
+            if mid && k < recs.len() {
+                t += seg_len(k) * frac(k, pos);
+            }
+            t
+        };
         // Braking uses each block's own acceleration; the slowest any job block may have is
         // the Z-limited one, but a Z move is only entered at a near-standstill corner.
         let a = if a > 0.0 { a as f64 } else { 500.0 };
-        // The brake stops at the last whole step within v²/2a of the braking point (one step of
-        // resolution); the travel is measured between step-lattice positions, whose distance
-        // differs from the path length by up to one more step.
-        let bound = (v as f64).powi(2) / (2.0 * a.min(500.0)) + 2.0 / 80.0;
+        // The brake stops within v²/2a of where the head was at the request; one step of
+        // resolution (X/Y: 1/80 mm, the coarsest axis) is allowed, as the issue asks.
+        let bound = (v as f64).powi(2) / (2.0 * a.min(500.0)) + 1.0 / 80.0;
         assert!(
             travel <= bound,
             "travel {travel} > bound {bound} (v {v}, a {a})"
