@@ -337,3 +337,82 @@ fn homing_waits_until_the_last_segment_has_run() {
     assert_eq!(y_steps, 4000, "Y moved back by the homing move");
     assert_eq!(p.status().position[..2], [0, 4000]);
 }
+
+#[test]
+fn layer_pause_at_a_boundary_the_host_drained_with_m400_parks_there() {
+    // The sender's layer gate: the layer's marker comments, then M400; when its `ok` comes
+    // (motion ended) it sends M25. The idle printer is still in the job: it stops at this
+    // boundary at once and parks.
+    let lines = [
+        "G28",
+        ";LAYER_CHANGE",
+        ";Z:0.2",
+        "G1 Z0.2 F600",
+        "G1 X20 Y20 F6000",
+        "G1 X60 Y20 E2 F2400",
+        ";LAYER_CHANGE",
+        ";Z:0.4",
+        "M400",
+    ];
+    let mut p = printer();
+    let r = run_gcode(&mut p, &lines, &[], 60_000_000);
+    assert_eq!(p.status().state, firmware::printer::State::Idle);
+    let t = r.end_us;
+    let r2 = run_gcode(&mut p, &[], &[(t, "M25\n")], 120_000_000);
+    assert!(r2.out.contains("//action:paused"), "{}", r2.out);
+    let stop = r2.records.iter().find_map(|x| match *x {
+        Record::Stopped {
+            layer,
+            mid_block,
+            pos,
+            ..
+        } => Some((layer, mid_block, pos)),
+        _ => None,
+    });
+    assert_eq!(stop, Some((Some(1), false, r.end)));
+    // Much later, with nothing queued or moving, there is nothing to pause.
+    p.request(firmware::motion::Realtime::Resume, 200_000_000);
+    let r3 = run_gcode(&mut p, &["G1 X20 Y40 Z0.4 E3"], &[], 260_000_000);
+    assert!(r3.out.contains("//action:resumed"), "{}", r3.out);
+    let mut q = String::new();
+    p.request(
+        firmware::motion::Realtime::Pause(firmware::motion::PauseMode::Layer),
+        300_000_000,
+    );
+    let _ = p.write_output(&mut q);
+    assert!(q.contains("nothing to pause"), "{q}");
+}
+
+#[test]
+fn layer_pause_when_the_host_stops_after_a_marker_reports_that_layer() {
+    // No M400: the host sent the layer's marker comments and stopped streaming. After the
+    // idle time the stop is at that boundary and is reported as layer 1.
+    let lines = [
+        ";LAYER_CHANGE",
+        ";Z:0.2",
+        "G1 Z0.2 F600",
+        "G1 X20 Y20 F6000",
+        "G1 X60 Y20 E2 F2400",
+        ";LAYER_CHANGE",
+        ";Z:0.4",
+    ];
+    let mut p = printer();
+    let r = run_gcode(&mut p, &lines, &[(300_000, "M25\n")], 60_000_000);
+    assert!(r.out.contains("//action:paused"), "{}", r.out);
+    let stop = r.records.iter().find_map(|x| match *x {
+        Record::Stopped {
+            layer, mid_block, ..
+        } => Some((layer, mid_block)),
+        _ => None,
+    });
+    assert_eq!(stop, Some((Some(1), false)));
+    // The resumed job's next move gets no second mark for the same layer.
+    p.request(firmware::motion::Realtime::Resume, 100_000_000);
+    let r2 = run_gcode(&mut p, &["G1 X20 Y40 Z0.4 E3"], &[], 200_000_000);
+    let marks = r2
+        .records
+        .iter()
+        .filter(|x| matches!(x, Record::Layer { .. }))
+        .count();
+    assert_eq!(marks, 1, "{:?}", r2.records);
+}

@@ -242,6 +242,18 @@ impl LayerDetector {
         self.pending.take().map(|p| self.emit(p))
     }
 
+    /// Place a pending marker now (the firmware calls this for M400, and when a layer pause
+    /// finds the machine idle with a marker pending): everything before it has run, so the
+    /// boundary is here. The next motion command then gets no mark of its own.
+    pub fn flush(&mut self) -> Option<LayerMark> {
+        self.finish()
+    }
+
+    /// True while a marker comment waits for the next motion command.
+    pub fn has_pending(&self) -> bool {
+        self.pending.is_some()
+    }
+
     /// Number of marks emitted so far (the number of the next layer).
     pub fn layers(&self) -> u32 {
         self.count

@@ -134,6 +134,13 @@ impl Printer {
             if let Some(mark) = self.layers.feed(&parsed, facts) {
                 let _ = self.cmds.push_back(Command::Layer(mark));
             }
+            // M400 after a layer's marker comments: the boundary is here (a host that drains
+            // the queue at a boundary, then pauses, stops at this layer, not the next).
+            if matches!(parsed.command, Some(gcode::Command::WaitMoves)) {
+                if let Some(mark) = self.layers.flush() {
+                    let _ = self.cmds.push_back(Command::Layer(mark));
+                }
+            }
         }
         let mut answered = false;
         match action {

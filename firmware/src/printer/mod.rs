@@ -629,6 +629,7 @@ impl Printer {
                     self.planner.exec_done();
                 }
                 let t_us = crate::stepgen::div_small(self.stepgen.last_time_ns(), 1000).0;
+                self.last_activity_us = self.last_activity_us.max(t_us);
                 let pos = self.stepgen.position();
                 self.record(Record::Executed {
                     seq: b.seq,

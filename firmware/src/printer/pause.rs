@@ -36,7 +36,15 @@ impl Printer {
     pub(super) fn request_pause(&mut self, mode: PauseMode) {
         match self.phase {
             Phase::Run => {
-                if !self.has_work() {
+                // An idle printer is still in a job while the host streams it (between lines,
+                // or at a boundary the host drained with M400): the pause is taken unless
+                // nothing has moved or arrived for `LAYER_PAUSE_IDLE_US`.
+                let idle_us = self.now_us.saturating_sub(self.last_activity_us);
+                if !self.has_work()
+                    && (self.cancelled
+                        || self.last_activity_us == 0
+                        || idle_us >= LAYER_PAUSE_IDLE_US)
+                {
                     self.say(format_args!("pause: nothing to pause"));
                     return;
                 }
@@ -247,6 +255,14 @@ impl Printer {
                     && self.planner.is_empty()
                     && self.now_us.saturating_sub(self.last_activity_us) >= LAYER_PAUSE_IDLE_US
                 {
+                    // A marker comment seen but no motion after it: the head is at that
+                    // boundary (the host stopped streaming there).
+                    if let Some(mark) = self.layers.flush() {
+                        if let Ok(true) = self.planner.push_mark(mark) {
+                            self.barrier_layer = Some(mark.layer);
+                            return true;
+                        }
+                    }
                     let id = self.planner.next_id();
                     self.planner.set_barrier(id);
                     return true;
