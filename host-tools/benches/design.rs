@@ -5,7 +5,7 @@
 //! Run: `CARGO_TARGET_DIR=... cargo bench -p host-tools --bench design -- --warm-up-time 1 --measurement-time 3`
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use host_tools::gcode_read::{FastReader, FirmwareReader, GcodeReader};
+use host_tools::gcode_read::{default_reader, GcodeReader};
 use host_tools::modulate::{globe, Bitmap, Globe};
 use host_tools::profile::Profile;
 use host_tools::script::ScriptRunner;
@@ -97,21 +97,10 @@ fn stats_bench(c: &mut Criterion) {
     g.bench_function("stats_large_slicer_file", |b| {
         b.iter(|| black_box(stats(&data, &p).expect("stats").print_time_s))
     });
-    g.bench_function("read_fast_reader", |b| {
-        b.iter(|| {
-            let mut n = 0u64;
-            FastReader::default()
-                .read(&data, &mut |_| n += 1)
-                .expect("read");
-            black_box(n)
-        })
-    });
     g.bench_function("read_firmware_parser", |b| {
         b.iter(|| {
             let mut n = 0u64;
-            FirmwareReader::default()
-                .read(&data, &mut |_| n += 1)
-                .expect("read");
+            default_reader().read(&data, &mut |_| n += 1).expect("read");
             black_box(n)
         })
     });

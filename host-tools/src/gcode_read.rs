@@ -1,10 +1,23 @@
-//! Reading G-code into motion events for `stats`, `preview` and the time-based resampler.
+//! Reading G-code into motion events for `stats`, `preview`, the motion model and the
+//! time-based resampler — with the printer's own parser, so the host reads exactly what the
+//! printer reads.
 //!
-//! [`GcodeReader`] is the seam: [`FastReader`] is a minimal, allocation-free line reader for
-//! the subset that matters for motion (G0–G4, G20/G21, G90/G91, G92, M82/M83, M204, layer
-//! comments). When the firmware's parser (`firmware::gcode`/`firmware::layer`) is complete,
-//! a reader over it implements the same trait and the tools switch by changing one line
-//! ([`default_reader`]).
+//! [`FirmwareReader`] (what [`default_reader`] returns) runs every line through
+//! [`firmware::gcode::parse_line`] and finds layers with [`firmware::layer::LayerDetector`]
+//! (slicer markers of every family the firmware knows, our `;LAYER_CHANGE`/`;TURN` per helix
+//! turn, `M73 L`, Klipper's `SET_PRINT_STATS_INFO`, else Z rising before an extrusion). On top
+//! of the parser it keeps the modal state that turns commands into absolute positions (G90/G91,
+//! M82/M83, G20/G21, G92, G28) and expands G2/G3 arcs into chords. Values arrive as `f32` (the
+//! firmware's precision) and are tracked in `f64`.
+//!
+//! Host-link framing is accepted as the printer's link accepts it: a leading `N<n>` line number
+//! is dropped and a trailing `*<checksum>` is checked (a mismatch is an error with the line
+//! number). Any line the firmware's parser rejects is an error with its line number; commands
+//! that do not move the head (temperatures, fans, unknown codes) are counted as skipped.
+
+use firmware::gcode::{parse_line, Command};
+use firmware::layer::{LayerDetector, MoveFacts};
+pub use firmware::motion::LayerSource;
 
 /// An absolute position: X, Y, Z, E (E as a running total in mm of filament).
 pub type Pos4 = [f64; 4];
@@ -12,7 +25,7 @@ pub type Pos4 = [f64; 4];
 /// One event read from G-code.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Event {
-    /// A straight move (arcs arrive as several). `rapid` for G0.
+    /// A straight move (arcs arrive as several).
     Move {
         /// Start, absolute.
         from: Pos4,
@@ -23,14 +36,16 @@ pub enum Event {
         /// 1-based line number.
         line: u32,
     },
-    /// A layer starts (`;LAYER_CHANGE` or `;LAYER:n`); `z_mm` from a `;Z:` comment when it
-    /// follows.
+    /// A layer starts here: every move before this event belongs to the previous layer (the
+    /// firmware's [`LayerDetector`] decides, so this is where the printer's layer pause stops).
     Layer {
-        /// 1-based line number.
+        /// 1-based line number of the line before whose command the layer starts.
         line: u32,
+        /// Height of the new layer, mm, when known (from `;Z:`, the marker or the move).
+        z_mm: Option<f64>,
+        /// What produced the mark (slicer comment, command, our turn marker, or a Z rise).
+        source: LayerSource,
     },
-    /// `;Z:` comment (height of the layer just started), mm.
-    LayerZ(f64),
     /// Dwell (G4), seconds.
     Dwell(f64),
     /// Acceleration change (M204): print (P or S) and travel (T), mm/s²; `None` = unchanged.
@@ -55,9 +70,9 @@ pub struct ReadError {
 /// What a reader counted.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ReadCounts {
-    /// Lines read.
+    /// Non-empty lines read.
     pub lines: u64,
-    /// Lines whose command was not understood and skipped (unknown M-codes etc.).
+    /// Commands that do not move the head (temperatures, fans, unknown M-codes, ...).
     pub skipped: u64,
 }
 
@@ -67,123 +82,76 @@ pub trait GcodeReader {
     fn read(&mut self, input: &[u8], sink: &mut dyn FnMut(Event)) -> Result<ReadCounts, ReadError>;
 }
 
-/// The reader the tools use.
-pub fn default_reader() -> impl GcodeReader {
-    FastReader::default()
+/// The reader the tools use: the firmware's parser ([`FirmwareReader`]).
+pub fn default_reader() -> FirmwareReader {
+    FirmwareReader::default()
 }
 
-/// Minimal, fast reader for motion (see module docs). Malformed numbers are errors with the
-/// line number; unknown commands are skipped and counted.
+/// Reader over the firmware's own parser and layer detector (see the module docs).
 #[derive(Clone, Debug)]
-pub struct FastReader {
+pub struct FirmwareReader {
     pos: Pos4,
     abs_xyz: bool,
     abs_e: bool,
     inch: bool,
     feed_mm_s: f64,
+    layers: LayerDetector,
     /// Longest chord used to expand G2/G3 arcs, mm.
     pub arc_seg_mm: f64,
 }
 
-impl Default for FastReader {
+impl Default for FirmwareReader {
     fn default() -> Self {
-        FastReader {
+        FirmwareReader {
             pos: [0.0; 4],
             abs_xyz: true,
             abs_e: true,
             inch: false,
             feed_mm_s: 25.0,
+            layers: LayerDetector::new(),
             arc_seg_mm: 0.5,
         }
     }
 }
 
-/// Parses a decimal number at the start of `b`: returns the value and bytes used.
+/// Strips host-link framing as the printer's link does: a leading `N<digits>` and a trailing
+/// `*<1–3 digits>` checksum (XOR of every byte before the `*`), which must match.
+fn unframe(raw: &[u8]) -> Result<&[u8], &'static str> {
+    let mut body = raw;
+    // Trailing checksum: only the last few bytes are looked at (cheap on every line).
+    let t = body.trim_ascii_end();
+    let digits = t
+        .iter()
+        .rev()
+        .take(4)
+        .take_while(|c| c.is_ascii_digit())
+        .count();
+    if (1..=3).contains(&digits) && t.len() > digits && t[t.len() - digits - 1] == b'*' {
+        let star = t.len() - digits - 1;
+        let want = t[star + 1..]
+            .iter()
+            .fold(0u32, |a, d| a * 10 + u32::from(d - b'0'));
+        if want > 255 || u32::from(firmware::link::checksum(&t[..star])) != want {
+            return Err("checksum mismatch");
+        }
+        body = &t[..star];
+    }
+    // Leading line number.
+    let lead = body.len() - body.trim_ascii_start().len();
+    if let (Some(b'N' | b'n'), Some(d)) = (body.get(lead), body.get(lead + 1)) {
+        if d.is_ascii_digit() || *d == b'-' {
+            let rest = &body[lead + 2..];
+            let n = rest.iter().take_while(|c| c.is_ascii_digit()).count();
+            body = &rest[n..];
+        }
+    }
+    Ok(body)
+}
+
+/// Height in µm as the layer detector wants it.
 #[inline]
-fn parse_num(b: &[u8]) -> Option<(f64, usize)> {
-    let mut i = 0;
-    let mut neg = false;
-    match b.first() {
-        Some(b'-') => {
-            neg = true;
-            i = 1;
-        }
-        Some(b'+') => i = 1,
-        _ => {}
-    }
-    let mut int: u64 = 0;
-    let mut digits = 0;
-    while let Some(&c) = b.get(i) {
-        if c.is_ascii_digit() {
-            if digits < 18 {
-                int = int * 10 + (c - b'0') as u64;
-            }
-            digits += 1;
-            i += 1;
-        } else {
-            break;
-        }
-    }
-    if digits > 18 {
-        return None; // beyond any machine's range; also keeps `int` exact
-    }
-    let mut v = int as f64;
-    if b.get(i) == Some(&b'.') {
-        i += 1;
-        let mut frac: u64 = 0;
-        let mut fd = 0;
-        while let Some(&c) = b.get(i) {
-            if c.is_ascii_digit() {
-                if fd < 18 {
-                    frac = frac * 10 + (c - b'0') as u64;
-                    fd += 1;
-                }
-                digits += 1;
-                i += 1;
-            } else {
-                break;
-            }
-        }
-        const P10: [f64; 19] = [
-            1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15,
-            1e16, 1e17, 1e18,
-        ];
-        v += frac as f64 / P10[fd as usize];
-    }
-    if digits == 0 {
-        return None;
-    }
-    Some((if neg { -v } else { v }, i))
-}
-
-/// Words of one command line (letters A–Z, value): a presence mask and the values.
-struct Words {
-    mask: u32,
-    v: [f64; 26],
-}
-
-impl Default for Words {
-    #[inline]
-    fn default() -> Self {
-        Words {
-            mask: 0,
-            v: [0.0; 26],
-        }
-    }
-}
-
-impl Words {
-    #[inline]
-    fn get(&self, c: u8) -> Option<f64> {
-        let k = (c - b'A') as usize;
-        (self.mask & (1 << k) != 0).then(|| self.v[k])
-    }
-    #[inline]
-    fn set(&mut self, c: u8, v: f64) {
-        let k = (c - b'A') as usize;
-        self.mask |= 1 << k;
-        self.v[k] = v;
-    }
+fn um(z_mm: f64) -> i32 {
+    (z_mm * 1000.0).round() as i32
 }
 
 /// Centre of an arc from `from` to `to` given I/J offsets (already scaled) or a radius R
@@ -263,294 +231,38 @@ fn expand_arc(
     }
 }
 
-impl FastReader {
-    fn arc(
-        &mut self,
-        w: &Words,
-        ccw: bool,
-        to: Pos4,
-        line: u32,
-        sink: &mut dyn FnMut(Event),
-    ) -> Result<(), ReadError> {
-        let scale = if self.inch { 25.4 } else { 1.0 };
-        let ij = match (w.get(b'I'), w.get(b'J')) {
-            (None, None) => None,
-            (i, j) => Some((i.unwrap_or(0.0) * scale, j.unwrap_or(0.0) * scale)),
-        };
-        let c = arc_center(self.pos, to, ij, w.get(b'R').map(|r| r * scale), ccw).map_err(|m| {
-            ReadError {
-                line,
-                msg: m.into(),
-            }
-        })?;
-        expand_arc(
-            self.pos,
-            to,
-            c,
-            ccw,
-            self.arc_seg_mm,
-            self.feed_mm_s,
-            line,
-            sink,
-        );
-        self.pos = to;
-        Ok(())
-    }
-
-    fn command(
-        &mut self,
-        code: u8,
-        num: u32,
-        w: &Words,
-        line: u32,
-        sink: &mut dyn FnMut(Event),
-    ) -> Result<bool, ReadError> {
-        let scale = if self.inch { 25.4 } else { 1.0 };
-        match (code, num) {
-            (b'G', 0..=3) => {
-                if let Some(f) = w.get(b'F') {
-                    if f.is_nan() || f <= 0.0 {
-                        return Err(ReadError {
-                            line,
-                            msg: format!("feed F{f} must be > 0"),
-                        });
-                    }
-                    self.feed_mm_s = f * scale / 60.0;
-                }
-                let mut to = self.pos;
-                for (k, c) in [b'X', b'Y', b'Z'].into_iter().enumerate() {
-                    if let Some(v) = w.get(c) {
-                        to[k] = if self.abs_xyz {
-                            v * scale
-                        } else {
-                            to[k] + v * scale
-                        };
-                    }
-                }
-                if let Some(e) = w.get(b'E') {
-                    to[3] = if self.abs_e {
-                        e * scale
-                    } else {
-                        to[3] + e * scale
-                    };
-                }
-                if num >= 2 {
-                    return self.arc(w, num == 3, to, line, sink).map(|_| true);
-                }
-                if to != self.pos {
-                    sink(Event::Move {
-                        from: self.pos,
-                        to,
-                        feed_mm_s: self.feed_mm_s,
-                        line,
-                    });
-                    self.pos = to;
-                }
-            }
-            (b'G', 4) => {
-                let s = w.get(b'S').unwrap_or(0.0) + w.get(b'P').unwrap_or(0.0) / 1000.0;
-                if s > 0.0 {
-                    sink(Event::Dwell(s));
-                }
-            }
-            (b'G', 20) => self.inch = true,
-            (b'G', 21) => self.inch = false,
-            (b'G', 90) => {
-                self.abs_xyz = true;
-                self.abs_e = true;
-            }
-            (b'G', 91) => {
-                self.abs_xyz = false;
-                self.abs_e = false;
-            }
-            (b'G', 92) => {
-                let mut any = false;
-                for (k, c) in [b'X', b'Y', b'Z', b'E'].into_iter().enumerate() {
-                    if let Some(v) = w.get(c) {
-                        self.pos[k] = v * scale;
-                        any = true;
-                    }
-                }
-                if !any {
-                    self.pos = [0.0; 4];
-                }
-            }
-            (b'G', 28) => {
-                // Homing: axes named (or all) go to 0.
-                let named = [b'X', b'Y', b'Z'].iter().any(|c| w.get(*c).is_some());
-                for (k, c) in [b'X', b'Y', b'Z'].into_iter().enumerate() {
-                    if !named || w.get(c).is_some() {
-                        self.pos[k] = 0.0;
-                    }
-                }
-            }
-            (b'M', 82) => self.abs_e = true,
-            (b'M', 83) => self.abs_e = false,
-            (b'M', 204) => sink(Event::Accel {
-                print_mm_s2: w.get(b'P').or(w.get(b'S')),
-                travel_mm_s2: w.get(b'T').or(w.get(b'S')),
-            }),
-            _ => return Ok(false),
-        }
-        Ok(true)
-    }
-
-    fn comment(&self, c: &[u8], line: u32, sink: &mut dyn FnMut(Event)) {
-        let c = trim(c);
-        if c == b"LAYER_CHANGE" || c.starts_with(b"LAYER:") {
-            sink(Event::Layer { line });
-        } else if let Some(rest) = c.strip_prefix(b"Z:") {
-            if let Some((z, _)) = parse_num(trim(rest)) {
-                sink(Event::LayerZ(z));
-            }
-        }
-    }
-}
-
-fn trim(b: &[u8]) -> &[u8] {
-    let s = b
-        .iter()
-        .position(|c| !c.is_ascii_whitespace())
-        .unwrap_or(b.len());
-    let e = b
-        .iter()
-        .rposition(|c| !c.is_ascii_whitespace())
-        .map_or(s, |e| e + 1);
-    &b[s..e.max(s)]
-}
-
-impl GcodeReader for FastReader {
-    fn read(&mut self, input: &[u8], sink: &mut dyn FnMut(Event)) -> Result<ReadCounts, ReadError> {
-        let mut counts = ReadCounts::default();
-        let mut line_no: u32 = 0;
-        let mut start = 0usize;
-        let ends = memchr::memchr_iter(b'\n', input).chain(std::iter::once(input.len()));
-        for end in ends {
-            let raw = &input[start..end];
-            start = end + 1;
-            line_no = line_no.saturating_add(1);
-            if raw.is_empty() {
-                continue;
-            }
-            counts.lines += 1;
-            // Split off the comment.
-            let (code, comment) = match memchr::memchr(b';', raw) {
-                Some(i) => (&raw[..i], Some(&raw[i + 1..])),
-                None => (raw, None),
-            };
-            if let Some(c) = comment {
-                self.comment(c, line_no, sink);
-            }
-            // Strip a checksum.
-            let code = match memchr::memchr(b'*', code) {
-                Some(i) => &code[..i],
-                None => code,
-            };
-            let mut words = Words::default();
-            let mut cmd: Option<(u8, u32)> = None;
-            let mut i = 0;
-            while i < code.len() {
-                let c = code[i].to_ascii_uppercase();
-                if c == b' ' || c == b'\t' || c == b'\r' {
-                    i += 1;
-                    continue;
-                }
-                if c == b'(' {
-                    // Parenthesised comment.
-                    match code[i..].iter().position(|&b| b == b')') {
-                        Some(j) => i += j + 1,
-                        None => break,
-                    }
-                    continue;
-                }
-                if !c.is_ascii_uppercase() {
-                    if !matches!(cmd, Some((b'G', _)) | None) {
-                        break; // free text of M117 and friends
-                    }
-                    return Err(ReadError {
-                        line: line_no,
-                        msg: format!("unexpected character `{}`", c as char),
-                    });
-                }
-                i += 1;
-                let rest = &code[i..];
-                // Skip spaces between letter and number (allowed by RS274).
-                let skip = rest.iter().take_while(|b| **b == b' ').count();
-                match parse_num(&rest[skip..]) {
-                    Some((v, used)) => {
-                        if cmd.is_none() && (c == b'G' || c == b'M' || c == b'T') {
-                            if !(0.0..=100_000.0).contains(&v) {
-                                return Err(ReadError {
-                                    line: line_no,
-                                    msg: format!("bad command number {v}"),
-                                });
-                            }
-                            cmd = Some((c, v as u32));
-                        } else {
-                            words.set(c, v);
-                        }
-                        i += skip + used;
-                    }
-                    None => {
-                        if cmd.is_some() && (c == b'X' || c == b'Y' || c == b'Z' || c == b'E') {
-                            // G28 X / G92 E without a number.
-                            words.set(c, 0.0);
-                        } else if cmd.is_none() {
-                            return Err(ReadError {
-                                line: line_no,
-                                msg: format!("`{}` without a number", c as char),
-                            });
-                        }
-                    }
-                }
-            }
-            if let Some((c, n)) = cmd {
-                if c == b'N' {
-                    continue;
-                }
-                if !self.command(c, n, &words, line_no, sink)? {
-                    counts.skipped += 1;
-                }
-            }
-        }
-        Ok(counts)
-    }
-}
-
-/// Reader over the firmware's own parser (`firmware::gcode::parse_line`), so the host reads
-/// exactly what the printer reads. Values arrive as `f32` (the firmware's precision) and are
-/// tracked in `f64`. Any line the firmware rejects is an error with its line number.
-#[derive(Clone, Debug)]
-pub struct FirmwareReader {
-    pos: Pos4,
-    abs_xyz: bool,
-    abs_e: bool,
-    inch: bool,
-    feed_mm_s: f64,
-    /// Longest chord used to expand G2/G3 arcs, mm.
-    pub arc_seg_mm: f64,
-}
-
-impl Default for FirmwareReader {
-    fn default() -> Self {
-        FirmwareReader {
-            pos: [0.0; 4],
-            abs_xyz: true,
-            abs_e: true,
-            inch: false,
-            feed_mm_s: 25.0,
-            arc_seg_mm: 0.5,
-        }
-    }
+/// What one command does, worked out before anything is emitted (the layer detector must see
+/// the line first: a layer mark goes before the command's moves).
+enum Action {
+    /// Nothing to emit (modal change, G92, or not motion-related).
+    None,
+    /// A straight move to this point.
+    Line(Pos4),
+    /// The head goes to this point without a move to plan (homing: how far is unknown).
+    Jump(Pos4),
+    /// An arc to this point about this centre, counter-clockwise or not.
+    Arc(Pos4, (f64, f64), bool),
+    /// An event to pass on as it is.
+    Event(Event),
 }
 
 impl FirmwareReader {
+    #[inline]
+    fn scale(&self) -> f64 {
+        if self.inch {
+            25.4
+        } else {
+            1.0
+        }
+    }
+
+    #[inline]
     fn target(&self, axes: &firmware::gcode::AxisWords) -> Pos4 {
-        let scale = if self.inch { 25.4 } else { 1.0 };
+        let scale = self.scale();
         let mut to = self.pos;
         for (k, v) in axes.0.iter().enumerate().take(4) {
             if let Some(v) = v {
-                let v = *v as f64 * scale;
+                let v = f64::from(*v) * scale;
                 let abs = if k == 3 { self.abs_e } else { self.abs_xyz };
                 to[k] = if abs { v } else { to[k] + v };
             }
@@ -558,129 +270,220 @@ impl FirmwareReader {
         to
     }
 
+    #[inline]
     fn set_feed(&mut self, f: Option<f32>) {
         if let Some(f) = f {
-            let scale = if self.inch { 25.4 } else { 1.0 };
             if f > 0.0 {
-                self.feed_mm_s = f as f64 * scale / 60.0;
+                self.feed_mm_s = f64::from(f) * self.scale() / 60.0;
             }
         }
+    }
+
+    /// Works out one command and updates the modal state (not the position of moves, which
+    /// `read` advances after emitting). `None` = not a motion-related command.
+    fn action(&mut self, cmd: &Command) -> Result<Option<Action>, &'static str> {
+        let scale = self.scale();
+        Ok(Some(match *cmd {
+            Command::Move { axes, feed, .. } => {
+                self.set_feed(feed);
+                Action::Line(self.target(&axes))
+            }
+            Command::Arc {
+                clockwise,
+                axes,
+                i,
+                j,
+                r,
+                feed,
+            } => {
+                self.set_feed(feed);
+                let to = self.target(&axes);
+                let ij = match (i, j) {
+                    (None, None) => None,
+                    (i, j) => Some((
+                        f64::from(i.unwrap_or(0.0)) * scale,
+                        f64::from(j.unwrap_or(0.0)) * scale,
+                    )),
+                };
+                let c = arc_center(
+                    self.pos,
+                    to,
+                    ij,
+                    r.map(|r| f64::from(r) * scale),
+                    !clockwise,
+                )?;
+                Action::Arc(to, c, !clockwise)
+            }
+            Command::Dwell { ms, s } => {
+                let t = f64::from(s.unwrap_or(0.0)) + f64::from(ms.unwrap_or(0.0)) / 1000.0;
+                if t > 0.0 {
+                    Action::Event(Event::Dwell(t))
+                } else {
+                    Action::None
+                }
+            }
+            Command::Inches => {
+                self.inch = true;
+                Action::None
+            }
+            Command::Millimetres => {
+                self.inch = false;
+                Action::None
+            }
+            Command::Absolute => {
+                self.abs_xyz = true;
+                self.abs_e = true;
+                Action::None
+            }
+            Command::Relative => {
+                self.abs_xyz = false;
+                self.abs_e = false;
+                Action::None
+            }
+            Command::AbsoluteE => {
+                self.abs_e = true;
+                Action::None
+            }
+            Command::RelativeE => {
+                self.abs_e = false;
+                Action::None
+            }
+            Command::SetPosition(axes) => {
+                // Coordinates change, the head does not move.
+                if axes.is_empty() {
+                    self.pos = [0.0; 4];
+                }
+                for (k, v) in axes.0.iter().enumerate().take(4) {
+                    if let Some(v) = v {
+                        self.pos[k] = f64::from(*v) * scale;
+                    }
+                }
+                Action::None
+            }
+            Command::Home(flags) => {
+                let mut to = self.pos;
+                for (k, t) in to.iter_mut().enumerate().take(3) {
+                    if flags.is_empty() || flags.0[k] {
+                        *t = 0.0;
+                    }
+                }
+                Action::Jump(to)
+            }
+            Command::SetAcceleration {
+                print, travel, s, ..
+            } => Action::Event(Event::Accel {
+                print_mm_s2: print.or(s).map(f64::from),
+                travel_mm_s2: travel.or(s).map(f64::from),
+            }),
+            _ => return Ok(None),
+        }))
+    }
+
+    /// Feeds the layer detector with one line and the motion it makes; emits a layer event.
+    #[inline]
+    fn layer(
+        &mut self,
+        line: &firmware::gcode::Line<'_>,
+        from: &Pos4,
+        to: &Pos4,
+        line_no: u32,
+        sink: &mut dyn FnMut(Event),
+    ) {
+        let facts = MoveFacts {
+            z_start_um: um(from[2]),
+            z_end_um: um(to[2]),
+            extrudes: to[3] > from[3] && (to[0] != from[0] || to[1] != from[1]),
+            moved: to != from,
+        };
+        if let Some(mark) = self.layers.feed(line, facts) {
+            self.emit_layer(mark, line_no, sink);
+        }
+    }
+
+    fn emit_layer(
+        &self,
+        mark: firmware::motion::LayerMark,
+        line_no: u32,
+        sink: &mut dyn FnMut(Event),
+    ) {
+        sink(Event::Layer {
+            line: line_no,
+            z_mm: mark.z_um.map(|z| f64::from(z) / 1000.0),
+            source: mark.source,
+        });
+    }
+
+    /// Layers found so far (the next layer's 0-based number, as the firmware counts).
+    pub fn layers(&self) -> u32 {
+        self.layers.layers()
     }
 }
 
 impl GcodeReader for FirmwareReader {
     fn read(&mut self, input: &[u8], sink: &mut dyn FnMut(Event)) -> Result<ReadCounts, ReadError> {
-        use firmware::gcode::{parse_line, Command};
         let mut counts = ReadCounts::default();
         let mut line_no: u32 = 0;
-        for raw in input.split(|&b| b == b'\n') {
+        let mut start = 0usize;
+        let ends = memchr::memchr_iter(b'\n', input).chain(std::iter::once(input.len()));
+        for end in ends {
+            let raw = input.get(start..end).unwrap_or(&[]);
+            start = end + 1;
             line_no = line_no.saturating_add(1);
             let raw = raw.strip_suffix(b"\r").unwrap_or(raw);
             if raw.is_empty() {
                 continue;
             }
             counts.lines += 1;
-            let line = parse_line(raw).map_err(|e| ReadError {
-                line: line_no,
-                msg: format!("{e:?}"),
-            })?;
-            if let Some(c) = line.comment {
-                FastReader::default().comment(c, line_no, sink);
-            }
-            let Some(cmd) = line.command else { continue };
-            match cmd {
-                Command::Move { axes, feed, .. } => {
-                    self.set_feed(feed);
-                    let to = self.target(&axes);
-                    if to != self.pos {
+            let err = |msg: String| ReadError { line: line_no, msg };
+            let text = unframe(raw).map_err(|m| err(m.into()))?;
+            let line = parse_line(text).map_err(|e| err(e.to_string()))?;
+            let from = self.pos;
+            let action = match &line.command {
+                Some(cmd) => match self.action(cmd).map_err(|m| err(m.into()))? {
+                    Some(a) => a,
+                    None => {
+                        counts.skipped += 1;
+                        Action::None
+                    }
+                },
+                None => Action::None,
+            };
+            let to = match action {
+                Action::Line(to) | Action::Jump(to) | Action::Arc(to, ..) => to,
+                _ => from,
+            };
+            self.layer(&line, &from, &to, line_no, sink);
+            match action {
+                Action::Line(to) => {
+                    if to != from {
                         sink(Event::Move {
-                            from: self.pos,
+                            from,
                             to,
                             feed_mm_s: self.feed_mm_s,
                             line: line_no,
                         });
-                        self.pos = to;
                     }
                 }
-                Command::Arc {
-                    clockwise,
-                    axes,
-                    i,
-                    j,
-                    r,
-                    feed,
-                } => {
-                    self.set_feed(feed);
-                    let to = self.target(&axes);
-                    let scale = if self.inch { 25.4 } else { 1.0 };
-                    let ij = match (i, j) {
-                        (None, None) => None,
-                        (i, j) => Some((
-                            i.unwrap_or(0.0) as f64 * scale,
-                            j.unwrap_or(0.0) as f64 * scale,
-                        )),
-                    };
-                    let c = arc_center(self.pos, to, ij, r.map(|r| r as f64 * scale), !clockwise)
-                        .map_err(|m| ReadError {
-                        line: line_no,
-                        msg: m.into(),
-                    })?;
-                    expand_arc(
-                        self.pos,
-                        to,
-                        c,
-                        !clockwise,
-                        self.arc_seg_mm,
-                        self.feed_mm_s,
-                        line_no,
-                        sink,
-                    );
-                    self.pos = to;
-                }
-                Command::Dwell { ms, s } => {
-                    let t = s.unwrap_or(0.0) as f64 + ms.unwrap_or(0.0) as f64 / 1000.0;
-                    if t > 0.0 {
-                        sink(Event::Dwell(t));
-                    }
-                }
-                Command::Inches => self.inch = true,
-                Command::Millimetres => self.inch = false,
-                Command::Absolute => {
-                    self.abs_xyz = true;
-                    self.abs_e = true;
-                }
-                Command::Relative => {
-                    self.abs_xyz = false;
-                    self.abs_e = false;
-                }
-                Command::AbsoluteE => self.abs_e = true,
-                Command::RelativeE => self.abs_e = false,
-                Command::SetPosition(axes) => {
-                    let scale = if self.inch { 25.4 } else { 1.0 };
-                    if axes.0.iter().all(|a| a.is_none()) {
-                        self.pos = [0.0; 4];
-                    }
-                    for (k, v) in axes.0.iter().enumerate().take(4) {
-                        if let Some(v) = v {
-                            self.pos[k] = *v as f64 * scale;
-                        }
-                    }
-                }
-                Command::Home(flags) => {
-                    for k in 0..3 {
-                        if flags.is_empty() || flags.0[k] {
-                            self.pos[k] = 0.0;
-                        }
-                    }
-                }
-                Command::SetAcceleration {
-                    print, travel, s, ..
-                } => sink(Event::Accel {
-                    print_mm_s2: print.or(s).map(f64::from),
-                    travel_mm_s2: travel.or(s).map(f64::from),
-                }),
-                _ => counts.skipped += 1,
+                Action::Arc(to, c, ccw) => expand_arc(
+                    from,
+                    to,
+                    c,
+                    ccw,
+                    self.arc_seg_mm,
+                    self.feed_mm_s,
+                    line_no,
+                    sink,
+                ),
+                Action::Event(e) => sink(e),
+                Action::Jump(_) | Action::None => {}
             }
+            self.pos = match action {
+                Action::Line(to) | Action::Jump(to) | Action::Arc(to, ..) => to,
+                _ => self.pos,
+            };
+        }
+        if let Some(mark) = self.layers.finish() {
+            self.emit_layer(mark, line_no, sink);
         }
         Ok(counts)
     }
@@ -692,58 +495,161 @@ mod tests {
 
     fn events(src: &str) -> Vec<Event> {
         let mut v = Vec::new();
-        let r = FastReader::default().read(src.as_bytes(), &mut |e| v.push(e));
+        let r = default_reader().read(src.as_bytes(), &mut |e| v.push(e));
         assert!(r.is_ok(), "{r:?}");
         v
     }
 
-    #[test]
-    fn numbers() {
-        assert_eq!(parse_num(b"12.5"), Some((12.5, 4)));
-        assert_eq!(parse_num(b"-0.25 "), Some((-0.25, 5)));
-        assert_eq!(parse_num(b".5"), Some((0.5, 2)));
-        assert_eq!(parse_num(b"-"), None);
-        assert_eq!(parse_num(b"x"), None);
-    }
-
-    #[test]
-    fn modes_and_layers() {
-        let ev = events(
-            "G90\nM83\nG1 X10 Y0 E1 F600\n;LAYER_CHANGE\n;Z:0.4\nG1 X20 E1\nG91\nG1 X-5\nG92 E0\n",
-        );
-        let moves: Vec<_> = ev
-            .iter()
+    fn moves(ev: &[Event]) -> Vec<Pos4> {
+        ev.iter()
             .filter_map(|e| match e {
                 Event::Move { to, .. } => Some(*to),
                 _ => None,
             })
-            .collect();
-        assert_eq!(moves[0], [10.0, 0.0, 0.0, 1.0]);
-        assert_eq!(moves[1], [20.0, 0.0, 0.0, 2.0]);
-        assert_eq!(moves[2], [15.0, 0.0, 0.0, 2.0]);
-        assert!(ev.contains(&Event::LayerZ(0.4)));
-        assert!(ev.iter().any(|e| matches!(e, Event::Layer { line: 4 })));
+            .collect()
     }
 
     #[test]
-    fn arcs_expand() {
-        let ev = events("G0 X10 Y0\nG3 X0 Y10 I-10 J0 F600\n");
-        let n = ev
+    fn modes_positions_and_feeds() {
+        let ev = events(
+            "G90\nM83\nG1 X10 Y0 E1 F600\nG1 X20 E1\nG91\nG1 X-5 Z0.5\nG90\nG92 E0\nM82\n\
+             G1 E2\nG20\nG1 X1\nG21\nG28 X\n",
+        );
+        let m = moves(&ev);
+        assert_eq!(m[0], [10.0, 0.0, 0.0, 1.0]);
+        assert_eq!(m[1], [20.0, 0.0, 0.0, 2.0]);
+        assert_eq!(m[2], [15.0, 0.0, 0.5, 2.0]);
+        assert_eq!(
+            m[3],
+            [15.0, 0.0, 0.5, 2.0],
+            "G92 E0 then M82 G1 E2: E 0 -> 2"
+        );
+        assert_eq!(m[4], [25.4, 0.0, 0.5, 2.0]);
+        assert_eq!(m.len(), 5, "homing is not a planned move");
+        match ev.iter().find(|e| matches!(e, Event::Move { .. })) {
+            Some(Event::Move {
+                feed_mm_s, line, ..
+            }) => {
+                assert_eq!(*feed_mm_s, 10.0);
+                assert_eq!(*line, 3);
+            }
+            _ => panic!("no move"),
+        }
+        let ev = events("G1 X5 Y5 Z5\nG28 X\nG1 Y6\n");
+        assert_eq!(moves(&ev)[1], [0.0, 6.0, 5.0, 0.0], "G28 X homes X only");
+    }
+
+    #[test]
+    fn prusaslicer_markers_place_the_layer_before_its_z_move() {
+        let ev = events(
+            "G1 Z0.2 F600\n;LAYER_CHANGE\n;Z:0.2\nG1 X10 E1 F1200\n;LAYER_CHANGE\n;Z:0.4\n\
+             G1 Z0.4\nG1 X0 E2\n",
+        );
+        let layers: Vec<_> = ev
             .iter()
-            .filter(|e| matches!(e, Event::Move { .. }))
-            .count();
-        assert!(n > 10);
-        if let Some(Event::Move { to, .. }) = ev.last() {
-            assert!((to[0]).abs() < 1e-9 && (to[1] - 10.0).abs() < 1e-9);
+            .enumerate()
+            .filter_map(|(i, e)| match e {
+                Event::Layer { line, z_mm, source } => Some((i, *line, *z_mm, *source)),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(layers.len(), 2);
+        // Event order: Z move, layer 0, X move, layer 1, Z move, X move.
+        assert_eq!(layers[0].0, 1);
+        assert_eq!(layers[0].1, 4);
+        assert_eq!(layers[0].2, Some(0.2));
+        assert_eq!(layers[0].3, LayerSource::Comment);
+        assert_eq!(layers[1].0, 3);
+        assert_eq!(layers[1].1, 7);
+        assert_eq!(layers[1].2, Some(0.4));
+    }
+
+    #[test]
+    fn z_rise_layers_without_markers() {
+        let ev = events("G1 Z0.2 F600\nG1 X10 E1\nG1 Z0.4\nG1 X0 E2\nG1 Z0.6\nG0 X5\nG1 Z0.4\n");
+        let z: Vec<_> = ev
+            .iter()
+            .filter_map(|e| match e {
+                Event::Layer { z_mm, source, .. } => Some((*z_mm, *source)),
+                _ => None,
+            })
+            .collect();
+        // A travel at 0.6 without extrusion starts no layer.
+        assert_eq!(
+            z,
+            vec![
+                (Some(0.2), LayerSource::ZRise),
+                (Some(0.4), LayerSource::ZRise)
+            ]
+        );
+    }
+
+    #[test]
+    fn arcs_expand_into_short_chords_on_the_circle() {
+        let ev = events("G0 X10 Y0\nG3 X0 Y10 I-10 J0 E1.5 F600\n");
+        let m = moves(&ev);
+        // Quarter circle of radius 10 (15.7 mm) in chords of at most 0.5 mm.
+        assert_eq!(m.len(), 1 + 32);
+        for p in &m[1..] {
+            assert!((p[0].hypot(p[1]) - 10.0).abs() < 1e-9, "{p:?}");
+        }
+        let last = m[m.len() - 1];
+        assert!(last[0].abs() < 1e-9 && (last[1] - 10.0).abs() < 1e-9);
+        assert!((last[3] - 1.5).abs() < 1e-9);
+        // Clockwise with R: the short way from (10,0) to (0,-10) about the origin.
+        let ev = events("G0 X10 Y0\nG2 X0 Y-10 R10\n");
+        for p in &moves(&ev)[1..] {
+            assert!((p[0].hypot(p[1]) - 10.0).abs() < 1e-6 && p[0] >= -1e-9 && p[1] <= 1e-9);
         }
     }
 
     #[test]
-    fn garbage_is_an_error_with_line() {
-        let mut r = FastReader::default();
-        let e = r.read(b"G1 X1\nG1 X#\n", &mut |_| {});
+    fn dwell_and_acceleration() {
+        let ev = events("G4 P500\nG4 S2\nM204 P800 T1500\nM204 S700\nM104 S200\n");
+        assert_eq!(ev[0], Event::Dwell(0.5));
+        assert_eq!(ev[1], Event::Dwell(2.0));
+        assert_eq!(
+            ev[2],
+            Event::Accel {
+                print_mm_s2: Some(800.0),
+                travel_mm_s2: Some(1500.0)
+            }
+        );
+        assert_eq!(
+            ev[3],
+            Event::Accel {
+                print_mm_s2: Some(700.0),
+                travel_mm_s2: Some(700.0)
+            }
+        );
+        let c = default_reader().read(b"M104 S200\nM862.3 P \"MK3\"\nG1 X1\n", &mut |_| {});
+        assert_eq!(
+            c,
+            Ok(ReadCounts {
+                lines: 3,
+                skipped: 2
+            })
+        );
+    }
+
+    #[test]
+    fn line_numbers_and_checksums_as_the_link_reads_them() {
+        // N1 G1 X10*80 is the link's own doc example.
+        let ev = events("N1 G1 X10*80\nN2 G1 X20\n");
+        assert_eq!(moves(&ev).len(), 2);
+        let e = default_reader().read(b"G1 X1\nN2 G1 X10*81\n", &mut |_| {});
         assert_eq!(e.err().map(|e| e.line), Some(2));
-        let e = FastReader::default().read(b"G1 F-5 X1\n", &mut |_| {});
+    }
+
+    #[test]
+    fn garbage_is_an_error_with_line() {
+        let e = default_reader().read(b"G1 X1\nG1 X#\n", &mut |_| {});
+        assert_eq!(e.err().map(|e| e.line), Some(2));
+        let e = default_reader().read(b"G1 X1\nG1 Xnan\n", &mut |_| {});
+        assert_eq!(e.err().map(|e| e.line), Some(2));
+        let e = default_reader().read(b"G1 X1 X2\n", &mut |_| {});
         assert!(e.is_err());
+        let e = default_reader().read(b"G2 X1 Y1\n", &mut |_| {});
+        assert_eq!(e.err().map(|e| e.line), Some(1), "arc without I/J/R");
     }
 }

@@ -15,7 +15,7 @@
 //! Use: [`Planner::push`] moves and [`Planner::finish`], collecting segments in a closure; or
 //! [`Trajectory::from_gcode`] for the whole list in memory.
 
-use crate::gcode_read::{default_reader, Event, GcodeReader, Pos4, ReadError};
+use crate::gcode_read::{default_reader, Event, GcodeReader, LayerSource, Pos4, ReadError};
 use crate::profile::Profile;
 use std::collections::VecDeque;
 
@@ -445,6 +445,7 @@ pub fn plan_gcode(
     let mut cur_layer = 0u32;
     let mut moves = 0u64;
     let mut dwell_s = 0.0;
+    let mut explicit_layers = false;
     let counts = reader.read(input, &mut |ev| match ev {
         Event::Move {
             from,
@@ -464,11 +465,11 @@ pub fn plan_gcode(
                 out,
             );
         }
-        Event::Layer { .. } => {
+        Event::Layer { z_mm, source, .. } => {
             cur_layer += 1;
-            layer(cur_layer, None, planner.time_s());
+            explicit_layers |= source != LayerSource::ZRise;
+            layer(cur_layer, z_mm, planner.time_s());
         }
-        Event::LayerZ(z) => layer(cur_layer, Some(z), planner.time_s()),
         Event::Dwell(s) => {
             dwell_s += s;
             planner.dwell(s, out);
@@ -483,6 +484,7 @@ pub fn plan_gcode(
         time_s: planner.time_s(),
         moves,
         layer_marks: cur_layer,
+        explicit_layers,
         lines: counts.lines,
         skipped: counts.skipped,
         dwell_s,
@@ -496,8 +498,11 @@ pub struct PlanTotals {
     pub time_s: f64,
     /// Moves read.
     pub moves: u64,
-    /// Layer marks (`;LAYER_CHANGE`/`;LAYER:`) read.
+    /// Layer marks found by the firmware's layer detector (slicer markers, or Z rises in a
+    /// file without any).
     pub layer_marks: u32,
+    /// At least one mark came from an explicit marker (comment or command), not a Z rise.
+    pub explicit_layers: bool,
     /// Lines read.
     pub lines: u64,
     /// Commands skipped as not affecting motion.

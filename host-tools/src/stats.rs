@@ -2,9 +2,11 @@
 //! (the [`crate::motion`] model with the profile's limits), filament length/volume/mass,
 //! bounding box of the printed material and time per layer.
 //!
-//! Layers come from the slicer's markers (`;LAYER_CHANGE`, `;LAYER:n` — our writer emits one
-//! per helix turn); a file without markers counts a layer whenever an extruding move starts
-//! higher than the current layer.
+//! Layers are the firmware's ([`firmware::layer::LayerDetector`] through the reader): the
+//! slicer's markers (`;LAYER_CHANGE`, `;LAYER:n`, `; layer n`, `M73 L`, Klipper's
+//! `CURRENT_LAYER`; our writer emits one `;LAYER_CHANGE` per helix turn), or in a file without
+//! any, a layer whenever Z has risen before an extruding move — the same boundaries the
+//! printer's layer pause stops at.
 
 use crate::motion::{plan_gcode, MotionLimits, MoveKind, Segment};
 use crate::profile::Profile;
@@ -81,9 +83,6 @@ pub fn stats(input: &[u8], profile: &Profile) -> Result<Stats, crate::gcode_read
     // Time per layer by markers (index = marker layer).
     let mut marker_time: Vec<f64> = vec![0.0];
     let mut marker_z: Vec<Option<f64>> = vec![None];
-    // Z-detected layers.
-    let mut z_layers: Vec<LayerTime> = Vec::new();
-    let mut z_cur = f64::NEG_INFINITY;
     let grow = |bb: &mut ([f64; 3], [f64; 3]), p: &[f64; 4]| {
         for (k, v) in p.iter().take(3).enumerate() {
             bb.0[k] = bb.0[k].min(*v);
@@ -100,23 +99,12 @@ pub fn stats(input: &[u8], profile: &Profile) -> Result<Stats, crate::gcode_read
                 print_path += s.len_mm;
                 grow(&mut bb_print, &s.start);
                 grow(&mut bb_print, &s.end);
-                if s.start[2] > z_cur + 1e-6 {
-                    z_cur = s.start[2];
-                    z_layers.push(LayerTime {
-                        layer: z_layers.len() as u32 + 1,
-                        z_mm: Some(z_cur),
-                        time_s: 0.0,
-                    });
-                }
             }
             MoveKind::Travel => {
                 travel_moves += 1;
                 travel_path += s.len_mm;
             }
             MoveKind::Extruder => extruder_moves += 1,
-        }
-        if let Some(l) = z_layers.last_mut() {
-            l.time_s += d;
         }
         let li = s.layer as usize;
         if li >= marker_time.len() {
@@ -142,21 +130,21 @@ pub fn stats(input: &[u8], profile: &Profile) -> Result<Stats, crate::gcode_read
             *slot = Some(z);
         }
     }
-    let (layers, source, layer_times) = if totals.layer_marks > 0 {
-        let lt = marker_time
-            .iter()
-            .zip(&marker_z)
-            .enumerate()
-            .filter(|(i, (t, _))| *i > 0 || **t > 0.0)
-            .map(|(i, (t, z))| LayerTime {
-                layer: i as u32,
-                z_mm: *z,
-                time_s: *t,
-            })
-            .collect();
-        (totals.layer_marks, "markers", lt)
+    let layer_times = marker_time
+        .iter()
+        .zip(&marker_z)
+        .enumerate()
+        .filter(|(i, (t, _))| *i > 0 || **t > 0.0)
+        .map(|(i, (t, z))| LayerTime {
+            layer: i as u32,
+            z_mm: *z,
+            time_s: *t,
+        })
+        .collect();
+    let source = if totals.explicit_layers {
+        "markers"
     } else {
-        (z_layers.len() as u32, "z", z_layers)
+        "z"
     };
     let bb = if print_moves > 0 { bb_print } else { bb_all };
     let bbox_mm = if bb.0[0].is_finite() {
@@ -173,7 +161,7 @@ pub fn stats(input: &[u8], profile: &Profile) -> Result<Stats, crate::gcode_read
     let filament_mm = net_e.max(0.0);
     let vol = filament_mm * profile.filament_area_mm2();
     Ok(Stats {
-        layers,
+        layers: totals.layer_marks,
         layer_source: source,
         moves: totals.moves,
         print_moves,

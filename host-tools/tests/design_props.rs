@@ -4,7 +4,7 @@
 //! filament written equals Σ cross-section × length ÷ filament area.
 
 use glam::DVec3;
-use host_tools::gcode_read::{Event, FastReader, GcodeReader};
+use host_tools::gcode_read::{default_reader, Event, GcodeReader};
 use host_tools::model::Model;
 use host_tools::parts::Helix;
 use host_tools::profile::Profile;
@@ -87,7 +87,7 @@ proptest! {
         let mut last_print_e = 0.0f64;
         let mut retracted_from: Option<f64> = None;
         let mut e = 0.0f64;
-        FastReader::default().read(g.as_bytes(), &mut |ev| {
+        default_reader().read(g.as_bytes(), &mut |ev| {
             if let Event::Move { from, to, .. } = ev {
                 e = to[3];
                 let xyz = (0..3).any(|k| (to[k] - from[k]).abs() > 0.0);
@@ -118,7 +118,7 @@ proptest! {
         let m = design(&ops);
         let (g, _) = written(&p, &m);
         let b = p.bed;
-        FastReader::default().read(g.as_bytes(), &mut |ev| {
+        default_reader().read(g.as_bytes(), &mut |ev| {
             if let Event::Move { to, .. } = ev {
                 // The end code parks at X0 Y220 after lifting: all inside the bed too.
                 assert!(to[0] >= b.x_min_mm && to[0] <= b.x_max_mm, "{to:?}");
@@ -145,7 +145,7 @@ proptest! {
         prop_assert!((filament - want).abs() < 1e-6 * want.max(1.0));
         // The E written adds up to the same within the output rounding.
         let mut sum = 0.0;
-        FastReader::default().read(g.as_bytes(), &mut |ev| {
+        default_reader().read(g.as_bytes(), &mut |ev| {
             if let Event::Move { from, to, .. } = ev {
                 let xyz = (0..3).any(|k| (to[k] - from[k]).abs() > 0.0);
                 if xyz { sum += to[3] - from[3]; }
