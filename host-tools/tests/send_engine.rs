@@ -41,6 +41,11 @@ struct FakePrinter {
     /// The last command received was the one a mark was placed before.
     mark_just_delivered: bool,
     pause_at_next_mark: bool,
+    /// After this many executed lines the printer's line counter goes back to 0 once (a reset
+    /// that printed no `start`, or an `M110` from another host).
+    counter_reset_after: Option<usize>,
+    /// After this many executed lines the printer's line counter jumps ahead by 5 once.
+    counter_jump_after: Option<usize>,
 }
 
 impl FakePrinter {
@@ -57,13 +62,11 @@ impl FakePrinter {
         if !line.starts_with('N') {
             self.realtime.push((line.to_string(), self.executed.len()));
             match line {
-                "M110 N0" => {
-                    if self.ignore_probes > 0 {
-                        self.ignore_probes -= 1;
-                    } else {
-                        self.expected = 1;
-                        self.say("ok");
-                    }
+                "M110 N0" if self.ignore_probes > 0 => self.ignore_probes -= 1,
+                l if l.starts_with("M110 N") => {
+                    let last: u32 = l[6..].parse().expect("M110 N<number>");
+                    self.expected = last + 1;
+                    self.say("ok");
                 }
                 "M25 S1" | "M601 S1" => {
                     self.say("ok");
@@ -101,6 +104,14 @@ impl FakePrinter {
         }
         if self.die_after.is_some_and(|d| self.executed.len() >= d) {
             return;
+        }
+        if self.counter_reset_after == Some(self.executed.len()) {
+            self.counter_reset_after = None;
+            self.expected = 1;
+        }
+        if self.counter_jump_after == Some(self.executed.len()) {
+            self.counter_jump_after = None;
+            self.expected += 5;
         }
         let (body, cs) = line.rsplit_once('*').expect("checksum");
         let cs: u8 = cs.parse().expect("checksum number");
@@ -550,4 +561,123 @@ fn printer_cancel_notification_ends_the_session() {
     let mut s = Session::new(printer, square_job(), opts());
     run(&mut s, 10_000, |_, _, _| {});
     assert_eq!(s.state(), &State::Cancelled);
+}
+
+/// The proptest seed `cc 4004088a…` (send_garbage.proptest-regressions): before the sender has
+/// written anything the printer says `Resend: 0` and `ok` (left over from an earlier host, or
+/// noise after a reset). The sender must not give up or stall: it ignores both, connects and
+/// streams the whole job.
+#[test]
+fn resend_zero_before_connecting_is_ignored() {
+    let mut printer = FakePrinter {
+        layer_pause_cap: true,
+        ..Default::default()
+    };
+    printer.say("Resend: 0");
+    printer.say("ok");
+    let job = square_job();
+    let mut s = Session::new(printer, job.clone(), opts());
+    let ev = run(&mut s, 10_000, |_, _, _| {});
+    assert_eq!(s.state(), &State::Done, "{ev:?}");
+    assert!(
+        ev.iter().any(
+            |e| matches!(e, Event::Message(m) if m.contains("Resend: 0 before the connection"))
+        ),
+        "{ev:?}"
+    );
+    // The leftover `ok` was not taken for the probe's: M115 was answered and the layer pause
+    // detected.
+    assert!(ev.contains(&Event::Connected(PauseMethod::Firmware)));
+    let mut expect = expected_stream(&job, true);
+    expect.push("M400".into());
+    assert_eq!(job_lines(s.port()), expect);
+}
+
+/// The printer's line counter goes back to 0 in the middle of the job and it asks for line 1,
+/// which it acknowledged long ago. Resending from line 1 would run the job's first lines twice;
+/// sending on would be rejected line after line. The sender sets the counter back (`M110 N<last
+/// acknowledged>`), resends the rejected line, and says so; every job line runs exactly once.
+#[test]
+fn resend_of_an_acknowledged_line_resyncs_without_duplicates() {
+    let job = square_job();
+    let printer = FakePrinter {
+        layer_pause_cap: true,
+        counter_reset_after: Some(9),
+        ..Default::default()
+    };
+    let mut s = Session::new(printer, job.clone(), opts());
+    let ev = run(&mut s, 10_000, |_, _, _| {});
+    assert_eq!(s.state(), &State::Done, "{ev:?}");
+    assert!(ev.contains(&Event::Resend(1)), "{ev:?}");
+    assert!(
+        ev.iter()
+            .any(|e| matches!(e, Event::Message(m) if m.contains("M110 N9"))),
+        "{ev:?}"
+    );
+    let p = s.port();
+    assert!(p.realtime.iter().any(|(l, at)| l == "M110 N9" && *at == 9));
+    let mut expect = expected_stream(&job, true);
+    expect.push("M400".into());
+    assert_eq!(job_lines(p), expect);
+}
+
+/// The printer's counter jumps ahead (it asks for a line never sent): same recovery, nothing
+/// skipped.
+#[test]
+fn resend_of_a_line_never_sent_resyncs_without_loss() {
+    let job = square_job();
+    let printer = FakePrinter {
+        layer_pause_cap: true,
+        counter_jump_after: Some(6),
+        ..Default::default()
+    };
+    let mut s = Session::new(printer, job.clone(), opts());
+    let ev = run(&mut s, 10_000, |_, _, _| {});
+    assert_eq!(s.state(), &State::Done, "{ev:?}");
+    assert!(ev.contains(&Event::Resend(12)), "{ev:?}");
+    let mut expect = expected_stream(&job, true);
+    expect.push("M400".into());
+    assert_eq!(job_lines(s.port()), expect);
+}
+
+/// A printer that keeps asking for a line it acknowledged (it ignores M110) ends the session
+/// with a message after [`host_tools::sender::MAX_RESENDS`] requests instead of looping.
+#[test]
+fn endless_resync_gives_up_with_a_message() {
+    struct Stubborn(FakePrinter);
+    impl Read for Stubborn {
+        fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+            self.0.read(buf)
+        }
+    }
+    impl Write for Stubborn {
+        fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+            let text = String::from_utf8_lossy(buf).into_owned();
+            if text.starts_with("M110 N") && !text.starts_with("M110 N0") {
+                self.0.say("ok"); // acknowledged, but the counter stays where it is
+                return Ok(buf.len());
+            }
+            self.0.write(buf)
+        }
+        fn flush(&mut self) -> std::io::Result<()> {
+            Ok(())
+        }
+    }
+    let printer = Stubborn(FakePrinter {
+        layer_pause_cap: true,
+        counter_reset_after: Some(9),
+        ..Default::default()
+    });
+    let mut s = Session::new(printer, square_job(), opts());
+    for i in 0..10_000 {
+        s.poll(Duration::from_millis(i)).expect("poll");
+        if s.finished() {
+            break;
+        }
+    }
+    match s.state() {
+        State::Failed(m) => assert!(m.contains("rejected line 1"), "{m}"),
+        other => panic!("expected a failure, got {other:?}"),
+    }
+    assert!(s.port().0.executed.len() <= 10);
 }

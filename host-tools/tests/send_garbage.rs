@@ -5,7 +5,7 @@ use std::time::Duration;
 
 use host_tools::job::Job;
 use host_tools::sender::protocol::Response;
-use host_tools::sender::{Options, Session};
+use host_tools::sender::{Options, Session, State};
 use proptest::prelude::*;
 
 struct Noise {
@@ -55,13 +55,20 @@ fn reply() -> impl Strategy<Value = String> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(64))]
+    // 64 cases by default; `PROPTEST_CASES=5000` for a longer hunt.
+    #![proptest_config(ProptestConfig::with_cases(
+        std::env::var("PROPTEST_CASES").ok().and_then(|v| v.parse().ok()).unwrap_or(64)
+    ))]
 
     #[test]
     fn reply_lines_never_panic(s in "\\PC{0,200}") {
         let _ = Response::parse(&s);
     }
 
+    /// Whatever the printer says, the sender never panics and never stalls silently: it writes
+    /// (the connection probe at least) unless the printer's first words were a fatal error, and
+    /// once the printer falls silent it ends with a message within the timeouts — or waits in
+    /// a pause the printer announced, which is a wait for the user, not a stall.
     #[test]
     fn random_printer_output_never_panics(
         lines in proptest::collection::vec(reply(), 0..200),
@@ -71,11 +78,29 @@ proptest! {
         data.extend(bytes);
         let port = Noise { data, at: 0, written: 0 };
         let mut s = Session::new(port, job(), Options::default());
-        for i in 0..400u64 {
+        let mut i = 0u64;
+        while i < 400 || s.port().at < s.port().data.len() {
             s.poll(Duration::from_millis(i * 7)).expect("in-memory port");
             let _ = s.drain_events();
             let _ = s.progress();
+            i += 1;
         }
-        prop_assert!(s.port().written > 0);
+        let fatal_first = matches!(s.state(), State::Failed(m) if m.starts_with("printer error"));
+        prop_assert!(
+            s.port().written > 0 || fatal_first,
+            "nothing written, state {:?}",
+            s.state()
+        );
+        // The noise is over: let time run past every timeout.
+        let quiet = Duration::from_millis(i * 7);
+        for k in 1..=2_000u64 {
+            s.poll(quiet + Duration::from_secs(k)).expect("in-memory port");
+            let _ = s.drain_events();
+        }
+        prop_assert!(
+            s.finished() || matches!(s.state(), State::Paused { .. }),
+            "stalled in {:?} after the printer fell silent",
+            s.state()
+        );
     }
 }

@@ -26,6 +26,14 @@ use protocol::{frame, strip_comment, Action, Response, Temps};
 /// How long to wait for `//action:resumed` after `M24` before streaming anyway.
 pub const RESUME_WAIT: Duration = Duration::from_secs(60);
 
+/// Give up when the printer has not acknowledged the M115 query after this long (it may be busy
+/// with a long command of an earlier session, answering `busy:`).
+pub const IDENTIFY_TIMEOUT: Duration = Duration::from_secs(900);
+
+/// Give up when a line has been resent this many times for want of an `ok` (see
+/// [`Options::ok_timeout`]).
+pub const MAX_NUDGES: u32 = 3;
+
 /// Give up when the printer asks for the same line this many times in a row.
 pub const MAX_RESENDS: u32 = 10;
 
@@ -154,6 +162,10 @@ pub struct Options {
     pub host_pause: HostPause,
     /// Give up when the printer says nothing for this long while lines are outstanding.
     pub silence_timeout: Duration,
+    /// Resend the oldest unacknowledged line when it has had no `ok` (and the printer no
+    /// `busy:`) for this long: the line or its `ok` was lost on the wire. Temperature
+    /// auto-reports do not count, so a lost `ok` never stalls the job behind them.
+    pub ok_timeout: Duration,
     /// Re-send the connection probe this often until the printer answers.
     pub probe_every: Duration,
     /// Give up connecting after this long.
@@ -168,6 +180,7 @@ impl Default for Options {
             method: None,
             host_pause: HostPause::default(),
             silence_timeout: Duration::from_secs(60),
+            ok_timeout: Duration::from_secs(30),
             probe_every: Duration::from_secs(2),
             connect_timeout: Duration::from_secs(30),
             temp_every: Duration::from_secs(5),
@@ -269,6 +282,24 @@ pub struct Session<P: Read + Write> {
     rx_log: Vec<String>,
     rt_oks: usize,
     last_resend: (u32, u32),
+    /// Highest line number the printer is known to have accepted (its `ok` came without a
+    /// `Resend:` for it).
+    acked: u32,
+    /// Number of the last numbered line written (new or resent).
+    last_written: u32,
+    /// A `Resend:` arrived since `last_written` was written: its `ok` does not accept it.
+    rejected: bool,
+    /// When the M115 query was sent (identification timeout).
+    identify_sent_at: Option<Duration>,
+    /// When connecting started (connection timeout).
+    connecting_since: Option<Duration>,
+    /// Time of the current poll.
+    now: Duration,
+    /// Last sign that the printer is handling our lines: an `ok`, `busy:` or `Resend:`, or the
+    /// write of a numbered line.
+    last_ack: Duration,
+    /// Resends for want of an `ok` since the last `ok`.
+    nudges: u32,
     resume_requested_at: Option<Duration>,
     pause_now: bool,
     scheduled: bool,
@@ -308,6 +339,14 @@ impl<P: Read + Write> Session<P> {
             rx_log: Vec::new(),
             rt_oks: 0,
             last_resend: (0, 0),
+            acked: 0,
+            last_written: 0,
+            rejected: false,
+            identify_sent_at: None,
+            connecting_since: None,
+            now: Duration::ZERO,
+            last_ack: Duration::ZERO,
+            nudges: 0,
             resume_requested_at: None,
             pause_now: false,
             scheduled: false,
@@ -581,10 +620,21 @@ impl<P: Read + Write> Session<P> {
         if self.finished() {
             return Ok(());
         }
+        self.now = now;
         self.read_port(now)?;
+        if self.finished() {
+            return Ok(());
+        }
+        if self.state != State::Connecting
+            && self.outstanding > 0
+            && now.saturating_sub(self.last_ack) > self.opts.ok_timeout
+        {
+            self.nudge();
+        }
         match self.state {
             State::Connecting => {
-                if now >= self.opts.connect_timeout {
+                let since = *self.connecting_since.get_or_insert(now);
+                if now.saturating_sub(since) >= self.opts.connect_timeout {
                     self.fail(format!(
                         "no answer from the printer within {} s",
                         self.opts.connect_timeout.as_secs()
@@ -599,6 +649,27 @@ impl<P: Read + Write> Session<P> {
                     self.write_raw("M110 N0\n")?;
                 }
                 return Ok(());
+            }
+            State::Identifying => {
+                if self
+                    .identify_sent_at
+                    .is_some_and(|t| now.saturating_sub(t) > IDENTIFY_TIMEOUT)
+                {
+                    self.fail(format!(
+                        "the printer did not answer M115 within {} s",
+                        IDENTIFY_TIMEOUT.as_secs()
+                    ));
+                    return Ok(());
+                }
+                if self.outstanding > 0
+                    && now.saturating_sub(self.last_rx) > self.opts.silence_timeout
+                {
+                    self.fail(format!(
+                        "no reply from the printer for {} s",
+                        self.opts.silence_timeout.as_secs()
+                    ));
+                    return Ok(());
+                }
             }
             State::Printing | State::Pausing => {
                 if self.outstanding > 0
@@ -624,7 +695,7 @@ impl<P: Read + Write> Session<P> {
                     self.resume_requested_at = None;
                 }
             }
-            State::Paused { .. } | State::Identifying => {}
+            State::Paused { .. } => {}
             State::Done | State::Cancelled | State::Failed(_) => return Ok(()),
         }
         if let Some(t) = self.pause_requested_at {
@@ -636,6 +707,31 @@ impl<P: Read + Write> Session<P> {
             }
         }
         self.send_next(now)
+    }
+
+    /// No `ok` for the oldest unacknowledged line within [`Options::ok_timeout`]: the line or
+    /// its `ok` was lost. Resend it: a printer that never got it runs it now; one that did
+    /// refuses the repeat by its line number (Marlin asks for the next line, ours acknowledges
+    /// the duplicate), so it never runs twice. Every `ok` still owed is written off.
+    fn nudge(&mut self) {
+        self.nudges += 1;
+        let line = self.acked + 1;
+        if self.nudges > MAX_NUDGES {
+            self.fail(format!(
+                "no ok from the printer for line {line}, sent {} times",
+                MAX_NUDGES + 1
+            ));
+            return;
+        }
+        self.events.push(Event::Message(format!(
+            "no ok for line {line} within {} s: resending it",
+            self.opts.ok_timeout.as_secs()
+        )));
+        self.outstanding = 0;
+        self.rt_oks = 0;
+        self.rejected = true;
+        self.last_ack = self.now;
+        self.resend_from = (line < self.next_no).then_some(line);
     }
 
     fn read_port(&mut self, now: Duration) -> std::io::Result<()> {
@@ -675,58 +771,41 @@ impl<P: Read + Write> Session<P> {
                 if let Some(t) = temps {
                     self.progress.temps = t;
                 }
-                match self.state {
-                    State::Connecting => {
-                        self.state = State::Identifying;
-                        self.next_no = 1;
-                        self.send_numbered("M115".to_string(), None)?;
+                if self.state == State::Connecting {
+                    if self.last_probe.is_none() {
+                        // Left over from before this session (no probe written yet).
+                        return Ok(());
                     }
-                    State::Identifying => {
-                        self.outstanding = self.outstanding.saturating_sub(1);
-                        let method = self.opts.method.unwrap_or(if self.caps.layer_pause() {
-                            PauseMethod::Firmware
-                        } else {
-                            PauseMethod::HostSide
-                        });
-                        self.method = Some(method);
-                        self.state = if matches!(self.pending, Some(Pending::Now)) {
-                            State::Pausing
-                        } else {
-                            State::Printing
-                        };
-                        self.started = Some(now);
-                        self.last_temp_req = now;
-                        if self.caps.has("AUTOREPORT_TEMP") {
-                            self.queue.push_back(Out::plain("M155 S2"));
-                        }
-                        if let (PauseMethod::Firmware, Some(Pending::AtLayer { gate })) =
-                            (method, &self.pending)
-                        {
-                            // The firmware counts layers with the same detector over the same
-                            // stream: schedule the pause there too (M761), so it holds at the
-                            // mark however fast it drains its queue.
-                            if let Some(l) = self.job.layers.get(*gate) {
-                                let line = format!("M761 L{}", l.number);
-                                self.queue.push_back(Out::plain(line));
-                                self.scheduled = true;
-                            }
-                        }
-                        self.events.push(Event::Connected(method));
-                    }
-                    _ => {
-                        if self.rt_oks > 0 {
-                            self.rt_oks -= 1;
-                        } else {
-                            self.outstanding = self.outstanding.saturating_sub(1);
-                        }
-                        if self.outstanding == 0 && self.resend_from.is_none() {
-                            if let Some((no, _)) = &self.sync {
-                                if no + 1 == self.next_no {
-                                    if let Some((_, kind)) = self.sync.take() {
-                                        self.on_synced(kind)?;
-                                    }
-                                }
-                            }
+                    self.state = State::Identifying;
+                    self.next_no = 1;
+                    self.acked = 0;
+                    self.identify_sent_at = Some(now);
+                    self.send_numbered("M115".to_string(), None)?;
+                    return Ok(());
+                }
+                self.last_ack = now;
+                if self.rt_oks > 0 {
+                    self.rt_oks -= 1;
+                    return Ok(());
+                }
+                if self.outstanding > 0 {
+                    self.nudges = 0;
+                }
+                self.outstanding = self.outstanding.saturating_sub(1);
+                if self.outstanding == 0 && !self.rejected {
+                    self.acked = self.acked.max(self.last_written);
+                }
+                if self.outstanding > 0 || self.resend_from.is_some() {
+                    return Ok(());
+                }
+                if self.state == State::Identifying {
+                    self.identified(now);
+                    return Ok(());
+                }
+                if let Some((no, _)) = &self.sync {
+                    if no + 1 == self.next_no {
+                        if let Some((_, kind)) = self.sync.take() {
+                            self.on_synced(kind)?;
                         }
                     }
                 }
@@ -745,17 +824,10 @@ impl<P: Read + Write> Session<P> {
                     return Ok(());
                 }
                 self.events.push(Event::Resend(n));
-                if n >= self.next_no {
-                    // Never sent: nothing to repeat.
-                } else if self.history.front().is_none_or(|(f, _)| n < *f) {
-                    self.fail(format!(
-                        "the printer asked for line {n}, which is no longer in the history"
-                    ));
-                } else {
-                    self.resend_from = Some(n);
-                }
+                self.last_ack = now;
+                self.on_resend(n)?;
             }
-            Response::Busy(_) => {}
+            Response::Busy(_) => self.last_ack = now,
             Response::Echo(e) => {
                 if e.contains("nothing to pause") && self.state == State::Pausing {
                     // The firmware had already finished every queued move (the head waits at
@@ -787,7 +859,12 @@ impl<P: Read + Write> Session<P> {
                         self.state = State::Printing;
                         self.resume_requested_at = None;
                     }
-                    Action::Cancel if !self.finished() => {
+                    // Before the job has started there is nothing of ours to cancel (the printer
+                    // may be asking an earlier host to stop).
+                    Action::Cancel
+                        if !self.finished()
+                            && !matches!(self.state, State::Connecting | State::Identifying) =>
+                    {
                         self.state = State::Cancelled;
                         self.events.push(Event::Cancelled);
                     }
@@ -802,13 +879,117 @@ impl<P: Read + Write> Session<P> {
             }
             Response::FirmwareInfo(f) => self.caps.firmware = Some(f),
             Response::Capability { name, enabled } => self.caps.caps.push((name, enabled)),
-            Response::Start => {
-                if !matches!(self.state, State::Connecting | State::Identifying) {
-                    self.fail("the printer restarted during the job");
+            Response::Start => match self.state {
+                State::Connecting => {}
+                State::Identifying => {
+                    // The board rebooted after the M115 query: connect again.
+                    self.state = State::Connecting;
+                    self.last_probe = None;
+                    self.connecting_since = None;
+                    self.identify_sent_at = None;
+                    self.outstanding = 0;
+                    self.rt_oks = 0;
+                    self.resend_from = None;
+                    self.history.clear();
+                    self.caps = Capabilities::default();
+                    self.events.push(Event::Message(
+                        "the printer restarted while connecting: connecting again".into(),
+                    ));
                 }
-            }
+                _ => self.fail("the printer restarted during the job"),
+            },
             Response::Other(_) => {}
         }
+        Ok(())
+    }
+
+    /// M115 answered (its `ok`): choose the pause method and start streaming.
+    fn identified(&mut self, now: Duration) {
+        self.identify_sent_at = None;
+        let method = self.opts.method.unwrap_or(if self.caps.layer_pause() {
+            PauseMethod::Firmware
+        } else {
+            PauseMethod::HostSide
+        });
+        self.method = Some(method);
+        self.state = if matches!(self.pending, Some(Pending::Now)) {
+            State::Pausing
+        } else {
+            State::Printing
+        };
+        self.started = Some(now);
+        self.last_temp_req = now;
+        if self.caps.has("AUTOREPORT_TEMP") {
+            self.queue.push_back(Out::plain("M155 S2"));
+        }
+        if let (PauseMethod::Firmware, Some(Pending::AtLayer { gate })) = (method, &self.pending) {
+            // The firmware counts layers with the same detector over the same stream: schedule
+            // the pause there too (M761), so it holds at the mark however fast it drains its
+            // queue.
+            if let Some(l) = self.job.layers.get(*gate) {
+                let line = format!("M761 L{}", l.number);
+                self.queue.push_back(Out::plain(line));
+                self.scheduled = true;
+            }
+        }
+        self.events.push(Event::Connected(method));
+    }
+
+    /// `Resend: n`. The printer's line counter says it accepted every line up to `n - 1`:
+    ///
+    /// - `acked < n < next_no`, a line sent but not known accepted: the usual case (checksum
+    ///   error, lost line) — resend from `n`;
+    /// - `n == next_no`: the printer has every line sent (it refused a repeat) — nothing to
+    ///   resend;
+    /// - `n == acked`: the last `ok` was not this line's (a doubled `ok` of the line before, seen
+    ///   while this one was in flight) — resend from `n`; the printer's counter refuses anything
+    ///   it already has;
+    /// - anything else — a line acknowledged earlier (its counter went back: a reset that printed
+    ///   no `start`, an `M110` from elsewhere, `Resend: 0`), or a line never sent (its counter is
+    ///   ahead): resending from `n` would run acknowledged lines a second time, and sending on
+    ///   would be refused line after line. The sender sets the printer's counter to the last
+    ///   line it acknowledged (`M110 N<acked>`, unnumbered), resends from the first line not
+    ///   acknowledged, and says so in a message.
+    ///
+    /// Before the printer has answered the connection probe there is nothing to resend: ignored.
+    fn on_resend(&mut self, n: u32) -> std::io::Result<()> {
+        if self.state == State::Connecting {
+            self.events.push(Event::Message(format!(
+                "Resend: {n} before the connection was made: ignored"
+            )));
+            return Ok(());
+        }
+        self.rejected = true;
+        if n > self.acked && n < self.next_no {
+            self.resend_from = Some(n);
+            return Ok(());
+        }
+        if n == self.next_no {
+            self.acked = n - 1;
+            self.resend_from = None;
+            self.events.push(Event::Message(format!(
+                "the printer asked for line {n}, which is not sent yet: nothing to resend"
+            )));
+            return Ok(());
+        }
+        if n == self.acked && n > 0 {
+            self.acked = n - 1;
+            self.resend_from = Some(n);
+            self.events.push(Event::Message(format!(
+                "the printer asked again for line {n}, taken as acknowledged (a doubled ok?): \
+                 resending it"
+            )));
+            return Ok(());
+        }
+        let k = self.acked;
+        self.events.push(Event::Message(format!(
+            "the printer asked for line {n}, but it had acknowledged every line up to {k}: \
+             its line counter is out of step (reset or M110?); setting it back with M110 N{k} \
+             and resending from line {}",
+            k + 1
+        )));
+        self.write_realtime(&format!("M110 N{k}"), true)?;
+        self.resend_from = (k + 1 < self.next_no).then_some(k + 1);
         Ok(())
     }
 
@@ -877,6 +1058,9 @@ impl<P: Read + Write> Session<P> {
             self.history.pop_front();
         }
         self.outstanding += 1;
+        self.last_ack = self.now;
+        self.last_written = no;
+        self.rejected = false;
         self.progress.lines_written += 1;
         if let Some(k) = sync {
             self.sync = Some((no, k));
@@ -900,6 +1084,9 @@ impl<P: Read + Write> Session<P> {
             };
             self.resend_from = (n + 1 < self.next_no).then_some(n + 1);
             self.outstanding += 1;
+            self.last_ack = self.now;
+            self.last_written = n;
+            self.rejected = false;
             return self.write_raw(&format!("{framed}\n"));
         }
         if self.sync.is_some() {
