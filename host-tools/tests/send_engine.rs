@@ -539,6 +539,8 @@ fn host_side_pause_splits_moves_and_parks_after_the_layer() {
         .filter(|l| l.starts_with("G1 X") && l.contains('E'))
         .count();
     assert_eq!(pieces, 3 * 4 * 50);
+    // A pause scheduled ahead of time keeps the job's speeds (the speed-up answers a request).
+    assert!(!got.iter().any(|l| l.contains("F5400")));
     // Resume: back to X0 Y0, Z, un-retract, E mode and position restored.
     let back = got
         .iter()
@@ -680,4 +682,99 @@ fn endless_resync_gives_up_with_a_message() {
         other => panic!("expected a failure, got {other:?}"),
     }
     assert!(s.port().0.executed.len() <= 10);
+}
+
+/// Host-side method, pause requested in the middle of layer 1: from the next move on, every move
+/// of the rest of the layer carries the sped-up feed (×3: F1800 -> F5400; 0.04 mm of filament
+/// per mm at 90 mm/s is 8.7 mm³/s, under the 12 mm³/s bound); the pause sequence follows the
+/// layer's last move; the resume restores the job's F1800, and layer 2 runs at the job's speed.
+#[test]
+fn host_side_layer_pause_speeds_up_the_rest_of_the_layer() {
+    let job = square_job();
+    let mut s = Session::new(FakePrinter::default(), job.clone(), opts());
+    let mut asked_at = None;
+    let mut resumed = false;
+    let ev = run(&mut s, 50_000, |s, now, _| {
+        // A quarter into layer 1's second side.
+        if asked_at.is_none() && s.progress().layer == Some(1) && s.port().executed.len() > 290 {
+            asked_at = Some(s.port().executed.len());
+            s.request(Request::PauseAtLayer, now).expect("pause");
+        }
+        if !resumed && matches!(s.state(), State::Paused { .. }) {
+            resumed = true;
+            s.request(Request::Resume, now).expect("resume");
+        }
+    });
+    assert_eq!(s.state(), &State::Done, "{ev:?}");
+    assert!(ev.contains(&Event::Paused(Some(2))), "{ev:?}");
+    let got = job_lines(s.port());
+    let asked = asked_at.expect("requested") - 1; // job_lines drops M115
+    let park = got
+        .iter()
+        .position(|l| l.starts_with("G0 X235 Y235"))
+        .expect("park");
+    let before: Vec<&String> = got[..asked].iter().filter(|l| l.contains(" F")).collect();
+    assert!(
+        before
+            .iter()
+            .all(|l| l.ends_with("F1800") || l.ends_with("F600")),
+        "{before:?}"
+    );
+    // From the request to the pause sequence: every F written is the sped-up one, and there is
+    // one per move still to come (the request fell in side 2: sides 3 and 4 follow).
+    let rest: Vec<&String> = got[asked..park - 5]
+        .iter()
+        .filter(|l| l.contains(" F"))
+        .collect();
+    assert!(rest.len() >= 2, "{rest:?}");
+    assert!(rest.iter().all(|l| l.ends_with("F5400")), "{rest:?}");
+    // Every piece still ends where the job said: the layer's last move lands on X0 Y0.
+    assert!(
+        got[park - 6].starts_with("G1 X0 Y0 E3.2"),
+        "{}",
+        got[park - 6]
+    );
+    // The resume restores the job's feed; layer 2 has no sped-up move.
+    let back = got[park..]
+        .iter()
+        .position(|l| l == "G1 F1800")
+        .expect("feed restored")
+        + park;
+    assert!(!got[back..].iter().any(|l| l.contains("F5400")));
+}
+
+/// Host-side method: arcs of a layer are cut into chords of at most 0.2 mm before sending.
+#[test]
+fn host_side_cuts_arcs_into_short_chords() {
+    let job = Job::from_gcode(
+        "G28\nG90\nM82\nG92 E0\n;LAYER_CHANGE\n;Z:0.2\nG1 Z0.2 F600\nG1 X100 Y110 F3000\n\
+         G2 X110 Y100 I0 J-10 E1 F1200\nG3 X100 Y110 R10 E2\nM84\n",
+    )
+    .expect("job");
+    let mut s = Session::new(FakePrinter::default(), job, opts());
+    let ev = run(&mut s, 50_000, |_, _, _| {});
+    assert_eq!(s.state(), &State::Done, "{ev:?}");
+    let got = job_lines(s.port());
+    assert!(!got
+        .iter()
+        .any(|l| l.starts_with("G2 ") || l.starts_with("G3 ")));
+    let mut m = host_tools::job::modal::Modal::default();
+    let mut longest: f64 = 0.0;
+    let mut chords = 0;
+    for l in &got {
+        if let Ok(Some(c)) = host_tools::job::gcode::parse(l) {
+            if let Some(mv) = m.apply(&c) {
+                if mv.e_mm() > 0.0 {
+                    longest = longest.max(mv.xyz_len_mm());
+                    chords += 1;
+                }
+            }
+        }
+    }
+    // Two quarter circles of radius 10: 31.4 mm in pieces of at most 0.2 mm.
+    assert!(longest <= 0.2 + 1e-4, "{longest}");
+    assert!(chords >= 158, "{chords}");
+    for (got, want) in m.pos_mm.iter().zip([100.0, 110.0, 0.2, 2.0]) {
+        assert!((got - want).abs() < 1e-6, "{:?}", m.pos_mm);
+    }
 }

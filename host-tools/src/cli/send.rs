@@ -72,6 +72,19 @@ pub struct Args {
     /// Host-side method: Z lift before parking, mm (0 = the paper's sequence).
     #[arg(long)]
     pub lift: Option<f64>,
+    /// Feed factor for the rest of the layer after a layer pause request (paper: ×3; 1 = off).
+    /// Host-side method: applied by the sender; our firmware: sent as `M760 S`. Default: the
+    /// firmware's `PauseConfig` (3).
+    #[arg(long)]
+    pub speedup: Option<f64>,
+    /// Highest volumetric flow the extruder can melt, mm³/s: bounds the speed-up of extruding
+    /// moves. Host-side: applied by the sender; our firmware: sent as `M760 V`. Default: the
+    /// firmware's `PauseConfig` (12).
+    #[arg(long)]
+    pub max_flow: Option<f64>,
+    /// Filament diameter, mm, for the flow bound of the host-side speed-up.
+    #[arg(long, default_value_t = 1.75)]
+    pub filament_diameter: f64,
     /// Plain log lines even on a terminal (no TUI).
     #[arg(long)]
     pub plain: bool,
@@ -105,10 +118,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             );
         }
     }
-    let port = serialport::new(&args.port, args.baud)
-        .timeout(Duration::from_millis(5))
-        .open()
-        .with_context(|| format!("opening {}", args.port))?;
     let mut hp = HostPause {
         split_mm: args.split_mm,
         ..HostPause::default()
@@ -125,6 +134,41 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(v) = args.lift {
         hp.lift_mm = v;
     }
+    if let Some(v) = args.speedup {
+        if !(1.0..=10.0).contains(&v) {
+            bail!("--speedup {v}: expected a factor from 1 (off) to 10");
+        }
+        hp.speedup_factor = v;
+    }
+    if let Some(v) = args.max_flow {
+        if !(v > 0.0 && v <= 100.0) {
+            bail!("--max-flow {v}: expected mm³/s above 0 and at most 100");
+        }
+        hp.max_volumetric_mm3_s = v;
+    }
+    if !(args.filament_diameter > 0.5 && args.filament_diameter < 5.0) {
+        bail!(
+            "--filament-diameter {}: expected mm, e.g. 1.75 or 2.85",
+            args.filament_diameter
+        );
+    }
+    hp.filament_diameter_mm = args.filament_diameter;
+    // Our firmware speeds the layer up itself: pass the flags on (M760).
+    let mut firmware_setup = Vec::new();
+    if args.speedup.is_some() || args.max_flow.is_some() {
+        let mut l = "M760".to_string();
+        if let Some(v) = args.speedup {
+            l.push_str(&format!(" S{v}"));
+        }
+        if let Some(v) = args.max_flow {
+            l.push_str(&format!(" V{v}"));
+        }
+        firmware_setup.push(l);
+    }
+    let port = serialport::new(&args.port, args.baud)
+        .timeout(Duration::from_millis(5))
+        .open()
+        .with_context(|| format!("opening {}", args.port))?;
     let opts = Options {
         method: match args.method {
             MethodArg::Auto => None,
@@ -132,6 +176,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             MethodArg::Host => Some(PauseMethod::HostSide),
         },
         host_pause: hp,
+        firmware_setup,
         connect_timeout: Duration::from_secs_f64(args.connect_timeout.max(0.1)),
         ..Options::default()
     };

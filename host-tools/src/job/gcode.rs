@@ -44,6 +44,20 @@ pub fn parse(line: &str) -> Result<Option<Command>, GcodeError> {
     backend::parse(line)
 }
 
+/// The straight segments the firmware cuts a `G2`/`G3` arc into (`firmware::machine`'s arc code:
+/// centre from I/J or R, chord tolerance, Z and E linear in the angle), as the end point of each
+/// segment in logical millimetres (X Y Z E). `from`/`to` are the logical start and end of the
+/// arc (the host's modal state before and after it); the last point is exactly `to`. The arc
+/// geometry does not depend on where it lies, so it is computed around the origin of an
+/// unbounded machine (the printer checks its own build volume) at 0.1 µm resolution.
+pub fn arc_points(
+    cmd: &Command,
+    from: [f64; 4],
+    to: [f64; 4],
+) -> Result<Vec<[f64; 4]>, GcodeError> {
+    backend::arc_points(cmd, from, to)
+}
+
 /// The firmware's front end for layer detection (`firmware::machine::Interpreter`: machine
 /// state + `firmware::layer::LayerDetector`), fed line by line exactly as the printer feeds it.
 pub struct LayerDetector {
@@ -175,6 +189,58 @@ mod backend {
             number,
             params: p,
         }
+    }
+
+    pub fn arc_points(
+        cmd: &Command,
+        from: [f64; 4],
+        to: [f64; 4],
+    ) -> Result<Vec<[f64; 4]>, GcodeError> {
+        use firmware::config::MachineConfig;
+        use firmware::machine::{Action, MachineState};
+        if cmd.letter != 'G' || !(2..=3).contains(&cmd.number) {
+            return Err(GcodeError(format!("G{} is not an arc", cmd.number)));
+        }
+        const SPM: f32 = 10_000.0;
+        let mut cfg = MachineConfig::ENDER3;
+        for a in cfg.axes.iter_mut() {
+            a.steps_per_mm = SPM;
+            a.min_mm = -1.0e5;
+            a.max_mm = 1.0e5;
+        }
+        let mut m = MachineState::new(&cfg);
+        let err = |e: firmware::machine::MachineError| GcodeError(e.to_string());
+        m.apply(&fw::Command::Relative, &cfg).map_err(err)?;
+        let mut d = [None; 4];
+        for (k, v) in d.iter_mut().enumerate() {
+            *v = Some((to[k] - from[k]) as f32);
+        }
+        let arc = fw::Command::Arc {
+            clockwise: cmd.number == 2,
+            axes: fw::AxisWords(d),
+            i: cmd.get('I').map(|v| v as f32),
+            j: cmd.get('J').map(|v| v as f32),
+            r: cmd.get('R').map(|v| v as f32),
+            feed: None,
+        };
+        let moves = match m.apply(&arc, &cfg).map_err(err)? {
+            Action::Arc(moves) => moves,
+            other => return Err(GcodeError(format!("not an arc: {other:?}"))),
+        };
+        let mut pts: Vec<[f64; 4]> = moves
+            .map(|mv| {
+                let mut p = [0.0; 4];
+                for k in 0..4 {
+                    p[k] = from[k] + f64::from(mv.target[k]) / f64::from(SPM);
+                }
+                p
+            })
+            .collect();
+        match pts.last_mut() {
+            Some(last) => *last = to,
+            None => pts.push(to),
+        }
+        Ok(pts)
     }
 
     pub struct Detector {

@@ -160,6 +160,9 @@ pub struct Options {
     pub method: Option<PauseMethod>,
     /// Host-side pause parameters (fallback).
     pub host_pause: HostPause,
+    /// Lines sent after M115 when our firmware's pause is used (e.g. `M760 S2 V10`: its
+    /// speed-up factor and flow bound).
+    pub firmware_setup: Vec<String>,
     /// Give up when the printer says nothing for this long while lines are outstanding.
     pub silence_timeout: Duration,
     /// Resend the oldest unacknowledged line when it has had no `ok` (and the printer no
@@ -179,6 +182,7 @@ impl Default for Options {
         Options {
             method: None,
             host_pause: HostPause::default(),
+            firmware_setup: Vec::new(),
             silence_timeout: Duration::from_secs(60),
             ok_timeout: Duration::from_secs(30),
             probe_every: Duration::from_secs(2),
@@ -216,6 +220,9 @@ enum Sync {
 struct Out {
     line: String,
     sync: Option<Sync>,
+    /// Update the modal state with this line when it is sent (false for the pieces of a job
+    /// move, whose original command was tracked when it was taken).
+    tracked: bool,
 }
 
 impl Out {
@@ -223,6 +230,15 @@ impl Out {
         Out {
             line: line.into(),
             sync: None,
+            tracked: true,
+        }
+    }
+
+    fn piece(line: String) -> Out {
+        Out {
+            line,
+            sync: None,
+            tracked: false,
         }
     }
 }
@@ -553,6 +569,12 @@ impl<P: Read + Write> Session<P> {
                         // React at once: the firmware speeds the layer up and stops at its next
                         // boundary; the host stops sending at the same layer end.
                         self.write_realtime("M25", true)?;
+                    } else if self.opts.host_pause.speedup_factor > 1.0 {
+                        let hp = &self.opts.host_pause;
+                        self.events.push(Event::Message(format!(
+                            "the rest of the layer runs up to ×{} (extrusion up to {} mm³/s)",
+                            hp.speedup_factor, hp.max_volumetric_mm3_s
+                        )));
                     }
                 }
                 self.state = State::Pausing;
@@ -839,6 +861,7 @@ impl<P: Read + Write> Session<P> {
                     self.queue.push_back(Out {
                         line: "M400".into(),
                         sync: Some(Sync::HostParked),
+                        tracked: true,
                     });
                 }
                 self.events.push(Event::Message(e));
@@ -921,6 +944,10 @@ impl<P: Read + Write> Session<P> {
         self.last_temp_req = now;
         if self.caps.has("AUTOREPORT_TEMP") {
             self.queue.push_back(Out::plain("M155 S2"));
+        }
+        if method == PauseMethod::Firmware {
+            let setup = self.opts.firmware_setup.clone();
+            self.queue.extend(setup.into_iter().map(Out::plain));
         }
         if let (PauseMethod::Firmware, Some(Pending::AtLayer { gate })) = (method, &self.pending) {
             // The firmware counts layers with the same detector over the same stream: schedule
@@ -1031,6 +1058,7 @@ impl<P: Read + Write> Session<P> {
                 self.queue.push_back(Out {
                     line: "M400".into(),
                     sync: Some(Sync::HostParked),
+                    tracked: true,
                 });
             }
             Sync::HostParked => {
@@ -1101,7 +1129,9 @@ impl<P: Read + Write> Session<P> {
             return self.send_numbered("M105".into(), None);
         }
         if let Some(out) = self.queue.pop_front() {
-            self.track(&out.line);
+            if out.tracked {
+                self.track(&out.line);
+            }
             return self.send_numbered(out.line, out.sync);
         }
         if !streaming {
@@ -1144,6 +1174,7 @@ impl<P: Read + Write> Session<P> {
                             self.queue.push_back(Out {
                                 line: "M400".into(),
                                 sync: Some(Sync::HostParked),
+                                tracked: true,
                             });
                             self.send_next(now)
                         }
@@ -1201,13 +1232,24 @@ impl<P: Read + Write> Session<P> {
             let code = code.to_string();
             if self.method == Some(PauseMethod::HostSide) && matches!(self.sec, Section::Layer(_)) {
                 if let Ok(Some(cmd)) = gcode::parse(&code) {
+                    let hp = &self.opts.host_pause;
+                    // After a layer pause request every move of the rest of the layer carries
+                    // its own (sped-up) feed.
+                    let feed = if self.speeding_up() {
+                        let mut after = self.modal.clone();
+                        after
+                            .apply(&cmd)
+                            .and_then(|mv| fallback::sped_up_feed_mm_min(&mv, hp))
+                    } else {
+                        None
+                    };
                     if let Some(pieces) =
-                        fallback::split_move(&cmd, &self.modal, self.opts.host_pause.split_mm)
+                        fallback::rewrite_move(&cmd, &self.modal, hp.split_mm, feed)
                     {
                         let mut it = pieces.into_iter();
                         if let Some(first) = it.next() {
-                            self.queue.extend(it.map(Out::plain));
-                            self.track(&first);
+                            self.queue.extend(it.map(Out::piece));
+                            self.track(&code);
                             return self.send_numbered(first, None);
                         }
                     }
@@ -1216,6 +1258,16 @@ impl<P: Read + Write> Session<P> {
             self.track(&code);
             return self.send_numbered(code, None);
         }
+    }
+
+    /// True while the rest of a layer runs faster on the host side: a layer pause was requested
+    /// (interactively: a pause scheduled with [`Session::pause_before_layer`] keeps the job's
+    /// speeds) and the layer has not ended yet.
+    fn speeding_up(&self) -> bool {
+        self.method == Some(PauseMethod::HostSide)
+            && self.state == State::Pausing
+            && matches!(self.pending, Some(Pending::AtLayer { .. }))
+            && self.opts.host_pause.speedup_factor > 1.0
     }
 
     /// Updates the modal state and the time estimate with a line about to be sent.
