@@ -305,8 +305,11 @@ fn note_request(
             let active = pauses
                 .last()
                 .is_some_and(|p| p.resumed.is_none() && p.resume_req_us.is_none());
+            // Called after the firmware took the bytes: a pause it accepted shows as Pausing
+            // (also from an idle printer inside a streamed job, e.g. at a boundary the host
+            // drained with M400); a refused one leaves it as it was.
             let state = fw.status().state;
-            if !active && matches!(state, RunState::Printing | RunState::Pausing) {
+            if !active && matches!(state, RunState::Pausing | RunState::Paused) {
                 pauses.push(PauseTrack {
                     mode: Some(mode),
                     t_req_us: now_us,
@@ -328,12 +331,31 @@ fn note_request(
     }
 }
 
-fn track(pauses: &mut [PauseTrack], fw: &PrinterExec, rec: &Recorder, seen: &mut usize) {
-    let Some(p) = pauses.last_mut() else {
-        *seen = fw.notes.len();
-        return;
-    };
+fn track(pauses: &mut Vec<PauseTrack>, fw: &PrinterExec, rec: &Recorder, seen: &mut usize) {
     for r in fw.notes.iter().skip(*seen) {
+        // A pause the firmware started by itself (M761 schedule, M600/M0, M25 in the job):
+        // tracked from the moment it began.
+        if let Record::State {
+            state: firmware::printer::State::Pausing,
+            t_us,
+        } = *r
+        {
+            let active = pauses
+                .last()
+                .is_some_and(|p| p.resumed.is_none() && p.resume_req_us.is_none());
+            if !active {
+                pauses.push(PauseTrack {
+                    mode: Some(PauseMode::Layer),
+                    t_req_us: t_us,
+                    pos_req: rec.pos,
+                    rec_idx_req: rec.records.len(),
+                    ..PauseTrack::default()
+                });
+            }
+        }
+        let Some(p) = pauses.last_mut() else {
+            continue;
+        };
         match *r {
             Record::SpeedUp { t_us } | Record::Brake { t_us, .. }
                 if t_us >= p.t_req_us && p.reaction_us.is_none() =>
@@ -357,6 +379,9 @@ fn track(pauses: &mut [PauseTrack], fw: &PrinterExec, rec: &Recorder, seen: &mut
         }
     }
     *seen = fw.notes.len();
+    let Some(p) = pauses.last_mut() else {
+        return;
+    };
     if p.resume_req_us.is_some() && p.resumed.is_none() {
         let t_res = p.resume_req_us.unwrap_or(0);
         if let Some(r) = rec
@@ -396,7 +421,7 @@ fn reports(
         lost_moves += usize::from(missing > 0);
         dup_moves += usize::from(dups > 0);
     }
-    pauses
+    let mut out: Vec<PauseReport> = pauses
         .iter()
         .map(|p| {
             let mut r = PauseReport {
@@ -459,5 +484,127 @@ fn reports(
             }
             r
         })
-        .collect()
+        .collect();
+    let base = PauseReport {
+        policy: sc.policy.name().into(),
+        lost_moves,
+        duplicated_moves: dup_moves,
+        lost_segments: lost_segs,
+        duplicated_segments: dup_segs,
+        executed_in_order: lost_segs == 0 && dup_segs == 0,
+        print_time_s: end_us.saturating_sub(t0_us) as f64 * 1e-6,
+        finished: fw.status().state == RunState::Idle,
+        steps: rec.steps,
+        ..PauseReport::default()
+    };
+    out.extend(host_stops(pauses, rec, fw, &base));
+    out
+}
+
+/// A standstill of at least this long between two extruding moves of a job, with no firmware
+/// pause in it, is a pause the host made (the paper's host-side method: it stops sending,
+/// parks with ordinary G-code and later returns). Virtual µs; well above the gaps a host's
+/// scheduling makes even at `--speed 20`.
+pub const HOST_STOP_MIN_US: u64 = 5_000_000;
+
+/// Pauses the host made by itself (no realtime request, no firmware pause), found in the
+/// executed blocks: the head stood still for [`HOST_STOP_MIN_US`] or more between two
+/// extruding moves. Reported with mode `host`: the stop is the end of the last extruding move
+/// before the standstill; it was at a layer boundary when the firmware's layer counter differs
+/// between that move and the first extruding move after (no layer extruded on both sides); the
+/// resume error compares that first move's start with the stop point (all four axes, so an
+/// un-retract that does not restore E shows).
+fn host_stops(
+    pauses: &[PauseTrack],
+    rec: &Recorder,
+    fw: &PrinterExec,
+    base: &PauseReport,
+) -> Vec<PauseReport> {
+    let layers: Vec<(u64, u32)> = fw
+        .notes
+        .iter()
+        .filter_map(|r| match *r {
+            Record::Layer { layer, t_us } => Some((t_us, layer)),
+            _ => None,
+        })
+        .collect();
+    let layer_at = |t_us: u64| -> Option<u32> {
+        layers
+            .iter()
+            .take_while(|(t, _)| *t <= t_us)
+            .last()
+            .map(|x| x.1)
+    };
+    let fw_stop_in = |a: u64, b: u64| {
+        pauses.iter().any(|p| {
+            p.stopped.is_some_and(|(t, ..)| t >= a && t <= b)
+                || (p.t_req_us >= a && p.t_req_us <= b)
+        })
+    };
+    let extrudes = |r: &crate::recorder::SegRecord| {
+        r.tag.lane == Lane::Job
+            && r.end[3] > r.start[3]
+            && (r.end[0] != r.start[0] || r.end[1] != r.start[1])
+    };
+    let mut out = Vec::new();
+    let mut last_ext: Option<&crate::recorder::SegRecord> = None;
+    let mut longest_gap = (0u64, 0u64); // (length, start) since the last extruding move
+    let mut prev_end: Option<u64> = None;
+    // Block end positions after the longest standstill since the last extruding move.
+    let mut after_gap: Vec<[i32; 4]> = Vec::new();
+    for r in &rec.records {
+        if let Some(pe) = prev_end {
+            let gap = r.t_start_us.saturating_sub(pe);
+            if last_ext.is_some() && gap > longest_gap.0 {
+                longest_gap = (gap, pe);
+                after_gap.clear();
+            }
+        }
+        prev_end = Some(r.t_end_us);
+        if !extrudes(r) {
+            after_gap.push(r.end);
+        }
+        if !extrudes(r) {
+            continue;
+        }
+        if let Some(le) = last_ext {
+            let (gap, gap_start) = longest_gap;
+            if gap >= HOST_STOP_MIN_US && !fw_stop_in(le.t_end_us, r.t_start_us) {
+                let before = layer_at(le.t_start_us);
+                let after = layer_at(r.t_start_us);
+                // The host's return: the closest any position after the standstill (up to the
+                // start of this extruding move) comes to the stop point.
+                let off = |p: &[i32; 4]| {
+                    le.end
+                        .iter()
+                        .zip(p.iter())
+                        .map(|(a, b)| (i64::from(*a) - i64::from(*b)).abs())
+                        .max()
+                        .unwrap_or(0)
+                };
+                let err = after_gap
+                    .iter()
+                    .map(&off)
+                    .chain(std::iter::once(off(&r.start)))
+                    .min()
+                    .unwrap_or(0);
+                out.push(PauseReport {
+                    mode: "host".into(),
+                    stopped_at_layer_boundary: before != after,
+                    first_boundary_after_request: before != after,
+                    stop_layer: before,
+                    pause_point_steps: Some(le.end),
+                    resume_position_error_steps: Some(err),
+                    parked_s: Some(gap_start as f64 * 1e-6),
+                    resumed_s: Some(r.t_start_us as f64 * 1e-6),
+                    paused_s: Some(gap as f64 * 1e-6),
+                    ..base.clone()
+                });
+            }
+        }
+        last_ext = Some(r);
+        longest_gap = (0, 0);
+        after_gap.clear();
+    }
+    out
 }

@@ -54,8 +54,8 @@ struct Sim {
 
 impl Sim {
     fn start(policy: &str, tag: &str) -> Sim {
-        // Build the sender first: the sim ends after some idle seconds (a heater wait with no
-        // host bytes counts as idle, hence 15 s).
+        // Build the sender first: the sim ends after some idle seconds without host bytes
+        // while nothing moves (a paused printer counts; a heater wait does not).
         bin("host-tools", "host-tools");
         let record =
             std::env::temp_dir().join(format!("send_sim_{tag}_{}.json", std::process::id()));
@@ -238,14 +238,10 @@ fn send_pauses_at_a_layer_swaps_the_infill_and_finishes() {
     for (i, w) in want_stop.iter().enumerate().take(3) {
         assert_eq!(p[i].as_i64(), Some(i64::from(*w)), "axis {i}: {r}");
     }
-    // The sim's own boundary flag (`stopped_at_layer_boundary`, `stop_layer`) comes from the
-    // firmware's Stopped record; it is logged, not asserted: with the current firmware a layer
-    // pause requested while the mark is not yet in the planner records no layer (see
-    // docs/sender.md).
-    eprintln!(
-        "sim: stopped_at_layer_boundary={} stop_layer={}",
-        r["stopped_at_layer_boundary"], r["stop_layer"]
-    );
+    // The sim's own record says so too (from the firmware's Stopped record): at the end of
+    // layer 11, the boundary before layer 12.
+    assert_eq!(r["stopped_at_layer_boundary"], true, "{r}");
+    assert_eq!(r["stop_layer"], 11, "{r}");
     assert_eq!(r["lost_moves"], 0, "{r}");
     assert_eq!(r["duplicated_moves"], 0, "{r}");
     assert_eq!(r["resume_position_error_steps"], 0, "{r}");
@@ -298,7 +294,32 @@ fn send_fallback_on_fifo_firmware_pauses_at_the_layer_end() {
         "{log}"
     );
     assert!(log.contains("job complete"), "{log}");
-    // The host-side pause sends no realtime request, so the sim records no pause of its own.
+    // The host-side pause sends no realtime request; the sim finds it as a standstill between
+    // two extruding moves (mode `host`) and judges it from the executed blocks: the last
+    // extrusion before it is the end of layer 11, the first after it is in layer 12, and the
+    // host's return put the head (E included) back exactly where it stopped.
     let rec = sim.finish();
-    assert!(rec.is_empty(), "{rec:?}");
+    assert_eq!(rec.len(), 1, "{rec:?}");
+    let r = &rec[0];
+    assert_eq!(r["mode"], "host", "{r}");
+    assert_eq!(r["policy"], "fifo", "{r}");
+    assert_eq!(r["stopped_at_layer_boundary"], true, "{r}");
+    assert_eq!(r["stop_layer"], 11, "{r}");
+    assert_eq!(r["resume_position_error_steps"], 0, "{r}");
+    assert_eq!(r["lost_moves"], 0, "{r}");
+    assert_eq!(r["duplicated_moves"], 0, "{r}");
+    assert_eq!(r["finished"], true, "{r}");
+    // The stop point is where the firmware's machine state is after every line of layer 11.
+    let base = load(BASE);
+    let before = Job {
+        start: base.start.clone(),
+        layers: base.layers[..12].to_vec(),
+        end: vec![],
+        warnings: vec![],
+    };
+    let want_stop = final_position(&before);
+    let p = &r["pause_point_steps"];
+    for (i, w) in want_stop.iter().enumerate().take(2) {
+        assert_eq!(p[i].as_i64(), Some(i64::from(*w)), "axis {i}: {r}");
+    }
 }
