@@ -3,6 +3,8 @@
 //! embassy or register access, so a simulator or a test can supply its own pins. The board
 //! instantiates them with embassy-stm32's `Output`/`Input`.
 
+pub mod adc;
+
 use crate::motion::{PauseMode, Realtime, AXES};
 use embedded_hal::digital::{InputPin, OutputPin};
 
