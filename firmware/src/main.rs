@@ -524,7 +524,9 @@ mod image {
         type Error = core::convert::Infallible;
         fn read(&mut self, channel: u8) -> nb::Result<u16, Self::Error> {
             Ok(match channel {
-                0 => self.adc.blocking_read(&mut self.hotend, SampleTime::CYCLES480),
+                0 => self
+                    .adc
+                    .blocking_read(&mut self.hotend, SampleTime::CYCLES480),
                 _ => self.adc.blocking_read(&mut self.bed, SampleTime::CYCLES480),
             })
         }

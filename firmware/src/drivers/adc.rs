@@ -121,7 +121,7 @@ mod tests {
             // ± noise alternating around the true value.
             let k = self.per_channel[usize::from(channel)];
             self.per_channel[usize::from(channel)] += 1;
-            let sign = if k % 2 == 0 { 1 } else { -1 };
+            let sign = if k.is_multiple_of(2) { 1 } else { -1 };
             Ok((i32::from(self.values[usize::from(channel)]) + sign * self.noise) as u16)
         }
     }
