@@ -193,8 +193,10 @@ struct Block {
     kind: MoveKind,
     nominal: f64,
     accel: f64,
-    max_entry: f64,
-    entry: f64,
+    /// Highest entry speed (junction limit), squared, (mm/s)².
+    max_entry_sq: f64,
+    /// Planned entry speed, squared: the passes work on squares, so they need no sqrt.
+    entry_sq: f64,
 }
 
 /// Streaming look-ahead planner (see module docs).
@@ -209,6 +211,8 @@ pub struct Planner {
     prev_nominal: f64,
     /// The entry speed of the window's first block is fixed (the previous chunk's exit).
     fixed_entry: f64,
+    /// `fixed_entry` squared.
+    fixed_entry_sq: f64,
 }
 
 impl Planner {
@@ -223,6 +227,7 @@ impl Planner {
             prev_unit: None,
             prev_nominal: 0.0,
             fixed_entry: 0.0,
+            fixed_entry_sq: 0.0,
         }
     }
 
@@ -282,31 +287,38 @@ impl Planner {
             MoveKind::Travel => self.accel_travel,
             MoveKind::Extruder => l.accel_retract_mm_s2,
         };
+        let inv_len = 1.0 / len;
         for (k, dk) in d.iter().enumerate() {
-            let u = (dk / len).abs();
+            let u = dk.abs() * inv_len;
+            // Divide only when the axis limit binds (most moves stay within every limit).
             if u > 1e-12 {
-                nominal = nominal.min(l.max_feed_mm_s[k] / u);
-                accel = accel.min(l.max_accel_mm_s2[k] / u);
+                if nominal * u > l.max_feed_mm_s[k] {
+                    nominal = l.max_feed_mm_s[k] / u;
+                }
+                if accel * u > l.max_accel_mm_s2[k] {
+                    accel = l.max_accel_mm_s2[k] / u;
+                }
             }
         }
         let unit_xyz = if kind == MoveKind::Extruder {
             [0.0; 3]
         } else {
-            [d[0] / xyz, d[1] / xyz, d[2] / xyz]
+            [d[0] * inv_len, d[1] * inv_len, d[2] * inv_len]
         };
-        // Junction speed (Marlin's junction deviation).
-        let max_entry = match (self.prev_unit, kind) {
+        // Junction speed (Marlin's junction deviation), squared: the planner works on v².
+        let max_entry_sq = match (self.prev_unit, kind) {
             (Some(p), MoveKind::Print | MoveKind::Travel) if self.prev_nominal > 0.0 => {
                 let cos_theta = -(p[0] * unit_xyz[0] + p[1] * unit_xyz[1] + p[2] * unit_xyz[2]);
-                let v = if cos_theta < -0.999_999 {
+                let v_sq = if cos_theta < -0.999_999 {
                     f64::INFINITY
                 } else if cos_theta > 0.999_999 {
                     0.0
                 } else {
                     let sin_half = (0.5 * (1.0 - cos_theta)).sqrt();
-                    (accel * l.junction_deviation_mm * sin_half / (1.0 - sin_half)).sqrt()
+                    accel * l.junction_deviation_mm * sin_half / (1.0 - sin_half)
                 };
-                v.min(nominal).min(self.prev_nominal)
+                let v = nominal.min(self.prev_nominal);
+                v_sq.min(v * v)
             }
             _ => 0.0,
         };
@@ -323,8 +335,8 @@ impl Planner {
             kind,
             nominal,
             accel,
-            max_entry,
-            entry: 0.0,
+            max_entry_sq,
+            entry_sq: 0.0,
         });
         if self.window.len() >= WINDOW {
             self.plan_window();
@@ -340,6 +352,7 @@ impl Planner {
         self.prev_unit = None;
         self.prev_nominal = 0.0;
         self.fixed_entry = 0.0;
+        self.fixed_entry_sq = 0.0;
     }
 
     fn plan_window(&mut self) {
@@ -347,24 +360,22 @@ impl Planner {
         if n == 0 {
             return;
         }
-        // Backward pass: the window ends at rest.
-        let mut next_entry = 0.0f64;
-        for i in (0..n).rev() {
-            let b = &mut self.window[i];
-            let reach = (next_entry * next_entry + 2.0 * b.accel * b.len).sqrt();
-            b.entry = b.max_entry.min(reach);
-            next_entry = b.entry;
+        // Backward pass: the window ends at rest. Speeds squared: v² = v_next² + 2·a·len.
+        let mut next_sq = 0.0f64;
+        for b in self.window.iter_mut().rev() {
+            let reach_sq = next_sq + 2.0 * b.accel * b.len;
+            b.entry_sq = b.max_entry_sq.min(reach_sq);
+            next_sq = b.entry_sq;
         }
         // Forward pass from the fixed entry of the first block.
-        let mut entry = self.fixed_entry;
-        for i in 0..n {
-            let b = &mut self.window[i];
-            b.entry = entry.min(b.nominal);
-            let reach = (b.entry * b.entry + 2.0 * b.accel * b.len).sqrt();
-            entry = if i + 1 < n {
-                self.window[i + 1].entry.min(reach)
-            } else {
-                0.0
+        let mut entry_sq = self.fixed_entry_sq;
+        let mut it = self.window.iter_mut().peekable();
+        while let Some(b) = it.next() {
+            b.entry_sq = entry_sq.min(b.nominal * b.nominal);
+            let reach_sq = b.entry_sq + 2.0 * b.accel * b.len;
+            entry_sq = match it.peek() {
+                Some(next) => next.entry_sq.min(reach_sq),
+                None => 0.0,
             };
         }
     }
@@ -374,10 +385,18 @@ impl Planner {
             let Some(b) = self.window.pop_front() else {
                 break;
             };
-            let exit = self.window.front().map_or(0.0, |n| n.entry);
-            let seg = trapezoid(&b, b.entry, exit, self.t_s);
+            // The entry is usually the previous block's exit: reuse its square root.
+            let entry = if b.entry_sq == self.fixed_entry_sq {
+                self.fixed_entry
+            } else {
+                b.entry_sq.sqrt()
+            };
+            let exit_sq = self.window.front().map_or(0.0, |n| n.entry_sq);
+            let exit = exit_sq.sqrt();
+            let seg = trapezoid(&b, entry, exit, self.t_s);
             self.t_s += seg.duration_s();
             self.fixed_entry = exit;
+            self.fixed_entry_sq = exit_sq;
             out(seg);
         }
     }
@@ -386,15 +405,16 @@ impl Planner {
 fn trapezoid(b: &Block, v0: f64, v1: f64, t0: f64) -> Segment {
     let a = b.accel;
     let l = b.len;
+    let inv_a = 1.0 / a;
     let vmax = b.nominal.max(v0).max(v1);
-    let d_acc = (vmax * vmax - v0 * v0) / (2.0 * a);
-    let d_dec = (vmax * vmax - v1 * v1) / (2.0 * a);
+    let d_acc = (vmax * vmax - v0 * v0) * 0.5 * inv_a;
+    let d_dec = (vmax * vmax - v1 * v1) * 0.5 * inv_a;
     let (vp, t_acc, t_cru, t_dec) = if d_acc + d_dec <= l {
         (
             vmax,
-            (vmax - v0) / a,
+            (vmax - v0) * inv_a,
             (l - d_acc - d_dec) / vmax,
-            (vmax - v1) / a,
+            (vmax - v1) * inv_a,
         )
     } else {
         // Triangle: peak where the ramps meet (never below the ends).

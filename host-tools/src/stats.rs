@@ -83,10 +83,16 @@ pub fn stats(input: &[u8], profile: &Profile) -> Result<Stats, crate::gcode_read
     // Time per layer by markers (index = marker layer).
     let mut marker_time: Vec<f64> = vec![0.0];
     let mut marker_z: Vec<Option<f64>> = vec![None];
+    // Plain comparisons: `f64::min`/`max` handle NaN (never present here) at a cost that
+    // showed in profiles of large files.
     let grow = |bb: &mut ([f64; 3], [f64; 3]), p: &[f64; 4]| {
         for (k, v) in p.iter().take(3).enumerate() {
-            bb.0[k] = bb.0[k].min(*v);
-            bb.1[k] = bb.1[k].max(*v);
+            if *v < bb.0[k] {
+                bb.0[k] = *v;
+            }
+            if *v > bb.1[k] {
+                bb.1[k] = *v;
+            }
         }
     };
     let mut seg_sink = |s: Segment| {
