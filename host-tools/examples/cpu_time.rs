@@ -3,6 +3,7 @@
 //! user+system time from `/proc/self/stat` (Linux) around many iterations.
 //!
 //! Run: `cargo run --release -p host-tools --example cpu_time [LARGE.gcode]`
+//! (`CPU_TIME_N=<n>` sets the number of globe compiles, default 100).
 
 use host_tools::modulate::{globe, Bitmap, Globe};
 use host_tools::profile::Profile;
@@ -23,7 +24,12 @@ fn main() -> anyhow::Result<()> {
     let map = Bitmap::world_map()?;
     let w = GcodeWriter::new(&p, WriteOptions::default());
     let mut buf = Vec::with_capacity(2 << 20);
-    let n = 100;
+    // CPU_TIME_N=1 for one compile under a profiler (valgrind --tool=callgrind).
+    let n: usize = std::env::var("CPU_TIME_N")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(100)
+        .max(1);
     let (c0, t0) = (cpu_s(), std::time::Instant::now());
     for _ in 0..n {
         buf.clear();

@@ -262,6 +262,12 @@ pub fn cup_to_dish(model: Model, chord_tol_mm: Option<f64>) -> Result<Model, Def
 /// `fc = 1.2 c`, `fv = 1.2 ((r'/R)² + 0.1) v` with `r'` the new radius. `H` is the helix
 /// height (half a meridian) measured from `z0_mm`, the helix's first point; the sphere's
 /// bottom is lifted to `z0_mm` so it starts on the bed.
+///
+/// Without a chord tolerance (and without arcs) the model is deformed in place by a direct
+/// evaluation of the same formulas: θ is unchanged, so a point's new X/Y is the old radius
+/// vector scaled by `r'/r` — no `atan2`/`cos`/`sin` round trip through θ (the globe's
+/// compile time is dominated by this step). Results agree with the general
+/// [`deform_cylinder`] evaluation to rounding (tested).
 pub fn helix_to_sphere(
     model: Model,
     radius_mm: f64,
@@ -274,6 +280,20 @@ pub fn helix_to_sphere(
             "sphere radius and height must be > 0 (got {radius_mm}, {height_mm})"
         )));
     }
+    if chord_tol_mm.is_none() && !model.strings().any(|s| s.arc.is_some()) {
+        return helix_to_sphere_direct(model, radius_mm, height_mm, z0_mm);
+    }
+    helix_to_sphere_general(model, radius_mm, height_mm, z0_mm, chord_tol_mm)
+}
+
+/// [`helix_to_sphere`] through the general cylindrical deformation (closures, subdivision).
+fn helix_to_sphere_general(
+    model: Model,
+    radius_mm: f64,
+    height_mm: f64,
+    z0_mm: f64,
+    chord_tol_mm: Option<f64>,
+) -> Result<Model, DeformError> {
     let (rr, h) = (radius_mm, height_mm);
     let new_r = move |z: f64| rr * (PI * (z - z0_mm) / h).sin();
     deform_cylinder(
@@ -293,6 +313,66 @@ pub fn helix_to_sphere(
         },
         chord_tol_mm,
     )
+}
+
+/// [`helix_to_sphere`] evaluated directly, in place (no tolerance, no arcs).
+fn helix_to_sphere_direct(
+    mut model: Model,
+    rr: f64,
+    h: f64,
+    z0_mm: f64,
+) -> Result<Model, DeformError> {
+    let axis = model.axis_xy;
+    let map = |p: DVec3| -> Result<DVec3, DeformError> {
+        let dx = p.x - axis[0];
+        let dy = p.y - axis[1];
+        let r = (dx * dx + dy * dy).sqrt();
+        let zz = p.z - z0_mm;
+        let (sin, cos) = (PI * zz / h).sin_cos();
+        let r1 = rr * sin;
+        let z1 = z0_mm + r - rr * cos;
+        let q = if r > 0.0 {
+            let k = r1 / r;
+            DVec3::new(axis[0] + dx * k, axis[1] + dy * k, z1)
+        } else {
+            // On the axis θ = atan2(dy, dx) decides the direction, as in `from_cyl`.
+            from_cyl(DVec3::new(r1, dy.atan2(dx), z1), axis)
+        };
+        if q.is_finite() {
+            Ok(q)
+        } else {
+            Err(invalid(p, format!("point mapped to {q:?}")))
+        }
+    };
+    // Consecutive strings share end points: map each point once.
+    let mut last: Option<(DVec3, DVec3)> = None;
+    for step in &mut model.steps {
+        match step {
+            Step::String(s) => {
+                let a = match last {
+                    Some((p, q)) if p == s.start => q,
+                    _ => map(s.start)?,
+                };
+                let b = map(s.end)?;
+                last = Some((s.end, b));
+                let mid = 0.5 * (s.start + s.end);
+                let c = 1.2 * s.cross_mm2;
+                let r1 = rr * (PI * (mid.z - z0_mm) / h).sin() / rr;
+                let v = 1.2 * (r1 * r1 + 0.1) * s.speed_mm_s;
+                if !(c.is_finite() && c >= 0.0) {
+                    return Err(invalid(mid, format!("cross-section mapped to {c}")));
+                }
+                if !(v.is_finite() && v > 0.0) {
+                    return Err(invalid(mid, format!("speed mapped to {v}")));
+                }
+                *s = Str::line(a, b, c, v);
+            }
+            Step::Travel { to, .. } => *to = map(*to)?,
+            _ => {}
+        }
+    }
+    fix_markers(&mut model);
+    Ok(model)
 }
 
 /// Unit heart outline at parameter `t` (the classic parametric heart scaled so its mean
@@ -353,6 +433,47 @@ pub fn twisted_vase(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn direct_sphere_matches_the_general_deformation() {
+        let mut h = crate::parts::Helix {
+            turns: 20.0,
+            per_turn: 37,
+            radius_mm: 12.0,
+            ..crate::parts::Helix::default()
+        };
+        h.center_xy = [100.0, 80.0];
+        let m = h.build().expect("helix");
+        let (r, height) = (12.0, 20.0 * h.pitch_mm);
+        let mut with_travel = m.clone();
+        with_travel.push(Step::Travel {
+            to: DVec3::new(90.0, 70.0, 9.0),
+            speed_mm_s: None,
+        });
+        let a = helix_to_sphere_direct(with_travel.clone(), r, height, 0.2).expect("direct");
+        let b = helix_to_sphere_general(with_travel, r, height, 0.2, None).expect("general");
+        assert_eq!(a.steps.len(), b.steps.len());
+        for (x, y) in a.steps.iter().zip(&b.steps) {
+            match (x, y) {
+                (Step::String(p), Step::String(q)) => {
+                    assert!(p.start.distance(q.start) < 1e-9, "{p:?} {q:?}");
+                    assert!(p.end.distance(q.end) < 1e-9, "{p:?} {q:?}");
+                    assert!((p.cross_mm2 - q.cross_mm2).abs() < 1e-12);
+                    assert!((p.speed_mm_s - q.speed_mm_s).abs() < 1e-9);
+                }
+                (Step::Travel { to: p, .. }, Step::Travel { to: q, .. }) => {
+                    assert!(p.distance(*q) < 1e-9)
+                }
+                (Step::Marker { z_mm: p, .. }, Step::Marker { z_mm: q, .. }) => {
+                    assert!((p - q).abs() < 1e-9)
+                }
+                _ => assert_eq!(x, y),
+            }
+        }
+        // Bad input stays an error on both paths.
+        assert!(helix_to_sphere(m.clone(), 0.0, height, 0.0, None).is_err());
+        assert!(helix_to_sphere(m, r, f64::NAN, 0.0, None).is_err());
+    }
     use crate::parts::Helix;
 
     #[test]

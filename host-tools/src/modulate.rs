@@ -214,7 +214,13 @@ pub fn globe(g: &Globe, bitmap: &Bitmap) -> Result<(Model, Vec<String>), Modulat
     }
     let height = g.turns as f64 * g.pitch_mm;
     let radius = height / std::f64::consts::PI;
-    let helix = Helix {
+    // The comment goes first; the helix is built after it (no shifting of 45,000 steps).
+    let mut helix = Model::new(g.center_xy);
+    helix.steps.push(Step::Comment(format!(
+        "globe: {} turns x {} strings, radius {:.2} mm, contrast 1:{}",
+        g.turns, g.per_turn, radius, g.contrast
+    )));
+    Helix {
         center_xy: g.center_xy,
         z0_mm: g.z0_mm,
         radius_mm: radius,
@@ -226,18 +232,11 @@ pub fn globe(g: &Globe, bitmap: &Bitmap) -> Result<(Model, Vec<String>), Modulat
         arcs: false,
         start_rad: 0.0,
     }
-    .build()
+    .build_into(&mut helix)
     .map_err(|e| ModulateError::Bad(e.to_string()))?;
     let sphere = helix_to_sphere(helix, radius, height, g.z0_mm, None)?;
     let (m, warnings) = modulate_helix(sphere, bitmap, g.per_turn, g.contrast)?;
-    let mut m = m.thin_at_emission(g.thin_min_len_mm);
-    m.steps.insert(
-        0,
-        Step::Comment(format!(
-            "globe: {} turns x {} strings, radius {:.2} mm, contrast 1:{}",
-            g.turns, g.per_turn, radius, g.contrast
-        )),
-    );
+    let m = m.thin_at_emission(g.thin_min_len_mm);
     Ok((m, warnings))
 }
 

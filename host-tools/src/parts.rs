@@ -103,8 +103,15 @@ impl Helix {
     /// The helix as a model: one string per step, counter-clockwise, a turn marker at the
     /// start of each turn.
     pub fn build(&self) -> Result<Model, PartError> {
-        let n = self.validate()?;
         let mut m = Model::new(self.center_xy);
+        self.build_into(&mut m)?;
+        Ok(m)
+    }
+
+    /// Appends the helix's steps to `m` (after whatever `m` already holds, e.g. a comment;
+    /// `m`'s axis is left as it is).
+    pub fn build_into(&self, m: &mut Model) -> Result<(), PartError> {
+        let n = self.validate()?;
         m.steps.reserve(n + n / self.per_turn + 2);
         let mut prev = self.point(0);
         for k in 0..n {
@@ -126,7 +133,7 @@ impl Helix {
             m.steps.push(Step::String(s));
             prev = p;
         }
-        Ok(m)
+        Ok(())
     }
 }
 

@@ -115,18 +115,101 @@ fn digits_into(tmp: &mut [u8; 48], mut end: usize, mut v: u64) -> usize {
 }
 
 /// Appends the integer `n` scaled by 10^-`decimals` (trailing zeros trimmed): the whole
-/// number is formatted on the stack, two digits at a time, and appended in one copy.
+/// number is formatted on the stack, two digits at a time, and appended in one copy. The
+/// usual decimal counts get their own copy with a constant divisor (a multiplication instead
+/// of a 64-bit division per number).
 #[inline]
 fn push_scaled(buf: &mut Vec<u8>, n: i64, decimals: u32) {
+    match decimals {
+        0 => push_scaled_const::<0>(buf, n),
+        1 => push_scaled_const::<1>(buf, n),
+        2 => push_scaled_const::<2>(buf, n),
+        3 => push_milli(buf, n),
+        4 => push_scaled_const::<4>(buf, n),
+        5 => push_scaled_const::<5>(buf, n),
+        _ => push_scaled_with(buf, n, decimals.min(18), 10u64.pow(decimals.min(18))),
+    }
+}
+
+/// `.xyz` of every thousandth 0..1000 with trailing zeros (and, for 0, the point) trimmed:
+/// (length, bytes).
+const MILLI: [(u8, [u8; 4]); 1000] = {
+    let mut t = [(0u8, [0u8; 4]); 1000];
+    let mut k = 1;
+    while k < 1000 {
+        let d = [(k / 100) as u8, (k / 10 % 10) as u8, (k % 10) as u8];
+        let len = if d[2] != 0 {
+            4
+        } else if d[1] != 0 {
+            3
+        } else {
+            2
+        };
+        t[k] = (len, [b'.', b'0' + d[0], b'0' + d[1], b'0' + d[2]]);
+        k += 1;
+    }
+    t
+};
+
+/// `push_scaled(buf, n, 3)`, the writer's usual case (millimetres to the micrometre): the
+/// integer part two digits at a time, the fraction from a table, appended with one
+/// fixed-size copy.
+#[inline]
+fn push_milli(buf: &mut Vec<u8>, n: i64) {
+    let a = n.unsigned_abs();
+    let int = a / 1000;
+    if int >= 10_000 {
+        return push_scaled_const::<3>(buf, n);
+    }
+    let mut tmp = [0u8; 16];
+    let mut i = 0;
+    if n < 0 {
+        tmp[0] = b'-';
+        i = 1;
+    }
+    let int = int as usize;
+    if int >= 100 {
+        let hi = if int >= 1000 {
+            tmp[i] = b'0' + (int / 1000) as u8;
+            i += 1;
+            int / 100 % 10
+        } else {
+            int / 100
+        };
+        tmp[i] = b'0' + hi as u8;
+        let lo = int % 100 * 2;
+        tmp[i + 1] = DIGITS2[lo];
+        tmp[i + 2] = DIGITS2[lo + 1];
+        i += 3;
+    } else if int >= 10 {
+        tmp[i] = DIGITS2[int * 2];
+        tmp[i + 1] = DIGITS2[int * 2 + 1];
+        i += 2;
+    } else {
+        tmp[i] = b'0' + int as u8;
+        i += 1;
+    }
+    let (len, frac) = MILLI[(a % 1000) as usize];
+    tmp[i..i + 4].copy_from_slice(&frac);
+    i += len as usize;
+    // A constant-size copy (no call into memcpy), then cut back to the number's length.
+    let old = buf.len();
+    buf.extend_from_slice(&tmp);
+    buf.truncate(old + i);
+}
+
+#[inline]
+fn push_scaled_const<const D: u32>(buf: &mut Vec<u8>, n: i64) {
+    push_scaled_with(buf, n, D, const { 10u64.pow(D) })
+}
+
+/// `push_scaled` for `scale` = 10^`decimals` (`decimals` ≤ 18).
+#[inline(always)]
+fn push_scaled_with(buf: &mut Vec<u8>, n: i64, decimals: u32, scale: u64) {
     let mut tmp = [0u8; 48];
     let a = n.unsigned_abs();
-    let (int, mut frac, mut d) = match decimals {
-        0 => (a, 0, 0),
-        _ => {
-            let scale = 10u64.pow(decimals.min(18));
-            (a / scale, a % scale, decimals.min(18) as usize)
-        }
-    };
+    let (int, mut frac) = (a / scale, a % scale);
+    let mut d = decimals as usize;
     let mut end = tmp.len();
     if frac != 0 {
         while frac % 10 == 0 {
@@ -751,6 +834,13 @@ mod tests {
             (99, 0),
             (100, 0),
             (1, 6),
+            (9_999_999, 3),
+            (10_000_000, 3),
+            (-9_999_999, 3),
+            (-10_000_000, 3),
+            (999, 3),
+            (-1, 3),
+            (100_010, 3),
         ] {
             assert_eq!(scaled(n, d), reference(n, d), "{n} {d}");
         }
@@ -760,6 +850,11 @@ mod tests {
         #[test]
         fn scaled_matches_format(n in proptest::num::i64::ANY, d in 0u32..=6) {
             proptest::prop_assert_eq!(scaled(n, d), reference(n, d));
+        }
+
+        #[test]
+        fn milli_matches_format(n in -20_000_000i64..20_000_000) {
+            proptest::prop_assert_eq!(scaled(n, 3), reference(n, 3));
         }
 
         #[test]
