@@ -62,12 +62,7 @@ impl FakePrinter {
         if !line.starts_with('N') {
             self.realtime.push((line.to_string(), self.executed.len()));
             match line {
-                "M110 N0" if self.ignore_probes > 0 => self.ignore_probes -= 1,
-                l if l.starts_with("M110 N") => {
-                    let last: u32 = l[6..].parse().expect("M110 N<number>");
-                    self.expected = last + 1;
-                    self.say("ok");
-                }
+                l if l.starts_with("M110") => panic!("unchecked {l}: send N<n> M110*<cs>"),
                 "M25 S1" | "M601 S1" => {
                     self.say("ok");
                     self.paused = true;
@@ -102,6 +97,23 @@ impl FakePrinter {
             }
             return;
         }
+        let (body, cs) = line.rsplit_once('*').expect("checksum");
+        let cs: u8 = cs.parse().expect("checksum number");
+        assert_eq!(checksum(body), cs, "bad checksum on {line}");
+        let (n, cmd) = body.split_once(' ').unwrap_or((body, ""));
+        let n: u32 = n[1..].parse().expect("line number");
+        if cmd == "M110" {
+            // The connection probe (N0) and the resync (N<last acknowledged>), as Marlin.
+            self.realtime
+                .push((format!("M110 N{n}"), self.executed.len()));
+            if n == 0 && self.ignore_probes > 0 {
+                self.ignore_probes -= 1;
+                return;
+            }
+            self.expected = n + 1;
+            self.say("ok");
+            return;
+        }
         if self.die_after.is_some_and(|d| self.executed.len() >= d) {
             return;
         }
@@ -113,11 +125,6 @@ impl FakePrinter {
             self.counter_jump_after = None;
             self.expected += 5;
         }
-        let (body, cs) = line.rsplit_once('*').expect("checksum");
-        let cs: u8 = cs.parse().expect("checksum number");
-        assert_eq!(checksum(body), cs, "bad checksum on {line}");
-        let (n, cmd) = body.split_once(' ').unwrap_or((body, ""));
-        let n: u32 = n[1..].parse().expect("line number");
         if self.corrupt_once.contains(&n) {
             self.corrupt_once.retain(|&c| c != n);
             self.say(&format!("Error:checksum mismatch, Last Line: {}", n - 1));
@@ -613,7 +620,7 @@ fn resend_of_an_acknowledged_line_resyncs_without_duplicates() {
     assert!(ev.contains(&Event::Resend(1)), "{ev:?}");
     assert!(
         ev.iter()
-            .any(|e| matches!(e, Event::Message(m) if m.contains("M110 N9"))),
+            .any(|e| matches!(e, Event::Message(m) if m.contains("N9 M110"))),
         "{ev:?}"
     );
     let p = s.port();
@@ -655,7 +662,7 @@ fn endless_resync_gives_up_with_a_message() {
     impl Write for Stubborn {
         fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
             let text = String::from_utf8_lossy(buf).into_owned();
-            if text.starts_with("M110 N") && !text.starts_with("M110 N0") {
+            if text.contains(" M110*") && !text.starts_with("N0 ") {
                 self.0.say("ok"); // acknowledged, but the counter stays where it is
                 return Ok(buf.len());
             }

@@ -32,10 +32,14 @@ enum Fault {
     CounterJump,
 }
 
-/// Faults of one run. A lost or doubled `ok` and a counter that jumps are never mixed in one
-/// run: when the printer's counter jumps the sender can only trust the `ok`s it counted, and
-/// when an `ok` is lost or doubled it can only trust the printer's counter — with both, which
-/// lines ran is unknowable (any host would have to guess).
+/// Faults of one run, in three families that are never mixed:
+/// - lost and doubled `ok`s: the sender then trusts the printer's counter;
+/// - a counter that goes back to 0, or one that jumps ahead: the sender then trusts the `ok`s
+///   it counted.
+///
+/// With an `ok` fault and a counter fault together, which lines ran is unknowable (any host
+/// would have to guess); a counter that goes back to 0 and then jumps to exactly the last
+/// acknowledged line is taken for a doubled `ok` (see `Session::on_resend`).
 fn faults() -> impl Strategy<Value = Vec<Fault>> {
     let common = || {
         prop_oneof![
@@ -50,14 +54,12 @@ fn faults() -> impl Strategy<Value = Vec<Fault>> {
         1 => Just(Fault::DoubleOk),
         1 => Just(Fault::LostOk),
     ];
-    let counter = prop_oneof![
-        8 => common(),
-        1 => Just(Fault::CounterReset),
-        1 => Just(Fault::CounterJump),
-    ];
+    let resets = prop_oneof![8 => common(), 1 => Just(Fault::CounterReset)];
+    let jumps = prop_oneof![8 => common(), 1 => Just(Fault::CounterJump)];
     prop_oneof![
         proptest::collection::vec(oks, 0..120),
-        proptest::collection::vec(counter, 0..120),
+        proptest::collection::vec(resets, 0..120),
+        proptest::collection::vec(jumps, 0..120),
     ]
 }
 
@@ -104,9 +106,7 @@ impl Chaos {
             return;
         }
         if !line.starts_with('N') {
-            if let Some(n) = line.strip_prefix("M110 N") {
-                self.expected = n.parse::<u32>().expect("M110 N<n>") + 1;
-            }
+            assert!(!line.starts_with("M110"), "unchecked {line}");
             self.say("ok");
             return;
         }
@@ -119,7 +119,9 @@ impl Chaos {
         match f {
             Fault::LostLine => return,
             Fault::Corrupt => return self.refuse("checksum mismatch"),
-            Fault::CounterReset => self.expected = 1,
+            // A reset in the first lines of a session is taken for lost acknowledgements
+            // (`host_tools::sender::ACK_DOUBT`): the test resets the counter later.
+            Fault::CounterReset if self.expected > 6 => self.expected = 1,
             Fault::CounterJump => self.expected += 3,
             Fault::Chatter => {
                 self.say("busy: processing");
@@ -136,6 +138,11 @@ impl Chaos {
             return self.refuse("Line Number is not Last Line Number+1");
         }
         self.expected = n + 1;
+        if cmd.starts_with("M110") {
+            // Link level (probe, resync): not a job line.
+            self.say("ok");
+            return;
+        }
         self.executed.push(cmd.to_string());
         if cmd == "M115" {
             self.say("FIRMWARE_NAME:Chaos 1.0");

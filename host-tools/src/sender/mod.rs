@@ -34,6 +34,17 @@ pub const IDENTIFY_TIMEOUT: Duration = Duration::from_secs(900);
 /// [`Options::ok_timeout`]).
 pub const MAX_NUDGES: u32 = 3;
 
+/// A `Resend:` for one of the last `ACK_DOUBT` lines taken as acknowledged is trusted (the
+/// `ok`s were wrong: doubled, or a refusal whose `Error:`/`Resend:` was lost); one further back
+/// means the printer's line counter went back (reset, M110 from elsewhere) and is set again.
+/// So a counter reset within the first `ACK_DOUBT` lines of a session re-runs those lines (the
+/// M115 query and the start of the start code).
+pub const ACK_DOUBT: u32 = 3;
+
+/// A request for a line outside the unacknowledged ones sets the printer's line counter (M110)
+/// only when it comes this many times in a row (a garbled number rarely repeats).
+pub const RESYNC_AFTER: u32 = 3;
+
 /// Give up when the printer asks for the same line this many times in a row.
 pub const MAX_RESENDS: u32 = 10;
 
@@ -309,6 +320,11 @@ pub struct Session<P: Read + Write> {
     identify_sent_at: Option<Duration>,
     /// When connecting started (connection timeout).
     connecting_since: Option<Duration>,
+    /// The resend a line error asked for; the `Resend:` that follows it is not counted twice.
+    error_resend: Option<u32>,
+    /// A resend request outside the unacknowledged lines and how often it came in a row: the
+    /// printer's counter is set (M110) only at the [`RESYNC_AFTER`]th.
+    suspect: Option<(u32, u32)>,
     /// Time of the current poll.
     now: Duration,
     /// Last sign that the printer is handling our lines: an `ok`, `busy:` or `Resend:`, or the
@@ -360,6 +376,8 @@ impl<P: Read + Write> Session<P> {
             rejected: false,
             identify_sent_at: None,
             connecting_since: None,
+            error_resend: None,
+            suspect: None,
             now: Duration::ZERO,
             last_ack: Duration::ZERO,
             nudges: 0,
@@ -651,7 +669,7 @@ impl<P: Read + Write> Session<P> {
             && self.outstanding > 0
             && now.saturating_sub(self.last_ack) > self.opts.ok_timeout
         {
-            self.nudge();
+            self.nudge()?;
         }
         match self.state {
             State::Connecting => {
@@ -668,7 +686,10 @@ impl<P: Read + Write> Session<P> {
                     .is_none_or(|t| now.saturating_sub(t) >= self.opts.probe_every);
                 if due {
                     self.last_probe = Some(now);
-                    self.write_raw("M110 N0\n")?;
+                    // Numbered and checksummed (`N0 M110*cs`): a probe garbled on the wire is
+                    // refused instead of setting the printer's line counter to a wrong value
+                    // (our firmware would then take the next lines as duplicates).
+                    self.write_raw(&format!("{}\n", frame(0, "M110")))?;
                 }
                 return Ok(());
             }
@@ -735,7 +756,7 @@ impl<P: Read + Write> Session<P> {
     /// its `ok` was lost. Resend it: a printer that never got it runs it now; one that did
     /// refuses the repeat by its line number (Marlin asks for the next line, ours acknowledges
     /// the duplicate), so it never runs twice. Every `ok` still owed is written off.
-    fn nudge(&mut self) {
+    fn nudge(&mut self) -> std::io::Result<()> {
         self.nudges += 1;
         let line = self.acked + 1;
         if self.nudges > MAX_NUDGES {
@@ -743,7 +764,7 @@ impl<P: Read + Write> Session<P> {
                 "no ok from the printer for line {line}, sent {} times",
                 MAX_NUDGES + 1
             ));
-            return;
+            return Ok(());
         }
         self.events.push(Event::Message(format!(
             "no ok for line {line} within {} s: resending it",
@@ -754,6 +775,12 @@ impl<P: Read + Write> Session<P> {
         self.rejected = true;
         self.last_ack = self.now;
         self.resend_from = (line < self.next_no).then_some(line);
+        if self.resend_from.is_none() {
+            // Every line is known taken (the printer said so in a `Resend:`); only the `ok`
+            // was lost.
+            self.settled(self.now)?;
+        }
+        Ok(())
     }
 
     fn read_port(&mut self, now: Duration) -> std::io::Result<()> {
@@ -788,6 +815,10 @@ impl<P: Read + Write> Session<P> {
     }
 
     fn handle_line(&mut self, line: &str, now: Duration) -> std::io::Result<()> {
+        if self.finished() {
+            // Done, cancelled or failed: nothing the printer says changes that.
+            return Ok(());
+        }
         match Response::parse(line) {
             Response::Ok { temps, .. } => {
                 if let Some(t) = temps {
@@ -806,6 +837,7 @@ impl<P: Read + Write> Session<P> {
                     return Ok(());
                 }
                 self.last_ack = now;
+                self.error_resend = None;
                 if self.rt_oks > 0 {
                     self.rt_oks -= 1;
                     return Ok(());
@@ -814,40 +846,20 @@ impl<P: Read + Write> Session<P> {
                     self.nudges = 0;
                 }
                 self.outstanding = self.outstanding.saturating_sub(1);
-                if self.outstanding == 0 && !self.rejected {
-                    self.acked = self.acked.max(self.last_written);
+                if self.outstanding == 0 && !self.rejected && self.last_written > self.acked {
+                    self.acked = self.last_written;
+                    self.suspect = None;
+                    // Progress: "rejected N times in a row" counts from here.
+                    self.last_resend = (0, 0);
                 }
-                if self.outstanding > 0 || self.resend_from.is_some() {
-                    return Ok(());
-                }
-                if self.state == State::Identifying {
-                    self.identified(now);
-                    return Ok(());
-                }
-                if let Some((no, _)) = &self.sync {
-                    if no + 1 == self.next_no {
-                        if let Some((_, kind)) = self.sync.take() {
-                            self.on_synced(kind)?;
-                        }
-                    }
-                }
+                self.settled(now)?;
             }
             Response::Resend(n) => {
-                self.progress.resends += 1;
-                if self.last_resend.0 == n {
-                    self.last_resend.1 += 1;
-                } else {
-                    self.last_resend = (n, 1);
-                }
-                if self.last_resend.1 > MAX_RESENDS {
-                    self.fail(format!(
-                        "the printer rejected line {n} {MAX_RESENDS} times in a row"
-                    ));
+                if self.error_resend.take() == Some(n) {
+                    // Already handled from the `Error:…, Last Line: n-1` before it.
                     return Ok(());
                 }
-                self.events.push(Event::Resend(n));
-                self.last_ack = now;
-                self.on_resend(n)?;
+                self.resend_request(n, now)?;
             }
             Response::Busy(_) => self.last_ack = now,
             Response::Echo(e) => {
@@ -871,6 +883,24 @@ impl<P: Read + Write> Session<P> {
                 self.events.push(Event::PrinterError(e.clone()));
                 if fatal {
                     self.fail(format!("printer error: {e}"));
+                    return Ok(());
+                }
+                // A line error (`Error:checksum mismatch, Last Line: L`, Marlin's and ours) is
+                // followed by `Resend: L+1`; act on the error already, so a `Resend:` line lost
+                // on the wire cannot make its `ok` look like an acceptance.
+                if self.state == State::Connecting {
+                    return Ok(());
+                }
+                if let Some(l) = protocol::last_line(&e) {
+                    let n = l.saturating_add(1);
+                    self.error_resend = Some(n);
+                    self.resend_request(n, now)?;
+                } else if protocol::is_link_error(&e) && self.acked < self.last_written {
+                    // A checksum error without a line number: our line arrived with its `N`
+                    // garbled, and no `Resend:` can follow. Resend the oldest line not
+                    // acknowledged (a repeat is refused by the printer's counter).
+                    let n = self.acked + 1;
+                    self.resend_request(n, now)?;
                 }
             }
             Response::Temperature(t) => self.progress.temps = t,
@@ -926,6 +956,46 @@ impl<P: Read + Write> Session<P> {
         Ok(())
     }
 
+    /// Every line written is answered and none waits to be resent: finish identifying, or act
+    /// on the synchronising line (the last one written) now that it is taken.
+    fn settled(&mut self, now: Duration) -> std::io::Result<()> {
+        if self.outstanding > 0 || self.resend_from.is_some() {
+            return Ok(());
+        }
+        if self.state == State::Identifying {
+            self.identified(now);
+            return Ok(());
+        }
+        if let Some((no, _)) = &self.sync {
+            if no + 1 == self.next_no {
+                if let Some((_, kind)) = self.sync.take() {
+                    self.on_synced(kind)?;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// A resend request for line `n` (from `Resend:` or a line error): counted, then
+    /// [`Session::on_resend`].
+    fn resend_request(&mut self, n: u32, now: Duration) -> std::io::Result<()> {
+        self.progress.resends += 1;
+        if self.last_resend.0 == n {
+            self.last_resend.1 += 1;
+        } else {
+            self.last_resend = (n, 1);
+        }
+        if self.last_resend.1 > MAX_RESENDS {
+            self.fail(format!(
+                "the printer rejected line {n} {MAX_RESENDS} times in a row"
+            ));
+            return Ok(());
+        }
+        self.events.push(Event::Resend(n));
+        self.last_ack = now;
+        self.on_resend(n)
+    }
+
     /// M115 answered (its `ok`): choose the pause method and start streaming.
     fn identified(&mut self, now: Duration) {
         self.identify_sent_at = None;
@@ -968,15 +1038,18 @@ impl<P: Read + Write> Session<P> {
     ///   error, lost line) — resend from `n`;
     /// - `n == next_no`: the printer has every line sent (it refused a repeat) — nothing to
     ///   resend;
-    /// - `n == acked`: the last `ok` was not this line's (a doubled `ok` of the line before, seen
-    ///   while this one was in flight) — resend from `n`; the printer's counter refuses anything
-    ///   it already has;
+    /// - `acked - n < ACK_DOUBT` (`n` one of the last lines taken as acknowledged): an `ok`
+    ///   was not that line's (a doubled `ok`, or the `Error:`/`Resend:` of its refusal lost on
+    ///   the wire so only the `ok` arrived) — resend from `n`; the printer's counter refuses
+    ///   anything it already has;
     /// - anything else — a line acknowledged earlier (its counter went back: a reset that printed
     ///   no `start`, an `M110` from elsewhere, `Resend: 0`), or a line never sent (its counter is
     ///   ahead): resending from `n` would run acknowledged lines a second time, and sending on
-    ///   would be refused line after line. The sender sets the printer's counter to the last
-    ///   line it acknowledged (`M110 N<acked>`, unnumbered), resends from the first line not
-    ///   acknowledged, and says so in a message.
+    ///   would be refused line after line. The first time, the sender resends from the first
+    ///   line not acknowledged (the number may have been garbled on the wire; a repeat is
+    ///   refused by a printer whose counter is right); when the printer asks for the same line
+    ///   [`RESYNC_AFTER`] times in a row, it sets the printer's counter to the last line it acknowledged (`N<acked>
+    ///   M110*cs`), resends from the first line not acknowledged, and says so in a message.
     ///
     /// Before the printer has answered the connection probe there is nothing to resend: ignored.
     fn on_resend(&mut self, n: u32) -> std::io::Result<()> {
@@ -991,7 +1064,7 @@ impl<P: Read + Write> Session<P> {
             self.resend_from = Some(n);
             return Ok(());
         }
-        if n == self.next_no {
+        if n == self.next_no && self.suspect.is_none() {
             self.acked = n - 1;
             self.resend_from = None;
             self.events.push(Event::Message(format!(
@@ -999,23 +1072,42 @@ impl<P: Read + Write> Session<P> {
             )));
             return Ok(());
         }
-        if n == self.acked && n > 0 {
+        if n > 0 && n <= self.acked && self.acked - n < ACK_DOUBT {
             self.acked = n - 1;
             self.resend_from = Some(n);
             self.events.push(Event::Message(format!(
-                "the printer asked again for line {n}, taken as acknowledged (a doubled ok?): \
-                 resending it"
+                "the printer asked again for line {n}, taken as acknowledged (a doubled ok, or \
+                 a refusal garbled on the wire?): resending from it"
             )));
             return Ok(());
         }
         let k = self.acked;
+        let seen = match self.suspect {
+            Some((m, c)) if m == n => c + 1,
+            _ => 1,
+        };
+        if seen < RESYNC_AFTER {
+            // Could be a line number garbled on the wire: resend the first line not
+            // acknowledged (a repeat is refused by the printer's counter if it is right) and
+            // set the counter only if the printer keeps asking for the same line.
+            self.suspect = Some((n, seen));
+            self.resend_from = (k + 1 < self.next_no).then_some(k + 1);
+            self.events.push(Event::Message(format!(
+                "the printer asked for line {n}, but it had acknowledged every line up to {k}: \
+                 resending from line {}",
+                k + 1
+            )));
+            return Ok(());
+        }
+        self.suspect = None;
         self.events.push(Event::Message(format!(
             "the printer asked for line {n}, but it had acknowledged every line up to {k}: \
-             its line counter is out of step (reset or M110?); setting it back with M110 N{k} \
-             and resending from line {}",
+             asked {RESYNC_AFTER} times: its line counter is out of step (reset or M110?); setting it back \
+             with N{k} M110 and resending from line {}",
             k + 1
         )));
-        self.write_realtime(&format!("M110 N{k}"), true)?;
+        // Checksummed, like the connection probe: a garbled one is refused, not obeyed.
+        self.write_realtime(&frame(k, "M110"), true)?;
         self.resend_from = (k + 1 < self.next_no).then_some(k + 1);
         Ok(())
     }
@@ -1044,6 +1136,9 @@ impl<P: Read + Write> Session<P> {
     }
 
     fn on_synced(&mut self, kind: Sync) -> std::io::Result<()> {
+        if self.finished() {
+            return Ok(());
+        }
         match kind {
             Sync::Trigger => {
                 if self.state == State::Pausing {

@@ -28,6 +28,27 @@ pub fn strip_comment(line: &str) -> &str {
     }
 }
 
+/// The `Last Line: L` of a line error (`checksum mismatch, Last Line: 18`, `Line Number is not
+/// Last Line Number+1, Last Line: 17`: Marlin's and our firmware's spelling), if any.
+pub fn last_line(error: &str) -> Option<u32> {
+    let at = error.rfind("Last Line:")?;
+    let rest = error.get(at + "Last Line:".len()..)?.trim_start();
+    let digits: &str = rest
+        .get(
+            ..rest
+                .find(|c: char| !c.is_ascii_digit())
+                .unwrap_or(rest.len()),
+        )
+        .unwrap_or("");
+    digits.parse().ok()
+}
+
+/// True for the link-level errors of Marlin and our firmware (checksum, line number), which
+/// mean the line was not taken.
+pub fn is_link_error(error: &str) -> bool {
+    error.contains("checksum") || error.contains("Checksum") || error.contains("Line Number")
+}
+
 /// An `//action:` notification (OctoPrint's spellings).
 #[derive(Clone, Debug, PartialEq)]
 pub enum Action {
@@ -234,6 +255,24 @@ pub fn parse_temps(s: &str) -> Temps {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn reads_the_last_line_of_line_errors() {
+        assert_eq!(last_line("checksum mismatch, Last Line: 18"), Some(18));
+        assert_eq!(
+            last_line("Line Number is not Last Line Number+1, Last Line: 17"),
+            Some(17)
+        );
+        assert_eq!(
+            last_line("No Checksum with line number, Last Line: 0"),
+            Some(0)
+        );
+        assert_eq!(last_line("Printer halted. kill() called!"), None);
+        assert_eq!(last_line("Last Line: x"), None);
+        assert_eq!(last_line("Last Line: 99999999999999"), None);
+        assert!(is_link_error("checksum mismatch"));
+        assert!(!is_link_error("Printer halted. kill() called!"));
+    }
 
     #[test]
     fn frames_like_marlin() {
