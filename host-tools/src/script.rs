@@ -8,8 +8,9 @@
 //! See `docs/design.md` for the full list of functions; `host-tools/examples/*.rhai` use all
 //! of them.
 
+use crate::checks::{self, CheckOptions};
 use crate::deform::{self, DeformError};
-use crate::model::{Model, Step};
+use crate::model::{MarkerKind, Model, Step, Str};
 use crate::modulate::{self, Bitmap};
 use crate::parts::{self, Helix};
 use crate::profile::Profile;
@@ -277,7 +278,8 @@ impl ScriptRunner {
             });
         }
         register_turtle(&mut e);
-        register_model(&mut e, shared);
+        register_model(&mut e, shared.clone());
+        register_model_ops(&mut e, shared, self.profile.clone());
         register_parts(&mut e);
         let dir = dir.to_path_buf();
         e.register_type_with_name::<Bitmap>("Bitmap");
@@ -647,6 +649,248 @@ const HELIX_KEYS: &[&str] = &[
     "cx", "cy", "z0", "radius", "pitch", "turns", "per_turn", "cross", "speed", "arcs", "start",
 ];
 
+fn arr3(p: DVec3) -> Dynamic {
+    Dynamic::from_array(vec![
+        Dynamic::from_float(p.x),
+        Dynamic::from_float(p.y),
+        Dynamic::from_float(p.z),
+    ])
+}
+
+/// The script's view of a string or travel, for `partition` predicates.
+fn step_map(index: usize, s: &Step) -> Option<Map> {
+    let mut m = Map::new();
+    m.insert("index".into(), Dynamic::from_int(index as i64));
+    match s {
+        Step::String(st) => {
+            m.insert("kind".into(), "string".into());
+            m.insert("start".into(), arr3(st.start));
+            m.insert("end".into(), arr3(st.end));
+            m.insert("cross".into(), Dynamic::from_float(st.cross_mm2));
+            m.insert("speed".into(), Dynamic::from_float(st.speed_mm_s));
+        }
+        Step::Travel { to, speed_mm_s } => {
+            m.insert("kind".into(), "travel".into());
+            m.insert("end".into(), arr3(*to));
+            m.insert(
+                "speed".into(),
+                speed_mm_s.map_or(Dynamic::UNIT, Dynamic::from_float),
+            );
+        }
+        _ => return None,
+    }
+    Some(m)
+}
+
+fn models_of(parts: Array, what: &str) -> Res<Vec<Model>> {
+    parts
+        .into_iter()
+        .enumerate()
+        .map(|(i, d)| {
+            let t = d.type_name();
+            d.try_cast::<Model>()
+                .ok_or_else(|| format!("{what}: element {i} is a {t}, not a Model").into())
+        })
+        .collect()
+}
+
+/// Assembly, partitioning/reordering, general modulation and checks (the model operations
+/// beyond `register_model`'s).
+fn register_model_ops(e: &mut Engine, shared: Arc<Mutex<Shared>>, profile: Profile) {
+    e.register_fn("assemble", |parts: Array| -> Res<Model> {
+        Ok(Model::assemble(models_of(parts, "assemble")?))
+    });
+    e.register_fn(
+        "partition",
+        |ctx: NativeCallContext, m: Model, pred: FnPtr| -> Res<Array> {
+            let mut failure: Option<Box<EvalAltResult>> = None;
+            let mut index = 0;
+            let (yes, no) = m.partition(|s| {
+                if failure.is_some() {
+                    return false;
+                }
+                let Some(map) = step_map(index, s) else {
+                    return false;
+                };
+                index += 1;
+                let r: Res<Dynamic> = pred.call_within_context(&ctx, (map,));
+                match r.and_then(|d| {
+                    d.as_bool().map_err(|t| {
+                        format!(
+                            "partition: {} must return true or false, got {t}",
+                            pred.fn_name()
+                        )
+                        .into()
+                    })
+                }) {
+                    Ok(b) => b,
+                    Err(e) => {
+                        failure = Some(e);
+                        false
+                    }
+                }
+            });
+            match failure {
+                Some(e) => Err(e),
+                None => Ok(vec![Dynamic::from(yes), Dynamic::from(no)]),
+            }
+        },
+    );
+    e.register_fn("split_at_markers", |m: Model, kind: &str| -> Res<Array> {
+        let kind = match kind {
+            "turn" => MarkerKind::Turn,
+            "layer" => MarkerKind::Layer,
+            other => {
+                return Err(format!(
+                    "split_at_markers: kind is \"turn\" or \"layer\", got \"{other}\""
+                )
+                .into())
+            }
+        };
+        Ok(m.split_at_markers(kind)
+            .into_iter()
+            .map(Dynamic::from)
+            .collect())
+    });
+    e.register_fn(
+        "reorder_parts",
+        |parts: Array, order: Array| -> Res<Model> {
+            let parts = models_of(parts, "reorder_parts")?;
+            let order = order
+                .iter()
+                .map(|d| count(d, "reorder_parts: index"))
+                .collect::<Res<Vec<usize>>>()?;
+            Model::reorder_parts(parts, &order).map_err(|e| format!("reorder_parts: {e}").into())
+        },
+    );
+    e.register_fn(
+        "map_strings",
+        |ctx: NativeCallContext, m: Model, f: FnPtr| -> Res<Model> {
+            let mut failure: Option<Box<EvalAltResult>> = None;
+            let m = m.map_strings(|i, s: &mut Str| {
+                if failure.is_some() {
+                    return;
+                }
+                let r: Res<Dynamic> =
+                    f.call_within_context(&ctx, (i as i64, s.cross_mm2, s.speed_mm_s));
+                let pair = r.and_then(|d| {
+                    let a = d.into_array().map_err(|t| {
+                        format!("{}: expected [cross, speed], got {t}", f.fn_name())
+                    })?;
+                    match a.as_slice() {
+                        [c, v] => Ok((num(c, "cross")?, num(v, "speed")?)),
+                        _ => Err(format!("{}: expected [cross, speed]", f.fn_name()).into()),
+                    }
+                });
+                match pair {
+                    Ok((c, v)) if c.is_finite() && c >= 0.0 && v.is_finite() && v > 0.0 => {
+                        s.cross_mm2 = c;
+                        s.speed_mm_s = v;
+                    }
+                    Ok((c, v)) => {
+                        failure = Some(
+                            format!("map_strings: string {i}: cross {c} / speed {v} invalid")
+                                .into(),
+                        )
+                    }
+                    Err(e) => failure = Some(e),
+                }
+            });
+            match failure {
+                Some(e) => Err(e),
+                None => Ok(m),
+            }
+        },
+    );
+    let sh = shared;
+    e.register_fn(
+        "modulate_by",
+        move |ctx: NativeCallContext,
+              m: Model,
+              b: Bitmap,
+              contrast: Dynamic,
+              f: FnPtr|
+              -> Res<Model> {
+            let mut failure: Option<Box<EvalAltResult>> = None;
+            let r = modulate::modulate_by(m, &b, num(&contrast, "contrast")?, |i| {
+                if failure.is_some() {
+                    return None;
+                }
+                let r: Res<Dynamic> = f.call_within_context(&ctx, (i as i64,));
+                let px = r.and_then(|d| {
+                    if d.is_unit() {
+                        return Ok(None);
+                    }
+                    let a = d
+                        .into_array()
+                        .map_err(|t| format!("{}: expected [x, y] or (), got {t}", f.fn_name()))?;
+                    match a.as_slice() {
+                        [x, y] => Ok(Some((count(x, "x")?, count(y, "y")?))),
+                        _ => Err(format!("{}: expected [x, y] or ()", f.fn_name()).into()),
+                    }
+                });
+                match px {
+                    Ok(p) => p.map(|(x, y)| {
+                        (
+                            x.min(u32::MAX as usize) as u32,
+                            y.min(u32::MAX as usize) as u32,
+                        )
+                    }),
+                    Err(e) => {
+                        failure = Some(e);
+                        None
+                    }
+                }
+            });
+            if let Some(e) = failure {
+                return Err(e);
+            }
+            let (m, w) = r.map_err(err)?;
+            if let Ok(mut s) = sh.lock() {
+                s.warnings.extend(w);
+            }
+            Ok(m)
+        },
+    );
+    e.register_fn(
+        "helix_to_sphere",
+        |m: Model, r: Dynamic, h: Dynamic, z0: Dynamic, tol: Dynamic| -> Res<Model> {
+            let tol = num(&tol, "tolerance")?;
+            deform::helix_to_sphere(m, num(&r, "R")?, num(&h, "H")?, num(&z0, "z0")?, Some(tol))
+                .map_err(err)
+        },
+    );
+    e.register_fn("bbox", |m: &mut Model| -> Map {
+        let b = m.bbox();
+        let mut out = Map::new();
+        if !b.is_empty() {
+            out.insert("min".into(), arr3(b.min));
+            out.insert("max".into(), arr3(b.max));
+        }
+        out
+    });
+    e.register_fn("check", move |m: &mut Model| -> Map {
+        let rep = checks::check(m, &profile, &CheckOptions::default());
+        let mut out = Map::new();
+        out.insert("clean".into(), Dynamic::from_bool(rep.is_clean()));
+        out.insert("total".into(), Dynamic::from_int(rep.total() as i64));
+        let issues: Array = rep
+            .issues
+            .iter()
+            .map(|i| {
+                let mut m = Map::new();
+                m.insert("kind".into(), i.kind.name().into());
+                m.insert("step".into(), Dynamic::from_int(i.step as i64));
+                m.insert("at".into(), arr3(i.at));
+                m.insert("msg".into(), i.msg.clone().into());
+                Dynamic::from_map(m)
+            })
+            .collect();
+        out.insert("issues".into(), Dynamic::from_array(issues));
+        out
+    });
+}
+
 fn register_parts(e: &mut Engine) {
     e.register_fn("helix", |o: Map| -> Res<Model> {
         let o = Opts::new(&o, "helix", HELIX_KEYS)?;
@@ -756,6 +1000,74 @@ mod tests {
         let s = out.model.strings().next().copied().expect("string");
         assert!((s.start.truncate().length() - 20.0).abs() < 1e-9);
         assert!((s.speed_mm_s - 40.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn partition_split_and_reorder() {
+        // Two helices as one design, taken apart by a predicate and reassembled B first.
+        let out = run(
+            "let a = helix(#{ cx: 50, cy: 50, radius: 5, turns: 2, per_turn: 10, z0: 0.2 });\n\
+             let b = helix(#{ cx: 150, cy: 50, radius: 5, turns: 3, per_turn: 10, z0: 0.2 });\n\
+             let h = (a + b).partition(|s| s.kind == \"string\" && s.end[0] < 100);\n\
+             let t = h[1].split_at_markers(\"turn\");\n\
+             if t.len() != 3 { throw `turns: ${t.len()}`; }\n\
+             reorder_parts([h[0], t[0], t[1], t[2]], [3, 2, 1, 0])",
+        )
+        .expect("script");
+        let xs: Vec<f64> = out.model.strings().map(|s| s.end.x).collect();
+        assert_eq!(xs.len(), 50);
+        // B's last turn first (z highest), then its other turns, then all of A.
+        assert!(xs[..30].iter().all(|x| *x > 100.0));
+        assert!(xs[30..].iter().all(|x| *x < 100.0));
+        let z0 = out.model.strings().next().map(|s| s.start.z);
+        assert!(z0.is_some_and(|z| (z - 1.0).abs() < 1e-9), "{z0:?}");
+    }
+
+    #[test]
+    fn model_operation_errors_point_at_the_line() {
+        let e = run("let h = helix(#{});\nh.partition(|s| 1)").expect_err("not a bool");
+        assert_eq!(e.line, 2, "{e}");
+        assert!(e.msg.contains("true or false"), "{e}");
+        let e = run("let h = helix(#{});\n\nreorder_parts([h], [1])").expect_err("range");
+        assert_eq!(e.line, 3, "{e}");
+        assert!(e.msg.contains("out of range"), "{e}");
+        let e = run("reorder_parts([helix(#{}), 3], [0, 1])").expect_err("not a model");
+        assert!(e.msg.contains("not a Model"), "{e}");
+        let e = run("helix(#{}).split_at_markers(\"ring\")").expect_err("kind");
+        assert!(e.msg.contains("turn"), "{e}");
+        let e = run("helix(#{}).map_strings(|i, c, v| [c, -v])").expect_err("bad speed");
+        assert!(e.msg.contains("invalid"), "{e}");
+    }
+
+    #[test]
+    fn assembly_modulation_subdivision_and_checks() {
+        let out = run(
+            "let parts = [helix(#{ turns: 1, per_turn: 20 }), helix(#{ turns: 1, per_turn: 20, z0: 0.6 })];\n\
+             let m = assemble(parts);\n\
+             let m = m.map_strings(|i, c, v| [c, if i < 10 { v * 2 } else { v }]);\n\
+             let m = m.modulate_by(world_map(), 1.25, |i| if i % 2 == 0 { [150, 149] } else { () });\n\
+             let b = m.bbox();\n\
+             if b.max[2] < 0.6 { throw \"bbox\"; }\n\
+             let r = m.check();\n\
+             if r.total != r.issues.len() { throw \"issues\"; }\n\
+             m",
+        )
+        .expect("script");
+        let s: Vec<_> = out.model.strings().collect();
+        assert_eq!(s.len(), 40);
+        // map_strings doubled the first ten speeds; modulate_by slowed even strings (Antarctica
+        // is ink) by 1.25 and widened them.
+        assert!((s[0].speed_mm_s - 40.0 / 1.25).abs() < 1e-9, "{:?}", s[0]);
+        assert!((s[1].speed_mm_s - 40.0).abs() < 1e-9);
+        assert!((s[12].speed_mm_s - 20.0 / 1.25).abs() < 1e-9);
+        assert!((s[12].cross_mm2 - 0.2 * 1.25).abs() < 1e-9);
+        assert!((s[13].speed_mm_s - 20.0).abs() < 1e-9);
+        // Subdivision: the sphere with a chord tolerance has more strings than without.
+        let plain =
+            run("helix(#{ turns: 4, per_turn: 8 }).helix_to_sphere(10, 1.6, 0.2)").expect("sphere");
+        let fine = run("helix(#{ turns: 4, per_turn: 8 }).helix_to_sphere(10, 1.6, 0.2, 0.05)")
+            .expect("sphere");
+        assert!(fine.model.string_count() > plain.model.string_count());
     }
 
     #[test]

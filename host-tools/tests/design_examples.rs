@@ -37,6 +37,7 @@ const ALL: &[&str] = &[
     "globe.rhai",
     "heart_dish.rhai",
     "twisted_vase.rhai",
+    "alternating_towers.rhai",
 ];
 
 #[test]
@@ -71,6 +72,31 @@ fn every_example_compiles_inside_the_bed() {
         assert!(s.layers >= 3, "{name}: {} layers", s.layers);
         assert!(!g.contains("NaN") && !g.contains("inf"), "{name}");
     }
+}
+
+#[test]
+fn alternating_towers_interleave_turn_by_turn() {
+    // partition + split_at_markers + reorder_parts in a script: turns alternate between the
+    // two towers (60 strings each), every turn's strings stay on one side of the bed centre.
+    let p = Profile::ender3();
+    let centre = 0.5 * (p.bed.x_min_mm + p.bed.x_max_mm);
+    let (m, g) = compile("alternating_towers.rhai");
+    let strings: Vec<_> = m.strings().collect();
+    assert_eq!(strings.len(), 2 * 24 * 60);
+    for (k, turn) in strings.chunks(60).enumerate() {
+        let left = k % 2 == 0;
+        for s in turn {
+            assert_eq!(s.end.x < centre, left, "turn {k}: {s:?}");
+        }
+        // Tower turns rise together: turn k of either tower starts at the same height.
+        let z = 0.2 + (k / 2) as f64 * 0.3;
+        assert!((turn[0].start.z - z).abs() < 1e-9, "turn {k}");
+    }
+    // One travel between consecutive turns (47) plus the first approach.
+    let travels = g.lines().filter(|l| l.starts_with("G0")).count();
+    assert!(travels >= 47, "{travels} travels");
+    let rep = check(&m, &p, &CheckOptions::default());
+    assert!(rep.is_clean(), "{:?}", rep.issues);
 }
 
 #[test]
