@@ -31,6 +31,17 @@ fn prog() -> impl Strategy<Value = Prog> {
             let z = 0.2 * (l + 1) as f32;
             items.push(Item::Move([x, y, z, e], 10.0));
             for &(nx, ny, f, extrude, kind) in moves {
+                // Now and then a command that waits for the motion: G4, M400, or G28 X Y
+                // (the head then continues from the home corner).
+                if kind == 5 && f < 20.0 {
+                    items.push(Item::Dwell(40));
+                } else if kind == 5 && f < 35.0 {
+                    items.push(Item::Sync);
+                } else if kind == 5 && f < 45.0 {
+                    items.push(Item::Home(0b011));
+                    x = 0.0;
+                    y = 0.0;
+                }
                 if kind == 0 {
                     // retract and prime (E-only moves), as slicers do around travel
                     e -= 1.0;
@@ -172,6 +183,15 @@ fn check(items: &[Item], policy: Policy, mode: PauseMode, frac_permille: u64, wa
             .iter()
             .position(|x| matches!(x, Record::Stopped { .. }))
             .unwrap();
+        // A request during G28 waits for the homing move to finish (the defined answer, see
+        // pause_edges.rs): the braking bound is about job moves.
+        let homing_after_req = r.records[..stop_idx].iter().any(|x| {
+            matches!(*x, Record::Executed { kind: firmware::planner::BlockKind::Homing, t_us, .. }
+                if t_us * 1000 > req_ns)
+        });
+        if homing_after_req {
+            return;
+        }
         // Job blocks in order: (t_us, seq, segs, end position, after the stop?).
         let recs: Vec<(u64, u32, u32, StepPos, bool)> = r
             .records
@@ -186,6 +206,13 @@ fn check(items: &[Item], policy: Policy, mode: PauseMode, frac_permille: u64, wa
                     pos,
                     ..
                 } => Some((t_us, seq, segs, pos, i > stop_idx)),
+                // Homing moves only anchor where the next job move starts.
+                Record::Executed {
+                    kind: firmware::planner::BlockKind::Homing,
+                    t_us,
+                    pos,
+                    ..
+                } => Some((t_us, u32::MAX, 1, pos, i > stop_idx)),
                 _ => None,
             })
             .collect();

@@ -13,6 +13,12 @@ pub enum Item {
     Move([f32; 4], f32),
     /// Layer mark.
     Layer(u32),
+    /// G4: dwell this many ms once the moves before it have run.
+    Dwell(u32),
+    /// M400: wait for the moves before it.
+    Sync,
+    /// G28 of the axes in the mask (bit 0 X, 1 Y, 2 Z).
+    Home(u8),
 }
 
 /// What a run produced.
@@ -64,6 +70,9 @@ pub fn commands(cfg: &MachineConfig, items: &[Item]) -> Vec<Command> {
                 z_um: None,
                 source: LayerSource::Comment,
             }),
+            Item::Dwell(ms) => Command::Dwell { ms },
+            Item::Sync => Command::Sync,
+            Item::Home(mask) => Command::Home { mask },
         })
         .collect()
 }
