@@ -92,26 +92,49 @@ const DIGITS2: &[u8; 200] = b"0001020304050607080910111213141516171819\
 6061626364656667686970717273747576777879\
 8081828384858687888990919293949596979899";
 
-/// Writes the decimal digits of `v` right-aligned ending at `end`; returns the first index.
+/// Writes the decimal digits of `v` right-aligned ending at `end` of `dst`; returns the
+/// first index. `dst` must have room (20 digits at most).
 #[inline]
-fn digits_into(tmp: &mut [u8; 48], mut end: usize, mut v: u64) -> usize {
+fn digits_into(dst: &mut [u8], mut end: usize, mut v: u64) -> usize {
     while v >= 100 {
         let d = (v % 100) as usize * 2;
         v /= 100;
         end -= 2;
-        tmp[end] = DIGITS2[d];
-        tmp[end + 1] = DIGITS2[d + 1];
+        dst[end] = DIGITS2[d];
+        dst[end + 1] = DIGITS2[d + 1];
     }
     if v >= 10 {
         let d = v as usize * 2;
         end -= 2;
-        tmp[end] = DIGITS2[d];
-        tmp[end + 1] = DIGITS2[d + 1];
+        dst[end] = DIGITS2[d];
+        dst[end + 1] = DIGITS2[d + 1];
     } else {
         end -= 1;
-        tmp[end] = b'0' + v as u8;
+        dst[end] = b'0' + v as u8;
     }
     end
+}
+
+/// Number of decimal digits of `v` (1 for 0).
+#[inline]
+fn digit_count(mut v: u64) -> usize {
+    let mut n = 1;
+    while v >= 100 {
+        v /= 100;
+        n += 2;
+    }
+    n + usize::from(v >= 10)
+}
+
+/// Opens `WIDTH` bytes at the end of `buf` (one constant-size store) for a number to be
+/// written in place; the caller cuts it back to the number's length. Writing the digits
+/// straight into the output avoids copying them from a stack buffer just written byte by
+/// byte (a store-forwarding stall per number in profiles).
+#[inline]
+fn open_slot<const WIDTH: usize>(buf: &mut Vec<u8>) -> usize {
+    let old = buf.len();
+    buf.extend_from_slice(&[b'0'; WIDTH]);
+    old
 }
 
 /// Appends the integer `n` scaled by 10^-`decimals` (trailing zeros trimmed): the whole
@@ -152,8 +175,7 @@ const MILLI: [(u8, [u8; 4]); 1000] = {
 };
 
 /// `push_scaled(buf, n, 3)`, the writer's usual case (millimetres to the micrometre): the
-/// integer part two digits at a time, the fraction from a table, appended with one
-/// fixed-size copy.
+/// integer part two digits at a time, the fraction from a table, written in place.
 #[inline]
 fn push_milli(buf: &mut Vec<u8>, n: i64) {
     let a = n.unsigned_abs();
@@ -161,40 +183,38 @@ fn push_milli(buf: &mut Vec<u8>, n: i64) {
     if int >= 10_000 {
         return push_scaled_const::<3>(buf, n);
     }
-    let mut tmp = [0u8; 16];
+    let old = open_slot::<16>(buf);
+    let dst = &mut buf[old..];
     let mut i = 0;
     if n < 0 {
-        tmp[0] = b'-';
+        dst[0] = b'-';
         i = 1;
     }
     let int = int as usize;
     if int >= 100 {
         let hi = if int >= 1000 {
-            tmp[i] = b'0' + (int / 1000) as u8;
+            dst[i] = b'0' + (int / 1000) as u8;
             i += 1;
             int / 100 % 10
         } else {
             int / 100
         };
-        tmp[i] = b'0' + hi as u8;
+        dst[i] = b'0' + hi as u8;
         let lo = int % 100 * 2;
-        tmp[i + 1] = DIGITS2[lo];
-        tmp[i + 2] = DIGITS2[lo + 1];
+        dst[i + 1] = DIGITS2[lo];
+        dst[i + 2] = DIGITS2[lo + 1];
         i += 3;
     } else if int >= 10 {
-        tmp[i] = DIGITS2[int * 2];
-        tmp[i + 1] = DIGITS2[int * 2 + 1];
+        dst[i] = DIGITS2[int * 2];
+        dst[i + 1] = DIGITS2[int * 2 + 1];
         i += 2;
     } else {
-        tmp[i] = b'0' + int as u8;
+        dst[i] = b'0' + int as u8;
         i += 1;
     }
     let (len, frac) = MILLI[(a % 1000) as usize];
-    tmp[i..i + 4].copy_from_slice(&frac);
+    dst[i..i + 4].copy_from_slice(&frac);
     i += len as usize;
-    // A constant-size copy (no call into memcpy), then cut back to the number's length.
-    let old = buf.len();
-    buf.extend_from_slice(&tmp);
     buf.truncate(old + i);
 }
 
@@ -203,39 +223,43 @@ fn push_scaled_const<const D: u32>(buf: &mut Vec<u8>, n: i64) {
     push_scaled_with(buf, n, D, const { 10u64.pow(D) })
 }
 
-/// `push_scaled` for `scale` = 10^`decimals` (`decimals` ≤ 18).
+/// `push_scaled` for `scale` = 10^`decimals` (`decimals` ≤ 18), written in place.
 #[inline(always)]
 fn push_scaled_with(buf: &mut Vec<u8>, n: i64, decimals: u32, scale: u64) {
-    let mut tmp = [0u8; 48];
     let a = n.unsigned_abs();
     let (int, mut frac) = (a / scale, a % scale);
     let mut d = decimals as usize;
-    let mut end = tmp.len();
-    if frac != 0 {
+    if frac == 0 {
+        d = 0;
+    } else {
         while frac % 10 == 0 {
             frac /= 10;
             d -= 1;
         }
-        // The fraction with its leading zeros (d digits), then the point.
-        let start = digits_into(&mut tmp, end, frac);
-        for slot in tmp[end - d..start].iter_mut() {
-            *slot = b'0';
-        }
+    }
+    let len = usize::from(n < 0) + digit_count(int) + if d > 0 { d + 1 } else { 0 };
+    // Sign + 20 integer digits + point + 18 decimals fit in 48.
+    let old = open_slot::<48>(buf);
+    let dst = &mut buf[old..];
+    let mut end = len;
+    if d > 0 {
+        // The fraction's leading zeros are the slot's '0's.
+        digits_into(dst, end, frac);
         end -= d + 1;
-        tmp[end] = b'.';
+        dst[end] = b'.';
     }
-    let mut start = digits_into(&mut tmp, end, int);
+    digits_into(dst, end, int);
     if n < 0 {
-        start -= 1;
-        tmp[start] = b'-';
+        dst[0] = b'-';
     }
-    buf.extend_from_slice(&tmp[start..]);
+    buf.truncate(old + len);
 }
 
 fn push_u64(buf: &mut Vec<u8>, v: u64) {
-    let mut tmp = [0u8; 48];
-    let start = digits_into(&mut tmp, 48, v);
-    buf.extend_from_slice(&tmp[start..]);
+    let len = digit_count(v);
+    let old = open_slot::<24>(buf);
+    digits_into(&mut buf[old..], len, v);
+    buf.truncate(old + len);
 }
 
 /// The G-code writer for one profile.
@@ -347,9 +371,14 @@ impl<'p> GcodeWriter<'p> {
         let mut motion_seen = false;
         for item in emission.by_ref() {
             let step = match item {
-                Item::Str(s) => {
+                Item::Str(s, len) => {
                     motion_seen = true;
-                    self.emit_string(buf, &mut st, &s, scale, &mut sum);
+                    self.emit_string(buf, &mut st, &s, Some(len), scale, &mut sum);
+                    continue;
+                }
+                Item::Ref(s, len) => {
+                    motion_seen = true;
+                    self.emit_string(buf, &mut st, s, Some(len), scale, &mut sum);
                     continue;
                 }
                 Item::Step(step) => step,
@@ -357,7 +386,7 @@ impl<'p> GcodeWriter<'p> {
             match step {
                 Step::String(s) => {
                     motion_seen = true;
-                    self.emit_string(buf, &mut st, s, scale, &mut sum);
+                    self.emit_string(buf, &mut st, s, None, scale, &mut sum);
                 }
                 Step::Travel { to, speed_mm_s } => {
                     motion_seen = true;
@@ -420,6 +449,7 @@ impl<'p> GcodeWriter<'p> {
         buf: &mut Vec<u8>,
         st: &mut State,
         s: &Str,
+        len: Option<f64>,
         scale: f64,
         sum: &mut WriteSummary,
     ) {
@@ -427,7 +457,7 @@ impl<'p> GcodeWriter<'p> {
         if st.pos.iter().zip(start_i).any(|(a, b)| *a != Some(b)) {
             self.travel(buf, st, s.start, None, scale, sum);
         }
-        let len = self.string(buf, st, s, scale);
+        let len = self.string(buf, st, s, len, scale);
         sum.strings += 1;
         sum.volume_mm3 += s.cross_mm2 * len;
     }
@@ -510,12 +540,19 @@ impl<'p> GcodeWriter<'p> {
         st.retracted = pull;
     }
 
-    /// Writes one string; returns its length, mm.
-    fn string(&self, buf: &mut Vec<u8>, st: &mut State, s: &Str, scale: f64) -> f64 {
+    /// Writes one string (`len`: its length when already known); returns its length, mm.
+    fn string(
+        &self,
+        buf: &mut Vec<u8>,
+        st: &mut State,
+        s: &Str,
+        len: Option<f64>,
+        scale: f64,
+    ) -> f64 {
         if st.retracted {
             self.retract(buf, st, scale, false);
         }
-        let len = s.len_mm();
+        let len = len.unwrap_or_else(|| s.len_mm());
         st.e_total += s.cross_mm2 * len / st.area;
         match s.arc {
             Some(a) => {
@@ -651,53 +688,59 @@ pub fn validate(model: &Model) -> Result<(), WriteError> {
 pub fn thin(steps: &[Step], min_len_mm: f64) -> Vec<Step> {
     Emission::new(steps, Some(min_len_mm))
         .map(|item| match item {
-            Item::Str(s) => Step::String(s),
+            Item::Str(s, _) => Step::String(s),
+            Item::Ref(s, _) => Step::String(*s),
             Item::Step(s) => s.clone(),
         })
         .collect()
 }
 
-/// A run of short strings being merged.
-struct Acc {
-    start: DVec3,
+/// A run of short strings being merged (the first one by reference: no copy per string).
+struct Acc<'a> {
+    first: &'a Str,
     end: DVec3,
     volume: f64,
     time: f64,
     len: f64,
     n: usize,
-    first: Str,
 }
 
-impl Acc {
-    fn new(st: &Str) -> Self {
+impl<'a> Acc<'a> {
+    fn new(st: &'a Str) -> Self {
         let l = st.len_mm();
         Acc {
-            start: st.start,
+            first: st,
             end: st.end,
             volume: st.cross_mm2 * l,
             time: l / st.speed_mm_s,
             len: l,
             n: 1,
-            first: *st,
         }
     }
 
-    /// The merged string.
-    fn finish(self) -> Str {
+    /// The merged string (or the run's only one) and its length (`Str::len_mm` of it,
+    /// computed once).
+    fn finish(self) -> Item<'a> {
         if self.n == 1 {
-            return self.first;
+            return Item::Ref(self.first, self.len);
         }
-        let chord = self.start.distance(self.end);
+        let start = self.first.start;
+        let chord = start.distance(self.end);
         if chord <= 1e-9 || self.time <= 0.0 {
-            return self.first;
+            return Item::Ref(self.first, self.first.len_mm());
         }
-        Str::line(self.start, self.end, self.volume / chord, chord / self.time)
+        Item::Str(
+            Str::line(start, self.end, self.volume / chord, chord / self.time),
+            chord,
+        )
     }
 }
 
-/// One step as written: a merged (or kept) string, or a step of the model as it is.
+/// One step as written: a merged string with its length, a string of the model with its
+/// length, or any other step of the model.
 enum Item<'a> {
-    Str(Str),
+    Str(Str, f64),
+    Ref(&'a Str, f64),
     Step(&'a Step),
 }
 
@@ -705,7 +748,7 @@ enum Item<'a> {
 struct Emission<'a> {
     steps: std::slice::Iter<'a, Step>,
     min_len_mm: Option<f64>,
-    acc: Option<Acc>,
+    acc: Option<Acc<'a>>,
     /// A step that ended a run, given out after the run's merged string.
     held: Option<&'a Step>,
     /// Strings of the model consumed so far.
@@ -733,7 +776,7 @@ impl<'a> Iterator for Emission<'a> {
         }
         loop {
             let Some(step) = self.steps.next() else {
-                return self.acc.take().map(|a| Item::Str(a.finish()));
+                return self.acc.take().map(Acc::finish);
             };
             if let Step::String(_) = step {
                 self.consumed_strings += 1;
@@ -745,7 +788,7 @@ impl<'a> Iterator for Emission<'a> {
                     return match self.acc.take() {
                         Some(a) => {
                             self.held = Some(step);
-                            Some(Item::Str(a.finish()))
+                            Some(a.finish())
                         }
                         None => Some(Item::Step(step)),
                     };
@@ -767,7 +810,7 @@ impl<'a> Iterator for Emission<'a> {
             }
             let done = self.acc.replace(Acc::new(st));
             if let Some(a) = done {
-                return Some(Item::Str(a.finish()));
+                return Some(a.finish());
             }
         }
     }
