@@ -589,9 +589,8 @@ fn resend_zero_before_connecting_is_ignored() {
     let ev = run(&mut s, 10_000, |_, _, _| {});
     assert_eq!(s.state(), &State::Done, "{ev:?}");
     assert!(
-        ev.iter().any(
-            |e| matches!(e, Event::Message(m) if m.contains("Resend: 0 before the connection"))
-        ),
+        ev.iter()
+            .any(|e| matches!(e, Event::Note(m) if m.contains("Resend: 0 before the connection"))),
         "{ev:?}"
     );
     // The leftover `ok` was not taken for the probe's: M115 was answered and the layer pause
@@ -620,7 +619,7 @@ fn resend_of_an_acknowledged_line_resyncs_without_duplicates() {
     assert!(ev.contains(&Event::Resend(1)), "{ev:?}");
     assert!(
         ev.iter()
-            .any(|e| matches!(e, Event::Message(m) if m.contains("N9 M110"))),
+            .any(|e| matches!(e, Event::Note(m) if m.contains("N9 M110"))),
         "{ev:?}"
     );
     let p = s.port();

@@ -380,6 +380,7 @@ impl Driver {
                 self.log(now, "resumed".into());
             }
             Event::Message(m) => self.log(now, format!("printer: {m}")),
+            Event::Note(m) => self.log(now, format!("note: {m}")),
             Event::PrinterError(e) => self.log(now, format!("printer error: {e}")),
             Event::Resend(n) => self.log(now, format!("resend from line {n}")),
             Event::Action(a) => self.log(now, format!("action: {a:?}")),

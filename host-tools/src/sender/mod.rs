@@ -148,8 +148,10 @@ pub enum Event {
     Paused(Option<usize>),
     /// Resumed.
     Resumed,
-    /// An `echo:` line, notification or other message.
+    /// An `echo:` line or `//action:notification` from the printer.
     Message(String),
+    /// The sender's own note (a request ignored, a resend decision, the speed-up...).
+    Note(String),
     /// An `Error:` line from the printer.
     PrinterError(String),
     /// The printer asked for a resend.
@@ -569,7 +571,7 @@ impl<P: Read + Write> Session<P> {
             Request::PauseAtLayer | Request::PauseNow => {
                 if !matches!(self.state, State::Printing) {
                     self.events
-                        .push(Event::Message("pause ignored: not printing".to_string()));
+                        .push(Event::Note("pause ignored: not printing".to_string()));
                     return Ok(());
                 }
                 self.pause_requested_at = Some(now);
@@ -589,7 +591,7 @@ impl<P: Read + Write> Session<P> {
                         self.write_realtime("M25", true)?;
                     } else if self.opts.host_pause.speedup_factor > 1.0 {
                         let hp = &self.opts.host_pause;
-                        self.events.push(Event::Message(format!(
+                        self.events.push(Event::Note(format!(
                             "the rest of the layer runs up to ×{} (extrusion up to {} mm³/s)",
                             hp.speedup_factor, hp.max_volumetric_mm3_s
                         )));
@@ -601,7 +603,7 @@ impl<P: Read + Write> Session<P> {
             Request::Resume => {
                 let State::Paused { prompt, .. } = &self.state else {
                     self.events
-                        .push(Event::Message("resume ignored: not paused".to_string()));
+                        .push(Event::Note("resume ignored: not paused".to_string()));
                     return Ok(());
                 };
                 let mut next = State::Printing;
@@ -730,7 +732,7 @@ impl<P: Read + Write> Session<P> {
                     .resume_requested_at
                     .is_some_and(|t| now.saturating_sub(t) > RESUME_WAIT)
                 {
-                    self.events.push(Event::Message(format!(
+                    self.events.push(Event::Note(format!(
                         "no //action:resumed after {} s: streaming again",
                         RESUME_WAIT.as_secs()
                     )));
@@ -766,7 +768,7 @@ impl<P: Read + Write> Session<P> {
             ));
             return Ok(());
         }
-        self.events.push(Event::Message(format!(
+        self.events.push(Event::Note(format!(
             "no ok for line {line} within {} s: resending it",
             self.opts.ok_timeout.as_secs()
         )));
@@ -945,7 +947,7 @@ impl<P: Read + Write> Session<P> {
                     self.resend_from = None;
                     self.history.clear();
                     self.caps = Capabilities::default();
-                    self.events.push(Event::Message(
+                    self.events.push(Event::Note(
                         "the printer restarted while connecting: connecting again".into(),
                     ));
                 }
@@ -1054,7 +1056,7 @@ impl<P: Read + Write> Session<P> {
     /// Before the printer has answered the connection probe there is nothing to resend: ignored.
     fn on_resend(&mut self, n: u32) -> std::io::Result<()> {
         if self.state == State::Connecting {
-            self.events.push(Event::Message(format!(
+            self.events.push(Event::Note(format!(
                 "Resend: {n} before the connection was made: ignored"
             )));
             return Ok(());
@@ -1067,7 +1069,7 @@ impl<P: Read + Write> Session<P> {
         if n == self.next_no && self.suspect.is_none() {
             self.acked = n - 1;
             self.resend_from = None;
-            self.events.push(Event::Message(format!(
+            self.events.push(Event::Note(format!(
                 "the printer asked for line {n}, which is not sent yet: nothing to resend"
             )));
             return Ok(());
@@ -1075,7 +1077,7 @@ impl<P: Read + Write> Session<P> {
         if n > 0 && n <= self.acked && self.acked - n < ACK_DOUBT {
             self.acked = n - 1;
             self.resend_from = Some(n);
-            self.events.push(Event::Message(format!(
+            self.events.push(Event::Note(format!(
                 "the printer asked again for line {n}, taken as acknowledged (a doubled ok, or \
                  a refusal garbled on the wire?): resending from it"
             )));
@@ -1092,7 +1094,7 @@ impl<P: Read + Write> Session<P> {
             // set the counter only if the printer keeps asking for the same line.
             self.suspect = Some((n, seen));
             self.resend_from = (k + 1 < self.next_no).then_some(k + 1);
-            self.events.push(Event::Message(format!(
+            self.events.push(Event::Note(format!(
                 "the printer asked for line {n}, but it had acknowledged every line up to {k}: \
                  resending from line {}",
                 k + 1
@@ -1100,7 +1102,7 @@ impl<P: Read + Write> Session<P> {
             return Ok(());
         }
         self.suspect = None;
-        self.events.push(Event::Message(format!(
+        self.events.push(Event::Note(format!(
             "the printer asked for line {n}, but it had acknowledged every line up to {k}: \
              asked {RESYNC_AFTER} times: its line counter is out of step (reset or M110?); setting it back \
              with N{k} M110 and resending from line {}",
