@@ -665,6 +665,33 @@ mod tests {
         assert_eq!(e.err().map(|e| e.line), Some(2));
     }
 
+    proptest::proptest! {
+        #[test]
+        fn any_bytes_read_without_panic(bytes in proptest::collection::vec(proptest::num::u8::ANY, 0..400)) {
+            let mut n = 0usize;
+            let _ = default_reader().read(&bytes, &mut |_| n += 1);
+        }
+
+        #[test]
+        fn gcode_like_lines_read_without_panic(
+            lines in proptest::collection::vec(
+                "(N[0-9]{1,3} )?(G[0-3]|G28|G9[012]|M8[23]|G4|M204|;LAYER_CHANGE|;Z:[0-9.]{1,4})( [XYZEFIJRPST]-?[0-9]{0,4}(\\.[0-9]{0,3})?){0,5}(\\*[0-9]{1,3})?",
+                0..40,
+            )
+        ) {
+            let text = lines.join("\n");
+            let r = default_reader().read(text.as_bytes(), &mut |e| {
+                if let Event::Move { from, to, feed_mm_s, .. } = e {
+                    assert!(from.iter().chain(&to).all(|v| v.is_finite()), "{from:?} {to:?}");
+                    assert!(feed_mm_s > 0.0);
+                }
+            });
+            if let Err(e) = r {
+                proptest::prop_assert!(e.line >= 1 && e.line as usize <= lines.len().max(1));
+            }
+        }
+    }
+
     #[test]
     fn garbage_is_an_error_with_line() {
         let e = default_reader().read(b"G1 X1\nG1 X#\n", &mut |_| {});
