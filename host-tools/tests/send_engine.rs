@@ -784,3 +784,25 @@ fn host_side_cuts_arcs_into_short_chords() {
         assert!((got - want).abs() < 1e-6, "{:?}", m.pos_mm);
     }
 }
+
+/// `--speedup`/`--max-flow` reach our firmware as `M760 S<f> V<v>` right after M115 (its own
+/// speed-up then uses them); a stock printer never gets M760 (the sender applies them itself).
+#[test]
+fn firmware_setup_lines_go_to_our_firmware_only() {
+    let o = Options {
+        firmware_setup: vec!["M760 S2 V10".into()],
+        ..opts()
+    };
+    let printer = FakePrinter {
+        layer_pause_cap: true,
+        ..Default::default()
+    };
+    let mut s = Session::new(printer, square_job(), o.clone());
+    run(&mut s, 10_000, |_, _, _| {});
+    assert_eq!(s.state(), &State::Done);
+    assert_eq!(s.port().executed[..2], ["M115", "M760 S2 V10"]);
+    let mut s = Session::new(FakePrinter::default(), square_job(), o);
+    run(&mut s, 50_000, |_, _, _| {});
+    assert_eq!(s.state(), &State::Done);
+    assert!(!s.port().executed.iter().any(|l| l.starts_with("M760")));
+}
