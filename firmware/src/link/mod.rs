@@ -523,6 +523,16 @@ fn classify(buf: &[u8], overlong: bool) -> Verdict {
             if checksum(raw.get(..star).unwrap_or(&[])) != cs {
                 return Verdict::Reject("checksum mismatch", n.is_some());
             }
+            // Two lines merged by a lost line end (`N19 M400*31` + its own resend): the XOR of
+            // the repeated text cancels and the sum of the merge can be right. A checksum-like
+            // `*<digit>` inside the text is refused as Marlin does (it checks up to the first
+            // `*`), so the host resends instead of the line being lost.
+            if body
+                .windows(2)
+                .any(|w| w[0] == b'*' && w[1].is_ascii_digit())
+            {
+                return Verdict::Reject("checksum mismatch", n.is_some());
+            }
         }
         (None, None) => {}
     }

@@ -1310,9 +1310,11 @@ impl<P: Read + Write> Session<P> {
             if code.is_empty() {
                 // Our firmware's layer detector reads slicer comments: send comment-only lines
                 // (layer markers are short; long comments such as the slicer's settings dump
-                // are skipped).
+                // are skipped, and so are comments with a `*`, which the link would take for
+                // a merged checksum and refuse).
                 if self.method == Some(PauseMethod::Firmware)
                     && trimmed.starts_with(';')
+                    && !trimmed.contains('*')
                     && frame(self.next_no, trimmed).len() < cap
                 {
                     let line = trimmed.to_string();
