@@ -83,6 +83,7 @@ impl Sim {
             .expect("device path");
         let device = line.trim().to_string();
         assert!(device.starts_with("/dev/"), "sim printed {device:?}");
+        let device = reachable(&device, child.id());
         Sim {
             child,
             device,
@@ -117,6 +118,24 @@ impl Drop for Sim {
             let _ = self.child.wait();
         }
     }
+}
+
+/// The device path, or, where this sandbox's /dev/pts does not show the pseudo-terminal (some
+/// container setups), the sim's own open descriptor of it under /proc, which opens the same
+/// terminal.
+fn reachable(device: &str, pid: u32) -> String {
+    if Path::new(device).exists() {
+        return device.to_string();
+    }
+    let dir = format!("/proc/{pid}/fd");
+    if let Ok(entries) = std::fs::read_dir(&dir) {
+        for e in entries.flatten() {
+            if std::fs::read_link(e.path()).is_ok_and(|t| t == Path::new(device)) {
+                return e.path().display().to_string();
+            }
+        }
+    }
+    device.to_string()
 }
 
 fn send(device: &str, args: &[&str]) -> (bool, String) {
