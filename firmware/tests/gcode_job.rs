@@ -5,6 +5,22 @@ mod support;
 use firmware::printer::Record;
 use support::*;
 
+/// The runs `parts`, one after the other, executed the same job blocks to the same positions as
+/// `base`, and ended where it did.
+fn assert_same_job(parts: &[&support::Run], base: &support::Run) {
+    let executed: Vec<_> = parts
+        .iter()
+        .flat_map(|r| r.executed.iter().copied())
+        .collect();
+    let job_pos: Vec<_> = parts
+        .iter()
+        .flat_map(|r| r.job_pos.iter().copied())
+        .collect();
+    assert_eq!(executed, base.executed);
+    assert_eq!(job_pos, base.job_pos);
+    assert_eq!(parts.last().map(|r| r.end), Some(base.end));
+}
+
 fn job() -> Vec<String> {
     let mut v = vec![
         "M83".to_string(),
@@ -185,13 +201,7 @@ fn job_lines_sent_while_paused_queue_behind_the_barrier() {
     assert!(r2.executed.is_empty());
     p.request(firmware::motion::Realtime::Resume, 300_000_000);
     let r3 = run_gcode(&mut p, third, &[], 900_000_000);
-    let mut executed = r1.executed.clone();
-    executed.extend(r3.executed.iter().copied());
-    let mut job_pos = r1.job_pos.clone();
-    job_pos.extend(r3.job_pos.iter().copied());
-    assert_eq!(executed, base.executed);
-    assert_eq!(job_pos, base.job_pos);
-    assert_eq!(r3.end, base.end);
+    assert_same_job(&[&r1, &r3], &base);
 }
 
 #[test]
@@ -238,13 +248,7 @@ fn manual_policy_job_lines_during_the_return_keep_the_job_state() {
     p.request(firmware::motion::Realtime::Resume, 210_000_000);
     let r3 = run_gcode(&mut p, rest, &[], 900_000_000);
     assert!(!r3.out.contains("Error"), "{}", r3.out);
-    let mut executed = r1.executed.clone();
-    executed.extend(r3.executed.iter().copied());
-    let mut job_pos = r1.job_pos.clone();
-    job_pos.extend(r3.job_pos.iter().copied());
-    assert_eq!(executed, base.executed);
-    assert_eq!(job_pos, base.job_pos);
-    assert_eq!(r3.end, base.end);
+    assert_same_job(&[&r1, &r3], &base);
 }
 
 #[test]

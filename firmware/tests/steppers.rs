@@ -11,17 +11,22 @@ fn send(p: &mut Printer, line: &str, now_us: u64) {
     p.poll(now_us);
 }
 
+/// One 1 ms main-loop tick: poll, then take the step events due by its end.
+fn tick(p: &mut Printer, now_us: u64) -> u64 {
+    p.poll(now_us);
+    while let Some(t) = p.next_step_ns() {
+        if t > (now_us + 1000) * 1000 {
+            break;
+        }
+        p.next_step();
+    }
+    now_us + 1000
+}
+
 /// Poll and step until nothing moves; returns the time reached, µs.
 fn drain(p: &mut Printer, mut now_us: u64) -> u64 {
     for _ in 0..100_000 {
-        p.poll(now_us);
-        while let Some(t) = p.next_step_ns() {
-            if t > (now_us + 1000) * 1000 {
-                break;
-            }
-            p.next_step();
-        }
-        now_us += 1000;
+        now_us = tick(p, now_us);
         if p.next_step_ns().is_none() && p.status().queue_depth == 0 {
             p.poll(now_us);
             break;
@@ -123,14 +128,7 @@ fn steppers_off_lose_the_position_until_homed_and_the_pause_does_not_park_there(
 fn drain_until(p: &mut Printer, mut now_us: u64, us: u64) -> u64 {
     let end = now_us + us;
     while now_us < end {
-        p.poll(now_us);
-        while let Some(t) = p.next_step_ns() {
-            if t > (now_us + 1000) * 1000 {
-                break;
-            }
-            p.next_step();
-        }
-        now_us += 1000;
+        now_us = tick(p, now_us);
     }
     now_us
 }

@@ -421,26 +421,30 @@ fn reports(
         lost_moves += usize::from(missing > 0);
         dup_moves += usize::from(dups > 0);
     }
+    // What every record of the session shares.
+    let base = PauseReport {
+        policy: sc.policy.name().into(),
+        lost_moves,
+        duplicated_moves: dup_moves,
+        lost_segments: lost_segs,
+        duplicated_segments: dup_segs,
+        executed_in_order: lost_segs == 0 && dup_segs == 0,
+        print_time_s: end_us.saturating_sub(t0_us) as f64 * 1e-6,
+        finished: fw.status().state == RunState::Idle,
+        steps: rec.steps,
+        ..PauseReport::default()
+    };
     let mut out: Vec<PauseReport> = pauses
         .iter()
         .map(|p| {
             let mut r = PauseReport {
-                policy: sc.policy.name().into(),
                 mode: match p.mode {
                     Some(PauseMode::Now) => "now".into(),
                     _ => "layer".into(),
                 },
                 request_s: Some(p.t_req_us as f64 * 1e-6),
-                lost_moves,
-                duplicated_moves: dup_moves,
-                lost_segments: lost_segs,
-                duplicated_segments: dup_segs,
-                executed_in_order: lost_segs == 0 && dup_segs == 0,
-                print_time_s: end_us.saturating_sub(t0_us) as f64 * 1e-6,
-                finished: fw.status().state == RunState::Idle,
-                steps: rec.steps,
                 parked_s: p.parked_us.map(|t| t as f64 * 1e-6),
-                ..PauseReport::default()
+                ..base.clone()
             };
             if let Some((t_stop, pos, layer, mid)) = p.stopped {
                 r.stop_s = Some(t_stop.saturating_sub(p.t_req_us) as f64 * 1e-6);
@@ -485,18 +489,6 @@ fn reports(
             r
         })
         .collect();
-    let base = PauseReport {
-        policy: sc.policy.name().into(),
-        lost_moves,
-        duplicated_moves: dup_moves,
-        lost_segments: lost_segs,
-        duplicated_segments: dup_segs,
-        executed_in_order: lost_segs == 0 && dup_segs == 0,
-        print_time_s: end_us.saturating_sub(t0_us) as f64 * 1e-6,
-        finished: fw.status().state == RunState::Idle,
-        steps: rec.steps,
-        ..PauseReport::default()
-    };
     out.extend(host_stops(pauses, rec, fw, &base));
     out
 }

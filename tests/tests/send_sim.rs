@@ -189,6 +189,16 @@ fn final_position(job: &Job) -> [i32; 4] {
     m.position_steps(&cfg)
 }
 
+/// Where the firmware's machine state is after every line before layer `n` of `job`.
+fn position_before_layer(job: &Job, n: usize) -> [i32; 4] {
+    final_position(&Job {
+        start: job.start.clone(),
+        layers: job.layers[..n].to_vec(),
+        end: vec![],
+        warnings: vec![],
+    })
+}
+
 /// Total motor steps (all axes) the firmware's machine state commands for a job.
 fn commanded_steps(job: &Job) -> u64 {
     let cfg = MachineConfig::ENDER3;
@@ -246,13 +256,7 @@ fn send_pauses_at_a_layer_swaps_the_infill_and_finishes() {
     // The head stopped exactly where layer 11 ends: the position the firmware's machine state
     // commands after every line before layer 12's mark.
     let base = load(BASE);
-    let before = Job {
-        start: base.start.clone(),
-        layers: base.layers[..12].to_vec(),
-        end: vec![],
-        warnings: vec![],
-    };
-    let want_stop = final_position(&before);
+    let want_stop = position_before_layer(&base, 12);
     let p = &r["pause_point_steps"];
     for (i, w) in want_stop.iter().enumerate().take(3) {
         assert_eq!(p[i].as_i64(), Some(i64::from(*w)), "axis {i}: {r}");
@@ -330,13 +334,7 @@ fn send_fallback_on_fifo_firmware_pauses_at_the_layer_end() {
     assert_eq!(r["finished"], true, "{r}");
     // The stop point is where the firmware's machine state is after every line of layer 11.
     let base = load(BASE);
-    let before = Job {
-        start: base.start.clone(),
-        layers: base.layers[..12].to_vec(),
-        end: vec![],
-        warnings: vec![],
-    };
-    let want_stop = final_position(&before);
+    let want_stop = position_before_layer(&base, 12);
     let p = &r["pause_point_steps"];
     for (i, w) in want_stop.iter().enumerate().take(2) {
         assert_eq!(p[i].as_i64(), Some(i64::from(*w)), "axis {i}: {r}");
