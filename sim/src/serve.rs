@@ -277,7 +277,17 @@ pub fn serve_with(
     }
     drop(slave);
     let end_us = rec.last_step_us;
-    let reports = reports(&pauses, &rec, &fw, &sc, first_byte_us.unwrap_or(0), end_us);
+    let mut reports = reports(&pauses, &rec, &fw, &sc, first_byte_us.unwrap_or(0), end_us);
+    // Wall time of the session and virtual time per wall second (≈ `--speed`).
+    let wall_s = start.elapsed().as_secs_f64();
+    for r in &mut reports {
+        r.sim_wall_s = wall_s;
+        r.realtime_factor = if wall_s > 0.0 {
+            end_us as f64 * 1e-6 / wall_s
+        } else {
+            0.0
+        };
+    }
     if let Some(p) = &a.record {
         std::fs::write(p, serde_json::to_string_pretty(&reports)?)
             .with_context(|| format!("writing {}", p.display()))?;
