@@ -62,13 +62,8 @@ fn gcode_job_pause_resume_via_link() {
     assert_eq!(r.job_pos, base.job_pos);
     assert_eq!(r.end, base.end);
     // Layer-mode stop: at a layer boundary, not mid-block.
-    let stop = r.records.iter().find_map(|x| match *x {
-        Record::Stopped {
-            layer, mid_block, ..
-        } => Some((layer, mid_block)),
-        _ => None,
-    });
-    let (layer, mid) = stop.expect("stopped");
+    let stop = r.stop().expect("stopped");
+    let (layer, mid) = (stop.layer, stop.mid_block);
     assert!(!mid);
     assert!(layer.is_some());
 }
@@ -112,11 +107,7 @@ fn m600_in_the_job_pauses_there_and_resumes() {
         "{}",
         r.out
     );
-    let stop = r.records.iter().find_map(|x| match *x {
-        Record::Stopped { pos, .. } => Some(pos),
-        _ => None,
-    });
-    assert_eq!(stop, Some([3200, 1600, 80, 93]));
+    assert_eq!(r.stop().map(|s| s.pos), Some([3200, 1600, 80, 93]));
     // Nothing after the M600 ran yet.
     assert!(r.executed.iter().all(|e| e.0 <= 4), "{:?}", r.executed);
     p.request(firmware::motion::Realtime::Resume, 70_000_000);
@@ -154,17 +145,10 @@ fn layer_pause_during_start_heater_wait_then_homing() {
         "{}",
         r.out
     );
-    let stop = r.records.iter().find_map(|x| match *x {
-        Record::Stopped { layer, .. } => Some(layer),
-        _ => None,
-    });
-    assert_eq!(stop, Some(Some(0)), "stopped at the first layer boundary");
+    let stop = r.stop().expect("stopped");
+    assert_eq!(stop.layer, Some(0), "stopped at the first layer boundary");
     // The start code ran (homing, Z up 15 mm); the job's first layer did not.
-    let stop_pos = r.records.iter().find_map(|x| match *x {
-        Record::Stopped { pos, .. } => Some(pos),
-        _ => None,
-    });
-    assert_eq!(stop_pos, Some([0, 0, 6000, 0]));
+    assert_eq!(stop.pos, [0, 0, 6000, 0]);
 }
 
 #[test]
@@ -364,16 +348,14 @@ fn layer_pause_at_a_boundary_the_host_drained_with_m400_parks_there() {
     let t = r.end_us;
     let r2 = run_gcode(&mut p, &[], &[(t, "M25\n")], 120_000_000);
     assert!(r2.out.contains("//action:paused"), "{}", r2.out);
-    let stop = r2.records.iter().find_map(|x| match *x {
-        Record::Stopped {
-            layer,
-            mid_block,
-            pos,
-            ..
-        } => Some((layer, mid_block, pos)),
-        _ => None,
-    });
-    assert_eq!(stop, Some((Some(1), false, r.end)));
+    assert_eq!(
+        r2.stop(),
+        Some(Stop {
+            pos: r.end,
+            layer: Some(1),
+            mid_block: false
+        })
+    );
     // Much later, with nothing queued or moving, there is nothing to pause.
     p.request(firmware::motion::Realtime::Resume, 200_000_000);
     let r3 = run_gcode(&mut p, &["G1 X20 Y40 Z0.4 E3"], &[], 260_000_000);
@@ -403,12 +385,7 @@ fn layer_pause_when_the_host_stops_after_a_marker_reports_that_layer() {
     let mut p = printer();
     let r = run_gcode(&mut p, &lines, &[(300_000, "M25\n")], 60_000_000);
     assert!(r.out.contains("//action:paused"), "{}", r.out);
-    let stop = r.records.iter().find_map(|x| match *x {
-        Record::Stopped {
-            layer, mid_block, ..
-        } => Some((layer, mid_block)),
-        _ => None,
-    });
+    let stop = r.stop().map(|s| (s.layer, s.mid_block));
     assert_eq!(stop, Some((Some(1), false)));
     // The resumed job's next move gets no second mark for the same layer.
     p.request(firmware::motion::Realtime::Resume, 100_000_000);

@@ -357,14 +357,7 @@ fn scheduled_pause_met_by_a_pause_in_progress_is_not_repeated() {
         &[req(500_000, LAYER), req(20_000_000, Realtime::Resume)],
         120_000_000,
     );
-    let layers: Vec<Option<u32>> = r
-        .records
-        .iter()
-        .filter_map(|x| match *x {
-            Record::Stopped { layer, .. } => Some(layer),
-            _ => None,
-        })
-        .collect();
+    let layers: Vec<Option<u32>> = r.stops().iter().map(|s| s.layer).collect();
     assert_eq!(layers, vec![Some(1)], "{}", r.out);
     assert!(r.out.contains("scheduled pause met"), "{}", r.out);
     assert_eq!(p.scheduled_pause(), None);
@@ -398,14 +391,7 @@ fn schedule_due_during_a_pause_stops_at_its_layer_after_the_resume() {
         &[req(300_000, LAYER), req(20_000_000, Realtime::Resume)],
         120_000_000,
     );
-    let layers: Vec<Option<u32>> = r
-        .records
-        .iter()
-        .filter_map(|x| match *x {
-            Record::Stopped { layer, .. } => Some(layer),
-            _ => None,
-        })
-        .collect();
+    let layers: Vec<Option<u32>> = r.stops().iter().map(|s| s.layer).collect();
     assert_eq!(layers, vec![Some(1), Some(2)], "{}", r.out);
     assert_eq!(p.status().state, State::Paused);
     // Up to the scheduled stop the run matches the unpaused one (which stopped there too).

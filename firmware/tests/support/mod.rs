@@ -42,6 +42,44 @@ pub struct Run {
     pub req_times: Vec<u64>,
 }
 
+/// A stop the printer recorded for a pause.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Stop {
+    /// Where the head stopped, steps.
+    pub pos: StepPos,
+    /// The layer whose boundary it stopped at (None: mid-layer, now mode or job end).
+    pub layer: Option<u32>,
+    /// Stopped inside a block (feed hold).
+    pub mid_block: bool,
+}
+
+impl Run {
+    /// Every pause stop of the run, in order.
+    pub fn stops(&self) -> Vec<Stop> {
+        self.records
+            .iter()
+            .filter_map(|x| match *x {
+                Record::Stopped {
+                    pos,
+                    layer,
+                    mid_block,
+                    ..
+                } => Some(Stop {
+                    pos,
+                    layer,
+                    mid_block,
+                }),
+                _ => None,
+            })
+            .collect()
+    }
+
+    /// The first pause stop.
+    pub fn stop(&self) -> Option<Stop> {
+        self.stops().first().copied()
+    }
+}
+
 /// Convert mm to steps with the Ender-3 scale.
 pub fn to_steps(cfg: &MachineConfig, mm: [f32; 4]) -> StepPos {
     let mut s = [0i32; 4];
@@ -86,6 +124,39 @@ pub struct Req {
     pub req: Realtime,
 }
 
+/// One main-loop tick of `tick_us` from `now`: poll, take the step events due (tracing the
+/// position), collect the records into `r`; returns the host-link output of the tick.
+fn tick_once(p: &mut Printer, now: u64, tick_us: u64, r: &mut Run) -> String {
+    p.poll(now);
+    let until_ns = (now + tick_us) * 1000;
+    while let Some(t) = p.next_step_ns() {
+        if t > until_ns {
+            break;
+        }
+        let Some(_ev) = p.next_step() else { break };
+        r.trace.push((t, p.status().position));
+    }
+    while let Some(rec) = p.pop_record() {
+        if let Record::Executed {
+            seq,
+            seg,
+            kind,
+            pos,
+            ..
+        } = rec
+        {
+            if kind == BlockKind::Job {
+                r.executed.push((seq, seg));
+                r.job_pos.push(pos);
+            }
+        }
+        r.records.push(rec);
+    }
+    let mut s = String::new();
+    let _ = p.write_output(&mut s);
+    s
+}
+
 /// Drive a printer through `cmds`, issuing `reqs` at their times; poll every `tick_us`.
 pub fn run(p: &mut Printer, cmds: &[Command], reqs: &[Req], limit_us: u64) -> Run {
     let mut r = Run::default();
@@ -106,34 +177,7 @@ pub fn run(p: &mut Printer, cmds: &[Command], reqs: &[Req], limit_us: u64) -> Ru
             r.req_times.push(now);
             next_req += 1;
         }
-        p.poll(now);
-        // Steps up to the next tick.
-        let until_ns = (now + tick) * 1000;
-        while let Some(t) = p.next_step_ns() {
-            if t > until_ns {
-                break;
-            }
-            let Some(_ev) = p.next_step() else { break };
-            r.trace.push((t, p.status().position));
-        }
-        while let Some(rec) = p.pop_record() {
-            if let Record::Executed {
-                seq,
-                seg,
-                kind,
-                pos,
-                ..
-            } = rec
-            {
-                if kind == BlockKind::Job {
-                    r.executed.push((seq, seg));
-                    r.job_pos.push(pos);
-                }
-            }
-            r.records.push(rec);
-        }
-        let mut s = String::new();
-        let _ = p.write_output(&mut s);
+        let s = tick_once(p, now, tick, &mut r);
         r.out.push_str(&s);
         now += tick;
         let st = p.status().state;
@@ -186,33 +230,7 @@ pub fn run_gcode(p: &mut Printer, lines: &[&str], sends: &[(u64, &str)], limit_u
             oks_pending += 1;
             next_send += 1;
         }
-        p.poll(now);
-        let until_ns = (now + tick) * 1000;
-        while let Some(t) = p.next_step_ns() {
-            if t > until_ns {
-                break;
-            }
-            let Some(_ev) = p.next_step() else { break };
-            r.trace.push((t, p.status().position));
-        }
-        while let Some(rec) = p.pop_record() {
-            if let Record::Executed {
-                seq,
-                seg,
-                kind,
-                pos,
-                ..
-            } = rec
-            {
-                if kind == BlockKind::Job {
-                    r.executed.push((seq, seg));
-                    r.job_pos.push(pos);
-                }
-            }
-            r.records.push(rec);
-        }
-        let mut s = String::new();
-        let _ = p.write_output(&mut s);
+        let s = tick_once(p, now, tick, &mut r);
         for l in s.lines() {
             if l.starts_with("ok") {
                 if oks_pending > 0 {
