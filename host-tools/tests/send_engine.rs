@@ -2,6 +2,8 @@
 //! checksums, `ok` flow control, resends, errors, notifications, the firmware pause and the
 //! host-side fallback.
 
+mod common;
+
 use std::collections::VecDeque;
 use std::io::{Read, Write};
 use std::time::Duration;
@@ -181,14 +183,8 @@ impl FakePrinter {
 
 impl Write for FakePrinter {
     fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
-        for &b in buf {
-            if b == b'\n' {
-                let l = String::from_utf8_lossy(&self.inbuf).into_owned();
-                self.inbuf.clear();
-                self.on_line(&l);
-            } else {
-                self.inbuf.push(b);
-            }
+        for l in common::complete_lines(&mut self.inbuf, buf) {
+            self.on_line(&l);
         }
         Ok(buf.len())
     }
@@ -199,11 +195,7 @@ impl Write for FakePrinter {
 
 impl Read for FakePrinter {
     fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
-        let n = buf.len().min(self.out.len());
-        for b in buf.iter_mut().take(n) {
-            *b = self.out.pop_front().unwrap_or(b'\n');
-        }
-        Ok(n)
+        Ok(common::read_replies(&mut self.out, buf, usize::MAX))
     }
 }
 

@@ -4,6 +4,8 @@
 //! none skipped, none out of order — the session always ends (done, or failed with a message;
 //! never a silent stall), and when it ends done the printer ran the whole stream.
 
+mod common;
+
 use std::collections::VecDeque;
 use std::io::{Read, Write};
 use std::time::Duration;
@@ -163,14 +165,8 @@ impl Chaos {
 
 impl Write for Chaos {
     fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
-        for &b in buf {
-            if b == b'\n' {
-                let l = String::from_utf8_lossy(&self.inbuf).into_owned();
-                self.inbuf.clear();
-                self.on_line(&l);
-            } else {
-                self.inbuf.push(b);
-            }
+        for l in common::complete_lines(&mut self.inbuf, buf) {
+            self.on_line(&l);
         }
         Ok(buf.len())
     }
@@ -181,11 +177,7 @@ impl Write for Chaos {
 
 impl Read for Chaos {
     fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
-        let n = buf.len().min(self.out.len()).min(29);
-        for b in buf.iter_mut().take(n) {
-            *b = self.out.pop_front().unwrap_or(b'\n');
-        }
-        Ok(n)
+        Ok(common::read_replies(&mut self.out, buf, 29))
     }
 }
 
@@ -213,12 +205,7 @@ fn options(layer_pause: bool) -> Options {
 /// Runs a session to its end (at most `limit`), 100 ms per poll.
 fn run(faults: Vec<Fault>, layer_pause: bool, limit: Duration) -> Session<Chaos> {
     let mut s = Session::new(Chaos::new(faults, layer_pause), job(), options(layer_pause));
-    let mut now = Duration::ZERO;
-    while !s.finished() && now < limit {
-        s.poll(now).expect("in-memory port");
-        let _ = s.drain_events();
-        now += Duration::from_millis(100);
-    }
+    common::run_to_end(&mut s, limit);
     s
 }
 

@@ -4,6 +4,8 @@
 //! fault-free stream — no line twice, none skipped — the session always ends (done, or failed
 //! with a message), and a session that ends done delivered everything.
 
+mod common;
+
 use std::collections::VecDeque;
 use std::io::{Read, Write};
 use std::time::Duration;
@@ -138,11 +140,7 @@ impl Write for Board {
 impl Read for Board {
     fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
         self.run();
-        let n = buf.len().min(self.out.len()).min(31);
-        for b in buf.iter_mut().take(n) {
-            *b = self.out.pop_front().unwrap_or(b'\n');
-        }
-        Ok(n)
+        Ok(common::read_replies(&mut self.out, buf, 31))
     }
 }
 
@@ -163,12 +161,7 @@ fn run(to_board: Vec<Wire>, to_host: Vec<Wire>, limit: Duration) -> Session<Boar
         ..Options::default()
     };
     let mut s = Session::new(Board::new(to_board, to_host), job(), opts);
-    let mut now = Duration::ZERO;
-    while !s.finished() && now < limit {
-        s.poll(now).expect("in-memory port");
-        let _ = s.drain_events();
-        now += Duration::from_millis(100);
-    }
+    common::run_to_end(&mut s, limit);
     s
 }
 
