@@ -151,26 +151,31 @@ fn layer_pause_during_start_heater_wait_then_homing() {
     assert_eq!(stop.pos, [0, 0, 6000, 0]);
 }
 
+/// A job in relative coordinates: home, go to (20, 20), `G91` and `extra` lines, then `layers`
+/// layers of `rows` zigzag rows (±10 mm in X, 1 mm up in Y, 0.4 mm of E) and a travel back.
+fn relative_zigzag(extra: &[&str], layers: usize, rows: usize) -> Vec<String> {
+    let mut v: Vec<String> = ["G28", "G1 Z0.2 F600", "G1 X20 Y20 F6000", "G91"]
+        .iter()
+        .chain(extra)
+        .map(|l| l.to_string())
+        .collect();
+    for _ in 0..layers {
+        v.push(";LAYER_CHANGE".into());
+        v.push("G1 Z0.2 F600".into());
+        for k in 0..rows {
+            let dx = if k % 2 == 0 { 10 } else { -10 };
+            v.push(format!("G1 X{dx} Y1 E0.4 F1800"));
+        }
+        v.push(format!("G1 Y-{rows} F6000"));
+    }
+    v
+}
+
 #[test]
 fn job_lines_sent_while_paused_queue_behind_the_barrier() {
     // A long job in relative coordinates; the pause comes early, so most lines arrive while
     // the printer is pausing or paused and must keep their meaning.
-    let mut v = vec![
-        "G28".to_string(),
-        "G1 Z0.2 F600".to_string(),
-        "G1 X20 Y20 F6000".to_string(),
-        "G91".to_string(),
-    ];
-    for layer in 0..4 {
-        v.push(";LAYER_CHANGE".into());
-        v.push("G1 Z0.2 F600".into());
-        for k in 0..20 {
-            let (dx, dy) = if k % 2 == 0 { (10, 1) } else { (-10, 1) };
-            v.push(format!("G1 X{dx} Y{dy} E0.4 F1800"));
-        }
-        v.push(format!("G1 Y-{} F6000", 20));
-        let _ = layer;
-    }
+    let v = relative_zigzag(&[], 4, 20);
     let lines: Vec<&str> = v.iter().map(|s| s.as_str()).collect();
     let base = run_gcode(&mut printer(), &lines, &[], 200_000_000);
     // First part, then a pause; the second part (fits the command queue) is sent while
@@ -193,22 +198,7 @@ fn manual_policy_job_lines_during_the_return_keep_the_job_state() {
     use firmware::config::MachineConfig;
     use firmware::printer::{PausedLines, Policy, Printer};
     // Relative coordinates, so a line interpreted in the wrong (parked) state lands elsewhere.
-    let mut v = vec![
-        "G28".to_string(),
-        "G1 Z0.2 F600".to_string(),
-        "G1 X20 Y20 F6000".to_string(),
-        "G91".to_string(),
-        "M83".to_string(),
-    ];
-    for _ in 0..3 {
-        v.push(";LAYER_CHANGE".into());
-        v.push("G1 Z0.2 F600".into());
-        for k in 0..16 {
-            let dx = if k % 2 == 0 { 10 } else { -10 };
-            v.push(format!("G1 X{dx} Y1 E0.4 F1800"));
-        }
-        v.push("G1 Y-16 F6000".into());
-    }
+    let v = relative_zigzag(&["M83"], 3, 16);
     let lines: Vec<&str> = v.iter().map(|s| s.as_str()).collect();
     let manual = Policy {
         paused_lines: PausedLines::Manual,
