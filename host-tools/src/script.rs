@@ -500,44 +500,33 @@ fn register_model(e: &mut Engine, shared: Arc<Mutex<Shared>>) {
         }
         Ok(m.map_strings(|_, s| s.speed_mm_s *= k))
     });
-    e.register_fn(
-        "deform_xyz",
-        |ctx: NativeCallContext, m: Model, fd: FnPtr, fc: FnPtr, fv: FnPtr| -> Res<Model> {
-            deform_script(&ctx, m, &fd, &fc, &fv, None, false)
-        },
-    );
-    e.register_fn(
-        "deform_xyz",
-        |ctx: NativeCallContext,
-         m: Model,
-         fd: FnPtr,
-         fc: FnPtr,
-         fv: FnPtr,
-         tol: Dynamic|
-         -> Res<Model> {
-            let tol = num(&tol, "tolerance")?;
-            deform_script(&ctx, m, &fd, &fc, &fv, Some(tol), false)
-        },
-    );
-    e.register_fn(
-        "deform_cylinder",
-        |ctx: NativeCallContext, m: Model, fd: FnPtr, fc: FnPtr, fv: FnPtr| -> Res<Model> {
-            deform_script(&ctx, m, &fd, &fc, &fv, None, true)
-        },
-    );
-    e.register_fn(
-        "deform_cylinder",
-        |ctx: NativeCallContext,
-         m: Model,
-         fd: FnPtr,
-         fc: FnPtr,
-         fv: FnPtr,
-         tol: Dynamic|
-         -> Res<Model> {
-            let tol = num(&tol, "tolerance")?;
-            deform_script(&ctx, m, &fd, &fc, &fv, Some(tol), true)
-        },
-    );
+    // `deform_xyz` and `deform_cylinder`, each without and with a chord tolerance.
+    for (name, cylindrical) in [("deform_xyz", false), ("deform_cylinder", true)] {
+        e.register_fn(
+            name,
+            move |ctx: NativeCallContext,
+                  m: Model,
+                  fd: FnPtr,
+                  fc: FnPtr,
+                  fv: FnPtr|
+                  -> Res<Model> {
+                deform_script(&ctx, m, &fd, &fc, &fv, None, cylindrical)
+            },
+        );
+        e.register_fn(
+            name,
+            move |ctx: NativeCallContext,
+                  m: Model,
+                  fd: FnPtr,
+                  fc: FnPtr,
+                  fv: FnPtr,
+                  tol: Dynamic|
+                  -> Res<Model> {
+                let tol = num(&tol, "tolerance")?;
+                deform_script(&ctx, m, &fd, &fc, &fv, Some(tol), cylindrical)
+            },
+        );
+    }
     e.register_fn("cup_to_dish", |m: Model| {
         deform::cup_to_dish(m, None).map_err(err)
     });
