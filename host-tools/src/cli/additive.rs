@@ -7,7 +7,6 @@ use crate::additive::job::{check, plan, to_model, FaceChoice, JobParams, Speeds}
 use crate::additive::stl::read_stl;
 use crate::profile::Profile;
 use crate::writer::{GcodeWriter, WriteOptions};
-use anyhow::Context;
 use glam::{DVec2, DVec3};
 use std::path::PathBuf;
 
@@ -178,18 +177,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             )),
         },
     );
-    let file = std::fs::File::create(&a.output)
-        .with_context(|| format!("creating {}", a.output.display()))?;
-    let summary = writer.write(&model, std::io::BufWriter::new(file))?;
-    if let Some(pv) = &a.preview {
-        let bytes = std::fs::read(&a.output)?;
-        crate::preview::render(
-            &bytes,
-            &profile,
-            pv,
-            &crate::preview::PreviewOptions::default(),
-        )?;
-    }
+    let summary = super::write_gcode(&writer, &model, &a.output, a.preview.as_deref(), &profile)?;
     println!(
         "collision check passed; wrote {}: {} layers, {} paths, {} strings, {} travels, filament {:.0} mm",
         a.output.display(),

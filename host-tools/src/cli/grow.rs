@@ -166,21 +166,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             )),
         },
     );
-    let file = std::fs::File::create(&a.output)
-        .with_context(|| format!("creating {}", a.output.display()))?;
-    let summary = writer.write(&model, std::io::BufWriter::new(file))?;
+    let summary = super::write_gcode(&writer, &model, &a.output, a.preview.as_deref(), &profile)?;
     if let Some(svg) = &a.svg {
         std::fs::write(svg, stroke_svg(&g.nodes, &boundary.polygon, a.line_width))
             .with_context(|| format!("writing {}", svg.display()))?;
-    }
-    if let Some(pv) = &a.preview {
-        let bytes = std::fs::read(&a.output)?;
-        crate::preview::render(
-            &bytes,
-            &profile,
-            pv,
-            &crate::preview::PreviewOptions::default(),
-        )?;
     }
     let len: f64 = (0..g.nodes.len())
         .map(|i| g.nodes[i].distance(g.nodes[(i + 1) % g.nodes.len()]))
