@@ -237,21 +237,12 @@ impl LayerDetector {
         out
     }
 
-    /// End of the file: a marker after the last command still counts as a layer.
+    /// Place a pending marker now instead of before the next motion command: at the end of
+    /// a file (a marker after the last command still counts as a layer), and in the firmware
+    /// for M400 and when a layer pause finds the machine idle with a marker pending (everything
+    /// before it has run, so the boundary is here; the next motion command gets no mark).
     pub fn finish(&mut self) -> Option<LayerMark> {
         self.pending.take().map(|p| self.emit(p))
-    }
-
-    /// Place a pending marker now (the firmware calls this for M400, and when a layer pause
-    /// finds the machine idle with a marker pending): everything before it has run, so the
-    /// boundary is here. The next motion command then gets no mark of its own.
-    pub fn flush(&mut self) -> Option<LayerMark> {
-        self.finish()
-    }
-
-    /// True while a marker comment waits for the next motion command.
-    pub fn has_pending(&self) -> bool {
-        self.pending.is_some()
     }
 
     /// Number of marks emitted so far (the number of the next layer).

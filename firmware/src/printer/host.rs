@@ -68,12 +68,8 @@ impl Printer {
             if !manual && !self.line_room() {
                 // Paused with a full queue: the host's line waits for its `ok`; keep the host
                 // from timing out.
-                if self.phase != Phase::Run
-                    && self.link.lines_waiting() > 0
-                    && self.now_us.saturating_sub(self.last_busy_us) >= super::BUSY_PERIOD_US
-                {
-                    self.last_busy_us = self.now_us;
-                    self.link.respond(Response::Busy);
+                if self.phase != Phase::Run && self.link.lines_waiting() > 0 {
+                    self.keep_alive();
                 }
                 return;
             }
@@ -137,7 +133,7 @@ impl Printer {
             // M400 after a layer's marker comments: the boundary is here (a host that drains
             // the queue at a boundary, then pauses, stops at this layer, not the next).
             if matches!(parsed.command, Some(gcode::Command::WaitMoves)) {
-                if let Some(mark) = self.layers.flush() {
+                if let Some(mark) = self.layers.finish() {
                     let _ = self.cmds.push_back(Command::Layer(mark));
                 }
             }

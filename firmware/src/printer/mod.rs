@@ -101,8 +101,6 @@ pub struct Printer {
     fan_pwm: u8,
     /// An M400 waits for the motion to end: its `ok` is owed, and no further line is taken.
     sync_ok_owed: bool,
-    /// A block popped from the planner on its way into the step generator.
-    block_in_hand: bool,
     /// Axes (bit i = X, Y, Z) whose drivers were switched off since they were last homed.
     position_lost: u8,
 }
@@ -165,7 +163,6 @@ impl Printer {
             reheat_wait: false,
             fan_pwm: 0,
             sync_ok_owed: false,
-            block_in_hand: false,
             position_lost: 0,
         };
         p.set_policy(policy);
@@ -329,7 +326,7 @@ impl Printer {
     }
 
     fn motion_idle(&self) -> bool {
-        self.planner.is_empty() && self.stepgen.current().is_none() && !self.block_in_hand
+        self.planner.is_empty() && self.stepgen.current().is_none()
     }
 
     /// Move commands from the command queue into the planner while it has room. Returns at
@@ -397,10 +394,7 @@ impl Printer {
                 }
                 Command::WaitHeater(id) => {
                     if !(self.thermal.reached(id) || self.break_wait) {
-                        if self.now_us.saturating_sub(self.last_busy_us) >= BUSY_PERIOD_US {
-                            self.last_busy_us = self.now_us;
-                            self.link.respond(Response::Busy);
-                        }
+                        self.keep_alive();
                         break;
                     }
                     self.break_wait = false;
@@ -488,6 +482,15 @@ impl Printer {
             self.fifo_countdown = None;
             let id = self.planner.next_id();
             self.planner.set_barrier(id);
+        }
+    }
+
+    /// `busy: processing` at most every [`BUSY_PERIOD_US`] while a host line waits for its
+    /// `ok` (heater wait, M400, a full queue while paused), so the host does not time out.
+    fn keep_alive(&mut self) {
+        if self.now_us.saturating_sub(self.last_busy_us) >= BUSY_PERIOD_US {
+            self.last_busy_us = self.now_us;
+            self.link.respond(Response::Busy);
         }
     }
 
@@ -581,11 +584,9 @@ impl Printer {
         self.retire_finished();
         self.update_pause();
         self.feed_planner();
-        if self.sync_ok_owed && self.now_us.saturating_sub(self.last_busy_us) >= BUSY_PERIOD_US {
-            // An M400 waits for the motion (maybe through a pause): keep the host from timing
-            // out while its `ok` is owed.
-            self.last_busy_us = self.now_us;
-            self.link.respond(Response::Busy);
+        if self.sync_ok_owed {
+            // An M400 waits for the motion (maybe through a pause) with its `ok` owed.
+            self.keep_alive();
         }
         self.update_state_record();
     }
@@ -657,8 +658,7 @@ impl Printer {
             return false; // held mid-block
         }
         if let Some(pb) = self.next_block() {
-            let now = self.now_ns();
-            self.stepgen.load(pb, now);
+            self.load_block(pb);
             return true;
         }
         self.update_pause();
@@ -666,21 +666,24 @@ impl Printer {
             return true;
         }
         if let Some(pb) = self.next_block() {
-            let now = self.now_ns();
-            self.stepgen.load(pb, now);
+            self.load_block(pb);
             return true;
         }
         false
     }
 
+    /// Hand a block to the step generator, then refill the planner from the command queue.
+    /// Only after the load: commands that wait for the motion to end (G4, M400, G28, M18) must
+    /// not see an idle machine while a popped block is on its way to the step generator.
+    fn load_block(&mut self, pb: PlannedBlock) {
+        let now = self.now_ns();
+        self.stepgen.load(pb, now);
+        self.feed_planner();
+    }
+
     fn job_block(&mut self) -> Option<PlannedBlock> {
         let pb = self.planner.pop()?;
         self.planner.refill();
-        // The popped block is not in the step generator yet: commands that wait for the
-        // motion to end (G92, G4, M400, G28, M18) must not see an idle machine here.
-        self.block_in_hand = true;
-        self.feed_planner();
-        self.block_in_hand = false;
         while let Some(m) = self.planner.take_mark_before(pb.block.id) {
             self.layer = Some(m.layer);
             let t_us = self.t_us();

@@ -257,7 +257,7 @@ impl Printer {
                 {
                     // A marker comment seen but no motion after it: the head is at that
                     // boundary (the host stopped streaming there).
-                    if let Some(mark) = self.layers.flush() {
+                    if let Some(mark) = self.layers.finish() {
                         if let Ok(true) = self.planner.push_mark(mark) {
                             self.barrier_layer = Some(mark.layer);
                             return true;
