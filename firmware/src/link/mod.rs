@@ -529,7 +529,7 @@ fn classify(buf: &[u8], overlong: bool) -> Verdict {
             // `*`), so the host resends instead of the line being lost.
             if body
                 .windows(2)
-                .any(|w| w[0] == b'*' && w[1].is_ascii_digit())
+                .any(|w| matches!(w, [b'*', d] if d.is_ascii_digit()))
             {
                 return Verdict::Reject("checksum mismatch", n.is_some());
             }
