@@ -142,7 +142,7 @@ fn collapse(keys: &[Option<Key>]) -> Vec<Key> {
     out
 }
 
-fn max_abs_diff(a: &StepPos, b: &StepPos) -> i64 {
+pub(crate) fn max_abs_diff(a: &StepPos, b: &StepPos) -> i64 {
     a.iter()
         .zip(b.iter())
         .map(|(x, y)| (i64::from(*x) - i64::from(*y)).abs())

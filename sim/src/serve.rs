@@ -14,7 +14,7 @@
 //! executed records of each move.
 
 use crate::exec::{PrinterExec, PrinterFactory};
-use crate::metrics::PauseReport;
+use crate::metrics::{max_abs_diff, PauseReport};
 use crate::port::{Executive, Lane, RunState};
 use crate::recorder::{Recorder, Scale};
 use crate::run::{Factory, Mode, Policy, Scenario};
@@ -487,13 +487,7 @@ fn reports(
                 if let Some((t_res, start)) = p.resumed {
                     r.resumed_s = Some(t_res as f64 * 1e-6);
                     r.paused_s = Some(t_res.saturating_sub(t_stop) as f64 * 1e-6);
-                    r.resume_position_error_steps = Some(
-                        pos.iter()
-                            .zip(start.iter())
-                            .map(|(a, b)| (i64::from(*a) - i64::from(*b)).abs())
-                            .max()
-                            .unwrap_or(0),
-                    );
+                    r.resume_position_error_steps = Some(max_abs_diff(&pos, &start));
                 }
             }
             r
@@ -565,8 +559,6 @@ fn host_stops(
         prev_end = Some(r.t_end_us);
         if !extrudes(r) {
             after_gap.push(r.end);
-        }
-        if !extrudes(r) {
             continue;
         }
         if let Some(le) = last_ext {
@@ -576,18 +568,10 @@ fn host_stops(
                 let after = layer_at(r.t_start_us);
                 // The host's return: the closest any position after the standstill (up to the
                 // start of this extruding move) comes to the stop point.
-                let off = |p: &[i32; 4]| {
-                    le.end
-                        .iter()
-                        .zip(p.iter())
-                        .map(|(a, b)| (i64::from(*a) - i64::from(*b)).abs())
-                        .max()
-                        .unwrap_or(0)
-                };
                 let err = after_gap
                     .iter()
-                    .map(&off)
-                    .chain(std::iter::once(off(&r.start)))
+                    .chain(std::iter::once(&r.start))
+                    .map(|p| max_abs_diff(&le.end, p))
                     .min()
                     .unwrap_or(0);
                 out.push(PauseReport {
