@@ -2,7 +2,7 @@
 //! park and return sequences in the service lane, and the release of the held blocks.
 
 use super::{steps, PausedLines, Phase, Printer, Record, ServiceMove};
-use crate::link::HostAction;
+use crate::link::{HostAction, Response};
 use crate::motion::{Axis, PauseMode};
 use crate::planner::{Barrier, BlockKind};
 use crate::printer::LAYER_PAUSE_IDLE_US;
@@ -205,9 +205,10 @@ impl Printer {
         self.sync_ok_owed = false;
         self.service.clear();
         self.held = None;
-        self.say(format_args!(
-            "emergency stop (M112): motors and heaters off, reset required"
-        ));
+        // As Marlin's kill(): an error to every port, then no answer to anything until reset.
+        self.link
+            .notify(Response::Error("Printer halted. kill() called!"));
+        self.link.halt();
     }
 
     pub(super) fn quick_stop(&mut self) {
