@@ -285,6 +285,7 @@ fn responses_format_like_marlin() {
     assert!(m115.contains("\nCap:AUTOREPORT_TEMP:0"));
     assert!(m115.len() < OUT_RESERVE);
     assert_eq!(format!("{}", Response::Busy), "busy: processing");
+    assert_eq!(format!("{}", Response::BusyPaused), "busy: paused for user");
     assert_eq!(
         format!("{}", Response::Action(HostAction::Paused, "")),
         "//action:paused"
