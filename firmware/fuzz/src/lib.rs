@@ -297,7 +297,7 @@ pub fn host_stream(
         k += 1;
         let piece: Vec<u8> = wire.drain(..n).collect();
         h.write(PortId::Usb, &piece);
-        h.tick(TICK_US);
+        h.tick(5 * TICK_US);
         // The host reads its answers (the harness keeps the tail of the output only).
         let out = &h.out[0];
         if out.len() < read_upto {
@@ -452,7 +452,8 @@ pub fn run_host_stream(data: &[u8]) {
         .collect();
     // Two layers of short moves and a few long ones; distinct consecutive targets.
     let mut job = vec![
-        "G28".to_string(),
+        "G92 X20 Y20".to_string(),
+        "M760 X25 Y25 Z1".into(),
         ";LAYER_CHANGE".into(),
         ";Z:0.2".into(),
         "G1 Z0.2 F600".into(),
@@ -463,8 +464,8 @@ pub fn run_host_stream(data: &[u8]) {
             job.push(";Z:0.4".into());
             job.push("G1 Z0.4".into());
         }
-        let x = 20 + (i * 37) % 180;
-        let y = 20 + (i * 53) % 180;
+        let x = 20 + (i * 7) % 30;
+        let y = 20 + (i * 11) % 30;
         job.push(format!("G1 X{x} Y{y} E{:.2} F9000", 0.5 * (i + 1) as f32));
     }
     let clean = host_stream(&job, pause_at, &[], &[64]);
