@@ -239,8 +239,15 @@ impl Printer {
         }
         match self.mode {
             Some(PauseMode::Now) => {
+                // Stopped: no step left in the loaded block (held mid-way), or between blocks
+                // with nothing to brake through. A brake that ends exactly at the last queued
+                // point may leave a rounding-sized exit speed with no block after it: the head
+                // is at the end of the queued motion, and that is the stop (issue 14 item 7).
                 self.stepgen.is_stopped()
-                    && (self.stepgen.current().is_some() || self.stepgen.exit_speed_mm_s() <= 0.0)
+                    && (self.stepgen.current().is_some()
+                        || self.stepgen.exit_speed_mm_s() <= 0.0
+                        || self.planner.is_empty()
+                        || self.planner.at_barrier())
             }
             _ => {
                 if self.stepgen.current().is_some() {
