@@ -117,7 +117,8 @@ impl Printer {
             Some(cmd) => match self.machine.apply(cmd, &self.cfg) {
                 Ok(a) => a,
                 Err(e) => {
-                    self.error(format_args!("{e}"));
+                    // A refusal, not a failure: `echo:` (OctoPrint ends a print on `Error:`).
+                    self.say(format_args!("{e}"));
                     self.link.respond(Response::Ok);
                     return;
                 }
