@@ -65,10 +65,7 @@ impl<F: NorFlash> embedded_storage_async::nor_flash::NorFlash for Blocking<F> {
     }
 }
 
-impl<F: MultiwriteNorFlash> embedded_storage_async::nor_flash::MultiwriteNorFlash
-    for Blocking<F>
-{
-}
+impl<F: MultiwriteNorFlash> embedded_storage_async::nor_flash::MultiwriteNorFlash for Blocking<F> {}
 
 /// Why a model operation failed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -269,7 +266,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>, const WRITE: usize, const ERASE: usize> NorFl
             return Err(ModelError::OutOfBounds);
         }
         let r = self.range(from, (to - from) as usize)?;
-        if r.start % ERASE != 0 || r.end % ERASE != 0 {
+        if !r.start.is_multiple_of(ERASE) || !r.end.is_multiple_of(ERASE) {
             return Err(ModelError::NotAligned);
         }
         for sector in r.step_by(ERASE) {
@@ -289,7 +286,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>, const WRITE: usize, const ERASE: usize> NorFl
 
     fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), ModelError> {
         let r = self.range(offset, bytes.len())?;
-        if r.start % WRITE != 0 || bytes.len() % WRITE != 0 {
+        if !r.start.is_multiple_of(WRITE) || !bytes.len().is_multiple_of(WRITE) {
             return Err(ModelError::NotAligned);
         }
         let cut = self.power_fails_now(FlashOp::Write)?;
@@ -348,7 +345,10 @@ mod tests {
         assert_eq!(f.write(64, &[0; 4]), Err(ModelError::OutOfBounds));
         assert_eq!(f.erase(0, 16), Err(ModelError::NotAligned));
         assert_eq!(f.erase(32, 96), Err(ModelError::OutOfBounds));
-        assert!(f.bytes().iter().all(|b| *b == 0xFF), "a refused op changes nothing");
+        assert!(
+            f.bytes().iter().all(|b| *b == 0xFF),
+            "a refused op changes nothing"
+        );
     }
 
     #[test]

@@ -15,8 +15,8 @@ mod store;
 pub use flash::{block_on, Blocking, Cut, FlashOp, ModelError, NorFlashModel};
 pub use record::{
     Bound, RecordError, Settings, ACCEL, BODY_LEN, DEFAULT_DRIVER_CURRENT_MA, DRIVER_CURRENT,
-    FORMAT_VERSION, HOME_OFFSET, JUNCTION_DEVIATION, MAX_FEED, PAUSE_VALUE, PID_GAIN,
-    RECORD_LEN, STEPS_PER_MM,
+    FORMAT_VERSION, HOME_OFFSET, JUNCTION_DEVIATION, MAX_FEED, PAUSE_VALUE, PID_GAIN, RECORD_LEN,
+    STEPS_PER_MM,
 };
 pub use store::{SettingsStore, StoreError, BUF_LEN, JOB_KEY, SETTINGS_KEY};
 

@@ -469,7 +469,7 @@ mod tests {
         s.validate().unwrap();
         assert_eq!(Settings::decode(&s.encode()), Ok(s));
         let mut odd = s;
-        odd.steps_per_mm[3] = 93.123_456;
+        odd.steps_per_mm[3] = 93.123_45;
         odd.junction_deviation_mm = 0.0123;
         odd.bed_pid = Some(PidGains {
             kp: 1.5,

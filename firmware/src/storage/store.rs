@@ -17,9 +17,10 @@ pub const SETTINGS_KEY: u8 = 1;
 /// Map key of the paused-job record.
 pub const JOB_KEY: u8 = 2;
 
-/// Bytes of the work buffer: the longest record plus its key, rounded up to the largest flash
-/// word sequential-storage supports (32 B).
-pub const BUF_LEN: usize = (RECORD_LEN + 1 + 31) / 32 * 32 + 64;
+/// Bytes of the work buffer: room for the longest record plus its key byte, rounded up to the
+/// largest flash word sequential-storage supports (32 B).
+pub const BUF_LEN: usize = 256;
+const _: () = assert!((RECORD_LEN + 1).div_ceil(32) * 32 <= BUF_LEN);
 
 /// Why the store could not load or save.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -34,6 +35,9 @@ pub enum StoreError {
     Corrupted,
     /// An item was found but its record was refused.
     Record(RecordError),
+    /// The area has been written, but holds no valid record of the kind asked for (its item
+    /// was damaged: sequential-storage's CRC skipped it).
+    NoValidRecord,
     /// Any other sequential-storage error.
     Other,
 }
@@ -46,6 +50,7 @@ impl core::fmt::Display for StoreError {
             StoreError::Full => f.write_str("settings area full"),
             StoreError::Corrupted => f.write_str("settings area corrupted"),
             StoreError::Record(e) => write!(f, "{e}"),
+            StoreError::NoValidRecord => f.write_str("no valid record in a used flash area"),
             StoreError::Other => f.write_str("settings store error"),
         }
     }
@@ -68,16 +73,21 @@ struct Buf([u8; BUF_LEN]);
 pub struct SettingsStore<F: NorFlash> {
     map: MapStorage<u8, Blocking<F>, Cache<Uncached, Uncached, Uncached, u8>>,
     buf: Buf,
+    /// Some byte of the area was not erased when the store was made (or a record was stored
+    /// since): a missing record then means a damaged one.
+    used: bool,
 }
 
 impl<F: NorFlash> SettingsStore<F> {
     /// A store in `range` (byte offsets within `flash`, whole sectors, at least two).
-    pub fn new(flash: F, range: core::ops::Range<u32>) -> Result<Self, StoreError> {
+    pub fn new(mut flash: F, range: core::ops::Range<u32>) -> Result<Self, StoreError> {
         let config =
-            MapConfig::<Blocking<F>>::try_new(range).map_err(|_| StoreError::Config)?;
+            MapConfig::<Blocking<F>>::try_new(range.clone()).map_err(|_| StoreError::Config)?;
+        let used = !is_erased(&mut flash, range);
         Ok(Self {
             map: MapStorage::new(Blocking(flash), config, Cache::new_uncached()),
             buf: Buf([0; BUF_LEN]),
+            used,
         })
     }
 
@@ -92,8 +102,8 @@ impl<F: NorFlash> SettingsStore<F> {
         key: u8,
         decode: impl FnOnce(&[u8]) -> Result<T, RecordError>,
     ) -> Result<Option<T>, StoreError> {
-        let item = block_on(self.map.fetch_item::<&[u8]>(&mut self.buf.0, &key))
-            .map_err(store_error)?;
+        let item =
+            block_on(self.map.fetch_item::<&[u8]>(&mut self.buf.0, &key)).map_err(store_error)?;
         match item {
             None => Ok(None),
             Some(bytes) => decode(bytes).map(Some).map_err(StoreError::Record),
@@ -102,13 +112,26 @@ impl<F: NorFlash> SettingsStore<F> {
 
     /// Store `bytes` under `key` (the previous value stays current until this one is whole).
     pub fn store(&mut self, key: u8, bytes: &[u8]) -> Result<(), StoreError> {
+        self.used = true;
         block_on(self.map.store_item(&mut self.buf.0, &key, &bytes)).map_err(store_error)
+    }
+
+    /// True when some record (of any key) can be read.
+    fn any_record(&mut self) -> bool {
+        [SETTINGS_KEY, JOB_KEY]
+            .into_iter()
+            .any(|k| matches!(self.fetch(k, |_| Ok(())), Ok(Some(()))))
     }
 
     /// The saved settings: `Ok(None)` when none were ever saved, an error when what is there
     /// cannot be read or is refused (the caller falls back to the factory defaults).
     pub fn load(&mut self) -> Result<Option<Settings>, StoreError> {
-        self.fetch(SETTINGS_KEY, Settings::decode)
+        match self.fetch(SETTINGS_KEY, Settings::decode)? {
+            Some(s) => Ok(Some(s)),
+            // Written, but no readable record at all: the settings item was damaged.
+            None if self.used && !self.any_record() => Err(StoreError::NoValidRecord),
+            None => Ok(None),
+        }
     }
 
     /// Save `s` (checked first: out-of-range settings are never written).
@@ -116,6 +139,23 @@ impl<F: NorFlash> SettingsStore<F> {
         s.validate().map_err(StoreError::Record)?;
         self.store(SETTINGS_KEY, &s.encode())
     }
+}
+
+/// True when every byte of `range` reads `0xFF` (a read error counts as written).
+fn is_erased<F: NorFlash>(flash: &mut F, range: core::ops::Range<u32>) -> bool {
+    let mut chunk = [0u8; 64];
+    let mut at = range.start;
+    while at < range.end {
+        let n = (range.end - at).min(chunk.len() as u32) as usize;
+        let Some(part) = chunk.get_mut(..n) else {
+            return false;
+        };
+        if flash.read(at, part).is_err() || part.iter().any(|b| *b != 0xFF) {
+            return false;
+        }
+        at += n as u32;
+    }
+    true
 }
 
 #[cfg(test)]
@@ -169,14 +209,17 @@ mod tests {
     fn the_board_geometry_works_and_erases_rarely() {
         // Two 128 KiB sectors as on the STM32F407 (sectors 10 and 11), 16-byte words.
         type Board = NorFlashModel<Vec<u8>, 16, { 128 * 1024 }>;
-        let mut st =
-            SettingsStore::new(Board::erased(vec![0; 256 * 1024]), 0..256 * 1024).unwrap();
+        let mut st = SettingsStore::new(Board::erased(vec![0; 256 * 1024]), 0..256 * 1024).unwrap();
         for k in 0..200 {
             st.save(&nth(k)).unwrap();
         }
         assert_eq!(st.load(), Ok(Some(nth(199))));
         let flash = st.into_flash();
-        assert_eq!(flash.erases(), 0, "200 saves fit one sector without an erase");
+        assert_eq!(
+            flash.erases(),
+            0,
+            "200 saves fit one sector without an erase"
+        );
     }
 
     #[test]
@@ -197,10 +240,7 @@ mod tests {
         let n = old.len();
         old[n - 4..].copy_from_slice(&crc.to_le_bytes());
         st.store(SETTINGS_KEY, &old).unwrap();
-        assert_eq!(
-            st.load(),
-            Err(StoreError::Record(RecordError::Version(0)))
-        );
+        assert_eq!(st.load(), Err(StoreError::Record(RecordError::Version(0))));
         // Every byte of the area garbage: never a panic, never settings.
         let mut seed = 0x1234_5678u32;
         let garbage: Vec<u8> = (0..3 * 1024)
