@@ -220,6 +220,18 @@ mod tests {
             0,
             "200 saves fit one sector without an erase"
         );
+        // Bytes per save: the record, its key and sequential-storage's item header, padded to
+        // the 16-byte word.
+        let used = flash.bytes().iter().rposition(|b| *b != 0xFF).unwrap_or(0);
+        let per_save = used.div_ceil(200);
+        println!(
+            "record {RECORD_LEN} B, {per_save} B of flash per save, {} saves per 128 KiB sector",
+            128 * 1024 / per_save
+        );
+        assert!(
+            (RECORD_LEN..RECORD_LEN + 48).contains(&per_save),
+            "{per_save}"
+        );
     }
 
     #[test]
