@@ -21,6 +21,8 @@ mod types;
 
 pub use types::{Command, PausedLines, Policy, Record, Schedule, State, Status, StepperRequest};
 mod service;
+// Settings M-codes and the flash store's requests (M500/M501).
+mod settings;
 
 pub use service::ServiceMove;
 
@@ -111,6 +113,8 @@ pub struct Printer {
     sync_ok_owed: bool,
     /// Axes (bit i = X, Y, Z) whose drivers were switched off since they were last homed.
     position_lost: u8,
+    /// Factory settings and a pending M500/M501 (see `settings.rs`).
+    settings: settings::SettingsLink,
 }
 
 fn steps(cfg: &MachineConfig, axis: Axis, mm: f32) -> i32 {
@@ -174,8 +178,10 @@ impl Printer {
             fan_pwm: 0,
             sync_ok_owed: false,
             position_lost: 0,
+            settings: settings::SettingsLink::new(),
         };
         p.set_policy(policy);
+        p.set_factory_settings();
         p
     }
 
