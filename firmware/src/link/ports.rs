@@ -130,6 +130,11 @@ impl HostPorts {
         self.request_port.or(self.line_port).unwrap_or(PortId::Usb)
     }
 
+    /// Bytes free in the output ring of the port answers go to now.
+    pub fn output_free(&self) -> usize {
+        self.port(self.reply_port()).output_free()
+    }
+
     /// Answer the port that asked (see the type documentation).
     pub fn respond(&mut self, r: Response<'_>) -> bool {
         let p = self.reply_port();
