@@ -10,7 +10,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/../firmware/fuzz"
 secs="${FUZZ_SECONDS:-20}"
-targets=(parse_stream executive host_stream)
+# FUZZ_TARGETS to choose (CI leaves out `executive` while its known finding is open, see
+# docs/frontend.md "Fuzzing").
+read -r -a targets <<< "${FUZZ_TARGETS:-parse_stream executive host_stream}"
 if ! rustup toolchain list | grep -q '^nightly'; then
   rustup toolchain install nightly --profile minimal
 fi
