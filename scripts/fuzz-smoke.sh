@@ -21,12 +21,13 @@ export RUSTFLAGS="-Cpasses=sancov-module -Cllvm-args=-sanitizer-coverage-level=4
 -Cllvm-args=-sanitizer-coverage-trace-compares --cfg fuzzing -Cdebug-assertions -Coverflow-checks"
 # --target keeps the flags off build scripts (as cargo-fuzz does).
 triple=x86_64-unknown-linux-gnu
+tdir="${CARGO_TARGET_DIR:-target}"
 cargo +nightly build --release --target "$triple" --bins
 for t in "${targets[@]}"; do
   mkdir -p "corpus/$t" "artifacts/$t"
   seeds=()
   [ -d "seeds/$t" ] && seeds=("seeds/$t")
   echo "== fuzz $t (${secs} s)"
-  "target/$triple/release/$t" -max_total_time="$secs" -timeout=10 -rss_limit_mb=1024 \
+  "$tdir/$triple/release/$t" -max_total_time="$secs" -timeout=10 -rss_limit_mb=1024 \
     -print_final_stats=1 -artifact_prefix="artifacts/$t/" "corpus/$t" "${seeds[@]}"
 done
