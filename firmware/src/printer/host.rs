@@ -108,9 +108,21 @@ impl Printer {
                     return;
                 }
             }
+            if self.cancel_in_progress() {
+                // The cancel is still parking: lines wait (a move taken now would be dropped
+                // with the planner when the cancel completes).
+                if self.link.lines_waiting() > 0 || self.held_line.is_some() {
+                    self.keep_alive();
+                }
+                return;
+            }
             let Some(line) = self.next_line() else {
                 return;
             };
+            if self.discard_after_cancel(&line) {
+                self.link.respond(Response::Ok);
+                continue;
+            }
             let manual = self.is_manual(&line);
             let fits = if manual {
                 !self.service.is_full()
@@ -131,8 +143,8 @@ impl Printer {
             }
             if line.number().is_some() {
                 self.host_numbers = true;
+                self.last_line_no = line.number();
             }
-            self.cancelled = false;
             self.last_activity_us = self.now_us;
             if manual {
                 if let Some(m) = self.manual_machine.as_mut() {
@@ -147,6 +159,45 @@ impl Printer {
             }
             self.feed_planner();
         }
+    }
+
+    /// Whether `line` is the rest of a cancelled job (see [`super::AfterCancel`]): then it is
+    /// counted and must be answered `ok` without being executed. Ends the discarding when the
+    /// host has started anew.
+    fn discard_after_cancel(&mut self, line: &ReceivedLine) -> bool {
+        let Some(mut a) = self.after_cancel else {
+            return false;
+        };
+        let silent_us = self.now_us.saturating_sub(self.last_activity_us);
+        let fresh = silent_us >= crate::printer::LAYER_PAUSE_IDLE_US
+            || match (line.number(), a.after) {
+                // Numbers restarted (M110): a new job.
+                (Some(n), Some(after)) => n <= after,
+                (Some(_), None) => false,
+                // A host that numbers its job sends its own commands unnumbered.
+                (None, _) => self.host_numbers,
+            };
+        self.last_activity_us = self.now_us;
+        if fresh {
+            if line.number().is_some() || silent_us >= crate::printer::LAYER_PAUSE_IDLE_US {
+                if a.discarded > 0 {
+                    self.say(format_args!(
+                        "cancelled: {} lines of the cancelled job discarded",
+                        a.discarded
+                    ));
+                }
+                self.after_cancel = None;
+            }
+            return false;
+        }
+        if a.discarded == 0 {
+            self.say(format_args!(
+                "cancelled: discarding the rest of the job until the host starts anew"
+            ));
+        }
+        a.discarded = a.discarded.saturating_add(1);
+        self.after_cancel = Some(a);
+        true
     }
 
     /// Answer a report/message line out of turn (the queue is full): it changes nothing the

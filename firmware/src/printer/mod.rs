@@ -49,6 +49,20 @@ pub const BUSY_PERIOD_US: u64 = 2_000_000;
 /// the printer has had nothing to do for this long (job ended before any layer boundary).
 pub const LAYER_PAUSE_IDLE_US: u64 = 2_000_000;
 
+/// After a cancel, the host may still stream the rest of the job (printcore ignores
+/// `//action:cancel`; lines were in flight): those lines are discarded (answered `ok`, never
+/// executed) until the host starts anew — a numbered line whose number is not beyond `after`
+/// (the host reset its line numbers with M110, as printcore and OctoPrint do at a job's start),
+/// or any line after the host was silent for [`LAYER_PAUSE_IDLE_US`]. Unnumbered lines from a
+/// host that numbers its job (OctoPrint's cancel script, a console command) are taken.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct AfterCancel {
+    /// The last numbered line taken before the cancel.
+    after: Option<u32>,
+    /// Lines discarded so far.
+    discarded: u32,
+}
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Phase {
     Run,
@@ -79,7 +93,11 @@ pub struct Printer {
     hold_deferred: bool,
     withdraw_after_stop: bool,
     cancel_pending: bool,
-    cancelled: bool,
+    /// The job was cancelled: what the rest of the host's stream means (see
+    /// [`AfterCancel`]); `None` once the host has started anew.
+    after_cancel: Option<AfterCancel>,
+    /// Number of the last numbered host line taken.
+    last_line_no: Option<u32>,
     halted: bool,
     layer: Option<u32>,
     dwell_until_us: Option<u64>,
@@ -150,7 +168,8 @@ impl Printer {
             hold_deferred: false,
             withdraw_after_stop: false,
             cancel_pending: false,
-            cancelled: false,
+            after_cancel: None,
+            last_line_no: None,
             halted: false,
             layer: None,
             dwell_until_us: None,
@@ -325,9 +344,7 @@ impl Printer {
         if self.command_room() == 0 {
             return Err(cmd);
         }
-        if self.cancelled {
-            self.cancelled = false;
-        }
+        self.after_cancel = None;
         self.last_activity_us = self.now_us;
         self.cmds.push_back(cmd)?;
         self.feed_planner();
@@ -777,10 +794,10 @@ impl Printer {
             Phase::Parked => State::Paused,
             Phase::Returning => State::Resuming,
             Phase::Run => {
-                if self.cancelled {
-                    State::Cancelled
-                } else if self.has_work() {
+                if self.has_work() {
                     State::Printing
+                } else if self.after_cancel.is_some() {
+                    State::Cancelled
                 } else {
                     State::Idle
                 }

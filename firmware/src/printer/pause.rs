@@ -33,18 +33,30 @@ impl Printer {
         });
     }
 
+    /// Whether the printer is in a job — the same notion for pause and cancel: work queued or
+    /// moving, or a host streaming one (a line taken or a move ended within
+    /// [`LAYER_PAUSE_IDLE_US`]: between lines, or at a boundary the host drained with M400),
+    /// and not a job just cancelled.
+    pub(super) fn in_job(&self) -> bool {
+        if self.has_work() {
+            return true;
+        }
+        let idle_us = self.now_us.saturating_sub(self.last_activity_us);
+        self.after_cancel.is_none() && self.last_activity_us != 0 && idle_us < LAYER_PAUSE_IDLE_US
+    }
+
+    /// A cancel is on its way (stopping, parking or returning before it completes).
+    pub(super) fn cancel_in_progress(&self) -> bool {
+        self.cancel_pending
+    }
+
     pub(super) fn request_pause(&mut self, mode: PauseMode) {
         match self.phase {
             Phase::Run => {
                 // An idle printer is still in a job while the host streams it (between lines,
                 // or at a boundary the host drained with M400): the pause is taken unless
                 // nothing has moved or arrived for `LAYER_PAUSE_IDLE_US`.
-                let idle_us = self.now_us.saturating_sub(self.last_activity_us);
-                if !self.has_work()
-                    && (self.cancelled
-                        || self.last_activity_us == 0
-                        || idle_us >= LAYER_PAUSE_IDLE_US)
-                {
+                if !self.in_job() {
                     self.say(format_args!("pause: nothing to pause"));
                     return;
                 }
@@ -136,6 +148,10 @@ impl Printer {
         self.arc = None;
         self.fifo_countdown = None;
         self.schedule = None;
+        self.after_cancel = Some(super::AfterCancel {
+            after: self.last_line_no,
+            discarded: 0,
+        });
         self.action(HostAction::Cancel);
         self.say(format_args!(
             "cancelled: dropped {} commands, {} blocks, {} uncut segments, {} layer marks",
@@ -162,7 +178,7 @@ impl Printer {
                 self.cancel_pending = true;
             }
             Phase::Stopping | Phase::Run => {
-                if !self.has_work() {
+                if !self.in_job() {
                     self.say(format_args!("nothing to cancel"));
                     return;
                 }
@@ -179,7 +195,9 @@ impl Printer {
         self.phase = Phase::Run;
         self.mode = None;
         self.cancel_pending = false;
-        self.cancelled = true;
+        // The host's silence is measured from here: lines that waited during the cancel's
+        // park are not a fresh start.
+        self.last_activity_us = self.now_us;
         self.deferred_pause = None;
         self.deferred_resume = false;
         self.held = None;
