@@ -187,6 +187,9 @@ pub fn serve_with(
     let mut pauses: Vec<PauseTrack> = Vec::new();
     let start = Instant::now();
     let mut last_rx = Instant::now();
+    // When output was last written: the session does not end right after an answer (closing
+    // the master hangs the terminal up, and Linux then discards what the host had not read).
+    let mut last_tx = Instant::now();
     let mut out = String::new();
     let mut pending_out: Vec<u8> = Vec::new();
     let mut buf = [0u8; 4096];
@@ -248,6 +251,16 @@ pub fn serve_with(
         }
         rec.on_status(&fw.status(), now_us);
         track(&mut pauses, &fw, &rec, &mut notes_seen);
+        // Idle: no motion (idle, paused, halted, cancelled: anything but a running job or a
+        // wait). Decided before the output is taken: asking for the next step can load a block
+        // and let a waiting command (M400) complete and answer, and that answer must go out
+        // before an idle exit.
+        let st = fw.status().state;
+        let idle = fw.next_step_us(now_us).is_none()
+            && !matches!(
+                st,
+                RunState::Printing | RunState::Pausing | RunState::Resuming
+            );
         // Output.
         out.clear();
         fw.take_output(&mut out);
@@ -256,22 +269,18 @@ pub fn serve_with(
             match nix::unistd::write(&master, &pending_out) {
                 Ok(w) => {
                     pending_out.drain(..w);
+                    last_tx = Instant::now();
                 }
                 Err(nix::errno::Errno::EAGAIN) => {}
                 Err(nix::errno::Errno::EIO) => break,
                 Err(e) => return Err(e).context("writing the pseudo-terminal"),
             }
         }
-        // Idle exit.
-        // No motion (idle, paused, halted, cancelled: anything but a running job or a wait).
-        let st = fw.status().state;
-        let idle = fw.next_step_us(now_us).is_none()
-            && !matches!(
-                st,
-                RunState::Printing | RunState::Pausing | RunState::Resuming
-            );
+        // Idle exit, once every answer is out (the answers of this round included).
         if a.exit_after_idle > 0.0
             && idle
+            && pending_out.is_empty()
+            && last_tx.elapsed() > Duration::from_secs_f64(a.exit_after_idle)
             && last_rx.elapsed() > Duration::from_secs_f64(a.exit_after_idle)
         {
             break;
