@@ -193,6 +193,7 @@ pub fn serve_with(
     let mut out = String::new();
     let mut pending_out: Vec<u8> = Vec::new();
     let mut buf = [0u8; 4096];
+    let mut rx_pending: Vec<u8> = Vec::new();
     let mut notes_seen = 0usize;
     let mut last_poll_us = 0u64;
     let mut first_byte_us: Option<u64> = None;
@@ -202,20 +203,28 @@ pub fn serve_with(
             break;
         }
         let now_us = (start.elapsed().as_secs_f64() * a.speed * 1e6) as u64;
-        // Host bytes.
+        // Host bytes. Flow control: what the firmware does not take stays in `rx_pending`, and
+        // the pty is not read again until it is all taken, so the host's writes block in the
+        // pty as they would on a USB port that NAKs.
         loop {
+            if !rx_pending.is_empty() {
+                let n = fw.receive(&rx_pending, now_us);
+                let mut reqs = Vec::new();
+                sniff.feed(&rx_pending[..n], &mut reqs);
+                rx_pending.drain(..n);
+                for r in reqs {
+                    note_request(&mut pauses, r, now_us, &rec, &fw);
+                }
+                if !rx_pending.is_empty() {
+                    break;
+                }
+            }
             match nix::unistd::read(master.as_fd(), &mut buf) {
                 Ok(0) => break,
                 Ok(n) => {
-                    let bytes = &buf[..n];
                     last_rx = Instant::now();
                     first_byte_us.get_or_insert(now_us);
-                    let mut reqs = Vec::new();
-                    sniff.feed(bytes, &mut reqs);
-                    fw.receive(bytes, now_us);
-                    for r in reqs {
-                        note_request(&mut pauses, r, now_us, &rec, &fw);
-                    }
+                    rx_pending.extend_from_slice(&buf[..n]);
                 }
                 Err(nix::errno::Errno::EAGAIN) => break,
                 Err(nix::errno::Errno::EIO) => {
