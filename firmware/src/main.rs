@@ -153,6 +153,8 @@ mod image {
                 .borrow_mut()
                 .push_command(Command::SetPosition(target), 0);
         }
+        // Saved settings (M500) replace the factory ones; M500/M501 run in their own task.
+        crate::board::flash::start(&spawner, printer);
 
         let steppers = StepperPins::new(pins.step, pins.dir, pins.enable, 0b1111);
         let endstops = Endstops::new(pins.endstops, 0b111);

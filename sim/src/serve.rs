@@ -203,6 +203,11 @@ pub fn serve_with(
             break;
         }
         let now_us = (start.elapsed().as_secs_f64() * a.speed * 1e6) as u64;
+        // Settings store: the first pass loads the saved settings (before any host byte is
+        // read, as at power-up), later passes carry out M500/M501.
+        if let Some(f) = flash.as_mut() {
+            f.service(&mut fw.printer);
+        }
         // Host bytes. Flow control: what the firmware does not take stays in `rx_pending`, and
         // the pty is not read again until it is all taken, so the host's writes block in the
         // pty as they would on a USB port that NAKs.
@@ -254,9 +259,6 @@ pub fn serve_with(
             heaters.tick(&mut fw, now_us);
             fw.poll(now_us);
             last_poll_us = now_us;
-        }
-        if let Some(f) = flash.as_mut() {
-            f.service(&mut fw.printer);
         }
         rec.on_status(&fw.status(), now_us);
         track(&mut pauses, &fw, &rec, &mut notes_seen);
