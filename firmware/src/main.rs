@@ -153,8 +153,12 @@ mod image {
                 .push_command(Command::SetPosition(target), 0);
         }
 
-        let steppers =
-            StepperPins::new(pins.step, pins.dir, pins.enable, cfg.dir_high_positive_mask());
+        let steppers = StepperPins::new(
+            pins.step,
+            pins.dir,
+            pins.enable,
+            cfg.dir_high_positive_mask(),
+        );
         let endstops = Endstops::new(pins.endstops, cfg.endstop_hit_high_mask());
         let producer = stepper::init(steppers, endstops);
 
