@@ -153,9 +153,16 @@ mod image {
                 .borrow_mut()
                 .push_command(Command::SetPosition(target), 0);
         }
+        // Saved settings (M500) replace the factory ones; M500/M501 run in their own task.
+        crate::board::flash::start(&spawner, printer);
 
-        let steppers = StepperPins::new(pins.step, pins.dir, pins.enable, 0b1111);
-        let endstops = Endstops::new(pins.endstops, 0b111);
+        let steppers = StepperPins::new(
+            pins.step,
+            pins.dir,
+            pins.enable,
+            cfg.dir_high_positive_mask(),
+        );
+        let endstops = Endstops::new(pins.endstops, cfg.endstop_hit_high_mask());
         let producer = stepper::init(steppers, endstops);
 
         // USB CDC-ACM.

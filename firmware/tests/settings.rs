@@ -55,8 +55,8 @@ impl Bench {
 
     /// Send one line; return everything written until its `ok` (and the ok).
     fn send(&mut self, line: &str) -> String {
-        let l = format!("{line}\n");
-        assert_eq!(self.p.receive(l.as_bytes(), self.now_us), l.len());
+        let bytes = format!("{line}\n");
+        assert_eq!(self.p.receive(bytes.as_bytes(), self.now_us), bytes.len());
         let mut out = String::new();
         for _ in 0..120_000 {
             out.push_str(&self.tick());

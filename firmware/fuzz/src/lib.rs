@@ -191,6 +191,13 @@ impl Harness {
     /// The end of a run: a final `M400` on the USB port, every pause resumed, and the checks
     /// that nothing is wedged.
     pub fn finish(&mut self) {
+        // After a cancel the printer discards the rest of a streamed job until the host starts
+        // anew (docs/frontend.md "Cancel": a line after 2 s of host silence): let the input
+        // settle, then stay silent for 3 s, as a host starting a new job does.
+        let _ = self.run_to_rest(DRAIN_LIMIT_US);
+        for _ in 0..3 {
+            self.tick(IDLE_TICK_US);
+        }
         // The M118 is taken only after the M400 has been answered (M400 holds the next line).
         self.write(PortId::Usb, b"\nM400\nM118 fuzz-end\n");
         for _ in 0..4 {

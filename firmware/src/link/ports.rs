@@ -120,6 +120,18 @@ impl HostPorts {
         None
     }
 
+    /// Answers go to the port of the last line handed out again (after a realtime request was
+    /// handled): for a line the executive kept waiting for room and takes up now.
+    pub fn answer_line_port(&mut self) {
+        self.request_port = None;
+    }
+
+    /// Free output bytes of the port the last line came from (its answer goes there).
+    pub fn line_output_free(&self) -> usize {
+        self.port(self.line_port.unwrap_or(PortId::Usb))
+            .output_free()
+    }
+
     /// Lines waiting on every port.
     pub fn lines_waiting(&self) -> usize {
         self.links.iter().map(HostLink::lines_waiting).sum()
@@ -128,11 +140,6 @@ impl HostPorts {
     /// The port answers go to now (the USB port before any line).
     pub fn reply_port(&self) -> PortId {
         self.request_port.or(self.line_port).unwrap_or(PortId::Usb)
-    }
-
-    /// Bytes free in the output ring of the port answers go to now.
-    pub fn output_free(&self) -> usize {
-        self.port(self.reply_port()).output_free()
     }
 
     /// Answer the port that asked (see the type documentation).
