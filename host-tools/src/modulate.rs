@@ -68,8 +68,8 @@ impl Bitmap {
 
     /// Reads a PNG file.
     pub fn load(path: &std::path::Path) -> Result<Bitmap, ModulateError> {
-        let bytes = std::fs::read(path)
-            .map_err(|e| ModulateError::Image(format!("{}: {e}", path.display())))?;
+        let bytes = crate::fileio::read_bounded(path, crate::fileio::Limit::Drawing)
+            .map_err(|e| ModulateError::Image(format!("{e:#}")))?;
         Bitmap::from_png(&bytes)
     }
 

@@ -3,7 +3,6 @@
 use crate::motion::{MotionLimits, Trajectory};
 use crate::profile::Profile;
 use crate::timebased::{write_timebased, TimedPath};
-use anyhow::Context;
 use std::path::PathBuf;
 
 /// Arguments of `host-tools timebased`.
@@ -28,8 +27,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         anyhow::bail!("--period-ms must be a positive number");
     }
     let profile = Profile::load(&a.printer)?;
-    let input =
-        std::fs::read(&a.input).with_context(|| format!("reading {}", a.input.display()))?;
+    let input = crate::fileio::read_bounded(&a.input, crate::fileio::Limit::Gcode)?;
     let traj = Trajectory::from_gcode(&input, MotionLimits::from_profile(&profile))
         .map_err(|e| anyhow::anyhow!("{}: {e}", a.input.display()))?;
     let period_s = a.period_ms / 1000.0;
@@ -43,9 +41,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     let samples = traj.samples(period_s);
     let text = write_timebased(&samples, period_s, &a.input.display().to_string());
-    std::fs::write(&a.output, &text).with_context(|| format!("writing {}", a.output.display()))?;
+    crate::fileio::write_bytes(&a.output, text.as_bytes())?;
     let deposited = samples.iter().filter(|s| s.extruding).count();
-    println!(
+    crate::fileio::say(format_args!(
         "{} samples every {} ms over {:.1} s ({} depositing) -> {} ({} bytes)",
         samples.len(),
         a.period_ms,
@@ -53,6 +51,5 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         deposited,
         a.output.display(),
         text.len()
-    );
-    Ok(())
+    ))
 }
