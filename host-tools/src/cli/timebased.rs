@@ -2,7 +2,7 @@
 
 use crate::motion::{MotionLimits, Trajectory};
 use crate::profile::Profile;
-use crate::timebased::{write_timebased, TimedPath};
+use crate::timebased::{first_temperatures, with_start_end, write_timebased, TimedPath};
 use std::path::PathBuf;
 
 /// Arguments of `host-tools timebased`.
@@ -40,7 +40,16 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         );
     }
     let samples = traj.samples(period_s);
-    let text = write_timebased(&samples, period_s, &a.input.display().to_string());
+    // The source's heating and homing are not motion: the printer's start and end code go
+    // around the samples, at the source's first temperatures (else the profile's).
+    let (hotend_c, bed_c) = first_temperatures(&input);
+    let hotend_c = hotend_c.unwrap_or(profile.hotend_c);
+    let bed_c = bed_c.unwrap_or(profile.bed_c);
+    let text = with_start_end(
+        &write_timebased(&samples, period_s, &a.input.display().to_string()),
+        &profile.start_code(hotend_c, bed_c),
+        &profile.end_code(hotend_c, bed_c),
+    );
     crate::fileio::write_bytes(&a.output, text.as_bytes())?;
     let deposited = samples.iter().filter(|s| s.extruding).count();
     crate::fileio::say(format_args!(
