@@ -28,6 +28,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let profile = Profile::load(&args.printer)?;
     let data = crate::fileio::read_bounded(&args.file, crate::fileio::Limit::Gcode)?;
     let s = stats(&data, &profile).map_err(|e| anyhow::anyhow!("{}: {e}", args.file.display()))?;
+    for e in &s.bad_line_errors {
+        eprintln!(
+            "warning: {}: line {}: {} (skipped, as the printer would)",
+            args.file.display(),
+            e.line,
+            e.msg
+        );
+    }
+    if s.bad_lines > s.bad_line_errors.len() as u64 {
+        eprintln!(
+            "warning: {} more bad lines skipped",
+            s.bad_lines - s.bad_line_errors.len() as u64
+        );
+    }
     if args.json {
         return emit(serde_json::to_string_pretty(&s)? + "\n");
     }
