@@ -3,6 +3,7 @@ use anyhow::Context;
 use clap::{Parser, Subcommand};
 use sim::exec::PrinterFactory;
 use sim::run::{Mode, PauseWhen, Policy, Scenario};
+use std::io::Write as _;
 use std::path::PathBuf;
 
 #[derive(Parser)]
@@ -177,22 +178,35 @@ fn cmd_run(a: RunArgs) -> anyhow::Result<()> {
     }
     let out = sim::run::run(&PrinterFactory, &sc, &lines)?;
     pb.finish_and_clear();
+    let mut o = stdout();
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&out.report)?);
-        return Ok(());
+        writeln!(o, "{}", serde_json::to_string_pretty(&out.report)?).context(STDOUT)?;
+        return o.flush().context(STDOUT);
     }
     let r = &out.report;
-    println!(
+    writeln!(
+        o,
         "{} — policy {}, mode {}",
         a.file.display(),
         r.policy,
         r.mode
-    );
+    )
+    .context(STDOUT)?;
     for ev in &out.timeline {
-        println!("  {:>10.3} s  {}", ev.t_s, ev.what);
+        writeln!(o, "  {:>10.3} s  {}", ev.t_s, ev.what).context(STDOUT)?;
     }
-    println!("{}", sim::demo::summary(r));
-    Ok(())
+    writeln!(o, "{}", sim::demo::summary(r)).context(STDOUT)?;
+    o.flush().context(STDOUT)
+}
+
+/// What a failed write to standard output says (a closed pipe, a full disk).
+const STDOUT: &str = "writing to standard output";
+
+/// Standard output, buffered, written with `writeln!(…).context(STDOUT)?`: a closed pipe
+/// (`sim run … | head -1`) or a full disk is a clean error and exit status 1, never a panic
+/// as `println!` would make it.
+fn stdout() -> std::io::BufWriter<std::io::StdoutLock<'static>> {
+    std::io::BufWriter::new(std::io::stdout().lock())
 }
 
 fn cmd_lab(a: LabArgs) -> anyhow::Result<()> {
@@ -218,21 +232,23 @@ fn cmd_lab(a: LabArgs) -> anyhow::Result<()> {
         pb.inc(1);
     }
     pb.finish_and_clear();
-    print!("{}", sim::lab::table(&rows));
-    println!();
+    let mut o = stdout();
+    writeln!(o, "{}", sim::lab::table(&rows)).context(STDOUT)?;
     for v in sim::lab::verdicts(&rows) {
-        println!("{v}");
+        writeln!(o, "{v}").context(STDOUT)?;
     }
     sim::lab::write_outputs(&rows, &a.out)?;
-    println!(
+    writeln!(
+        o,
         "wrote {} and {}",
         a.out.join("lab.csv").display(),
         a.out.join("lab.svg").display()
-    );
+    )
+    .context(STDOUT)?;
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&rows)?);
+        writeln!(o, "{}", serde_json::to_string_pretty(&rows)?).context(STDOUT)?;
     }
-    Ok(())
+    o.flush().context(STDOUT)
 }
 
 fn cmd_pattern(a: PatternArgs) -> anyhow::Result<()> {
@@ -248,8 +264,9 @@ fn cmd_pattern(a: PatternArgs) -> anyhow::Result<()> {
         "demo" => sim::patterns::demo_part(3),
         other => anyhow::bail!("unknown pattern {other:?} (zigzag, demo)"),
     };
+    let mut o = stdout();
     for l in lines {
-        println!("{l}");
+        writeln!(o, "{l}").context(STDOUT)?;
     }
-    Ok(())
+    o.flush().context(STDOUT)
 }

@@ -48,7 +48,8 @@ pub struct ServeArgs {
     /// (idle, paused or halted printer; 0 = never).
     #[arg(long, default_value_t = 0.0)]
     pub exit_after_idle: f64,
-    /// Also make a symlink to the device at this path (e.g. /tmp/printer).
+    /// Also make a symlink to the device at this path (e.g. /tmp/printer). The path must not
+    /// exist, or be a stale symlink to a pseudo-terminal; anything else is refused.
     #[arg(long)]
     pub link: Option<PathBuf>,
     /// Keep the settings (M500) in this flash image between sessions (created erased when
@@ -183,9 +184,15 @@ pub fn serve_with(
         .as_deref()
         .map(crate::flash::FlashStore::open)
         .transpose()?;
+    if let Some(l) = &a.link {
+        check_link_path(l)?;
+    }
     let (master, slave, path) = open_pty()?;
     if let Some(l) = &a.link {
-        let _ = std::fs::remove_file(l);
+        // A stale link from an earlier session (checked above) is replaced; nothing else.
+        if std::fs::symlink_metadata(l).is_ok() {
+            std::fs::remove_file(l).with_context(|| format!("removing {}", l.display()))?;
+        }
         std::os::unix::fs::symlink(&path, l).with_context(|| format!("symlink {}", l.display()))?;
     }
     install_signals();
@@ -390,9 +397,40 @@ pub fn serve_with(
         );
     }
     if let Some(l) = &a.link {
-        let _ = std::fs::remove_file(l);
+        // Only our own link: never what someone put there since.
+        if std::fs::read_link(l).is_ok_and(|t| t == path) {
+            let _ = std::fs::remove_file(l);
+        }
     }
     Ok(record)
+}
+
+/// `--link PATH` may name nothing yet, or a symlink to a pseudo-terminal (a stale link of an
+/// earlier session, replaced). Anything else — a file, a directory, a device, a link to
+/// anything else — is refused: the sim never destroys what a path points to.
+fn check_link_path(l: &std::path::Path) -> anyhow::Result<()> {
+    match std::fs::symlink_metadata(l) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
+        Err(e) => Err(e).with_context(|| format!("--link {}", l.display())),
+        Ok(m) if m.file_type().is_symlink() => {
+            let target =
+                std::fs::read_link(l).with_context(|| format!("--link {}", l.display()))?;
+            if target.starts_with("/dev/pts/") {
+                Ok(())
+            } else {
+                anyhow::bail!(
+                    "--link {}: exists and links to {}, not to a pseudo-terminal; refusing to \
+                     replace it (choose another path)",
+                    l.display(),
+                    target.display()
+                )
+            }
+        }
+        Ok(_) => anyhow::bail!(
+            "--link {}: exists and is not a symlink; refusing to replace it (choose another path)",
+            l.display()
+        ),
+    }
 }
 
 fn note_request(
@@ -499,10 +537,12 @@ fn track(
         }
     }
     *seen = fw.notes.len();
-    let Some(p) = pauses.last_mut() else {
-        return;
-    };
-    if p.resume_req_us.is_some() && p.resumed.is_none() {
+    // A resume is found in the executed blocks (the first job block after the request); a
+    // host may already have asked for the next pause by then, so every pause is looked at.
+    for p in pauses
+        .iter_mut()
+        .filter(|p| p.resume_req_us.is_some() && p.resumed.is_none())
+    {
         let t_res = p.resume_req_us.unwrap_or(0);
         if let Some(r) = rec
             .records

@@ -5,12 +5,12 @@ streaming (`startprint`), and pause, resume and cancel through its normal send p
 (`send_now`, which queues a line behind the stream's next `ok`).
 
 Scenarios, in one session (each wait bounded):
-  pause   after the stream has passed line --pause-line: send_now("M601"); wait for the
-          firmware's `//action:paused`.
-  resume  send_now("M602"); wait for `//action:resumed` (--wait seconds). If it does not come,
-          the host is deadlocked behind a withheld `ok`: that is recorded and, to let the rest of
-          the session run, the resume is written raw to the port (a line the firmware's
-          emergency parser takes without an `ok`).
+  pause   after the stream has passed line --pause-line: send_now("M601"); at the firmware's
+          `//action:paused`, printcore's pause() (stops its stream), send_now("M602"), wait for
+          `//action:resumed`, printcore's resume().
+  pause_byte  the same at --pause2-line, resuming with the firmware's realtime byte 0x12.
+  send_now_while_streaming  (--stuck-line) send_now("M602") without pause(): recorded whether
+          it gets out (it cannot once the firmware's queue is full behind the barrier).
   cancel  after the stream has passed line --cancel-line: send_now("M524"), then
           printcore's own cancelprint() once the firmware says `//action:cancel` (or after
           --wait seconds).
@@ -30,21 +30,7 @@ import time
 from printrun import gcoder
 from printrun.printcore import printcore
 
-
-def job_lines(path, layers):
-    """The file's lines up to (not including) the `layers`-th layer change marker + 1, then
-    the file's last 20 lines (end code). 0 = the whole file."""
-    with open(path, encoding="utf-8", errors="replace") as f:
-        lines = [l.rstrip("\n") for l in f]
-    if layers <= 0:
-        return lines
-    seen = 0
-    for i, l in enumerate(lines):
-        if l.startswith(";LAYER_CHANGE") or l.startswith(";LAYER:"):
-            seen += 1
-            if seen > layers:
-                return lines[:i] + [l for l in lines[-20:] if not l.startswith(";")]
-    return lines
+from joblines import job_lines
 
 
 def main():
@@ -53,6 +39,8 @@ def main():
     ap.add_argument("--file", required=True)
     ap.add_argument("--layers", type=int, default=3)
     ap.add_argument("--pause-line", type=int, default=150)
+    ap.add_argument("--pause2-line", type=int, default=0)
+    ap.add_argument("--stuck-line", type=int, default=0)
     ap.add_argument("--cancel-line", type=int, default=0)
     ap.add_argument("--wait", type=float, default=20.0)
     ap.add_argument("--timeout", type=float, default=240.0)
@@ -117,31 +105,61 @@ def main():
             time.sleep(0.01)
         return p.queueindex
 
-    # pause
-    qi = wait_queue(a.pause_line)
-    ev("pause_request", queueindex=qi)
-    wait_for.mark = len(received)
-    p.send_now("M601")
-    paused = wait_for(lambda l: l.startswith("//action:paused"), a.wait)
-    ev("paused" if paused else "pause_timeout", queueindex=p.queueindex)
-    out["scenarios"]["pause"] = {"request_queueindex": qi, "paused": bool(paused)}
-
-    # resume through the normal send path
-    if paused:
+    def pause_and_resume(name, resume_how):
+        """M601 through send_now while printcore streams; at //action:paused, printcore's own
+        pause() (stops its stream: with ok flow control every ok would invite one more job
+        line, so a send_now queued behind the stream can never get out while the firmware's
+        queue is full behind the barrier); then the resume goes out at once, and printcore's
+        resume() restarts its stream (its restore lines G90/G1 X Y/G1 Z/G92 E/F come after the
+        job lines the firmware already holds, at the position those end at)."""
+        sc = {}
+        qi = wait_queue(sc_line[name])
+        ev(name + "_pause_request", queueindex=qi)
+        sc["request_queueindex"] = qi
         wait_for.mark = len(received)
-        p.send_now("M602")
-        resumed = wait_for(lambda l: l.startswith("//action:resumed"), a.wait)
-        ev("resumed" if resumed else "resume_deadlock", queueindex=p.queueindex)
-        sc = {"resumed_by_send_now": bool(resumed)}
-        if not resumed:
-            # Deadlocked behind a withheld ok: the raw line gets out (printcore's own queue
-            # still holds the M602; the firmware ignores a resume when not paused).
-            p.printer.write(b"M602\n")
-            sc["resumed_raw"] = bool(
-                wait_for(lambda l: l.startswith("//action:resumed"), a.wait)
-            )
-            ev("resumed_raw" if sc["resumed_raw"] else "resume_failed")
-        out["scenarios"]["resume"] = sc
+        p.send_now("M601")
+        paused = wait_for(lambda l: l.startswith("//action:paused"), a.wait)
+        sc["paused"] = bool(paused)
+        ev(name + ("_paused" if paused else "_pause_timeout"), queueindex=p.queueindex)
+        if paused:
+            p.pause()
+            wait_for.mark = len(received)
+            if resume_how == "send_now":
+                p.send_now("M602")
+            else:
+                p.printer.write(bytes([0x12]))  # the firmware's realtime resume byte
+            resumed = wait_for(lambda l: l.startswith("//action:resumed"), a.wait)
+            sc["resumed"] = bool(resumed)
+            ev(name + ("_resumed" if resumed else "_resume_timeout"))
+            p.resume()
+        out["scenarios"][name] = sc
+
+    sc_line = {"pause": a.pause_line, "pause_byte": a.pause2_line}
+    pause_and_resume("pause", "send_now")
+    if a.pause2_line > 0:
+        pause_and_resume("pause_byte", "byte")
+
+    # What the old path does: send_now("M602") while printcore still streams (no p.pause()).
+    if a.stuck_line > 0:
+        sc = {}
+        wait_queue(a.stuck_line)
+        wait_for.mark = len(received)
+        p.send_now("M601")
+        paused = wait_for(lambda l: l.startswith("//action:paused"), a.wait)
+        sc["paused"] = bool(paused)
+        if paused:
+            wait_for.mark = len(received)
+            p.send_now("M602")
+            resumed = wait_for(lambda l: l.startswith("//action:resumed"), a.wait)
+            sc["resumed_by_send_now_while_streaming"] = bool(resumed)
+            if not resumed:
+                p.pause()
+                p.printer.write(bytes([0x12]))
+                sc["resumed_after_pause"] = bool(
+                    wait_for(lambda l: l.startswith("//action:resumed"), a.wait)
+                )
+                p.resume()
+        out["scenarios"]["send_now_while_streaming"] = sc
 
     # cancel
     if a.cancel_line > 0:

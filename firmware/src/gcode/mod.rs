@@ -40,6 +40,9 @@ mod number;
 // Settings M-codes (M92 M201 M203 M205 M206 M851 M906 M500-M503): parse and emit.
 mod settings;
 pub use settings::{Advanced, SettingsCommand};
+// Report M-codes hosts expect (M155 M113 M31 M27): parse and emit.
+mod report;
+pub use report::{ReportCommand, MAX_REPORT_PERIOD_S};
 
 use crate::motion::{Axis, AXES};
 use core::fmt;
@@ -362,6 +365,8 @@ pub enum Command {
     },
     /// Settings: M92, M201, M203, M205, M206, M851, M906 and M500–M503 (see [`SettingsCommand`]).
     Settings(SettingsCommand),
+    /// Reports: M155, M113, M31 and M27 (see [`ReportCommand`]).
+    Report(ReportCommand),
     /// Any other G/M code or extended command: its text (comment stripped), for
     /// `echo:Unknown command: "<text>"`.
     Unknown(Text),
@@ -1196,6 +1201,7 @@ fn build_known(code: (u8, u16), w: &Words<'_>) -> Option<Result<Command, ParseEr
                 Command::SchedulePause(s)
             }
             (b'M', n) if settings::is_settings_code(n) => Command::Settings(settings::build(n, w)?),
+            (b'M', n) if report::is_report_code(n) => Command::Report(report::build(n, w)?),
             (b'T', n) => {
                 none()?;
                 match u8::try_from(n) {

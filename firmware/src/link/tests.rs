@@ -282,7 +282,8 @@ fn responses_format_like_marlin() {
     assert!(m115.contains("PROTOCOL_VERSION:1.0"));
     assert!(m115.contains("\nCap:EMERGENCY_PARSER:1"));
     assert!(m115.contains("\nCap:HOST_ACTION_COMMANDS:1"));
-    assert!(m115.contains("\nCap:AUTOREPORT_TEMP:0"));
+    assert!(m115.contains("\nCap:AUTOREPORT_TEMP:1"));
+    assert!(m115.contains("\nCap:PROGRESS:1"));
     assert!(m115.len() < OUT_RESERVE);
     assert_eq!(format!("{}", Response::Busy), "busy: processing");
     assert_eq!(format!("{}", Response::BusyPaused), "busy: paused for user");

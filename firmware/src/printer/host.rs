@@ -551,7 +551,9 @@ impl Printer {
                         .push_back(Command::Steppers(StepperRequest::Disable { mask }));
                 }
             },
-            G::Tool(0) | G::Progress(_) => {}
+            G::Tool(0) => {}
+            G::Progress(p) => self.note_progress(p),
+            G::Report(c) => self.report_command(c),
             G::PrintStatsInfo { .. } | G::SetLineNumber(_) => {}
             G::Tool(n) => self.warn(format_args!("T{n}: only one extruder")),
             G::Stop { ms, s, .. } => {
@@ -693,6 +695,7 @@ pub(super) fn answered_without_room(line: &ReceivedLine) -> bool {
             | G::Message(_)
             | G::Echo(_)
             | G::Progress(_)
+            | G::Report(_)
             | G::PrintStatsInfo { .. }
             | G::FeedOverride(None)
             | G::FlowOverride(None)

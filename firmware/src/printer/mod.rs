@@ -28,6 +28,8 @@ pub use types::{Command, PausedLines, Policy, Record, Schedule, State, Status, S
 mod service;
 // Settings M-codes and the flash store's requests (M500/M501).
 mod settings;
+// Reports hosts expect (temperatures during heater waits, M155, M113, M73, M31, M27).
+mod report;
 
 pub use service::ServiceMove;
 
@@ -93,6 +95,7 @@ pub struct Printer {
     position_lost: u8,
     /// Factory settings and a pending M500/M501 (see `settings.rs`).
     settings: settings::SettingsLink,
+    reports: report::Reports,
 }
 
 fn steps(cfg: &MachineConfig, axis: Axis, mm: f32) -> i32 {
@@ -139,6 +142,7 @@ impl Printer {
             fan_pwm: 0,
             position_lost: 0,
             settings: settings::SettingsLink::new(),
+            reports: report::Reports::new(),
         };
         p.set_policy(policy);
         p.set_factory_settings();
@@ -440,6 +444,7 @@ impl Printer {
                 Command::WaitHeater(id) => {
                     if !(self.thermal.reached(id) || self.break_wait) {
                         self.keep_alive();
+                        self.heater_wait_report();
                         break;
                     }
                     self.break_wait = false;
@@ -538,7 +543,8 @@ impl Printer {
     /// `busy: processing` at most every [`BUSY_PERIOD_US`] while a host line waits for its
     /// `ok` (heater wait, M400, a full queue while paused), so the host does not time out.
     fn keep_alive(&mut self) {
-        if self.now_us.saturating_sub(self.lines.last_busy_us) >= BUSY_PERIOD_US {
+        let period = self.reports.busy_us;
+        if period > 0 && self.now_us.saturating_sub(self.lines.last_busy_us) >= period {
             self.lines.last_busy_us = self.now_us;
             self.link.respond(Response::Busy);
         }
@@ -644,6 +650,7 @@ impl Printer {
             // An M400 waits for the motion (maybe through a pause) with its `ok` owed.
             self.keep_alive();
         }
+        self.report_tick();
         self.update_state_record();
     }
 

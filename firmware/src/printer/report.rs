@@ -1,0 +1,205 @@
+//! Reports hosts expect of a Marlin-class firmware, and their timers:
+//!
+//! - temperatures about once a second while a line waits in M109/M190, as Marlin's
+//!   `Temperature::wait_for_hotend`/`wait_for_bed` print them ("Print temp & remaining time
+//!   every 1s while waiting": `print_heater_states()` then ` W:?`, Marlin
+//!   `src/module/temperature.cpp`); OctoPrint does not poll M105 while the firmware is busy, so
+//!   this is all it sees of a heat-up;
+//! - M155 S<s>: temperatures every s seconds (`Cap:AUTOREPORT_TEMP:1`);
+//! - M113 S<s>: the `busy: processing` period (0 = off; Marlin's default 2 s);
+//! - M73 P<percent>: the progress a host or slicer sends, reported by M27 (`Cap:PROGRESS:1`);
+//! - M31: the print job's time (Marlin's `echo:Print time: 1h 2m 3s` style), counted from the
+//!   first heater wait or job motion while no job is timed, paused time excluded, until the
+//!   printer is idle with its heaters off, or the job is cancelled;
+//! - M27: without an SD card Marlin answers `Not SD printing`; this firmware adds its layer
+//!   counter, state and M73 progress on an `echo:` line (read by the OctoPrint plugin).
+
+use super::{Printer, State};
+use crate::gcode::{Progress, ReportCommand};
+use crate::link::{Response, TempReport};
+use crate::thermal::HeaterId;
+
+/// One second, µs: the period of the temperature lines during heater waits (Marlin's).
+pub const WAIT_REPORT_US: u64 = 1_000_000;
+/// Marlin's default host keep-alive period (`DEFAULT_KEEPALIVE_INTERVAL`), µs.
+pub const DEFAULT_BUSY_US: u64 = 2_000_000;
+
+/// The report timers and what M73 said.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Reports {
+    /// M155 period, µs (0 = off), and when the next report is due.
+    auto_temp_us: u64,
+    next_auto_us: u64,
+    /// When the next temperature line of a heater wait is due.
+    next_wait_us: u64,
+    /// M113 period, µs (0 = no `busy:` lines).
+    pub(super) busy_us: u64,
+    /// The print job timer: µs counted so far, and the time of the last tick while running.
+    job_us: u64,
+    job_tick_us: Option<u64>,
+    /// Last M73 percent (0..=100).
+    progress_percent: Option<u8>,
+}
+
+impl Reports {
+    pub(super) const fn new() -> Self {
+        Self {
+            auto_temp_us: 0,
+            next_auto_us: 0,
+            next_wait_us: 0,
+            busy_us: DEFAULT_BUSY_US,
+            job_us: 0,
+            job_tick_us: None,
+            progress_percent: None,
+        }
+    }
+}
+
+/// `1h 2m 3s` / `2m 3s` / `3s`, as Marlin's `duration_t::toString` writes M31's time.
+struct Duration(u64);
+
+impl core::fmt::Display for Duration {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        let s = self.0;
+        let (d, h, m, sec) = (s / 86_400, s / 3600 % 24, s / 60 % 60, s % 60);
+        if d > 0 {
+            write!(f, "{d}d {h}h {m}m {sec}s")
+        } else if h > 0 {
+            write!(f, "{h}h {m}m {sec}s")
+        } else if m > 0 {
+            write!(f, "{m}m {sec}s")
+        } else {
+            write!(f, "{sec}s")
+        }
+    }
+}
+
+impl Printer {
+    fn temp_report(&self) -> TempReport {
+        TempReport {
+            hotend_c: self.thermal.temperature_c(HeaterId::Hotend),
+            hotend_target_c: self.thermal.target_c(HeaterId::Hotend),
+            bed_c: Some((
+                self.thermal.temperature_c(HeaterId::Bed),
+                self.thermal.target_c(HeaterId::Bed),
+            )),
+            hotend_duty: self.thermal.duty(HeaterId::Hotend),
+            bed_duty: self.thermal.duty(HeaterId::Bed),
+        }
+    }
+
+    fn temp_line(&mut self) {
+        let report = self.temp_report();
+        self.link.respond(Response::Temperatures {
+            report,
+            with_ok: false,
+        });
+    }
+
+    /// Called while a line waits for a heater (M109/M190): a temperature line about once a
+    /// second, and the print job timer starts.
+    pub(super) fn heater_wait_report(&mut self) {
+        if self.reports.job_tick_us.is_none() {
+            self.reports.job_tick_us = Some(self.now_us);
+        }
+        if self.now_us >= self.reports.next_wait_us {
+            self.reports.next_wait_us = self.now_us + WAIT_REPORT_US;
+            self.temp_line();
+        }
+    }
+
+    /// Called every main-loop tick: the M155 auto-report and the print job timer.
+    pub(super) fn report_tick(&mut self) {
+        let now = self.now_us;
+        let r = &mut self.reports;
+        if r.auto_temp_us > 0 && now >= r.next_auto_us {
+            r.next_auto_us = now + r.auto_temp_us;
+            self.temp_line();
+        }
+        let state = self.state();
+        let r = &mut self.reports;
+        match (r.job_tick_us, state) {
+            (None, State::Printing) => r.job_tick_us = Some(now),
+            (Some(_), State::Cancelled | State::Halted) => r.job_tick_us = None,
+            (Some(_), State::Idle)
+                if self.thermal.target_c(HeaterId::Hotend) <= 0.0
+                    && self.thermal.target_c(HeaterId::Bed) <= 0.0 =>
+            {
+                r.job_tick_us = None
+            }
+            (Some(t), State::Paused) => r.job_tick_us = Some(t.max(now)),
+            (Some(t), _) => {
+                r.job_us += now.saturating_sub(t);
+                r.job_tick_us = Some(now);
+            }
+            (None, _) => {}
+        }
+    }
+
+    /// M73: remember the percent (reported by M27).
+    pub(super) fn note_progress(&mut self, p: &Progress) {
+        if let Some(pc) = p.percent.filter(|v| v.is_finite()) {
+            self.reports.progress_percent = Some(pc.clamp(0.0, 100.0) as u8);
+        }
+    }
+
+    /// M155, M113, M31, M27.
+    pub(super) fn report_command(&mut self, c: &ReportCommand) {
+        match *c {
+            ReportCommand::AutoTemp(Some(s)) => {
+                self.reports.auto_temp_us = u64::from(s) * 1_000_000;
+                self.reports.next_auto_us = self.now_us;
+            }
+            ReportCommand::AutoTemp(None) => {
+                let s = self.reports.auto_temp_us / 1_000_000;
+                self.say(format_args!("M155 S{s}"));
+            }
+            ReportCommand::HostKeepalive(Some(s)) => {
+                self.reports.busy_us = u64::from(s) * 1_000_000;
+            }
+            ReportCommand::HostKeepalive(None) => {
+                let s = self.reports.busy_us / 1_000_000;
+                self.say(format_args!("M113 S{s}"));
+            }
+            ReportCommand::PrintTime => {
+                let s = self.reports.job_us / 1_000_000;
+                self.say(format_args!("Print time: {}", Duration(s)));
+            }
+            ReportCommand::JobStatus => {
+                self.say(format_args!("Not SD printing"));
+                let state = match self.state() {
+                    State::Idle => "idle",
+                    State::Printing => "printing",
+                    State::Pausing => "pausing",
+                    State::Paused => "paused",
+                    State::Resuming => "resuming",
+                    State::Cancelled => "cancelled",
+                    State::Halted => "halted",
+                };
+                match (self.layer, self.reports.progress_percent) {
+                    (Some(l), Some(p)) => {
+                        self.say(format_args!("layer {l} state {state} progress {p}%"))
+                    }
+                    (Some(l), None) => self.say(format_args!("layer {l} state {state}")),
+                    (None, Some(p)) => {
+                        self.say(format_args!("layer - state {state} progress {p}%"))
+                    }
+                    (None, None) => self.say(format_args!("layer - state {state}")),
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Duration;
+
+    #[test]
+    fn print_time_is_written_like_marlin() {
+        assert_eq!(format!("{}", Duration(0)), "0s");
+        assert_eq!(format!("{}", Duration(83)), "1m 23s");
+        assert_eq!(format!("{}", Duration(3723)), "1h 2m 3s");
+        assert_eq!(format!("{}", Duration(90_061)), "1d 1h 1m 1s");
+    }
+}

@@ -1,0 +1,296 @@
+#!/usr/bin/env python3
+"""Drive a real OctoPrint (installed by scripts/setup-hosts.sh) against a printer on a serial
+port, through its REST API only, as a user's browser would.
+
+One OctoPrint session covers several scenarios (each wait bounded):
+  heatup    print a slicer file; while the firmware waits in M109/M190, record the tool0/bed
+            temperatures OctoPrint shows (GET /api/printer).
+  button    OctoPrint's Pause button (POST /api/job pause/pause) → state "Paused" (with the
+            LayerPause plugin: the firmware's layer pause, //action:paused), then its Resume
+            button → "Printing".
+  terminal  M601 from OctoPrint's terminal (POST /api/printer/command) → "Paused"; M602 →
+            "Printing".
+  m25       M25 from the terminal → "Paused"; M24 → "Printing".
+  layer     pause at layer N: the plugin's API (M761 L<n>) → "Paused"; the plugin's layer
+            counter; resume with the button.
+  cancel    OctoPrint's Cancel button → "Operational".
+
+OctoPrint runs bound to 127.0.0.1 on a free port with a temporary basedir: the first-run
+wizard is marked done, every plugin that would reach the network is disabled, and a user with
+an API key is written to users.yaml. Prints one JSON object with what each scenario saw.
+"""
+
+import argparse
+import json
+import os
+import shutil
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+
+import requests
+import yaml
+
+from joblines import job_lines
+
+API_KEY = "LAYERPAUSETESTKEY0123456789ABCDEF"
+
+
+def free_port():
+    s = socket.socket()
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+    s.close()
+    return port
+
+
+def write_basedir(base, emergency):
+    config = {
+        "server": {
+            "firstRun": False,
+            "onlineCheck": {"enabled": False},
+            "pluginBlacklist": {"enabled": False},
+            "allowFraming": False,
+        },
+        "accessControl": {"autologinLocal": False},
+        "serial": {
+            "additionalPorts": ["/dev/pts/*", "/proc/*/fd/*"],
+            "autoconnect": False,
+            # The firmware answers M105 at once; keep OctoPrint's polling at its default.
+            "log": False,
+        },
+        "plugins": {
+            # Nothing that talks to the network.
+            "_disabled": [
+                "announcements",
+                "softwareupdate",
+                "tracking",
+                "discovery",
+                "errortracking",
+                "pluginmanager",
+                "pi_support",
+                "firmware_check",
+                "achievements",
+                "virtual_printer",
+                "healthcheck",
+            ],
+            "layerpause": {"emergency_commands": emergency},
+        },
+        "temperature": {"cutoff": 30},
+    }
+    with open(os.path.join(base, "config.yaml"), "w") as f:
+        yaml.safe_dump(config, f)
+    users = {
+        "_version": 2,
+        "tester": {
+            "password": "not-a-password-hash",
+            "active": True,
+            "groups": ["admins", "users"],
+            "permissions": [],
+            "apikey": API_KEY,
+            "settings": {},
+        },
+    }
+    with open(os.path.join(base, "users.yaml"), "w") as f:
+        yaml.safe_dump(users, f)
+
+
+class Octo:
+    def __init__(self, url):
+        self.url = url
+        self.s = requests.Session()
+        self.s.headers["X-Api-Key"] = API_KEY
+
+    def get(self, path):
+        r = self.s.get(self.url + path, timeout=10)
+        r.raise_for_status()
+        return r.json()
+
+    def post(self, path, body):
+        r = self.s.post(self.url + path, json=body, timeout=10)
+        if r.status_code >= 400:
+            raise RuntimeError(f"POST {path} {body}: {r.status_code} {r.text[:200]}")
+        return r.json() if r.content else None
+
+    def state(self):
+        return self.get("/api/job").get("state", "")
+
+    def wait_state(self, pred, secs):
+        end = time.monotonic() + secs
+        st = None
+        while time.monotonic() < end:
+            st = self.state()
+            if pred(st):
+                return st, True
+            time.sleep(0.1)
+        return st, False
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--port", required=True)
+    ap.add_argument("--file", required=True)
+    ap.add_argument("--octoprint", required=True, help="the octoprint executable")
+    ap.add_argument("--layers", type=int, default=5)
+    ap.add_argument("--pause-layer", type=int, default=3)
+    ap.add_argument("--wait", type=float, default=20.0)
+    ap.add_argument("--no-emergency", action="store_true")
+    ap.add_argument("--settle", type=float, default=2.0)
+    a = ap.parse_args()
+
+    t0 = time.monotonic()
+    out = {"scenarios": {}}
+    base = tempfile.mkdtemp(prefix="octoprint-test-")
+    write_basedir(base, not a.no_emergency)
+    port = free_port()
+    log = open(os.path.join(base, "serve.log"), "w")
+    proc = subprocess.Popen(
+        [a.octoprint, "serve", "--iknowwhatimdoing", "--basedir", base, "--host", "127.0.0.1", "--port", str(port)],
+        stdout=log,
+        stderr=subprocess.STDOUT,
+    )
+    o = Octo(f"http://127.0.0.1:{port}")
+    try:
+        # Up?
+        end = time.monotonic() + 90
+        while True:
+            try:
+                out["version"] = o.get("/api/version")
+                break
+            except Exception:
+                if time.monotonic() > end or proc.poll() is not None:
+                    raise RuntimeError("OctoPrint did not come up")
+                time.sleep(0.3)
+        out["startup_s"] = round(time.monotonic() - t0, 1)
+
+        o.post("/api/connection", {"command": "connect", "port": a.port, "baudrate": 115200})
+        st, ok = o.wait_state(lambda s: s.startswith("Operational"), 30)
+        out["connected"] = ok
+        if not ok:
+            raise RuntimeError(f"not operational: {st}")
+        try:
+            out["plugin"] = o.get("/api/plugin/layerpause")
+        except Exception as e:
+            out["plugin"] = {"error": repr(e)}
+
+        # The job: the file's first --layers layers plus its end code.
+        text = "\n".join(job_lines(a.file, a.layers)) + "\n"
+        r = o.s.post(
+            o.url + "/api/files/local",
+            files={"file": ("job.gcode", text.encode())},
+            data={"select": "true", "print": "true"},
+            timeout=30,
+        )
+        r.raise_for_status()
+
+        # heatup: temperatures shown while the firmware waits in M109/M190.
+        temps = []
+        end = time.monotonic() + 60
+        while time.monotonic() < end:
+            p = o.get("/api/printer?exclude=sd")
+            t = p.get("temperature", {})
+            tool = t.get("tool0", {})
+            temps.append(
+                (round(time.monotonic() - t0, 2), tool.get("actual"), tool.get("target"))
+            )
+            job = o.get("/api/job")
+            # Heat-up over once the job has gone past the start code's waits.
+            if (job.get("progress", {}).get("filepos") or 0) > 2000:
+                break
+            time.sleep(0.25)
+        actual = [x[1] for x in temps if x[1] is not None]
+        out["scenarios"]["heatup"] = {
+            "samples": len(temps),
+            "distinct_tool0": len(set(actual)),
+            "max_tool0": max(actual) if actual else None,
+            "first": temps[:3],
+            "last": temps[-3:],
+        }
+
+        def pause_resume(name, pause, resume, wait_layer=None):
+            sc = {}
+            t = time.monotonic()
+            pause()
+            st, ok = o.wait_state(lambda s: s == "Paused", a.wait)
+            sc["paused"] = ok
+            sc["state_after_pause"] = st
+            sc["pause_s"] = round(time.monotonic() - t, 2)
+            try:
+                sc["plugin"] = o.get("/api/plugin/layerpause")
+            except Exception as e:
+                sc["plugin"] = repr(e)
+            if not ok:
+                # Where did it end up? (Pausing for ever = an ok never came.)
+                time.sleep(1)
+                sc["state_later"] = o.state()
+            resume()
+            st, ok = o.wait_state(lambda s: s == "Printing", a.wait)
+            sc["resumed"] = ok
+            sc["state_after_resume"] = st
+            # Let the firmware unpark and print on before the next scenario (real seconds).
+            time.sleep(a.settle)
+            out["scenarios"][name] = sc
+            return sc
+
+        def job_cmd(action):
+            return lambda: o.post("/api/job", {"command": "pause", "action": action})
+
+        def terminal(cmd):
+            return lambda: o.post("/api/printer/command", {"commands": [cmd]})
+
+        pause_resume("button", job_cmd("pause"), job_cmd("resume"))
+        if o.state() == "Printing":
+            pause_resume("terminal", terminal("M601"), terminal("M602"))
+        if o.state() == "Printing":
+            pause_resume("m25", terminal("M25"), terminal("M24"))
+        if o.state() == "Printing":
+            def at_layer():
+                o.post(
+                    "/api/plugin/layerpause",
+                    {"command": "pause_at_layer", "layer": a.pause_layer},
+                )
+
+            sc = pause_resume("layer", at_layer, job_cmd("resume"))
+            o.post("/api/plugin/layerpause", {"command": "refresh"})
+            time.sleep(1)
+            sc["plugin_after"] = o.get("/api/plugin/layerpause")
+
+        # cancel
+        sc = {}
+        o.post("/api/job", {"command": "cancel"})
+        st, ok = o.wait_state(lambda s: s.startswith("Operational"), a.wait)
+        sc["operational_after_cancel"] = ok
+        sc["state"] = st
+        out["scenarios"]["cancel"] = sc
+        out["final_state"] = o.state()
+        o.post("/api/connection", {"command": "disconnect"})
+    except Exception as e:
+        out["error"] = repr(e)
+    finally:
+        out["seconds"] = round(time.monotonic() - t0, 1)
+        proc.terminate()
+        try:
+            proc.wait(15)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+        log.close()
+        if "error" in out:
+            with open(os.path.join(base, "serve.log"), errors="replace") as f:
+                out["serve_log_tail"] = f.read().splitlines()[-30:]
+        try:
+            with open(os.path.join(base, "logs", "octoprint.log"), errors="replace") as f:
+                lines = f.read().splitlines()
+            out["log_tail"] = [
+                l[24:] for l in lines if "comm" in l or "layerpause" in l or "ERROR" in l
+            ][-40:]
+        except OSError:
+            pass
+        shutil.rmtree(base, ignore_errors=True)
+    print(json.dumps(out))
+    return 0 if "error" not in out else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
