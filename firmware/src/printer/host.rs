@@ -569,6 +569,7 @@ impl Printer {
                 // Park at the pause position; the user unloads/loads, then resumes (M24).
                 let _ = self.cmds.push_back(Command::PauseHere);
             }
+            G::Settings(c) => self.settings_command(c),
             G::Unknown(t) => {
                 self.link.respond(Response::UnknownCommand(t));
             }

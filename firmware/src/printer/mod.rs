@@ -26,6 +26,8 @@ use state::{Pause, Stop};
 
 pub use types::{Command, PausedLines, Policy, Record, Schedule, State, Status, StepperRequest};
 mod service;
+// Settings M-codes and the flash store's requests (M500/M501).
+mod settings;
 
 pub use service::ServiceMove;
 
@@ -89,6 +91,8 @@ pub struct Printer {
     fan_pwm: u8,
     /// Axes (bit i = X, Y, Z) whose drivers were switched off since they were last homed.
     position_lost: u8,
+    /// Factory settings and a pending M500/M501 (see `settings.rs`).
+    settings: settings::SettingsLink,
 }
 
 fn steps(cfg: &MachineConfig, axis: Axis, mm: f32) -> i32 {
@@ -134,8 +138,10 @@ impl Printer {
             thermal: Thermal::new(&ThermalConfig::ENDER3),
             fan_pwm: 0,
             position_lost: 0,
+            settings: settings::SettingsLink::new(),
         };
         p.set_policy(policy);
+        p.set_factory_settings();
         p
     }
 
