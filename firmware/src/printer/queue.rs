@@ -194,12 +194,19 @@ impl Printer {
         }
     }
 
-    /// `busy: processing` at most every [`BUSY_PERIOD_US`] while a host line waits for its
-    /// `ok` (heater wait, M400, a full queue while paused), so the host does not time out.
+    /// A `busy:` keep-alive at most every [`BUSY_PERIOD_US`] while a host line waits for its
+    /// `ok` (heater wait, M400, a full queue during a pause), so the host does not time out:
+    /// `busy: paused for user` while parked (Marlin's wording when it waits for the user),
+    /// `busy: processing` otherwise.
     pub(super) fn keep_alive(&mut self) {
         if self.now_us.saturating_sub(self.lines.last_busy_us) >= BUSY_PERIOD_US {
             self.lines.last_busy_us = self.now_us;
-            self.link.respond(Response::Busy);
+            let r = if matches!(self.pause, Pause::Parked { .. }) {
+                Response::BusyPaused
+            } else {
+                Response::Busy
+            };
+            self.link.respond(r);
         }
     }
 
