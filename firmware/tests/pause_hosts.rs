@@ -55,6 +55,8 @@ struct Host {
     /// Wait this long after an `ok` before the next job line (a slow host).
     gap_us: u64,
     last_ok_us: u64,
+    /// Raw bytes to write at once, outside the line protocol (control bytes).
+    raw: Vec<u8>,
     cancelled_at_us: Option<u64>,
 }
 
@@ -73,6 +75,7 @@ impl Host {
             ok_after_paused_us: None,
             gap_us: 0,
             last_ok_us: 0,
+            raw: Vec::new(),
             cancelled_at_us: None,
         }
     }
@@ -132,6 +135,10 @@ impl Host {
 
     /// Send the next line if none is in flight.
     fn send(&mut self, p: &mut Printer, now: u64) {
+        if !self.raw.is_empty() {
+            let raw = std::mem::take(&mut self.raw);
+            assert_eq!(p.receive(&raw, now), raw.len());
+        }
         if self.in_flight {
             return;
         }
@@ -522,4 +529,38 @@ fn cancel_between_the_lines_of_a_slow_host_cancels() {
         out.contains("lines of the cancelled job discarded") || out.contains("discarding"),
         "{out}"
     );
+}
+
+/// The documented limit: printcore streams on into a parked printer and asks for the resume
+/// late. Its next job line waits (answered with `busy: paused for user` keep-alives, so the
+/// host does not time out); a `send_now` would not leave the host now, but the control byte
+/// (or printcore's own pause first) still resumes, and nothing is lost.
+#[test]
+fn a_late_resume_from_a_streaming_host_goes_by_the_control_byte() {
+    let job = job(6, 30);
+    let base = baseline(&job);
+    let mut asked = false;
+    let mut resumed = false;
+    let o = drive(
+        Host::new(Kind::Printcore, job.clone()),
+        600_000_000,
+        |h, now, _| {
+            if !asked && now >= 3_000_000 {
+                h.pri.push_back("M601".into());
+                asked = true;
+            }
+            if let Some(t) = h.paused_at_us {
+                if !resumed && now >= t + 6_000_000 {
+                    // A raw byte, outside the line protocol (Ctrl-R).
+                    h.raw.push(0x12);
+                    resumed = true;
+                }
+            }
+        },
+    );
+    let out = &o.host.out;
+    assert!(out.contains("busy: paused for user"), "{out}");
+    assert!(out.contains("//action:resumed"), "{out}");
+    assert!(o.host.done());
+    assert_eq!(o.executed, base, "every segment once, in order");
 }

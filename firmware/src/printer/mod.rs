@@ -14,15 +14,24 @@
 //! Stopping ─stopped──────► Parking: retract, lift, park (service lane) ─► Paused
 //! Paused ───Resume───────► Returning: XY, then Z, then un-retract ─► release held ─► Printing
 //! ```
+//!
+//! Modules, one job each: `state` (the pause machine's state type), `pause` (requests: pause,
+//! resume, cancel, stops), `park` (stop detection, park, return, release), `queue` (commands
+//! into the planner, schedules, keep-alives), `exec` (blocks to the step generator, records),
+//! `host` (host lines and the rules for them), `commands` (command handlers), `service` (the
+//! service lane), `settings` (M92.. M503), `types` (public types).
 
+mod commands;
+mod exec;
 mod host;
 mod park;
 mod pause;
+mod queue;
 mod state;
 mod types;
 
 use host::{AfterCancel, HostLines};
-use state::{Pause, Stop};
+use state::Pause;
 
 pub use types::{Command, PausedLines, Policy, Record, Schedule, State, Status, StepperRequest};
 mod service;
@@ -37,9 +46,9 @@ use crate::config::MachineConfig;
 use crate::layer::LayerDetector;
 use crate::link::{HostAction, HostLink, HostPorts, PortId, Response};
 use crate::machine::{ArcMoves, MachineState};
-use crate::motion::{Axis, LayerMark, MoveRequest, PauseMode, Realtime};
-use crate::planner::{BlockKind, PlannedBlock, Planner, PlannerPolicy, RING_CAPACITY};
-use crate::stepgen::{StepEvent, StepGen};
+use crate::motion::{Axis, Realtime};
+use crate::planner::{Planner, PlannerPolicy, RING_CAPACITY};
+use crate::stepgen::StepGen;
 use crate::thermal::{HeaterId, Thermal, ThermalConfig};
 use core::fmt::Write as _;
 use heapless::{Deque, String};
@@ -354,282 +363,6 @@ impl Printer {
         Ok(())
     }
 
-    fn motion_idle(&self) -> bool {
-        self.planner.is_empty() && self.stepgen.current().is_none()
-    }
-
-    /// Move commands from the command queue into the planner while it has room. Returns at
-    /// once, without touching the (large) planner state, when nothing could move: the main
-    /// loop calls this every tick, mostly with a full ring.
-    #[inline]
-    fn feed_planner(&mut self) {
-        let stuck = match self.cmds.front() {
-            None => !self.planner.has_pending(),
-            Some(Command::Move(_)) => self.planner.room() == 0,
-            Some(Command::Layer(_)) => self.planner.has_pending() && self.planner.room() == 0,
-            Some(_) => false,
-        };
-        let tail_due = matches!(
-            self.pause,
-            Pause::Stopping {
-                how: Stop::Tail {
-                    countdown: Some(0),
-                    ..
-                },
-                ..
-            }
-        );
-        if stuck && !tail_due {
-            return;
-        }
-        self.feed_planner_now();
-    }
-
-    #[inline(never)]
-    fn feed_planner_now(&mut self) {
-        if self.is_halted() {
-            return;
-        }
-        self.planner.refill();
-        while let Some(cmd) = self.cmds.front().copied() {
-            match cmd {
-                Command::Move(req) => {
-                    if !self.planner.can_accept() {
-                        break;
-                    }
-                    let _ = self.planner.push_move(&self.cfg, &req, BlockKind::Job);
-                }
-                Command::Layer(mark) => {
-                    if self.planner.has_pending() {
-                        break;
-                    }
-                    match self.planner.push_mark(mark) {
-                        Ok(true) => {
-                            if let Pause::Stopping {
-                                how: Stop::Barrier { layer },
-                                ..
-                            } = &mut self.pause
-                            {
-                                *layer = Some(mark.layer);
-                            }
-                        }
-                        Ok(false) => {}
-                        Err(_) => break,
-                    }
-                    self.check_schedule(mark);
-                }
-                Command::Home { mask } => {
-                    // Homing runs before a pending layer barrier (it is part of the job before
-                    // the boundary); never while parked or returning.
-                    if !self.motion_idle()
-                        || !matches!(self.pause, Pause::Run | Pause::Stopping { .. })
-                    {
-                        break;
-                    }
-                    let mut target = self.stepgen.position();
-                    for ax in [Axis::X, Axis::Y, Axis::Z] {
-                        if mask & (1 << ax.index()) != 0 {
-                            let min = self.cfg.axis(ax).min_mm;
-                            target[ax.index()] = steps(&self.cfg, ax, min);
-                        }
-                    }
-                    self.position_lost &= !mask;
-                    let req = MoveRequest {
-                        target,
-                        feed_mm_s: self.cfg.pause.park_feed_mm_s,
-                        seq: u32::MAX,
-                    };
-                    let _ = self.planner.push_move(&self.cfg, &req, BlockKind::Homing);
-                }
-                Command::WaitHeater(id) => {
-                    if !(self.thermal.reached(id) || self.break_wait) {
-                        self.keep_alive();
-                        self.heater_wait_report();
-                        break;
-                    }
-                    self.break_wait = false;
-                }
-                Command::SetPosition(pos) => {
-                    if !self.motion_idle()
-                        || !matches!(self.pause, Pause::Run | Pause::Stopping { .. })
-                    {
-                        break;
-                    }
-                    self.planner.set_position(pos);
-                    self.stepgen.set_position(pos);
-                }
-                Command::Dwell { ms } => {
-                    if !self.motion_idle() {
-                        break;
-                    }
-                    let until = *self
-                        .dwell_until_us
-                        .get_or_insert(self.now_us + u64::from(ms) * 1000);
-                    if self.now_us < until && !self.break_wait {
-                        break;
-                    }
-                    self.break_wait = false;
-                    self.dwell_until_us = None;
-                }
-                Command::Sync => {
-                    if !self.motion_idle() {
-                        break;
-                    }
-                    self.pay_sync_ok();
-                }
-                Command::PauseHere => {
-                    if self.planner.has_pending() {
-                        break;
-                    }
-                    if matches!(self.pause, Pause::Run) {
-                        let id = self.planner.next_id();
-                        self.planner.set_barrier(id);
-                        self.pause = Pause::Stopping {
-                            how: Stop::Barrier { layer: None },
-                            then: state::AfterStop::Park,
-                        };
-                        self.say(format_args!(
-                            "pause here (M0/M600): stopping after the queued moves"
-                        ));
-                        self.update_state_record();
-                    }
-                }
-                Command::Steppers(r) => {
-                    if matches!(r, StepperRequest::Disable { .. }) && !self.motion_idle() {
-                        break;
-                    }
-                    if let StepperRequest::Disable { mask } = r {
-                        // A switched-off motor can be pushed by hand: the position in steps
-                        // means nothing until the axis is homed again (Marlin: "not trusted").
-                        let lost = mask & 0b111;
-                        if lost & !self.position_lost != 0 {
-                            self.position_lost |= lost;
-                            let name = |i: usize| {
-                                if lost & (1 << i) != 0 {
-                                    ["X ", "Y ", "Z "][i]
-                                } else {
-                                    ""
-                                }
-                            };
-                            self.say(format_args!(
-                                "steppers off: {}{}{}position lost until G28",
-                                name(0),
-                                name(1),
-                                name(2)
-                            ));
-                        }
-                    }
-                    self.push_stepper_request(r);
-                }
-                Command::SchedulePause(s) => {
-                    self.schedule = Some(s);
-                    self.say(format_args!("pause scheduled: {:?}", s));
-                }
-            }
-            let _ = self.cmds.pop_front();
-            if let Some(Some(n)) = self.pause.tail_countdown() {
-                *n = n.saturating_sub(1);
-            }
-        }
-        if !self.planner.has_pending() {
-            if let Some(c @ Some(0)) = self.pause.tail_countdown() {
-                *c = None;
-                let id = self.planner.next_id();
-                self.planner.set_barrier(id);
-            }
-        }
-    }
-
-    /// `busy: processing` at most every [`BUSY_PERIOD_US`] while a host line waits for its
-    /// `ok` (heater wait, M400, a full queue while paused), so the host does not time out.
-    fn keep_alive(&mut self) {
-        let period = self.reports.busy_us;
-        if period > 0 && self.now_us.saturating_sub(self.lines.last_busy_us) >= period {
-            self.lines.last_busy_us = self.now_us;
-            self.link.respond(Response::Busy);
-        }
-    }
-
-    /// Send the `ok` an M400 owes (its wait is over, or the wait was dropped).
-    fn pay_sync_ok(&mut self) {
-        if core::mem::take(&mut self.lines.sync_ok_owed) {
-            self.link.respond(Response::Ok);
-        }
-    }
-
-    /// Whether the pause schedule asks to stop before `mark`.
-    fn schedule_hit(&self, mark: &LayerMark) -> bool {
-        match self.schedule {
-            Some(Schedule::Layer(n)) => mark.layer >= n,
-            Some(Schedule::Z(z)) => mark.z_um.is_some_and(|mz| mz >= z),
-            None => false,
-        }
-    }
-
-    /// A layer mark entered the planner: a matching schedule becomes the barrier. While a pause
-    /// is already in progress the schedule waits: it is met by that pause if it stops at a
-    /// matching boundary, or looked for again among the queued marks when the job resumes.
-    fn check_schedule(&mut self, mark: LayerMark) {
-        if self.schedule_hit(&mark) && matches!(self.pause, Pause::Run) {
-            self.schedule = None;
-            if let Some((id, _)) = self.planner.marks().last() {
-                self.planner.set_barrier(id);
-            }
-            self.pause = Pause::Stopping {
-                how: Stop::Barrier {
-                    layer: Some(mark.layer),
-                },
-                then: state::AfterStop::Park,
-            };
-            self.say(format_args!(
-                "scheduled pause: stopping before layer {}",
-                mark.layer
-            ));
-            self.update_state_record();
-        }
-    }
-
-    /// Set a pause schedule now (M761 from the host). A matching layer mark already in the
-    /// planner becomes the barrier at once.
-    pub fn schedule_pause(&mut self, s: Option<Schedule>) {
-        self.schedule = s;
-        self.schedule_queued_marks();
-    }
-
-    /// Apply the schedule to the layer marks already queued in the planner.
-    pub(super) fn schedule_queued_marks(&mut self) {
-        if self.schedule.is_none() || !matches!(self.pause, Pause::Run) {
-            return;
-        }
-        let mut hit = None;
-        for (id, m) in self.planner.marks() {
-            if self.schedule_hit(&m) {
-                hit = Some((id, m));
-                break;
-            }
-        }
-        if let Some((id, m)) = hit {
-            self.schedule = None;
-            self.planner.set_barrier(id);
-            self.pause = Pause::Stopping {
-                how: Stop::Barrier {
-                    layer: Some(m.layer),
-                },
-                then: state::AfterStop::Park,
-            };
-            self.say(format_args!(
-                "scheduled pause: stopping before layer {}",
-                m.layer
-            ));
-            self.update_state_record();
-        }
-    }
-
-    /// The current pause schedule (M761 report).
-    pub fn scheduled_pause(&self) -> Option<Schedule> {
-        self.schedule
-    }
-
     /// Main loop: move commands into the planner, run the pause state machine and dwell.
     pub fn poll(&mut self, now_us: u64) {
         self.set_now(now_us);
@@ -652,153 +385,6 @@ impl Printer {
         }
         self.report_tick();
         self.update_state_record();
-    }
-
-    /// Time of the next step event, ns (loads the next block when the current one is done).
-    pub fn next_step_ns(&mut self) -> Option<u64> {
-        for _ in 0..(RING_CAPACITY + 8) {
-            if let Some(t) = self.stepgen.peek_time_ns() {
-                return Some(t);
-            }
-            if !self.advance_block() {
-                return None;
-            }
-        }
-        None
-    }
-
-    /// Time of the next step event, µs.
-    pub fn next_step_us(&mut self) -> Option<u64> {
-        self.next_step_ns()
-            .map(|t| crate::stepgen::div_small(t, 1000).0)
-    }
-
-    /// Take the next step event (the one [`Printer::next_step_ns`] announced). The driver
-    /// calls this when its clock reaches the event's time.
-    pub fn next_step(&mut self) -> Option<StepEvent> {
-        self.next_step_ns()?;
-        let ev = self.stepgen.next_event();
-        if ev.is_some() && self.stepgen.block_finished() {
-            // Record the block at once so the record follows its last step.
-            self.advance_block();
-        }
-        ev
-    }
-
-    fn retire_finished(&mut self) {
-        if self.stepgen.block_finished() {
-            if let Some(e) = self.stepgen.unload() {
-                let b = e.planned.block;
-                if b.kind != BlockKind::Service {
-                    self.planner.exec_done();
-                }
-                let t_us = crate::stepgen::div_small(self.stepgen.last_time_ns(), 1000).0;
-                self.last_activity_us = self.last_activity_us.max(t_us);
-                let pos = self.stepgen.position();
-                self.record(Record::Executed {
-                    seq: b.seq,
-                    seg: b.seg,
-                    segs: b.segs,
-                    kind: b.kind,
-                    t_us,
-                    pos,
-                });
-                if b.kind == BlockKind::Homing
-                    && matches!(
-                        self.pause,
-                        Pause::Stopping {
-                            how: Stop::Hold { after_homing: true },
-                            ..
-                        }
-                    )
-                {
-                    self.begin_hold();
-                }
-            }
-        }
-    }
-
-    /// Retire a finished block and load the next one. False when nothing can be loaded.
-    fn advance_block(&mut self) -> bool {
-        if self.is_halted() {
-            return false;
-        }
-        self.retire_finished();
-        if self.stepgen.current().is_some() {
-            return false; // held mid-block
-        }
-        if let Some(pb) = self.next_block() {
-            self.load_block(pb);
-            return true;
-        }
-        self.update_pause();
-        if self.stepgen.current().is_some() {
-            return true;
-        }
-        if let Some(pb) = self.next_block() {
-            self.load_block(pb);
-            return true;
-        }
-        false
-    }
-
-    /// Hand a block to the step generator, then refill the planner from the command queue.
-    /// Only after the load: commands that wait for the motion to end (G4, M400, G28, M18) must
-    /// not see an idle machine while a popped block is on its way to the step generator.
-    fn load_block(&mut self, pb: PlannedBlock) {
-        let now = self.now_ns();
-        self.stepgen.load(pb, now);
-        self.feed_planner();
-    }
-
-    fn job_block(&mut self) -> Option<PlannedBlock> {
-        let pb = self.planner.pop()?;
-        self.planner.refill();
-        while let Some(m) = self.planner.take_mark_before(pb.block.id) {
-            self.layer = Some(m.layer);
-            let t_us = self.t_us();
-            self.record(Record::Layer {
-                layer: m.layer,
-                t_us,
-            });
-        }
-        Some(pb)
-    }
-
-    fn next_block(&mut self) -> Option<PlannedBlock> {
-        match &mut self.pause {
-            Pause::Run => self.job_block(),
-            Pause::Stopping { how, .. } => {
-                if how.mode() != PauseMode::Now
-                    || matches!(how, Stop::Hold { after_homing: true })
-                    || (self.stepgen.is_braking() && self.stepgen.exit_speed_mm_s() > 0.0)
-                {
-                    // Layer and tail stops run to their barrier; a feed hold brakes through
-                    // the next blocks while it still has speed (or waits for a homing move).
-                    self.job_block()
-                } else {
-                    None
-                }
-            }
-            Pause::Parking { .. } | Pause::Parked { .. } | Pause::Returning { .. } => {
-                if let Pause::Returning { reheat, .. } = &mut self.pause {
-                    if *reheat {
-                        if !self.thermal.reached(HeaterId::Hotend) {
-                            return None;
-                        }
-                        *reheat = false;
-                    }
-                }
-                while let Some(m) = self.service.pop_front() {
-                    let from = self.stepgen.position();
-                    if let Some(pb) = service::block(&self.cfg, from, m) {
-                        return Some(pb);
-                    }
-                }
-                None
-            }
-            Pause::Halted => None,
-        }
     }
 
     fn has_work(&self) -> bool {
