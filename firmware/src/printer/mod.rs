@@ -21,7 +21,8 @@ mod types;
 
 pub use types::{Command, PausedLines, Policy, Record, Schedule, State, Status, StepperRequest};
 mod service;
-// Settings M-codes and the flash store's requests (M500/M501).
+// Settings M-codes and the flash store's requests (M500/M501), the paused-job record.
+mod job;
 mod settings;
 
 pub use service::ServiceMove;
@@ -115,6 +116,8 @@ pub struct Printer {
     position_lost: u8,
     /// Factory settings and a pending M500/M501 (see `settings.rs`).
     settings: settings::SettingsLink,
+    /// Boundaries of the host stream and the paused-job record's requests (see `job.rs`).
+    job: job::JobLink,
 }
 
 fn steps(cfg: &MachineConfig, axis: Axis, mm: f32) -> i32 {
@@ -179,6 +182,7 @@ impl Printer {
             sync_ok_owed: false,
             position_lost: 0,
             settings: settings::SettingsLink::new(),
+            job: job::JobLink::new(),
         };
         p.set_policy(policy);
         p.set_factory_settings();
@@ -727,6 +731,9 @@ impl Printer {
                 _ => self.job_block(),
             },
             Phase::Parking | Phase::Parked | Phase::Returning => {
+                if self.job_clear_waits() {
+                    return None; // the paused-job record is cleared before the head returns
+                }
                 if self.reheat_wait {
                     if !self.thermal.reached(HeaterId::Hotend) {
                         return None;

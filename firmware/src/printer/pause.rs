@@ -176,6 +176,7 @@ impl Printer {
     }
 
     pub(super) fn finish_cancel(&mut self) {
+        self.on_job_continues();
         self.phase = Phase::Run;
         self.mode = None;
         self.cancel_pending = false;
@@ -334,6 +335,7 @@ impl Printer {
                     return;
                 }
                 self.phase = Phase::Parked;
+                self.on_parked();
                 if self.policy.paused_lines != PausedLines::Queue {
                     // Manual commands while paused are interpreted in a copy of the job's modal
                     // state that starts at the parked position: they cannot change what the
@@ -431,6 +433,7 @@ impl Printer {
 
     pub(super) fn start_resume(&mut self) {
         self.phase = Phase::Returning;
+        self.on_job_continues();
         // From here on host lines are job lines again (they queue behind the held blocks while
         // the head returns): they must be interpreted in the job's modal state, not in the
         // parked one manual commands used.
