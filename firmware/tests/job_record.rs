@@ -128,6 +128,22 @@ fn a_layer_pause_keeps_the_job_and_a_resume_forgets_it() {
     assert_eq!((job.hotend_c, job.bed_c, job.fan_pwm), (205.0, 60.0, 128));
     assert_eq!(job.retract_mm, 2.0);
 
+    // A power cut now: the next power-up tells the host where the job can continue.
+    let flash = store.into_flash();
+    let mut copy = SettingsStore::new(Flash::new(flash.bytes().to_vec()), 0..8192).unwrap();
+    let mut after = Printer::with_policy(cfg, Policy::FIRMWARE);
+    after.load_settings(&mut copy);
+    let mut boot = String::new();
+    after.write_output(&mut boot).unwrap();
+    assert!(
+        boot.contains(&format!(
+            "//action:notification Paused job kept: layer 1 at Z0.400, continue from host line {}",
+            first_after + 1
+        )),
+        "{boot}"
+    );
+    let mut store = SettingsStore::new(flash, 0..8192).unwrap();
+
     // Resume: the record is forgotten once the job continues.
     p.request(Realtime::Resume, now);
     for _ in 0..5_000 {

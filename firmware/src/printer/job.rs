@@ -66,6 +66,40 @@ impl JobLink {
 }
 
 impl Printer {
+    /// Power-up (from `load_settings`): a job kept by a layer pause before the power went is
+    /// announced to the host (`//action:notification`), with the line to restart from. The
+    /// record stays until a job is paused and resumed again, or cancelled (M524).
+    pub(super) fn announce_kept_job<F: embedded_storage::nor_flash::NorFlash>(
+        &mut self,
+        store: &mut crate::storage::SettingsStore<F>,
+    ) {
+        match store.load_job() {
+            Ok(Some(j)) => {
+                let (what, at) = match &j.source {
+                    JobSource::Host { line } => ("host line", *line),
+                    JobSource::Sd { offset, .. } => ("SD offset", *offset),
+                };
+                let mut t: heapless::String<{ super::LINE_LEN }> = heapless::String::new();
+                let _ = core::fmt::Write::write_fmt(
+                    &mut t,
+                    format_args!(
+                        "Paused job kept: layer {} at Z{:.3}, continue from {what} {at}",
+                        j.layer,
+                        j.boundary_z_um as f32 / 1000.0
+                    ),
+                );
+                self.link.respond(crate::link::Response::Action(
+                    crate::link::HostAction::Notification,
+                    &t,
+                ));
+                // The next layer pause of a new job replaces it; a cancel forgets it.
+                self.job.saved = true;
+            }
+            Ok(None) => {}
+            Err(e) => self.say(format_args!("power-cut resume record unusable: {e}")),
+        }
+    }
+
     /// Note a layer boundary produced by the host line numbered `line` (hook in `host.rs`).
     pub(super) fn note_boundary(
         &mut self,

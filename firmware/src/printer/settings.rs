@@ -132,6 +132,7 @@ impl Printer {
         }
         self.job.attached = true;
         self.load_and_apply(store, false);
+        self.announce_kept_job(store);
     }
 
     fn load_and_apply<F: NorFlash>(&mut self, store: &mut SettingsStore<F>, report_empty: bool) {
