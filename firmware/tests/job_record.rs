@@ -74,7 +74,12 @@ fn a_layer_pause_keeps_the_job_and_a_resume_forgets_it() {
     for _ in 0..200_000 {
         if !waiting && next < lines.len() {
             let body = format!("N{} {}", next + 1, lines[next]);
-            p.receive(format!("{body}*{}\n", checksum(&body)).as_bytes(), now);
+            let l = format!("{body}*{}\n", checksum(&body));
+            assert_eq!(
+                p.receive(l.as_bytes(), now),
+                l.len(),
+                "one line per ok is taken"
+            );
             next += 1;
             waiting = true;
         }
@@ -168,7 +173,12 @@ fn an_unnumbered_stream_keeps_no_record_and_says_so() {
     let mut waiting = false;
     for _ in 0..200_000u64 {
         if !waiting && next < lines.len() {
-            p.receive(format!("{}\n", lines[next]).as_bytes(), now);
+            let l = format!("{}\n", lines[next]);
+            assert_eq!(
+                p.receive(l.as_bytes(), now),
+                l.len(),
+                "one line per ok is taken"
+            );
             next += 1;
             waiting = true;
         }
@@ -213,7 +223,12 @@ fn without_a_store_nothing_is_kept_and_the_resume_does_not_wait() {
     for _ in 0..400_000u64 {
         if !waiting && next < lines.len() {
             let body = format!("N{} {}", next + 1, lines[next]);
-            p.receive(format!("{body}*{}\n", checksum(&body)).as_bytes(), now);
+            let l = format!("{body}*{}\n", checksum(&body));
+            assert_eq!(
+                p.receive(l.as_bytes(), now),
+                l.len(),
+                "one line per ok is taken"
+            );
             next += 1;
             waiting = true;
         }

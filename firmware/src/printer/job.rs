@@ -9,7 +9,8 @@
 //! behind the barrier), so neither the link's last line nor the current modal state is the
 //! boundary's: the note is. A host that does not number its lines gets no record (said so).
 
-use super::{Phase, Printer};
+use super::state::Pause;
+use super::Printer;
 use crate::machine::MachineState;
 use crate::motion::{Axis, PauseMode, AXES};
 use crate::storage::{JobSource, ModalState, PausedJob};
@@ -122,10 +123,15 @@ impl Printer {
     /// The record for the job parked now, if it stopped at a noted boundary of a numbered
     /// host stream.
     pub fn paused_job(&self) -> Option<PausedJob> {
-        if self.phase != Phase::Parked || self.mode != Some(PauseMode::Layer) {
+        if !matches!(self.pause, Pause::Parked { .. })
+            || self.pause.mode() != Some(PauseMode::Layer)
+        {
             return None;
         }
-        let layer = self.barrier_layer?;
+        let held = *self.pause.held()?;
+        // The barrier stood at the first queued mark: the boundary before that layer.
+        let (_, mark) = self.planner.first_mark()?;
+        let layer = mark.layer;
         let note = self.job.notes.iter().rev().find(|n| n.layer == layer)?;
         let line = note.line?;
         let m = &note.modal;
@@ -133,14 +139,14 @@ impl Printer {
         let logical = m.logical_mm();
         let spm = |a: Axis| self.cfg.axis(a).steps_per_mm;
         let z_um = note.z_um.unwrap_or_else(|| {
-            let z = self.held_pos[Axis::Z.index()] as f32 / spm(Axis::Z) * 1000.0;
+            let z = held.pos[Axis::Z.index()] as f32 / spm(Axis::Z) * 1000.0;
             libm::roundf(z) as i32
         });
         Some(PausedJob {
             source: JobSource::Host { line },
             layer,
             boundary_z_um: z_um,
-            boundary_steps: self.held_pos,
+            boundary_steps: held.pos,
             park_steps: self.stepgen.position(),
             modal: ModalState {
                 relative_xyz: m.is_relative(),
@@ -153,7 +159,7 @@ impl Printer {
                 offset_mm: [0, 1, 2].map(|i| (machine[i] - logical[i]) as f32),
                 logical_e_mm: logical[AXES - 1],
             },
-            retract_mm: self.retracted_steps as f32 / spm(Axis::E),
+            retract_mm: held.retracted_steps as f32 / spm(Axis::E),
             hotend_c: self.thermal.target_c(HeaterId::Hotend),
             bed_c: self.thermal.target_c(HeaterId::Bed),
             fan_pwm: self.fan_pwm,
@@ -162,7 +168,7 @@ impl Printer {
 
     /// A pause has parked (hook in `pause.rs`): keep the job's record for a power-cut resume.
     pub(super) fn on_parked(&mut self) {
-        if self.mode != Some(PauseMode::Layer) || !self.job.attached {
+        if self.pause.mode() != Some(PauseMode::Layer) || !self.job.attached {
             return;
         }
         match self.paused_job() {
@@ -194,6 +200,6 @@ impl Printer {
     /// The head waits at the park position until the record is cleared (hook in `mod.rs`):
     /// a power cut after the return started must not offer to resume a job that moved on.
     pub(super) fn job_clear_waits(&self) -> bool {
-        self.phase == Phase::Returning && self.job.request == Some(JobRequest::Clear)
+        matches!(self.pause, Pause::Returning { .. }) && self.job.request == Some(JobRequest::Clear)
     }
 }

@@ -9,7 +9,8 @@
 //! while nothing is queued or moving: the position is re-expressed in the new steps then, as
 //! Marlin's M92 does, so no move jumps.
 
-use super::{Phase, Printer};
+use super::state::Pause;
+use super::Printer;
 use crate::gcode::{self, AxisWords, Heater, PauseParams, SettingsCommand};
 use crate::link::Response;
 use crate::motion::{Axis, AXES};
@@ -76,7 +77,7 @@ impl Printer {
     /// True when nothing is queued or moving and no pause is under way: steps per mm may
     /// change.
     fn settings_idle(&self) -> bool {
-        self.phase == Phase::Run && !self.has_work()
+        matches!(self.pause, Pause::Run) && !self.has_work()
     }
 
     /// Apply `s`. Refused (nothing changes) when the steps per mm differ while motion is
@@ -195,7 +196,8 @@ impl Printer {
     /// with no service move running (parked, or about to return and waiting for this store).
     fn still(&self) -> bool {
         self.stepgen.current().is_none()
-            && (self.planner.is_empty() || matches!(self.phase, Phase::Parked | Phase::Returning))
+            && (self.planner.is_empty()
+                || matches!(self.pause, Pause::Parked { .. } | Pause::Returning { .. }))
     }
 
     /// True while an M500/M501 or a paused-job save/clear waits for the driver.
