@@ -10,6 +10,17 @@ use std::time::{Duration, Instant};
 
 /// One `sim serve` session: send `lines` (each waits for its `ok`), return everything read.
 fn session(flash: &Path, lines: &[&str]) -> Vec<String> {
+    session_with(flash, lines, None)
+}
+
+fn checksum(s: &str) -> u8 {
+    s.bytes().fold(0, |a, b| a ^ b)
+}
+
+/// A `sim serve` session: send `lines` (each waits for its `ok`); with `pause_after = Some(k)`,
+/// write a realtime `M25` (layer pause) after the k-th line and, once every line is sent, read
+/// until the printer says it keeps the paused job. Returns everything read.
+fn session_with(flash: &Path, lines: &[&str], pause_after: Option<usize>) -> Vec<String> {
     let (tx, rx) = mpsc::channel();
     let flash: PathBuf = flash.to_path_buf();
     let server = std::thread::spawn(move || {
@@ -55,7 +66,14 @@ fn session(flash: &Path, lines: &[&str]) -> Vec<String> {
         }
     });
     let mut seen = Vec::new();
-    for l in lines {
+    let kept = |seen: &Vec<String>| seen.iter().any(|l| l.contains("power-cut resume:"));
+    for (i, l) in lines.iter().enumerate() {
+        if pause_after.is_some() && kept(&seen) {
+            break; // parked: the queue is full, the rest of the job waits (the power goes now)
+        }
+        if pause_after == Some(i) {
+            dev.write_all(b"M25\n").expect("write");
+        }
         dev.write_all(format!("{l}\n").as_bytes()).expect("write");
         let end = Instant::now() + Duration::from_secs(30);
         loop {
@@ -65,9 +83,19 @@ fn session(flash: &Path, lines: &[&str]) -> Vec<String> {
                 .unwrap_or_else(|_| panic!("no ok for {l:?}; saw {seen:?}"));
             let ok = got.starts_with("ok");
             seen.push(got);
-            if ok {
+            if ok || (pause_after.is_some() && kept(&seen)) {
                 break;
             }
+        }
+    }
+    if pause_after.is_some() {
+        let end = Instant::now() + Duration::from_secs(60);
+        while !kept(&seen) {
+            let left = end.saturating_duration_since(Instant::now());
+            let got = lrx
+                .recv_timeout(left)
+                .unwrap_or_else(|_| panic!("no paused-job record; saw {seen:?}"));
+            seen.push(got);
         }
     }
     // The store runs in the session loop right after the `ok`: wait for its answer.
@@ -126,4 +154,60 @@ fn settings_saved_in_one_session_are_reported_in_the_next() {
     );
     let _ = std::fs::remove_file(&file);
     let _ = std::fs::remove_file(&third);
+}
+
+/// A numbered job of 4 layers (Cura markers). Returns the lines (with `N` and checksum) and, per
+/// layer, the `N` of its first motion line.
+fn numbered_job() -> (Vec<String>, Vec<u32>) {
+    let mut body: Vec<String> = ["G28", "M83", "G92 E0"].map(String::from).to_vec();
+    let mut first = Vec::new();
+    for layer in 0..4 {
+        body.push(format!(";LAYER:{layer}"));
+        first.push(body.len() as u32 + 1);
+        body.push(format!("G1 Z{:.1} F600", 0.2 * (layer + 1) as f32));
+        for i in 0..16 {
+            let (x, y) = [(20, 20), (120, 20), (120, 120), (20, 120)][i % 4];
+            body.push(format!("G1 X{x} Y{y} E3 F1800"));
+        }
+    }
+    let lines = body
+        .iter()
+        .enumerate()
+        .map(|(i, b)| {
+            let l = format!("N{} {b}", i + 1);
+            format!("{l}*{}", checksum(&l))
+        })
+        .collect();
+    (lines, first)
+}
+
+#[test]
+fn a_paused_job_kept_in_one_session_is_announced_in_the_next() {
+    let file = std::env::temp_dir().join(format!("sim-serve-job-{}.bin", std::process::id()));
+    let _ = std::fs::remove_file(&file);
+    let (lines, first) = numbered_job();
+    let refs: Vec<&str> = lines.iter().map(String::as_str).collect();
+    let mut all = vec!["M110 N0"];
+    all.extend(refs);
+    let seen = session_with(&file, &all, Some(12));
+    let kept = seen
+        .iter()
+        .find(|l| l.contains("power-cut resume: keeping job at layer"))
+        .unwrap_or_else(|| panic!("{seen:?}"));
+    // "… keeping job at layer L, host line N": N is the first motion line of layer L.
+    let words: Vec<&str> = kept.split([' ', ',']).collect();
+    let layer: usize = words[words.iter().position(|w| *w == "layer").unwrap() + 1]
+        .parse()
+        .unwrap();
+    let line: u32 = words.last().unwrap().parse().unwrap();
+    assert_eq!(line, first[layer], "{kept}");
+
+    // The power goes (the session ends while paused); the next session announces the job.
+    let next = session(&file, &["M105"]);
+    let want = format!(
+        "//action:notification Paused job kept: layer {layer} at Z{:.3}, continue from host line {line}",
+        0.2 * (layer + 1) as f32
+    );
+    assert!(next.contains(&want), "{want}\n{next:?}");
+    let _ = std::fs::remove_file(&file);
 }

@@ -137,6 +137,9 @@ impl Printer {
                 }
             }
             Pause::Parking { .. } | Pause::Parked { .. } | Pause::Returning { .. } => {
+                if self.job_clear_waits() {
+                    return None; // the paused-job record is cleared before the head returns
+                }
                 if let Pause::Returning { reheat, .. } = &mut self.pause {
                     if *reheat {
                         if !self.thermal.reached(HeaterId::Hotend) {

@@ -291,6 +291,7 @@ impl Printer {
                 return;
             }
         };
+        let modal_before = self.machine;
         let before = self.machine.position_steps(&self.cfg);
         let action = match &parsed.command {
             Some(cmd) => match self.machine.apply(cmd, &self.cfg) {
@@ -308,12 +309,14 @@ impl Printer {
             let facts = MoveFacts::between(&before, &after, &self.cfg);
             if let Some(mark) = self.layers.feed(&parsed, facts) {
                 let _ = self.cmds.push_back(Command::Layer(mark));
+                self.note_boundary(&mark, line.number(), &modal_before);
             }
             // M400 after a layer's marker comments: the boundary is here (a host that drains
             // the queue at a boundary, then pauses, stops at this layer, not the next).
             if matches!(parsed.command, Some(gcode::Command::WaitMoves)) {
                 if let Some(mark) = self.layers.finish() {
                     let _ = self.cmds.push_back(Command::Layer(mark));
+                    self.note_boundary(&mark, line.number(), &modal_before);
                 }
             }
         }

@@ -36,6 +36,8 @@ use state::Pause;
 pub use types::{Command, PausedLines, Policy, Record, Schedule, State, Status, StepperRequest};
 mod service;
 // Settings M-codes and the flash store's requests (M500/M501).
+// The paused-job record (power-cut resume).
+mod job;
 mod settings;
 // Reports hosts expect (temperatures during heater waits, M155, M113, M73, M31, M27).
 mod report;
@@ -105,6 +107,8 @@ pub struct Printer {
     /// Factory settings and a pending M500/M501 (see `settings.rs`).
     settings: settings::SettingsLink,
     reports: report::Reports,
+    /// Boundaries of the host stream and the paused-job record's requests (see `job.rs`).
+    job: job::JobLink,
 }
 
 fn steps(cfg: &MachineConfig, axis: Axis, mm: f32) -> i32 {
@@ -152,6 +156,7 @@ impl Printer {
             position_lost: 0,
             settings: settings::SettingsLink::new(),
             reports: report::Reports::new(),
+            job: job::JobLink::new(),
         };
         p.set_policy(policy);
         p.set_factory_settings();

@@ -150,6 +150,7 @@ impl Printer {
                     m
                 });
                 self.pause = Pause::Parked { held, manual };
+                self.on_parked();
                 self.thermal.pause_idle_start(self.now_us);
                 self.action(HostAction::Paused);
                 if then == AfterPark::Resume {
@@ -252,6 +253,7 @@ impl Printer {
             reheat,
             then: AfterReturn::Print,
         };
+        self.on_job_continues();
         self.service.clear();
         let p = held.pos;
         let c = self.cfg;

@@ -225,6 +225,7 @@ impl Printer {
 
     /// The cancel is complete: back to [`Pause::Run`] where the head is.
     pub(super) fn finish_cancel(&mut self) {
+        self.on_job_continues();
         self.pause = Pause::Run;
         // The host's silence is measured from here: lines that waited during the cancel's
         // park are not a fresh start.

@@ -131,7 +131,9 @@ impl Printer {
         if self.settings.factory.is_none() {
             self.set_factory_settings();
         }
+        self.job.attached = true;
         self.load_and_apply(store, false);
+        self.announce_kept_job(store);
     }
 
     fn load_and_apply<F: NorFlash>(&mut self, store: &mut SettingsStore<F>, report_empty: bool) {
@@ -161,19 +163,15 @@ impl Printer {
         }
     }
 
-    /// Main loop: carry out a pending M500/M501 with the driver's store once nothing moves (a
-    /// flash erase on the STM32F4 stalls every read of the flash, so code runs from it
-    /// stall too: never while stepping).
+    /// Main loop: carry out a pending M500/M501 and paused-job save/clear with the driver's
+    /// store once nothing moves (a flash erase on the STM32F4 stalls every read of the flash,
+    /// so code running from it stalls too: never while stepping).
     pub fn service_store<F: NorFlash>(&mut self, store: &mut SettingsStore<F>) {
-        let Some(req) = self.settings.request else {
-            return;
-        };
-        if !self.motion_idle() {
+        if !self.store_request_pending() || !self.still() {
             return;
         }
-        self.settings.request = None;
-        match req {
-            StoreRequest::Save(s) => match store.save(&s) {
+        match self.settings.request.take() {
+            Some(StoreRequest::Save(s)) => match store.save(&s) {
                 Ok(()) => self.say(format_args!(
                     "Settings Stored ({} bytes, format {})",
                     crate::storage::RECORD_LEN,
@@ -181,13 +179,30 @@ impl Printer {
                 )),
                 Err(e) => self.say(format_args!("settings not saved: {e}")),
             },
-            StoreRequest::Load => self.load_and_apply(store, true),
+            Some(StoreRequest::Load) => self.load_and_apply(store, true),
+            None => {}
+        }
+        let done = match self.job.request.take() {
+            Some(super::job::JobRequest::Save(j)) => store.save_job(&j),
+            Some(super::job::JobRequest::Clear) => store.clear_job(),
+            None => Ok(()),
+        };
+        if let Err(e) = done {
+            self.say(format_args!("power-cut resume: record not written: {e}"));
         }
     }
 
-    /// True while an M500/M501 waits for the driver.
+    /// Nothing steps now: the printer is idle, or paused (the held job waits in the planner)
+    /// with no service move running (parked, or about to return and waiting for this store).
+    fn still(&self) -> bool {
+        self.stepgen.current().is_none()
+            && (self.planner.is_empty()
+                || matches!(self.pause, Pause::Parked { .. } | Pause::Returning { .. }))
+    }
+
+    /// True while an M500/M501 or a paused-job save/clear waits for the driver.
     pub fn store_request_pending(&self) -> bool {
-        self.settings.request.is_some()
+        self.settings.request.is_some() || self.job.request.is_some()
     }
 
     /// Handle a settings command (the `ok` is sent by the caller).

@@ -34,10 +34,10 @@ pub const JOB_RECORD_LEN: usize = 4 + JOB_BODY_LEN + 4;
 /// Where the job comes from, and where in it the boundary is.
 #[derive(Clone, Debug, PartialEq)]
 pub enum JobSource {
-    /// Streamed by a host: the line number (`N…`) of the last line taken before the boundary;
-    /// the host restarts from the next one.
+    /// Streamed by a host: the line number (`N…`) of the first line after the boundary (the
+    /// line that started the new layer); the host restarts from it.
     Host {
-        /// Last line number taken.
+        /// Line number to restart from.
         line: u32,
     },
     /// Read from the SD card: the file and the byte offset of the first line after the
@@ -80,7 +80,8 @@ pub struct PausedJob {
     pub source: JobSource,
     /// The layer about to start (the boundary is before it).
     pub layer: u32,
-    /// Z of the boundary, µm (the height the job continues at).
+    /// Height of the layer that starts at the boundary, µm (the layer detector's height for
+    /// the mark; the boundary position's Z when the job gave none).
     pub boundary_z_um: i32,
     /// Where the head stopped at the boundary, steps (X Y Z E).
     pub boundary_steps: StepPos,

@@ -1,0 +1,205 @@
+//! The paused-job record in the executive: when a layer pause has parked at a boundary, the
+//! job's position and state there are kept in flash ([`crate::storage::PausedJob`]), and
+//! forgotten when the job resumes or is cancelled. The driver's store carries both out
+//! ([`Printer::service_store`]).
+//!
+//! Where the boundary is in the host's stream: when the layer detector marks a boundary, the
+//! line that produced the mark (its `N` number) and the modal state before that line are noted
+//! here, per layer. Lines after the boundary keep arriving while the printer parks (they queue
+//! behind the barrier), so neither the link's last line nor the current modal state is the
+//! boundary's: the note is. A host that does not number its lines gets no record (said so).
+
+use super::state::Pause;
+use super::Printer;
+use crate::machine::MachineState;
+use crate::motion::{Axis, PauseMode, AXES};
+use crate::storage::{JobSource, ModalState, PausedJob};
+use crate::thermal::HeaterId;
+use heapless::Deque;
+
+/// Boundaries remembered (the planner holds few marks at once; older ones have executed).
+pub const BOUNDARY_NOTES: usize = 8;
+
+/// What the executive knows about a boundary in the host's stream.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct BoundaryNote {
+    layer: u32,
+    z_um: Option<i32>,
+    /// `N` of the line that produced the mark (the first line of the new layer).
+    line: Option<u32>,
+    /// The modal state before that line.
+    modal: MachineState,
+}
+
+/// A request for the driver's store about the paused job.
+// One instance lives in the Printer and there is no heap to box the record: the size is paid
+// once either way.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Debug, PartialEq)]
+pub(super) enum JobRequest {
+    /// Keep this record.
+    Save(PausedJob),
+    /// Forget the record.
+    Clear,
+}
+
+/// The executive's paused-job state.
+#[derive(Clone, Debug, PartialEq)]
+pub(super) struct JobLink {
+    notes: Deque<BoundaryNote, BOUNDARY_NOTES>,
+    pub(super) request: Option<JobRequest>,
+    /// A record was asked to be saved (so resuming or cancelling must clear it).
+    saved: bool,
+    /// A driver with a store has booted the printer (`Printer::load_settings`): records are
+    /// kept only then, so a driver without a store never waits for one.
+    pub(super) attached: bool,
+}
+
+impl JobLink {
+    pub(super) const fn new() -> Self {
+        Self {
+            notes: Deque::new(),
+            request: None,
+            saved: false,
+            attached: false,
+        }
+    }
+}
+
+impl Printer {
+    /// Power-up (from `load_settings`): a job kept by a layer pause before the power went is
+    /// announced to the host (`//action:notification`), with the line to restart from. The
+    /// record stays until a job is paused and resumed again, or cancelled (M524).
+    pub(super) fn announce_kept_job<F: embedded_storage::nor_flash::NorFlash>(
+        &mut self,
+        store: &mut crate::storage::SettingsStore<F>,
+    ) {
+        match store.load_job() {
+            Ok(Some(j)) => {
+                let (what, at) = match &j.source {
+                    JobSource::Host { line } => ("host line", *line),
+                    JobSource::Sd { offset, .. } => ("SD offset", *offset),
+                };
+                let mut t: heapless::String<{ super::LINE_LEN }> = heapless::String::new();
+                let _ = core::fmt::Write::write_fmt(
+                    &mut t,
+                    format_args!(
+                        "Paused job kept: layer {} at Z{:.3}, continue from {what} {at}",
+                        j.layer,
+                        j.boundary_z_um as f32 / 1000.0
+                    ),
+                );
+                self.link.respond(crate::link::Response::Action(
+                    crate::link::HostAction::Notification,
+                    &t,
+                ));
+                // The next layer pause of a new job replaces it; a cancel forgets it.
+                self.job.saved = true;
+            }
+            Ok(None) => {}
+            Err(e) => self.say(format_args!("power-cut resume record unusable: {e}")),
+        }
+    }
+
+    /// Note a layer boundary produced by the host line numbered `line` (hook in `host.rs`).
+    pub(super) fn note_boundary(
+        &mut self,
+        mark: &crate::motion::LayerMark,
+        line: Option<u32>,
+        modal: &MachineState,
+    ) {
+        let n = &mut self.job.notes;
+        if n.is_full() {
+            let _ = n.pop_front();
+        }
+        let _ = n.push_back(BoundaryNote {
+            layer: mark.layer,
+            z_um: mark.z_um,
+            line,
+            modal: *modal,
+        });
+    }
+
+    /// The record for the job parked now, if it stopped at a noted boundary of a numbered
+    /// host stream.
+    pub fn paused_job(&self) -> Option<PausedJob> {
+        if !matches!(self.pause, Pause::Parked { .. })
+            || self.pause.mode() != Some(PauseMode::Layer)
+        {
+            return None;
+        }
+        let held = *self.pause.held()?;
+        // The barrier stood at the first queued mark: the boundary before that layer.
+        let (_, mark) = self.planner.first_mark()?;
+        let layer = mark.layer;
+        let note = self.job.notes.iter().rev().find(|n| n.layer == layer)?;
+        let line = note.line?;
+        let m = &note.modal;
+        let machine = m.machine_mm();
+        let logical = m.logical_mm();
+        let spm = |a: Axis| self.cfg.axis(a).steps_per_mm;
+        let z_um = note.z_um.unwrap_or_else(|| {
+            let z = held.pos[Axis::Z.index()] as f32 / spm(Axis::Z) * 1000.0;
+            libm::roundf(z) as i32
+        });
+        Some(PausedJob {
+            source: JobSource::Host { line },
+            layer,
+            boundary_z_um: z_um,
+            boundary_steps: held.pos,
+            park_steps: self.stepgen.position(),
+            modal: ModalState {
+                relative_xyz: m.is_relative(),
+                relative_e: m.is_relative_e(),
+                inches: m.is_inches(),
+                retracted: m.is_retracted(),
+                feed_mm_s: m.feed_mm_s(),
+                feed_pct: m.feed_override_pct(),
+                flow_pct: m.flow_override_pct(),
+                offset_mm: [0, 1, 2].map(|i| (machine[i] - logical[i]) as f32),
+                logical_e_mm: logical[AXES - 1],
+            },
+            retract_mm: held.retracted_steps as f32 / spm(Axis::E),
+            hotend_c: self.thermal.target_c(HeaterId::Hotend),
+            bed_c: self.thermal.target_c(HeaterId::Bed),
+            fan_pwm: self.fan_pwm,
+        })
+    }
+
+    /// A pause has parked (hook in `pause.rs`): keep the job's record for a power-cut resume.
+    pub(super) fn on_parked(&mut self) {
+        if self.pause.mode() != Some(PauseMode::Layer) || !self.job.attached {
+            return;
+        }
+        match self.paused_job() {
+            Some(j) => {
+                let line = match j.source {
+                    JobSource::Host { line } => line,
+                    JobSource::Sd { offset, .. } => offset,
+                };
+                self.say(format_args!(
+                    "power-cut resume: keeping job at layer {}, host line {line}",
+                    j.layer
+                ));
+                self.job.request = Some(JobRequest::Save(j));
+                self.job.saved = true;
+            }
+            None => self.say(format_args!(
+                "power-cut resume: not kept (no numbered host line at this boundary)"
+            )),
+        }
+    }
+
+    /// The job continues or ends (resume, cancel; hook in `pause.rs`): forget its record.
+    pub(super) fn on_job_continues(&mut self) {
+        if core::mem::take(&mut self.job.saved) {
+            self.job.request = Some(JobRequest::Clear);
+        }
+    }
+
+    /// The head waits at the park position until the record is cleared (hook in `mod.rs`):
+    /// a power cut after the return started must not offer to resume a job that moved on.
+    pub(super) fn job_clear_waits(&self) -> bool {
+        matches!(self.pause, Pause::Returning { .. }) && self.job.request == Some(JobRequest::Clear)
+    }
+}
