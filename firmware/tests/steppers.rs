@@ -62,13 +62,15 @@ fn enable_disable_and_timeout() {
 }
 
 #[test]
-fn bad_timeout_is_an_error_not_a_request() {
+fn bad_timeout_is_refused_not_a_request() {
     let mut p = Printer::new(MachineConfig::ENDER3);
     send(&mut p, "M84 S-5", 0);
     assert_eq!(p.take_stepper_request(), None);
     let mut out = String::new();
     p.write_output(&mut out).unwrap();
-    assert!(out.contains("Error"), "{out}");
+    // A refusal, as an `echo:` warning: `Error:` would end an OctoPrint print.
+    assert!(out.contains("echo:refused: M84 S"), "{out}");
+    assert!(!out.contains("Error"), "{out}");
 }
 
 #[test]

@@ -51,6 +51,10 @@ pub struct ServeArgs {
     /// Also make a symlink to the device at this path (e.g. /tmp/printer).
     #[arg(long)]
     pub link: Option<PathBuf>,
+    /// Keep the settings (M500) in this flash image between sessions (created erased when
+    /// missing; see `sim::flash`).
+    #[arg(long)]
+    pub flash: Option<PathBuf>,
 }
 
 static STOP: AtomicBool = AtomicBool::new(false);
@@ -155,6 +159,11 @@ pub fn serve_with(
     if !(a.speed.is_finite() && a.speed > 0.0) {
         anyhow::bail!("--speed must be a positive number");
     }
+    let mut flash = a
+        .flash
+        .as_deref()
+        .map(crate::flash::FlashStore::open)
+        .transpose()?;
     let (master, slave, path) = open_pty()?;
     if let Some(l) = &a.link {
         let _ = std::fs::remove_file(l);
@@ -233,6 +242,9 @@ pub fn serve_with(
             heaters.tick(&mut fw, now_us);
             fw.poll(now_us);
             last_poll_us = now_us;
+        }
+        if let Some(f) = flash.as_mut() {
+            f.service(&mut fw.printer);
         }
         rec.on_status(&fw.status(), now_us);
         track(&mut pauses, &fw, &rec, &mut notes_seen);

@@ -6,6 +6,7 @@ use super::{Command, PausedLines, Phase, Printer, Schedule, StepperRequest, LINE
 use crate::gcode::{self, Heater, PauseSchedule};
 use crate::layer::MoveFacts;
 use crate::link::{PositionReport, ReceivedLine, Response};
+
 use crate::machine::Action;
 use crate::motion::Realtime;
 use crate::printer::service::ServiceMove;
@@ -36,14 +37,47 @@ impl Printer {
             .count()
     }
 
-    /// Room for one more host line: the policy's limit on waiting commands (layer marks do not
-    /// count) and physical room for a mark plus a command.
-    fn line_room(&self) -> bool {
-        self.queued_moves() < self.policy.cmd_limit.clamp(1, CMD_CAPACITY)
-            && self.cmds.len() + 2 <= CMD_CAPACITY
+    /// Command slots kept free while a pause is on its way (stopping, parking): the line the
+    /// host has in flight when the printer announces `//action:paused` always fits, so its
+    /// `ok` follows the announcement and the host can send its resume next (docs/frontend.md,
+    /// "host rules").
+    fn reserved_lines(&self) -> usize {
+        usize::from(matches!(self.phase, Phase::Stopping | Phase::Parking))
     }
 
-    /// Take lines from the link while there is room, and answer each.
+    /// Room for one more host line: the policy's limit on waiting commands (layer marks do not
+    /// count) less the pause's reserve, and physical room for a mark plus a command.
+    fn line_room(&self) -> bool {
+        let reserve = self.reserved_lines();
+        self.queued_moves() + reserve < self.policy.cmd_limit.clamp(1, CMD_CAPACITY)
+            && self.cmds.len() + 2 + reserve <= CMD_CAPACITY
+    }
+
+    /// Whether a host line taken now is a manual command (while parked, see [`PausedLines`]).
+    fn is_manual(&self, line: &ReceivedLine) -> bool {
+        self.phase == Phase::Parked
+            && match self.policy.paused_lines {
+                PausedLines::Queue => false,
+                PausedLines::Manual => true,
+                PausedLines::Auto => self.host_numbers && line.number().is_none(),
+            }
+    }
+
+    /// The next host line: the one waiting for room, else the link's next (only while the
+    /// output ring can take its answer).
+    fn next_line(&mut self) -> Option<ReceivedLine> {
+        if self.held_line.is_some() {
+            if self.link.output_free() < crate::link::OUT_RESERVE {
+                return None;
+            }
+            return self.held_line.take();
+        }
+        self.link.pop_line()
+    }
+
+    /// Take lines from the link while there is room, and answer each. A line that needs no
+    /// queue room (reports, messages) is answered even when the queue is full; one that needs
+    /// room waits in `held_line`, with `busy:` keep-alives while a pause holds the queue.
     pub(super) fn process_lines(&mut self) {
         for _ in 0..64 {
             if self.halted {
@@ -60,26 +94,79 @@ impl Printer {
                 // M400 is waiting for the motion to end: the next line waits too.
                 return;
             }
-            let manual =
-                self.phase == Phase::Parked && self.policy.paused_lines == PausedLines::Manual;
-            if manual && self.service.is_full() {
-                return;
+            if let Some(held) = &self.held_line {
+                // Known to need room: wait for it without parsing again.
+                let fits = if self.is_manual(held) {
+                    !self.service.is_full()
+                } else {
+                    self.line_room()
+                };
+                if !fits {
+                    if self.phase != Phase::Run {
+                        self.keep_alive();
+                    }
+                    return;
+                }
             }
-            if !manual && !self.line_room() {
-                // Paused with a full queue: the host's line waits for its `ok`; keep the host
-                // from timing out.
-                if self.phase != Phase::Run && self.link.lines_waiting() > 0 {
+            let Some(line) = self.next_line() else {
+                return;
+            };
+            let manual = self.is_manual(&line);
+            let fits = if manual {
+                !self.service.is_full()
+            } else {
+                self.line_room()
+            };
+            if !fits {
+                if answered_without_room(&line) {
+                    self.answer_report(&line);
+                    continue;
+                }
+                self.held_line = Some(line);
+                if self.phase != Phase::Run {
+                    // A pause holds the queue: keep the host from timing out.
                     self.keep_alive();
                 }
                 return;
             }
-            let Some(line) = self.link.pop_line() else {
-                return;
-            };
+            if line.number().is_some() {
+                self.host_numbers = true;
+            }
             self.cancelled = false;
             self.last_activity_us = self.now_us;
-            self.handle_line(&line, manual);
+            if manual {
+                if let Some(m) = self.manual_machine.as_mut() {
+                    core::mem::swap(&mut self.machine, m);
+                }
+                self.handle_line(&line, true);
+                if let Some(m) = self.manual_machine.as_mut() {
+                    core::mem::swap(&mut self.machine, m);
+                }
+            } else {
+                self.handle_line(&line, false);
+            }
             self.feed_planner();
+        }
+    }
+
+    /// Answer a report/message line out of turn (the queue is full): it changes nothing the
+    /// job depends on, so its place in the stream does not matter.
+    fn answer_report(&mut self, line: &ReceivedLine) {
+        match line.parse() {
+            Ok(gcode::Line {
+                command: Some(cmd), ..
+            }) => {
+                if !self.executive(&cmd) {
+                    self.link.respond(Response::Ok);
+                }
+            }
+            Ok(_) => {
+                self.link.respond(Response::Ok);
+            }
+            Err(e) => {
+                self.warn(format_args!("{e}"));
+                self.link.respond(Response::Ok);
+            }
         }
     }
 
@@ -97,17 +184,21 @@ impl Printer {
         }
     }
 
-    fn error(&mut self, args: core::fmt::Arguments) {
+    /// A refused line: `echo:refused: <why>`, never `Error:` (OctoPrint cancels the print on
+    /// any `Error:` that is not about line numbers or checksums). The line changed nothing:
+    /// the machine's state is as before it. See the response table in docs/frontend.md.
+    fn warn(&mut self, args: core::fmt::Arguments) {
         let mut t: String<LINE_LEN> = String::new();
+        let _ = t.write_str("refused: ");
         let _ = t.write_fmt(args);
-        self.link.respond(Response::Error(&t));
+        self.link.respond(Response::Echo(&t));
     }
 
     fn handle_line(&mut self, line: &ReceivedLine, manual: bool) {
         let parsed = match line.parse() {
             Ok(l) => l,
             Err(e) => {
-                self.error(format_args!("{e}"));
+                self.warn(format_args!("{e}"));
                 self.link.respond(Response::Ok);
                 return;
             }
@@ -117,7 +208,7 @@ impl Printer {
             Some(cmd) => match self.machine.apply(cmd, &self.cfg) {
                 Ok(a) => a,
                 Err(e) => {
-                    self.error(format_args!("{e}"));
+                    self.warn(format_args!("{e}"));
                     self.link.respond(Response::Ok);
                     return;
                 }
@@ -153,7 +244,7 @@ impl Printer {
             }
             Action::Arc(a) => {
                 if manual {
-                    self.error(format_args!("arcs are not taken while paused"));
+                    self.warn(format_args!("arcs are not taken while paused"));
                 } else {
                     self.arc = Some(a);
                     self.push_arc();
@@ -164,7 +255,7 @@ impl Printer {
             }
             Action::Home(flags) => {
                 if manual {
-                    self.error(format_args!("homing is not allowed while paused"));
+                    self.warn(format_args!("homing is not allowed while paused"));
                 } else {
                     let mut mask = 0u8;
                     for (i, on) in flags.0.iter().enumerate() {
@@ -202,7 +293,7 @@ impl Printer {
                 let id = heater_id(*heater);
                 if let Some(t) = r.or(*s) {
                     if let Err(e) = self.thermal.set_target(id, t) {
-                        self.error(format_args!("{e}"));
+                        self.warn(format_args!("{e}"));
                         return false;
                     }
                 }
@@ -320,7 +411,7 @@ impl Printer {
                             kd: d.unwrap_or(base.kd),
                         };
                         if let Err(e) = self.thermal.set_pid(id, g) {
-                            self.error(format_args!("{e}"));
+                            self.warn(format_args!("{e}"));
                         }
                     }
                 }
@@ -340,7 +431,7 @@ impl Printer {
                 let c = cycles.unwrap_or(5).min(255) as u8;
                 let now = self.now_us;
                 if let Err(e) = self.thermal.start_autotune(id, t, c, *use_result, now) {
-                    self.error(format_args!("{e}"));
+                    self.warn(format_args!("{e}"));
                 }
             }
             G::EnableSteppers(axes) => {
@@ -355,7 +446,7 @@ impl Printer {
                         .cmds
                         .push_back(Command::Steppers(StepperRequest::IdleTimeout { s: *s }));
                 }
-                Some(_) => self.error(format_args!("M84 S: timeout must be >= 0 s")),
+                Some(_) => self.warn(format_args!("M84 S: timeout must be >= 0 s")),
                 None => {
                     let mask = axis_mask(axes);
                     let _ = self
@@ -365,14 +456,14 @@ impl Printer {
             },
             G::Tool(0) | G::Progress(_) => {}
             G::PrintStatsInfo { .. } | G::SetLineNumber(_) => {}
-            G::Tool(n) => self.error(format_args!("T{n}: only one extruder")),
+            G::Tool(n) => self.warn(format_args!("T{n}: only one extruder")),
             G::Stop { ms, s, .. } => {
                 if ms.is_some() || s.is_some() {
                     match crate::machine::dwell_ms(*ms, *s) {
                         Ok(ms) => {
                             let _ = self.cmds.push_back(Command::Dwell { ms });
                         }
-                        Err(e) => self.error(format_args!("{e}")),
+                        Err(e) => self.warn(format_args!("{e}")),
                     }
                 } else {
                     let _ = self.cmds.push_back(Command::PauseHere);
@@ -382,6 +473,7 @@ impl Printer {
                 // Park at the pause position; the user unloads/loads, then resumes (M24).
                 let _ = self.cmds.push_back(Command::PauseHere);
             }
+            G::Settings(c) => self.settings_command(c),
             G::Unknown(t) => {
                 self.link.respond(Response::UnknownCommand(t));
             }
@@ -483,6 +575,37 @@ impl Printer {
                 self.schedule_queued_marks();
             }
         }
+    }
+}
+
+/// Lines the executive answers without command-queue room, even while a pause holds a full
+/// queue: reports and messages, which queue nothing and change no state a later job line is
+/// interpreted in (and lines that do not parse: answered, nothing queued). Realtime lines
+/// (M24/M25/M108/M112/M410/M524/M601/M602) never wait: the link acts on them as they arrive.
+pub(super) fn answered_without_room(line: &ReceivedLine) -> bool {
+    use gcode::Command as G;
+    match line.parse() {
+        Err(_) => true,
+        Ok(gcode::Line { command: None, .. }) => false,
+        Ok(gcode::Line {
+            command: Some(c), ..
+        }) => match c {
+            G::ReportTemperatures
+            | G::ReportPosition
+            | G::FirmwareInfo
+            | G::Message(_)
+            | G::Echo(_)
+            | G::Progress(_)
+            | G::PrintStatsInfo { .. }
+            | G::FeedOverride(None)
+            | G::FlowOverride(None)
+            | G::SchedulePause(PauseSchedule::Report)
+            | G::SetLineNumber(_)
+            | G::Tool(0)
+            | G::Unknown(_) => true,
+            G::PauseParams(p) => p.is_empty(),
+            _ => false,
+        },
     }
 }
 

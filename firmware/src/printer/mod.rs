@@ -21,12 +21,14 @@ mod types;
 
 pub use types::{Command, PausedLines, Policy, Record, Schedule, State, Status, StepperRequest};
 mod service;
+// Settings M-codes and the flash store's requests (M500/M501).
+mod settings;
 
 pub use service::ServiceMove;
 
 use crate::config::MachineConfig;
 use crate::layer::LayerDetector;
-use crate::link::{HostAction, HostLink, Response};
+use crate::link::{HostAction, HostLink, ReceivedLine, Response};
 use crate::machine::{ArcMoves, MachineState};
 use crate::motion::{Axis, LayerMark, MoveRequest, PauseMode, Realtime, StepPos, AXES};
 use crate::planner::{BlockKind, PlannedBlock, Planner, PlannerPolicy, RING_CAPACITY};
@@ -91,7 +93,15 @@ pub struct Printer {
     records_dropped: u32,
     link: HostLink,
     machine: MachineState,
-    saved_machine: Option<MachineState>,
+    /// While parked: the modal state manual lines are interpreted in (starts at the parked
+    /// position); the job's own state in `machine` is never touched by them.
+    manual_machine: Option<MachineState>,
+    /// A host line taken from the link that waits for queue room (it needs room; lines that
+    /// need none are answered at once, see `host::answered_without_room`).
+    held_line: Option<ReceivedLine>,
+    /// The host has sent numbered lines (it numbers its job): with [`PausedLines::Auto`],
+    /// unnumbered lines while paused are manual commands.
+    host_numbers: bool,
     layers: LayerDetector,
     arc: Option<ArcMoves>,
     thermal: Thermal,
@@ -103,6 +113,8 @@ pub struct Printer {
     sync_ok_owed: bool,
     /// Axes (bit i = X, Y, Z) whose drivers were switched off since they were last homed.
     position_lost: u8,
+    /// Factory settings and a pending M500/M501 (see `settings.rs`).
+    settings: settings::SettingsLink,
 }
 
 fn steps(cfg: &MachineConfig, axis: Axis, mm: f32) -> i32 {
@@ -154,7 +166,9 @@ impl Printer {
             records_dropped: 0,
             link: HostLink::new(),
             machine: MachineState::new(&cfg),
-            saved_machine: None,
+            manual_machine: None,
+            held_line: None,
+            host_numbers: false,
             layers: LayerDetector::new(),
             arc: None,
             thermal: Thermal::new(&ThermalConfig::ENDER3),
@@ -164,8 +178,10 @@ impl Printer {
             fan_pwm: 0,
             sync_ok_owed: false,
             position_lost: 0,
+            settings: settings::SettingsLink::new(),
         };
         p.set_policy(policy);
+        p.set_factory_settings();
         p
     }
 
@@ -577,7 +593,7 @@ impl Printer {
         }
         // Lines are taken only when one waits (or an arc is being cut): the idle tick costs
         // a compare instead of the line handler's frame.
-        if self.arc.is_some() || self.link.lines_waiting() > 0 {
+        if self.arc.is_some() || self.link.lines_waiting() > 0 || self.held_line.is_some() {
             self.process_lines();
         }
         self.feed_planner();

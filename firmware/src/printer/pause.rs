@@ -184,9 +184,7 @@ impl Printer {
         self.deferred_resume = false;
         self.held = None;
         self.barrier_layer = None;
-        if let Some(m) = self.saved_machine.take() {
-            self.machine = m;
-        }
+        self.manual_machine = None;
         let pos = self.stepgen.position();
         self.planner.clear(pos);
         self.planner.exec_done();
@@ -223,9 +221,7 @@ impl Printer {
         self.barrier_layer = None;
         self.fifo_countdown = None;
         self.arc = None;
-        if let Some(m) = self.saved_machine.take() {
-            self.machine = m;
-        }
+        self.manual_machine = None;
         self.machine.set_position_steps(&pos, &self.cfg);
         self.say(format_args!(
             "quick stop (M410): dropped {} blocks, {} uncut segments",
@@ -239,8 +235,15 @@ impl Printer {
         }
         match self.mode {
             Some(PauseMode::Now) => {
+                // Stopped: no step left in the loaded block (held mid-way), or between blocks
+                // with nothing to brake through. A brake that ends exactly at the last queued
+                // point may leave a rounding-sized exit speed with no block after it: the head
+                // is at the end of the queued motion, and that is the stop (issue 14 item 7).
                 self.stepgen.is_stopped()
-                    && (self.stepgen.current().is_some() || self.stepgen.exit_speed_mm_s() <= 0.0)
+                    && (self.stepgen.current().is_some()
+                        || self.stepgen.exit_speed_mm_s() <= 0.0
+                        || self.planner.is_empty()
+                        || self.planner.at_barrier())
             }
             _ => {
                 if self.stepgen.current().is_some() {
@@ -331,13 +334,14 @@ impl Printer {
                     return;
                 }
                 self.phase = Phase::Parked;
-                if self.policy.paused_lines == PausedLines::Manual {
-                    // The job's modal state is kept aside; manual commands while paused start
-                    // from the parked position and cannot change what the job resumes with.
-                    // (With `Queue`, lines while paused are job lines: the state runs on.)
-                    self.saved_machine = Some(self.machine);
+                if self.policy.paused_lines != PausedLines::Queue {
+                    // Manual commands while paused are interpreted in a copy of the job's modal
+                    // state that starts at the parked position: they cannot change what the
+                    // job resumes with. (Job lines while paused keep using the job's state.)
+                    let mut m = self.machine;
                     let here = self.stepgen.position();
-                    self.machine.set_position_steps(&here, &self.cfg);
+                    m.set_position_steps(&here, &self.cfg);
+                    self.manual_machine = Some(m);
                 }
                 self.thermal.pause_idle_start(self.now_us);
                 self.action(HostAction::Paused);
@@ -430,9 +434,7 @@ impl Printer {
         // From here on host lines are job lines again (they queue behind the held blocks while
         // the head returns): they must be interpreted in the job's modal state, not in the
         // parked one manual commands used.
-        if let Some(m) = self.saved_machine.take() {
-            self.machine = m;
-        }
+        self.manual_machine = None;
         // A nozzle cooled by the pause idle timeout must be hot again before the return.
         self.reheat_wait = self.thermal.pause_idle_end().is_some();
         self.service.clear();
