@@ -40,6 +40,9 @@ mod number;
 // Settings M-codes (M92 M201 M203 M205 M206 M851 M906 M500-M503): parse and emit.
 mod settings;
 pub use settings::{Advanced, SettingsCommand};
+// Stepper-driver M-codes (M122 M350 M569; M906 is a settings command): parse and emit.
+mod driver;
+pub use driver::DriverCommand;
 
 use crate::motion::{Axis, AXES};
 use core::fmt;
@@ -362,6 +365,8 @@ pub enum Command {
     },
     /// Settings: M92, M201, M203, M205, M206, M851, M906 and M500–M503 (see [`SettingsCommand`]).
     Settings(SettingsCommand),
+    /// Stepper drivers: M569, M350 and M122 (see [`DriverCommand`]).
+    Driver(DriverCommand),
     /// Any other G/M code or extended command: its text (comment stripped), for
     /// `echo:Unknown command: "<text>"`.
     Unknown(Text),
@@ -1186,6 +1191,7 @@ fn build_known(code: (u8, u16), w: &Words<'_>) -> Option<Result<Command, ParseEr
                 Command::SchedulePause(s)
             }
             (b'M', n) if settings::is_settings_code(n) => Command::Settings(settings::build(n, w)?),
+            (b'M', n) if driver::is_driver_code(n) => Command::Driver(driver::build(n, w)?),
             (b'T', n) => {
                 none()?;
                 match u8::try_from(n) {

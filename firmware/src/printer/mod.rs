@@ -23,6 +23,9 @@ pub use types::{Command, PausedLines, Policy, Record, Schedule, State, Status, S
 mod service;
 // Settings M-codes and the flash store's requests (M500/M501).
 mod settings;
+// Stepper drivers: M569/M350/M122 and the board's TMC2209 results.
+mod drivers;
+pub use drivers::{DriverRequest, DRIVER_REQ_CAPACITY};
 
 pub use service::ServiceMove;
 
@@ -90,6 +93,7 @@ pub struct Printer {
     last_state: State,
     records: Deque<Record, RECORD_CAPACITY>,
     stepper_reqs: Deque<StepperRequest, STEPPER_REQ_CAPACITY>,
+    driver_reqs: Deque<drivers::DriverRequest, { drivers::DRIVER_REQ_CAPACITY }>,
     records_dropped: u32,
     link: HostLink,
     machine: MachineState,
@@ -163,6 +167,7 @@ impl Printer {
             last_state: State::Idle,
             records: Deque::new(),
             stepper_reqs: Deque::new(),
+            driver_reqs: Deque::new(),
             records_dropped: 0,
             link: HostLink::new(),
             machine: MachineState::new(&cfg),
