@@ -7,7 +7,9 @@
 //! * [`clock`] — TIM5 time base (4 MHz, 64-bit);
 //! * [`stepper`] — the step interrupt and its event queue;
 //! * [`heaters`] — thermistor sampling, software PWM, hot-end fan;
-//! * [`safety`] — heaters off from any context (panic, HardFault).
+//! * [`safety`] — heaters, drivers and their power off from any context (panic, HardFault),
+//!   and the last words on the TFT UART;
+//! * [`tmc`] — the TMC2209 UART lines.
 
 pub mod clock;
 pub use firmware::drivers;
@@ -15,3 +17,4 @@ pub mod heaters;
 pub mod pins;
 pub mod safety;
 pub mod stepper;
+pub mod tmc;
