@@ -57,7 +57,7 @@ fn m350_scales_steps_per_mm_and_refuses_odd_values() {
     assert_eq!(p.config().axis(Axis::X).steps_per_mm, 161.0);
     // A value the TMC2209 does not have changes nothing.
     let out = send(&mut p, "M350 S16 Y12");
-    assert!(out.contains("echo:M350 Y12"), "{out}");
+    assert!(out.contains("echo:refused: M350 Y12"), "{out}");
     assert_eq!(p.config().axis(Axis::Y).steps_per_mm, 80.0);
     assert_eq!(p.config().axis(Axis::X).microsteps, 32);
     assert_eq!(p.take_driver_request(), None);

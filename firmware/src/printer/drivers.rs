@@ -183,7 +183,7 @@ impl Printer {
                 && next.set_microsteps(Axis::ALL[i], *v as u16);
             if !ok {
                 self.say(format_args!(
-                    "M350 {}{v}: microsteps must be 1, 2, 4, ... or 256; nothing changed",
+                    "refused: M350 {}{v}: microsteps must be 1, 2, 4, ... or 256",
                     LETTERS[i]
                 ));
                 return;
@@ -192,7 +192,7 @@ impl Printer {
         let mut s = self.settings();
         s.steps_per_mm = core::array::from_fn(|i| next.axes[i].steps_per_mm);
         if let Err(e) = self.apply_settings(&s) {
-            self.say(format_args!("M350 refused: {e}"));
+            self.say(format_args!("refused: M350: {e}"));
             return;
         }
         let mut mask = 0;
