@@ -1,119 +1,181 @@
-//! The stepper-driver M-codes through the printer's host link (M569, M350, M122, M906 through
-//! the settings path), and the board's TMC2209 results as host messages, with the driver model
-//! of `firmware::drivers::tmc2209` standing in for the board's UART lines.
+//! The portable `embedded-hal` drivers (`firmware::drivers`) with mock pins: what a simulator
+//! or a test supplies instead of the board's GPIOs.
 
-use firmware::config::MachineConfig;
-use firmware::drivers::tmc2209::{DriverReport, TmcError};
-use firmware::motion::Axis;
-use firmware::printer::{DriverRequest, Policy, Printer};
+use core::cell::Cell;
+use core::convert::Infallible;
+use embedded_hal::digital::{ErrorType, InputPin, OutputPin};
+use firmware::drivers::{
+    Endstops, IdleTimeout, PauseButton, StepperPins, BUTTON_DEBOUNCE_US, BUTTON_LONG_US,
+};
+use firmware::motion::{PauseMode, Realtime};
 
-fn printer() -> Printer {
-    Printer::with_policy(MachineConfig::ENDER3, Policy::FIRMWARE)
+/// An output pin recording its level as one bit of a shared word.
+struct MockOut<'a> {
+    levels: &'a Cell<u32>,
+    bit: u32,
 }
 
-/// Send one line, run the executive until its `ok`, return the output.
-fn send(p: &mut Printer, line: &str) -> String {
-    p.receive(format!("{line}\n").as_bytes(), 0);
-    let mut out = String::new();
-    for t in 0..1000u64 {
-        p.poll(t * 1000);
-        p.write_output(&mut out).unwrap();
-        if out.lines().any(|l| l.starts_with("ok")) {
-            break;
+impl ErrorType for MockOut<'_> {
+    type Error = Infallible;
+}
+
+impl OutputPin for MockOut<'_> {
+    fn set_low(&mut self) -> Result<(), Infallible> {
+        self.levels.set(self.levels.get() & !(1 << self.bit));
+        Ok(())
+    }
+    fn set_high(&mut self) -> Result<(), Infallible> {
+        self.levels.set(self.levels.get() | (1 << self.bit));
+        Ok(())
+    }
+}
+
+/// An input pin reading a shared level; `fail` makes every read an error.
+struct MockIn<'a> {
+    level: &'a Cell<bool>,
+    fail: bool,
+}
+
+#[derive(Debug)]
+struct ReadError;
+
+impl embedded_hal::digital::Error for ReadError {
+    fn kind(&self) -> embedded_hal::digital::ErrorKind {
+        embedded_hal::digital::ErrorKind::Other
+    }
+}
+
+impl ErrorType for MockIn<'_> {
+    type Error = ReadError;
+}
+
+impl InputPin for MockIn<'_> {
+    fn is_high(&mut self) -> Result<bool, ReadError> {
+        if self.fail {
+            Err(ReadError)
+        } else {
+            Ok(self.level.get())
         }
     }
-    out
+    fn is_low(&mut self) -> Result<bool, ReadError> {
+        self.is_high().map(|h| !h)
+    }
+}
+
+fn steppers(levels: &Cell<u32>) -> StepperPins<MockOut<'_>> {
+    let pin = |bit| MockOut { levels, bit };
+    // Bits 0..3 STEP, 4..7 DIR, 8..11 EN (active low). E's DIR is wired inverted.
+    StepperPins::new(
+        [pin(0), pin(1), pin(2), pin(3)],
+        [pin(4), pin(5), pin(6), pin(7)],
+        [pin(8), pin(9), pin(10), pin(11)],
+        0b0111,
+    )
 }
 
 #[test]
-fn m569_switches_chopper_mode_and_asks_the_board() {
-    let mut p = printer();
-    assert!(
-        send(&mut p, "M569").contains("X:stealthChop Y:stealthChop Z:stealthChop E:stealthChop")
-    );
-    send(&mut p, "M569 S0 X Y");
+fn stepper_pins_enable_dir_step() {
+    let levels = Cell::new(0);
+    let mut s = steppers(&levels);
     assert_eq!(
-        p.take_driver_request(),
-        Some(DriverRequest::Apply { mask: 0b0011 })
+        levels.get() & 0xF00,
+        0xF00,
+        "drivers start disabled (EN high)"
     );
-    assert!(!p.driver_settings(Axis::X).stealthchop);
-    assert!(p.driver_settings(Axis::Z).stealthchop);
-    assert!(send(&mut p, "M569").contains("X:spreadCycle Y:spreadCycle Z:stealthChop"));
+    assert_eq!(s.enabled_mask(), 0);
+    s.set_enabled(true);
+    assert_eq!(levels.get() & 0xF00, 0);
+    s.set_axes_enabled(0b0100, false);
+    assert_eq!(levels.get() & 0xF00, 0x400, "only Z off");
+    assert_eq!(s.enabled_mask(), 0b1011);
+    // X and E positive: X DIR high, E DIR low (inverted wiring).
+    assert!(s.set_dirs(0b1001, 0b1001));
+    assert_eq!(levels.get() & 0xF0, 0x10);
+    assert!(!s.set_dirs(0b1001, 0b1001), "no change, no setup wait");
+    s.step_high(0b0011);
+    assert_eq!(levels.get() & 0xF, 0b0011);
+    s.step_low();
+    assert_eq!(levels.get() & 0xF, 0);
 }
 
 #[test]
-fn m350_scales_steps_per_mm_and_refuses_odd_values() {
-    let mut p = printer();
-    send(&mut p, "M350 X32 E8");
-    assert_eq!(p.config().axis(Axis::X).steps_per_mm, 160.0);
-    assert_eq!(p.config().axis(Axis::E).steps_per_mm, 46.5);
-    assert_eq!(p.driver_settings(Axis::X).microsteps, 32);
+fn endstops_polarity_and_read_errors() {
+    let (x, y, z) = (Cell::new(false), Cell::new(true), Cell::new(false));
+    let mut e = Endstops::new(
+        [
+            MockIn {
+                level: &x,
+                fail: false,
+            },
+            MockIn {
+                level: &y,
+                fail: false,
+            },
+            MockIn {
+                level: &z,
+                fail: true,
+            },
+        ],
+        0b011,
+    );
+    assert!(!e.triggered(0), "X reads low, triggers high");
+    assert!(e.triggered(1), "Y reads high");
+    assert!(e.triggered(2), "a read error counts as triggered");
+    assert!(!e.triggered(3), "E has no endstop");
+    assert!(!e.triggered(99));
+    x.set(true);
+    assert!(e.triggered(0));
+}
+
+#[test]
+fn pause_button_short_long_and_resume() {
+    let mut b = PauseButton::new();
+    // A bounce shorter than the debounce time does nothing.
+    assert_eq!(b.update(true, 0, false), None);
+    assert_eq!(b.update(false, 5_000, false), None);
+    assert_eq!(b.update(false, 50_000, false), None);
+    // Short press: pause at the layer boundary on release.
+    let t = 100_000;
+    assert_eq!(b.update(true, t, false), None);
+    assert_eq!(b.update(true, t + BUTTON_DEBOUNCE_US, false), None);
+    assert_eq!(b.update(false, t + 200_000, false), None);
     assert_eq!(
-        p.take_driver_request(),
-        Some(DriverRequest::Apply { mask: 0b1001 })
+        b.update(false, t + 200_000 + BUTTON_DEBOUNCE_US, false),
+        Some(Realtime::Pause(PauseMode::Layer))
     );
-    // M92 afterwards sets steps/mm at the new microstepping.
-    send(&mut p, "M92 X161");
-    assert_eq!(p.config().axis(Axis::X).steps_per_mm, 161.0);
-    // A value the TMC2209 does not have changes nothing.
-    let out = send(&mut p, "M350 S16 Y12");
-    assert!(out.contains("echo:refused: M350 Y12"), "{out}");
-    assert_eq!(p.config().axis(Axis::Y).steps_per_mm, 80.0);
-    assert_eq!(p.config().axis(Axis::X).microsteps, 32);
-    assert_eq!(p.take_driver_request(), None);
-    assert!(send(&mut p, "M350").contains("M350 X32 Y16 Z16 E8"));
-}
-
-#[test]
-fn m906_changes_what_the_board_applies() {
-    let mut p = printer();
-    assert_eq!(p.driver_settings(Axis::E).run_ma, 650);
-    send(&mut p, "M906 E700");
-    assert_eq!(p.driver_settings(Axis::E).run_ma, 700);
-}
-
-#[test]
-fn m122_asks_the_board_and_prints_its_readings() {
-    let mut p = printer();
-    send(&mut p, "M122 Z");
+    // Long press: pause now while still held, nothing on release.
+    let t = 1_000_000;
+    b.update(true, t, false);
+    b.update(true, t + BUTTON_DEBOUNCE_US, false);
     assert_eq!(
-        p.take_driver_request(),
-        Some(DriverRequest::Report { mask: 0b0100 })
+        b.update(true, t + BUTTON_DEBOUNCE_US + BUTTON_LONG_US, false),
+        Some(Realtime::Pause(PauseMode::Now))
     );
-    send(&mut p, "M122");
+    b.update(false, t + 3_000_000, true);
     assert_eq!(
-        p.take_driver_request(),
-        Some(DriverRequest::Report { mask: 0b1111 })
+        b.update(false, t + 3_000_000 + BUTTON_DEBOUNCE_US, true),
+        None
     );
-    let rep = DriverReport {
-        gconf: 0x1C0,
-        chopconf: 0x1401_0104,
-        drv_status: (16 << 16) | (1 << 30) | 1,
-        gstat: 0,
-    };
-    p.driver_report(Axis::Z, Ok(rep));
-    p.driver_report(Axis::E, Err(TmcError::NoReply(0)));
-    let mut out = String::new();
-    p.write_output(&mut out).unwrap();
-    assert!(out.contains("echo:Z: TMC2209 ok,"), "{out}");
-    assert!(out.contains("1/16, stealthChop"), "{out}");
-    assert!(out.contains("over-temperature warning"), "{out}");
-    assert!(out.contains("echo:E: TMC2209 no answer on UART"), "{out}");
+    // Any press while paused resumes.
+    let t = 10_000_000;
+    b.update(true, t, true);
+    assert_eq!(
+        b.update(true, t + BUTTON_DEBOUNCE_US, true),
+        Some(Realtime::Resume)
+    );
 }
 
 #[test]
-fn a_driver_that_does_not_answer_is_an_error_line() {
-    let mut p = printer();
-    p.driver_configured(Axis::Y, Err(TmcError::NoReply(0)));
-    p.driver_configured(Axis::X, Ok(()));
-    let mut out = String::new();
-    p.write_output(&mut out).unwrap();
-    assert!(
-        out.contains("Error:TMC2209 Y: no answer on UART: motion disabled."),
-        "{out}"
-    );
-    assert!(
-        out.contains("echo:TMC2209 X: 580 mA, 1/16 microsteps, stealthChop"),
-        "{out}"
-    );
+fn idle_timeout_and_m84_s() {
+    let mut idle = IdleTimeout::new(120);
+    assert!(!idle.update(true, 0));
+    assert!(!idle.update(false, 119_000_000));
+    assert!(idle.update(false, 120_000_000));
+    idle.set_timeout_s(5.0);
+    assert!(!idle.update(true, 200_000_000));
+    assert!(idle.update(false, 205_000_000));
+    idle.set_timeout_s(-1.0);
+    assert_eq!(idle.timeout_us, 5_000_000, "bad values ignored");
+    idle.set_timeout_s(0.0);
+    assert!(!idle.update(false, 900_000_000), "0 = never");
 }
