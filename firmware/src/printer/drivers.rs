@@ -57,7 +57,8 @@ impl Printer {
         self.cfg.driver_settings(axis)
     }
 
-    /// The board's outcome of configuring the driver of `axis`. A failure is an `Error:` line
+    /// The board's outcome of configuring the driver of `axis`, on every host port (it comes at
+    /// start-up or after a settings change, not as an answer). A failure is an `Error:` line
     /// naming the axis and what to check; the board then keeps motion disabled.
     pub fn driver_configured(&mut self, axis: Axis, r: Result<(), TmcError>) {
         let letter = LETTERS[axis.index()];
@@ -76,7 +77,7 @@ impl Printer {
                         "spreadCycle"
                     }
                 );
-                self.link.respond(Response::Echo(&t));
+                self.link.notify(Response::Echo(&t));
             }
             Err(e) => {
                 let _ = write!(
@@ -84,7 +85,7 @@ impl Printer {
                     "TMC2209 {letter}: {e}: motion disabled. Check that the driver sits in its \
                      socket, its UART jumper is fitted and the 24 V supply is on"
                 );
-                self.link.respond(Response::Error(&t));
+                self.link.notify(Response::Error(&t));
             }
         }
     }
