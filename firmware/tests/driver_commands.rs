@@ -13,7 +13,8 @@ fn printer() -> Printer {
 
 /// Send one line, run the executive until its `ok`, return the output.
 fn send(p: &mut Printer, line: &str) -> String {
-    p.receive(format!("{line}\n").as_bytes(), 0);
+    let text = format!("{line}\n");
+    assert_eq!(p.receive(text.as_bytes(), 0), text.len(), "line not taken");
     let mut out = String::new();
     for t in 0..1000u64 {
         p.poll(t * 1000);

@@ -664,6 +664,7 @@ impl Printer {
 
     /// [`Printer::next_step_ns`] when the loaded block has no event left: out of line, so the
     /// per-event path stays small (it runs once per block).
+    #[cold]
     #[inline(never)]
     fn next_step_ns_load(&mut self) -> Option<u64> {
         for _ in 0..(RING_CAPACITY + 8) {
@@ -730,6 +731,7 @@ impl Printer {
     }
 
     /// Retire a finished block and load the next one. False when nothing can be loaded.
+    #[cold]
     #[inline(never)]
     fn advance_block(&mut self) -> bool {
         if self.is_halted() {
