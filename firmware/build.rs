@@ -2,7 +2,8 @@
 //! must link as ordinary programs.
 fn main() {
     let target_os = std::env::var("CARGO_CFG_TARGET_OS").unwrap_or_default();
-    let board = std::env::var_os("CARGO_FEATURE_BOARD").is_some();
+    // `board` (F407) and `board-f429` both enable `board-common`.
+    let board = std::env::var_os("CARGO_FEATURE_BOARD_COMMON").is_some();
     if target_os == "none" && board {
         // `memory.x` lives at the workspace root; cortex-m-rt's link.x includes it.
         let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");

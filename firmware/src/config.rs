@@ -105,6 +105,8 @@ pub struct MachineConfig {
     pub home_offset_mm: [f32; 3],
     /// Stepper driver RMS currents X Y Z E, mA (M906): the board's drivers apply them.
     pub driver_current_ma: [u16; AXES],
+    /// stealthChop (true) or spreadCycle per driver X Y Z E (M569).
+    pub driver_stealthchop: [bool; AXES],
 }
 
 impl MachineConfig {
@@ -124,6 +126,10 @@ impl MachineConfig {
     /// * Limits 500/500/5/25 mm/s, 500/500/100/5000 mm/s², accelerations 500 ([E3]
     ///   `DEFAULT_MAX_FEEDRATE`, `DEFAULT_MAX_ACCELERATION`, `DEFAULT_ACCELERATION`,
     ///   `DEFAULT_RETRACT_ACCELERATION`, `DEFAULT_TRAVEL_ACCELERATION`).
+    /// * TMC2209 at 580/580/580/650 mA RMS, hold at half, Rsense 0.11 Ω, stealthChop on every
+    ///   axis ([E3] SKR Mini E3 2.0 `Configuration_adv.h`: `X_CURRENT 580`, `Y_CURRENT 580`,
+    ///   `Z_CURRENT 580`, `E0_CURRENT 650`, `*_RSENSE 0.11`, `HOLD_MULTIPLIER 0.5`,
+    ///   `STEALTHCHOP_XY`, `STEALTHCHOP_Z`, `STEALTHCHOP_E`, `HYBRID_THRESHOLD` off).
     /// * Junction deviation 0.08 mm ([E3] `JUNCTION_DEVIATION_MM 0.08`, `CLASSIC_JERK` off):
     ///   at 500 mm/s² a 90° corner is taken at √(500 · 0.08 · 2.414) ≈ 9.8 mm/s, about the
     ///   10 mm/s `DEFAULT_XJERK` of the same files. Marlin's generic default 0.013 (this firmware's
@@ -189,12 +195,23 @@ impl MachineConfig {
             segment_len_mm: 0.2,
         },
         home_offset_mm: [0.0; 3],
-        driver_current_ma: [crate::storage::DEFAULT_DRIVER_CURRENT_MA; AXES],
+        driver_current_ma: [580, 580, 580, 650],
+        driver_stealthchop: [true; AXES],
     };
 
     /// The configuration of one axis.
     pub fn axis(&self, axis: Axis) -> &AxisConfig {
         &self.axes[axis.index()]
+    }
+
+    /// The TMC2209 settings of `axis`'s driver: its microsteps, M906 current and M569 mode,
+    /// BigTreeTech's 0.11 Ω sense resistor, hold at half the run current.
+    pub fn driver_settings(&self, axis: Axis) -> crate::drivers::tmc2209::DriverSettings {
+        let i = axis.index();
+        let mut s = crate::drivers::tmc2209::DriverSettings::ender3(self.driver_current_ma[i]);
+        s.microsteps = self.axes[i].microsteps;
+        s.stealthchop = self.driver_stealthchop[i];
+        s
     }
 
     /// Bit i set: DIR high moves axis i in the positive direction (what the step pins need).

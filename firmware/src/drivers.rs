@@ -441,3 +441,68 @@ impl Homing {
         }
     }
 }
+
+/// Whether the loops that must run for the printer to be safe are still running, for the
+/// independent watchdog: each loop calls [`Liveness::beat`] every pass, and the watchdog is fed
+/// only while [`Liveness::all_alive`] holds. A stalled loop (or the whole executor stalled)
+/// stops the feeding and the watchdog resets the MCU, which leaves every heater pin low.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Liveness<const N: usize> {
+    last_us: [Option<u64>; N],
+    max_gap_us: u64,
+}
+
+impl<const N: usize> Liveness<N> {
+    /// `N` loops, each of which must beat at least every `max_gap_us`.
+    pub const fn new(max_gap_us: u64) -> Self {
+        Liveness {
+            last_us: [None; N],
+            max_gap_us,
+        }
+    }
+
+    /// Loop `i` is alive at `now_us` (an index out of range is ignored).
+    pub fn beat(&mut self, i: usize, now_us: u64) {
+        if let Some(t) = self.last_us.get_mut(i) {
+            *t = Some(now_us);
+        }
+    }
+
+    /// Every loop has beaten, each within `max_gap_us` of `now_us`.
+    pub fn all_alive(&self, now_us: u64) -> bool {
+        self.last_us
+            .iter()
+            .all(|t| t.is_some_and(|t| now_us.saturating_sub(t) <= self.max_gap_us))
+    }
+}
+
+#[cfg(test)]
+mod liveness_tests {
+    use super::Liveness;
+
+    #[test]
+    fn fed_only_while_both_loops_beat() {
+        // Motion (0) and heaters (1), 250 ms allowed between beats.
+        let mut l: Liveness<2> = Liveness::new(250_000);
+        assert!(!l.all_alive(0), "nothing has run yet");
+        l.beat(0, 1_000);
+        assert!(!l.all_alive(1_000), "the heater loop has not run");
+        l.beat(1, 2_000);
+        assert!(l.all_alive(2_000));
+        // The heater loop stalls; motion keeps beating.
+        let mut t = 2_000;
+        while t < 252_000 {
+            t += 1_000;
+            l.beat(0, t);
+        }
+        assert!(l.all_alive(252_000));
+        assert!(!l.all_alive(253_000), "heater loop silent for 251 ms");
+        // It comes back.
+        l.beat(1, 253_000);
+        assert!(l.all_alive(253_000));
+        // The whole executor stalls: nobody beats.
+        assert!(!l.all_alive(600_000));
+        l.beat(7, 600_000);
+        assert!(!l.all_alive(600_000));
+    }
+}

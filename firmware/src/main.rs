@@ -9,8 +9,17 @@
 //! * `usb` / `cdc`: USB CDC-ACM on the board's USB port; `uart`: the TFT header (USART1,
 //!   115200 Bd). Both feed `Printer::receive`; every output line goes to both.
 //!
-//! defmt logs over RTT. A panic turns every heater off (raw register writes) before logging
-//! and stopping, and so does a HardFault.
+//! Bring-up, in order: VTOR is set to the image base 0x08008000 by cortex-m-rt's reset handler
+//! (`set-vtor`; the bootloader's table is never used), clocks (8 MHz HSE → 168 MHz, 48 MHz USB),
+//! pins with heaters off and drivers disabled, SAFE_POWER (PC13) driven high for the program's
+//! life, the TMC2209 drivers configured and read back over UART (a driver that does not answer
+//! halts the printer with an `Error:` line: motion stays disabled), then the tasks and the
+//! independent watchdog (2 s), fed only while both the motion and the heater loops beat
+//! (`firmware::drivers::Liveness`).
+//!
+//! defmt logs over RTT. A panic or HardFault turns every heater off, disables the drivers and
+//! cuts their power (raw register writes), and writes one line on the TFT UART (USB cannot be
+//! served any more: a USB host sees the link stop).
 //!
 //! On the host this file compiles to an empty program (`cargo test --workspace` never builds
 //! embassy).
@@ -31,6 +40,7 @@ mod image {
     use embassy_stm32::gpio::Input;
     use embassy_stm32::usart::{BufferedUart, Config as UartConfig};
     use embassy_stm32::usb::Driver;
+    use embassy_stm32::wdg::IndependentWatchdog;
     use embassy_stm32::{bind_interrupts, peripherals, usart, usb};
     use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
     use embassy_sync::pipe::Pipe;
@@ -41,7 +51,7 @@ mod image {
     use firmware::link::PortId;
     use firmware::motion::{Axis, Realtime};
     use firmware::planner::BlockKind;
-    use firmware::printer::{Command, Printer, State, StepperRequest};
+    use firmware::printer::{Command, DriverRequest, Printer, State, StepperRequest};
     use firmware::stepgen::StepEvent;
     use firmware::thermal::HeaterId;
     use heapless::spsc::Producer;
@@ -53,7 +63,9 @@ mod image {
     };
     use crate::board::heaters::{self, Fans, SoftPwm, PWM_SLOTS};
     use crate::board::stepper::{self, PinEvent, LOOKAHEAD_NS};
-    use crate::board::{clock, pins, safety};
+    use crate::board::{clock, pins, safety, tmc};
+    use firmware::drivers::tmc2209::DriverSettings;
+    use firmware::drivers::Liveness;
 
     bind_interrupts!(struct Irqs {
         OTG_FS => usb::InterruptHandler<peripherals::USB_OTG_FS>;
@@ -68,6 +80,29 @@ mod image {
     const OUT_PIPE: usize = 1024;
 
     type Shared = &'static RefCell<Printer>;
+
+    /// Independent watchdog timeout, µs (Marlin's STM32 `WDT_TIMEOUT_US` is 4 s; 2 s still
+    /// covers the longest blocking section, configuring four drivers at about 120 ms each).
+    const WATCHDOG_US: u32 = 2_000_000;
+    /// Each of the motion and heater loops must beat this often for the watchdog to be fed, µs.
+    const LIVENESS_GAP_US: u64 = 250_000;
+    /// The loops the watchdog watches.
+    const LOOP_MOTION: usize = 0;
+    const LOOP_HEATERS: usize = 1;
+
+    static LIVENESS: critical_section::Mutex<core::cell::RefCell<Liveness<2>>> =
+        critical_section::Mutex::new(core::cell::RefCell::new(Liveness::new(LIVENESS_GAP_US)));
+
+    fn beat(i: usize) {
+        let now = printer_now_us();
+        critical_section::with(|cs| LIVENESS.borrow(cs).borrow_mut().beat(i, now));
+    }
+
+    /// The four TMC2209 drivers and what was last written to each (None: not configured).
+    struct Drivers {
+        tmc: [tmc::Driver; 4],
+        applied: [Option<DriverSettings>; 4],
+    }
 
     static PRINTER: StaticCell<RefCell<Printer>> = StaticCell::new();
     static USB_OUT: Pipe<CriticalSectionRawMutex, OUT_PIPE> = Pipe::new();
@@ -134,7 +169,13 @@ mod image {
         }
         let p = embassy_stm32::init(config);
         let (pins, periph) = pins::split(p);
-        defmt::info!("SKR 2 up at 168 MHz");
+        // SAFE_POWER: embassy's `Output` puts the pin back to analog when dropped, which would
+        // cut the drivers' and FETs' supply; it stays driven high for the program's life.
+        core::mem::forget(pins.safe_power);
+        // cortex-m-rt set VTOR in its reset handler (feature `set-vtor`); check it.
+        // SAFETY: a read of the SCB's VTOR register.
+        let vtor = unsafe { (*cortex_m::peripheral::SCB::PTR).vtor.read() };
+        defmt::info!("SKR 2 up at 168 MHz, VTOR {=u32:#010x}", vtor);
         clock::start(periph.step_timer);
 
         let cfg = MachineConfig::ENDER3;
@@ -224,10 +265,31 @@ mod image {
                 Fans::new(periph.fans.0, periph.fans.1, periph.fans.2),
             ),
         );
-        let _ = pins.safe_power;
+        // The drivers, before any motion: a driver that does not answer halts the printer.
+        let [tx, ty, tz, te] = pins.tmc_uart;
+        let mut drivers = Drivers {
+            tmc: [
+                tmc::driver(tx),
+                tmc::driver(ty),
+                tmc::driver(tz),
+                tmc::driver(te),
+            ],
+            applied: [None; 4],
+        };
+        configure_drivers(printer, &mut drivers, 0b1111);
         spawn(
             &spawner,
-            motion_task(printer, producer, pins.pause_button, pins.status_led),
+            motion_task(
+                printer,
+                producer,
+                pins.pause_button,
+                pins.status_led,
+                drivers,
+            ),
+        );
+        spawn(
+            &spawner,
+            watchdog_task(IndependentWatchdog::new(periph.watchdog, WATCHDOG_US)),
         );
     }
 
@@ -239,6 +301,75 @@ mod image {
         match token {
             Ok(t) => spawner.spawn(t),
             Err(_) => defmt::error!("task could not be spawned"),
+        }
+    }
+
+    /// Configures the drivers in `mask` with the executive's settings for them, reports each
+    /// outcome on the host link, and halts the printer if any does not answer or hold its
+    /// settings (motion stays disabled: the halted motion loop keeps the drivers off).
+    fn configure_drivers(printer: Shared, d: &mut Drivers, mask: u8) {
+        let mut p = printer.borrow_mut();
+        let mut ok = true;
+        for (i, axis) in Axis::ALL.into_iter().enumerate() {
+            if mask & (1 << i) == 0 {
+                continue;
+            }
+            let s = p.driver_settings(axis);
+            let r = d.tmc[i].configure(&s);
+            d.applied[i] = r.ok().map(|_| s);
+            if let Err(e) = r {
+                defmt::error!("TMC2209 {}: {}", i, defmt::Display2Format(&e));
+                ok = false;
+            }
+            p.driver_configured(axis, r);
+        }
+        if !ok {
+            p.request(Realtime::EmergencyStop, printer_now_us());
+        }
+    }
+
+    /// Serves the executive's driver requests and re-applies a driver whose settings changed
+    /// (M906, M569, M350, M501/M502), only while nothing moves.
+    fn service_drivers(printer: Shared, d: &mut Drivers) {
+        let mut reports = 0u8;
+        while let Some(r) = printer.borrow_mut().take_driver_request() {
+            if let DriverRequest::Report { mask } = r {
+                reports |= mask;
+            }
+        }
+        let mut changed = 0u8;
+        {
+            let p = printer.borrow();
+            for (i, axis) in Axis::ALL.into_iter().enumerate() {
+                if d.applied[i].is_some_and(|a| a != p.driver_settings(axis)) {
+                    changed |= 1 << i;
+                }
+            }
+        }
+        if changed != 0 {
+            configure_drivers(printer, d, changed);
+        }
+        for (i, axis) in Axis::ALL.into_iter().enumerate() {
+            if reports & (1 << i) != 0 {
+                let r = d.tmc[i].report();
+                printer.borrow_mut().driver_report(axis, r);
+            }
+        }
+    }
+
+    /// Feeds the independent watchdog every 50 ms while the motion and heater loops are alive.
+    #[embassy_executor::task]
+    async fn watchdog_task(mut wdg: IndependentWatchdog<'static, peripherals::IWDG>) {
+        wdg.unleash();
+        let mut ticker = Ticker::every(Duration::from_millis(50));
+        loop {
+            ticker.next().await;
+            let now = printer_now_us();
+            if critical_section::with(|cs| LIVENESS.borrow(cs).borrow().all_alive(now)) {
+                wdg.pet();
+            } else {
+                defmt::warn!("a loop is late: watchdog not fed");
+            }
         }
     }
 
@@ -372,6 +503,7 @@ mod image {
                             cortex_m::asm::delay(stepper::cycles(stepper::PULSE_NS));
                             s.exec.pins.step_low();
                         });
+                        beat(LOOP_MOTION);
                         Timer::after_micros(u64::from(period_us)).await;
                     }
                     HomingStep::Done => break,
@@ -420,6 +552,7 @@ mod image {
         mut producer: Producer<'static, PinEvent>,
         button_pin: Input<'static>,
         mut led: embassy_stm32::gpio::Output<'static>,
+        mut drivers: Drivers,
     ) {
         let mut ticker = Ticker::every(Duration::from_millis(1));
         let mut button = PauseButton::new();
@@ -430,6 +563,7 @@ mod image {
         let mut held: Option<StepEvent> = None;
         loop {
             ticker.next().await;
+            beat(LOOP_MOTION);
             let now_us = printer_now_us();
             let mut homing = None;
             {
@@ -498,6 +632,15 @@ mod image {
                 }
                 flush_output(&mut p);
             }
+            // The drivers' UART lines block the executor: only while nothing moves or is queued.
+            let quiet = {
+                let mut p = printer.borrow_mut();
+                p.state() == State::Idle && p.next_step_ns().is_none()
+            } && !stepper::with(|s| s.running).unwrap_or(false)
+                && homing.is_none();
+            if quiet && !halted {
+                service_drivers(printer, &mut drivers);
+            }
             if let Some((end_ns, mask)) = homing {
                 home_all(printer, end_ns, mask).await;
             }
@@ -554,6 +697,7 @@ mod image {
         let mut slot: u32 = 0;
         loop {
             ticker.next().await;
+            beat(LOOP_HEATERS);
             // One conversion per tick, channels in turn: a reading of each every 32 ms, the
             // average of 16 conversions (the converter is synchronous: never WouldBlock here).
             let _ = sampler.poll(&mut adc);
@@ -674,17 +818,23 @@ mod image {
         }
     }
 
+    /// What a panic or HardFault says on the TFT UART (a Marlin-style kill message).
+    const FATAL_LINE: &[u8] =
+        b"\nError:firmware fault: heaters and drivers off, power cut. Reset the board\n";
+
     #[panic_handler]
     fn panic(info: &core::panic::PanicInfo) -> ! {
         // Heaters first, before anything that could fault again.
-        safety::heaters_off();
+        safety::all_off();
+        safety::uart_say(FATAL_LINE);
         defmt::error!("panic: {}", defmt::Display2Format(info));
         cortex_m::asm::udf()
     }
 
     #[cortex_m_rt::exception]
     unsafe fn HardFault(_frame: &cortex_m_rt::ExceptionFrame) -> ! {
-        safety::heaters_off();
+        safety::all_off();
+        safety::uart_say(FATAL_LINE);
         loop {
             cortex_m::asm::bkpt();
         }

@@ -433,6 +433,7 @@ impl StepGen {
     }
 
     /// Time of the next step event, µs, if a step is due in the loaded block.
+    #[inline(always)]
     pub fn peek_time_ns(&mut self) -> Option<u64> {
         let e = self.exec.as_mut()?;
         if e.done >= e.stop_at {
@@ -448,6 +449,8 @@ impl StepGen {
         Some(t)
     }
 
+    /// Once per slice (up to 8 steps): out of line, so the per-event path stays small.
+    #[inline(never)]
     fn prepare_slice(e: &mut ExecBlock, t_last_ns: u64) {
         // Slices grow 1, 2, 4, 8 steps after a profile starts, so the first steps after a
         // standstill get exact times (√t spacing) and later ones cost one sqrt per 8 steps.
@@ -473,6 +476,7 @@ impl StepGen {
 
     /// The next step event of the loaded block, or `None` when it has none left (finished or
     /// held): then unload/load the next block.
+    #[inline(always)]
     pub fn next_event(&mut self) -> Option<StepEvent> {
         let e = self.exec.as_mut()?;
         if e.done >= e.stop_at {
@@ -496,11 +500,9 @@ impl StepGen {
             if e.acc[i] >= e.n {
                 e.acc[i] -= e.n;
                 mask |= 1 << i;
-                if e.dir_mask & (1 << i) != 0 {
-                    self.pos[i] = self.pos[i].wrapping_add(1);
-                } else {
-                    self.pos[i] = self.pos[i].wrapping_sub(1);
-                }
+                // +1 for a positive direction, −1 otherwise, without a branch.
+                let up = i32::from((e.dir_mask >> i) & 1);
+                self.pos[i] = self.pos[i].wrapping_add(2 * up - 1);
             }
         }
         Some(StepEvent {

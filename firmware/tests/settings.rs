@@ -121,11 +121,12 @@ fn each_setting_m_code_changes_its_value() {
         Some((22.0, 1.125, 80.0))
     );
     assert_eq!(s.bed_pid.map(|g| g.kd), Some(400.0));
-    assert_eq!(s.driver_current_ma, [700, 800, 800, 650]);
+    // Y and Z keep the Ender-3 defaults (580 mA, MachineConfig::ENDER3).
+    assert_eq!(s.driver_current_ma, [700, 580, 580, 650]);
     assert_eq!((s.pause.retract_mm, s.pause.lift_z_mm), (3.0, 4.0));
     // Reports with no parameter, as G-code.
     assert!(b.send("M92").contains("echo:  M92 X81.5 Y80 Z400 E95.25"));
-    assert!(b.send("M906").contains("M906 X700 Y800 Z800 E650"));
+    assert!(b.send("M906").contains("M906 X700 Y580 Z580 E650"));
 }
 
 #[test]

@@ -10,6 +10,7 @@ use drivers::{
 };
 use embedded_hal::digital::{ErrorType, InputPin, OutputPin};
 use firmware::drivers;
+use firmware::drivers::tmc2209;
 use firmware::motion::{PauseMode, Realtime};
 
 /// An output that records its level in a shared bit field.
@@ -279,7 +280,116 @@ pub fn run() -> Result<u32, CheckFailed> {
         "missing switch detected",
     )?;
     n += 1;
+    n += tmc()?;
     Ok(n)
+}
+
+/// A register-level TMC2209 on a single wire, without allocation: keeps the registers, counts
+/// valid writes in IFCNT, answers reads addressed to it (or stays silent, or flips a bit).
+struct TmcModel {
+    regs: [u32; 128],
+    ifcnt: u8,
+    reply: [u8; 8],
+    reply_len: usize,
+    silent: bool,
+    corrupt: bool,
+}
+
+impl TmcModel {
+    fn new(silent: bool, corrupt: bool) -> Self {
+        let mut regs = [0; 128];
+        regs[0x06] = 0x21 << 24;
+        TmcModel {
+            regs,
+            ifcnt: 0,
+            reply: [0; 8],
+            reply_len: 0,
+            silent,
+            corrupt,
+        }
+    }
+}
+
+impl tmc2209::SingleWire for TmcModel {
+    fn send(&mut self, bytes: &[u8]) {
+        self.reply_len = 0;
+        let Some((&crc, body)) = bytes.split_last() else {
+            return;
+        };
+        if tmc2209::crc8(body) != crc || body.first() != Some(&0x05) || body.get(1) != Some(&0) {
+            return;
+        }
+        match *body {
+            [_, _, r, a, b, c, d] if r & 0x80 != 0 => {
+                let v = u32::from_be_bytes([a, b, c, d]);
+                match r & 0x7F {
+                    0x01 => self.regs[1] &= !v,
+                    0x02 | 0x06 | 0x6F => {}
+                    x => self.regs[usize::from(x)] = v,
+                }
+                self.ifcnt = self.ifcnt.wrapping_add(1);
+            }
+            [_, _, r] if !self.silent => {
+                let v = if r == 0x02 {
+                    u32::from(self.ifcnt)
+                } else {
+                    self.regs[usize::from(r & 0x7F)]
+                };
+                let d = v.to_be_bytes();
+                self.reply = [0x05, 0xFF, r, d[0], d[1], d[2], d[3], 0];
+                self.reply[7] = tmc2209::crc8(&self.reply[..7]);
+                if self.corrupt {
+                    self.reply[4] ^= 0x04;
+                }
+                self.reply_len = 8;
+            }
+            _ => {}
+        }
+    }
+
+    fn receive(&mut self, buf: &mut [u8]) -> usize {
+        let n = self.reply_len.min(buf.len());
+        buf[..n].copy_from_slice(&self.reply[..n]);
+        self.reply_len = 0;
+        n
+    }
+}
+
+/// The TMC2209 datagrams and register logic on the emulated core: fixed datagrams (bytes the
+/// host tests check against the `tmc2209` crate), a healthy driver configured and read back, a
+/// silent one and a corrupted reply refused.
+fn tmc() -> Result<u32, CheckFailed> {
+    use firmware::drivers::tmc2209::{
+        read_request, reg, write_datagram, DriverSettings, TmcError, Tmc2209,
+    };
+    check(
+        write_datagram(0, reg::GCONF, 0x1C0) == [0x05, 0x00, 0x80, 0x00, 0x00, 0x01, 0xC0, 0xF6],
+        "TMC2209 write datagram",
+    )?;
+    check(
+        read_request(0, reg::IFCNT) == [0x05, 0x00, 0x02, 0x8F],
+        "TMC2209 read request",
+    )?;
+    let s = DriverSettings::ender3(580);
+    let mut d = Tmc2209::new(TmcModel::new(false, false), 0);
+    check(d.configure(&s) == Ok(()), "TMC2209 configured")?;
+    let m = d.wire_mut();
+    check(
+        m.regs[0x00] == 0x1C0 && m.regs[0x6C] == 0x1402_8104 && m.regs[0x10] == 0x000A_1108,
+        "TMC2209 GCONF, CHOPCONF, IHOLD_IRUN for 580 mA at 1/16",
+    )?;
+    check(m.ifcnt == 6, "TMC2209 every write counted")?;
+    let mut d = Tmc2209::new(TmcModel::new(true, false), 0);
+    check(
+        d.configure(&s) == Err(TmcError::NoReply(0)),
+        "TMC2209 silent driver reported",
+    )?;
+    let mut d = Tmc2209::new(TmcModel::new(false, true), 0);
+    check(
+        d.configure(&s) == Err(TmcError::BadCrc),
+        "TMC2209 corrupted reply refused",
+    )?;
+    Ok(1)
 }
 
 /// Fake BSRR register for [`isr_cost`].

@@ -8,7 +8,9 @@
 //! * [`flash`] — the settings store in flash sectors 10–11 (M500/M501);
 //! * [`stepper`] — the step interrupt and its event queue;
 //! * [`heaters`] — thermistor sampling, software PWM, hot-end fan;
-//! * [`safety`] — heaters off from any context (panic, HardFault).
+//! * [`safety`] — heaters, drivers and their power off from any context (panic, HardFault),
+//!   and the last words on the TFT UART;
+//! * [`tmc`] — the TMC2209 UART lines.
 
 pub mod clock;
 pub mod flash;
@@ -17,3 +19,4 @@ pub mod heaters;
 pub mod pins;
 pub mod safety;
 pub mod stepper;
+pub mod tmc;

@@ -3,6 +3,8 @@
 //! Sources, for every assignment below:
 //! * [M] Marlin's `Marlin/src/pins/stm32f4/pins_BTT_SKR_V2_0_common.h` (BigTreeTech SKR 2
 //!   Rev A/B), read for the facts only;
+//! * [K] Klipper's `config/generic-bigtreetech-skr-2.cfg` (agrees with [M] on every pin both
+//!   name; docs/board.md has the table side by side);
 //! * [S] BigTreeTech's published SKR 2 schematic and pin diagram (`BIGTREETECH SKR 2`
 //!   repository: `Hardware/BTT SKR 2 SCH.pdf`, `BIGTREETECH SKR 2.0 PIN.pdf`).
 //!
@@ -20,7 +22,8 @@
 //! | hot-end thermistor (TH0) | PA2 (ADC123_IN2) | [M] `TEMP_0_PIN` |
 //! | bed thermistor (TB) | PA1 (ADC123_IN1) | [M] `TEMP_BED_PIN` |
 //! | pause button (filament-runout connector E0DET) | PC2 | [M] `FIL_RUNOUT_PIN` |
-//! | driver/heater/fan power switch (SAFE_POWER) | PC13 | [M] `SAFE_POWER_PIN` |
+//! | driver/heater/fan power switch (SAFE_POWER) | PC13 | [M] `SAFE_POWER_PIN`; [K] `[output_pin motor_power] pin: PC13 value: 1` ("needs pulling high to pass power to stepper drivers and most FETs") |
+//! | TMC2209 UART X / Y / Z / E0 (single wire, TX = RX) | PE0 / PD3 / PD0 / PC6 | [M] `X_SERIAL_TX_PIN PE0`, `Y_SERIAL_TX_PIN PD3`, `Z_SERIAL_TX_PIN PD0`, `E0_SERIAL_TX_PIN PC6`, each `*_SERIAL_RX_PIN` = its TX pin; [K] `[tmc2209 stepper_x] uart_pin: PE0` (and `PD3`, `PD0`, `PC6`) |
 //! | status LED (RGB header data pin) | PE6 | [M] `NEOPIXEL_PIN`; the SKR 2 has no user LED on a GPIO, so a plain LED on the RGB header is used |
 //! | USB (Type-B port, OTG FS) | PA11 / PA12 | [S] USB D− / D+ |
 //! | TFT header UART (USART1) | PA9 TX / PA10 RX | [S] TFT connector; Marlin's SKR 2 example configurations put the TFT on `SERIAL_PORT 1` |
@@ -33,7 +36,7 @@
 /// HSE crystal frequency on the SKR 2, Hz.
 pub const HSE_HZ: u32 = 8_000_000;
 
-use embassy_stm32::gpio::{Input, Level, Output, Pull, Speed};
+use embassy_stm32::gpio::{Flex, Input, Level, Output, Pull, Speed};
 use embassy_stm32::peripherals as P;
 use embassy_stm32::Peri;
 
@@ -57,6 +60,8 @@ pub struct Pins {
     pub safe_power: Output<'static>,
     /// Status LED.
     pub status_led: Output<'static>,
+    /// TMC2209 single-wire UART lines X, Y, Z, E0 (direction switched by `board::tmc`).
+    pub tmc_uart: [Flex<'static>; 4],
 }
 
 /// The peripherals the board uses besides plain GPIO.
@@ -81,6 +86,8 @@ pub struct Periph {
     ),
     /// The step timer.
     pub step_timer: Peri<'static, P::TIM5>,
+    /// The independent watchdog.
+    pub watchdog: Peri<'static, P::IWDG>,
     /// Fan PWM: TIM4 with FAN1 (hot-end fan, PB6 = TIM4_CH1) and FAN0 (part fan, PB7 =
     /// TIM4_CH2).
     pub fans: (
@@ -126,12 +133,19 @@ pub fn split(p: embassy_stm32::Peripherals) -> (Pins, Periph) {
         pause_button: Input::new(p.PC2, Pull::Up),
         safe_power: Output::new(p.PC13, Level::High, Speed::Low),
         status_led: Output::new(p.PE6, Level::Low, Speed::Low),
+        tmc_uart: [
+            Flex::new(p.PE0),
+            Flex::new(p.PD3),
+            Flex::new(p.PD0),
+            Flex::new(p.PC6),
+        ],
     };
     let periph = Periph {
         usb: (p.USB_OTG_FS, p.PA12, p.PA11),
         uart: (p.USART1, p.PA10, p.PA9),
         adc: (p.ADC1, p.PA2, p.PA1),
         step_timer: p.TIM5,
+        watchdog: p.IWDG,
         fans: (p.TIM4, p.PB6, p.PB7),
     };
     (pins, periph)

@@ -43,6 +43,9 @@ pub use settings::{Advanced, SettingsCommand};
 // Report M-codes hosts expect (M155 M113 M31 M27): parse and emit.
 mod report;
 pub use report::{ReportCommand, MAX_REPORT_PERIOD_S};
+// Stepper-driver M-codes (M122 M350 M569; M906 is a settings command): parse and emit.
+mod driver;
+pub use driver::DriverCommand;
 
 use crate::motion::{Axis, AXES};
 use core::fmt;
@@ -367,6 +370,8 @@ pub enum Command {
     Settings(SettingsCommand),
     /// Reports: M155, M113, M31 and M27 (see [`ReportCommand`]).
     Report(ReportCommand),
+    /// Stepper drivers: M569, M350 and M122 (see [`DriverCommand`]).
+    Driver(DriverCommand),
     /// Any other G/M code or extended command: its text (comment stripped), for
     /// `echo:Unknown command: "<text>"`.
     Unknown(Text),
@@ -1202,6 +1207,7 @@ fn build_known(code: (u8, u16), w: &Words<'_>) -> Option<Result<Command, ParseEr
             }
             (b'M', n) if settings::is_settings_code(n) => Command::Settings(settings::build(n, w)?),
             (b'M', n) if report::is_report_code(n) => Command::Report(report::build(n, w)?),
+            (b'M', n) if driver::is_driver_code(n) => Command::Driver(driver::build(n, w)?),
             (b'T', n) => {
                 none()?;
                 match u8::try_from(n) {

@@ -210,6 +210,7 @@ impl Printer {
                 let _ = self.cmds.push_back(Command::PauseHere);
             }
             G::Settings(c) => self.settings_command(c),
+            G::Driver(c) => self.driver_command(c),
             G::Unknown(t) => {
                 self.link.respond(Response::UnknownCommand(t));
             }

@@ -11,7 +11,20 @@ use crate::thermal::HeaterId;
 
 impl Printer {
     /// Time of the next step event, ns (loads the next block when the current one is done).
+    #[inline]
     pub fn next_step_ns(&mut self) -> Option<u64> {
+        // The common case, an event of the loaded block, without the loop.
+        if let Some(t) = self.stepgen.peek_time_ns() {
+            return Some(t);
+        }
+        self.next_step_ns_load()
+    }
+
+    /// [`Printer::next_step_ns`] when the loaded block has no event left: out of line, so the
+    /// per-event path stays small (it runs once per block).
+    #[cold]
+    #[inline(never)]
+    fn next_step_ns_load(&mut self) -> Option<u64> {
         for _ in 0..(RING_CAPACITY + 8) {
             if let Some(t) = self.stepgen.peek_time_ns() {
                 return Some(t);
@@ -31,6 +44,7 @@ impl Printer {
 
     /// Take the next step event (the one [`Printer::next_step_ns`] announced). The driver
     /// calls this when its clock reaches the event's time.
+    #[inline]
     pub fn next_step(&mut self) -> Option<StepEvent> {
         self.next_step_ns()?;
         let ev = self.stepgen.next_event();
@@ -75,6 +89,8 @@ impl Printer {
     }
 
     /// Retire a finished block and load the next one. False when nothing can be loaded.
+    #[cold]
+    #[inline(never)]
     pub(super) fn advance_block(&mut self) -> bool {
         if self.is_halted() {
             return false;

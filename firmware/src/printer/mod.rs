@@ -39,6 +39,9 @@ mod service;
 // The paused-job record (power-cut resume).
 mod job;
 mod settings;
+// Stepper drivers: M569/M350/M122 and the board's TMC2209 results.
+mod drivers;
+pub use drivers::{DriverRequest, DRIVER_REQ_CAPACITY};
 // Reports hosts expect (temperatures during heater waits, M155, M113, M73, M31, M27).
 mod report;
 
@@ -94,6 +97,7 @@ pub struct Printer {
     last_state: State,
     records: Deque<Record, RECORD_CAPACITY>,
     stepper_reqs: Deque<StepperRequest, STEPPER_REQ_CAPACITY>,
+    driver_reqs: Deque<drivers::DriverRequest, { drivers::DRIVER_REQ_CAPACITY }>,
     records_dropped: u32,
     link: HostPorts,
     /// The job's modal state (manual lines while parked use the copy in `Pause::Parked`).
@@ -146,6 +150,7 @@ impl Printer {
             last_state: State::Idle,
             records: Deque::new(),
             stepper_reqs: Deque::new(),
+            driver_reqs: Deque::new(),
             records_dropped: 0,
             link: HostPorts::new(),
             machine: MachineState::new(&cfg),
