@@ -175,6 +175,10 @@ impl Factory for PrinterFactory {
         if let Some(s) = knobs.speedup {
             cfg.pause.speedup_factor = s;
         }
-        PrinterExec::new(Printer::with_policy(cfg, Self::policy(knobs)))
+        let mut printer = Printer::with_policy(cfg, Self::policy(knobs));
+        // The sim's generated jobs extrude without heating first: allow it, as M302 P1 would
+        // (the protection itself is tested in firmware/tests/guards.rs).
+        printer.extrusion_guard_mut().allow_cold = true;
+        PrinterExec::new(printer)
     }
 }

@@ -347,6 +347,19 @@ pub enum Command {
     PauseParams(PauseParams),
     /// `M761`: schedule a pause at a layer or height, clear, or report. Firmware-specific.
     SchedulePause(PauseSchedule),
+    // --- machine safety and homing (helper `safety`) ---
+    /// `M302 [S<°C>] [P<0|1>]`: cold-extrusion protection as in Marlin: `S` sets the lowest
+    /// hotend temperature at which E may move, `P1` allows cold extrusion, `P0` forbids it
+    /// again; with neither, report.
+    ColdExtrusion {
+        /// `S`: minimum extrusion temperature, °C.
+        min_temp_c: Option<f32>,
+        /// `P`: allow cold extrusion (`P1`) or not (`P0`).
+        allow: Option<bool>,
+    },
+    /// `M119`: report the endstop states.
+    ReportEndstops,
+    // --- end of the `safety` block ---
     /// `T<n>`: select a tool.
     Tool(u8),
     /// Klipper's `SET_PRINT_STATS_INFO [CURRENT_LAYER=<n>] [TOTAL_LAYER=<n>]`; CURRENT_LAYER is a
@@ -1179,6 +1192,21 @@ fn build_known(code: (u8, u16), w: &Words<'_>) -> Option<Result<Command, ParseEr
                     PauseSchedule::Report
                 };
                 Command::SchedulePause(s)
+            }
+            (b'M', 302) => {
+                w.check(b"SP", b"")?;
+                let allow = match w.find(b'P') {
+                    None => None,
+                    Some(_) => Some(w.bool01(b'P')?),
+                };
+                Command::ColdExtrusion {
+                    min_temp_c: w.f32(b'S')?,
+                    allow,
+                }
+            }
+            (b'M', 119) => {
+                none()?;
+                Command::ReportEndstops
             }
             (b'T', n) => {
                 none()?;

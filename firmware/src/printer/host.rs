@@ -112,6 +112,7 @@ impl Printer {
                 return;
             }
         };
+        let saved = self.machine;
         let before = self.machine.position_steps(&self.cfg);
         let action = match &parsed.command {
             Some(cmd) => match self.machine.apply(cmd, &self.cfg) {
@@ -125,6 +126,13 @@ impl Printer {
             },
             None => Action::None,
         };
+        if let Err(r) = self.check_action(&action, &saved) {
+            // Refused (cold or over-long extrusion): as if the line had not come.
+            self.machine = saved;
+            self.say(format_args!("{r}"));
+            self.link.respond(Response::Ok);
+            return;
+        }
         let after = self.machine.position_steps(&self.cfg);
         if !manual {
             let facts = MoveFacts::between(&before, &after, &self.cfg);
@@ -272,7 +280,12 @@ impl Printer {
                 self.sync_ok_owed = queued;
                 return queued;
             }
-            G::PauseParams(p) => self.m760(p),
+            G::PauseParams(p) => match super::guards::check_pause_params(p, &self.cfg) {
+                Ok(()) => self.m760(p),
+                Err(r) => self.say(format_args!("{r}")),
+            },
+            G::ColdExtrusion { min_temp_c, allow } => self.m302(*min_temp_c, *allow),
+            G::ReportEndstops => self.m119(),
             G::SchedulePause(s) => self.m761(s),
             G::Pause { now, .. } => {
                 let mode = if *now {

@@ -15,9 +15,13 @@
 //! Paused ───Resume───────► Returning: XY, then Z, then un-retract ─► release held ─► Printing
 //! ```
 
+mod guards;
+mod homing;
 mod host;
 mod pause;
 mod types;
+
+pub use guards::{ExtrusionGuard, Refusal};
 
 pub use types::{Command, PausedLines, Policy, Record, Schedule, State, Status, StepperRequest};
 mod service;
@@ -103,6 +107,14 @@ pub struct Printer {
     sync_ok_owed: bool,
     /// Axes (bit i = X, Y, Z) whose drivers were switched off since they were last homed.
     position_lost: u8,
+    /// Cold/long-extrusion protection (M302).
+    guard: ExtrusionGuard,
+    /// Homing with endstops (None: this machine's G28 moves to the minimum, no switches).
+    homing_cfg: Option<crate::homing::HomingConfig>,
+    /// The G28 in progress.
+    homing: Option<crate::homing::Homing>,
+    /// Endstop switch states as the driver reported them, bit i = axis i pressed.
+    endstops: u8,
 }
 
 fn steps(cfg: &MachineConfig, axis: Axis, mm: f32) -> i32 {
@@ -164,6 +176,10 @@ impl Printer {
             fan_pwm: 0,
             sync_ok_owed: false,
             position_lost: 0,
+            guard: ExtrusionGuard::MARLIN,
+            homing_cfg: None,
+            homing: None,
+            endstops: 0,
         };
         p.set_policy(policy);
         p
@@ -355,7 +371,9 @@ impl Printer {
         while let Some(cmd) = self.cmds.front().copied() {
             match cmd {
                 Command::Move(req) => {
-                    if !self.planner.can_accept() {
+                    if !self.planner.can_accept()
+                        || self.waits_for_heat(&req, &self.planner.end_position())
+                    {
                         break;
                     }
                     let _ = self.planner.push_move(&self.cfg, &req, BlockKind::Job);
@@ -377,20 +395,26 @@ impl Printer {
                     if !self.motion_idle() || !matches!(self.phase, Phase::Run | Phase::Stopping) {
                         break;
                     }
-                    let mut target = self.stepgen.position();
-                    for ax in [Axis::X, Axis::Y, Axis::Z] {
-                        if mask & (1 << ax.index()) != 0 {
-                            let min = self.cfg.axis(ax).min_mm;
-                            target[ax.index()] = steps(&self.cfg, ax, min);
+                    if let Some(h) = self.homing_cfg {
+                        if !self.home_with_endstops(mask, h) {
+                            break;
                         }
+                    } else {
+                        let mut target = self.stepgen.position();
+                        for ax in [Axis::X, Axis::Y, Axis::Z] {
+                            if mask & (1 << ax.index()) != 0 {
+                                let min = self.cfg.axis(ax).min_mm;
+                                target[ax.index()] = steps(&self.cfg, ax, min);
+                            }
+                        }
+                        self.position_lost &= !mask;
+                        let req = MoveRequest {
+                            target,
+                            feed_mm_s: self.cfg.pause.park_feed_mm_s,
+                            seq: u32::MAX,
+                        };
+                        let _ = self.planner.push_move(&self.cfg, &req, BlockKind::Homing);
                     }
-                    self.position_lost &= !mask;
-                    let req = MoveRequest {
-                        target,
-                        feed_mm_s: self.cfg.pause.park_feed_mm_s,
-                        seq: u32::MAX,
-                    };
-                    let _ = self.planner.push_move(&self.cfg, &req, BlockKind::Homing);
                 }
                 Command::WaitHeater(id) => {
                     if !(self.thermal.reached(id) || self.break_wait) {

@@ -195,6 +195,7 @@ impl Printer {
     }
 
     pub(super) fn emergency_stop(&mut self) {
+        self.abort_homing();
         self.halted = true;
         self.thermal.kill(self.now_us);
         self.arc = None;
@@ -211,6 +212,7 @@ impl Printer {
     }
 
     pub(super) fn quick_stop(&mut self) {
+        self.abort_homing();
         let _ = self.stepgen.unload();
         self.stepgen.end_hold();
         let pos = self.stepgen.position();
@@ -417,8 +419,10 @@ impl Printer {
             ));
             return;
         }
-        cur[Axis::X.index()] = steps(&c, Axis::X, c.pause.park_x_mm);
-        cur[Axis::Y.index()] = steps(&c, Axis::Y, c.pause.park_y_mm);
+        // Inside the travel whatever the configuration says (M760 checks its values).
+        let park = |a, mm| steps(&c, a, super::guards::within_travel(&c, a, mm));
+        cur[Axis::X.index()] = park(Axis::X, c.pause.park_x_mm);
+        cur[Axis::Y.index()] = park(Axis::Y, c.pause.park_y_mm);
         let _ = self.service.push_back(ServiceMove {
             target: cur,
             feed_mm_s: c.pause.park_feed_mm_s,
