@@ -67,6 +67,11 @@ pub struct MachineConfig {
     pub default_feed_mm_s: f32,
     /// Pause defaults.
     pub pause: PauseConfig,
+    /// Home offsets X Y Z, mm (M206): after G28 the logical position of a homed axis is its
+    /// home position plus this (Marlin's `home_offset`).
+    pub home_offset_mm: [f32; 3],
+    /// Stepper driver RMS currents X Y Z E, mA (M906): the board's drivers apply them.
+    pub driver_current_ma: [u16; AXES],
 }
 
 impl MachineConfig {
@@ -120,6 +125,8 @@ impl MachineConfig {
             max_volumetric_mm3_s: 12.0,
             segment_len_mm: 0.2,
         },
+        home_offset_mm: [0.0; 3],
+        driver_current_ma: [crate::storage::DEFAULT_DRIVER_CURRENT_MA; AXES],
     };
 
     /// The configuration of one axis.

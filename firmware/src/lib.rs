@@ -33,5 +33,8 @@ pub mod homing;
 // Heaters.
 pub mod thermal;
 
+// Settings kept in flash (M500/M501) and the NOR-flash model.
+pub mod storage;
+
 // The executive every driver (board, sim, tests) runs.
 pub mod printer;

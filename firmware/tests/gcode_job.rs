@@ -80,7 +80,9 @@ fn reports_and_errors() {
     assert!(r.out.contains("ok T:"), "{}", r.out);
     assert!(r.out.contains("Count X:"), "{}", r.out);
     assert!(
-        r.out.contains("echo:move outside the build volume (X)"),
+        r.out
+            .contains("echo:refused: move outside the build volume")
+            && !r.out.contains("Error:"),
         "{}",
         r.out
     );

@@ -68,7 +68,9 @@ fn cold_extrusion_is_refused_until_m302_p1() {
         2_000_000,
     );
     assert_eq!(
-        r.out.matches("echo:cold extrusion prevented").count(),
+        r.out
+            .matches("echo:refused: cold extrusion prevented")
+            .count(),
         2,
         "{}",
         r.out
@@ -143,7 +145,9 @@ fn over_long_extrusion_is_refused_even_with_m302() {
         2_000_000,
     );
     assert_eq!(
-        r.out.matches("echo:too long extrusion prevented").count(),
+        r.out
+            .matches("echo:refused: too long extrusion prevented")
+            .count(),
         2,
         "{}",
         r.out
@@ -163,7 +167,8 @@ fn arc_leaving_the_volume_is_refused_with_echo() {
     let mut p = printer();
     let r = run_gcode(&mut p, &["G20", "G3 X3 J200 I4", "M114"], &[], 5_000_000);
     assert!(
-        r.out.contains("echo:arc leaves the build volume (Y)"),
+        r.out
+            .contains("echo:refused: arc leaves the build volume (Y)"),
         "{}",
         r.out
     );
@@ -183,12 +188,20 @@ fn m760_values_outside_the_machine_are_refused() {
     );
     assert!(
         r.out
-            .contains("echo:M760 X1000.00 refused: must be 0.00..235.00"),
+            .contains("echo:refused: M760 X1000.00 outside 0.00..235.00"),
         "{}",
         r.out
     );
-    assert!(r.out.contains("echo:M760 Z300.00 refused"), "{}", r.out);
-    assert!(r.out.contains("echo:M760 F60000.00 refused"), "{}", r.out);
+    assert!(
+        r.out.contains("echo:refused: M760 Z300.00 outside"),
+        "{}",
+        r.out
+    );
+    assert!(
+        r.out.contains("echo:refused: M760 F60000.00 outside"),
+        "{}",
+        r.out
+    );
     assert!(!r.out.contains("Error"), "{}", r.out);
     // All or nothing: Y100 came with a bad Z and was not taken either.
     assert!(

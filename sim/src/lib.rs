@@ -5,6 +5,7 @@
 pub mod demo;
 pub mod engine;
 pub mod exec;
+pub mod flash;
 pub mod heater;
 pub mod hostlink;
 pub mod job;

@@ -51,6 +51,10 @@ pub struct ServeArgs {
     /// Also make a symlink to the device at this path (e.g. /tmp/printer).
     #[arg(long)]
     pub link: Option<PathBuf>,
+    /// Keep the settings (M500) in this flash image between sessions (created erased when
+    /// missing; see `sim::flash`).
+    #[arg(long)]
+    pub flash: Option<PathBuf>,
 }
 
 static STOP: AtomicBool = AtomicBool::new(false);
@@ -155,6 +159,11 @@ pub fn serve_with(
     if !(a.speed.is_finite() && a.speed > 0.0) {
         anyhow::bail!("--speed must be a positive number");
     }
+    let mut flash = a
+        .flash
+        .as_deref()
+        .map(crate::flash::FlashStore::open)
+        .transpose()?;
     let (master, slave, path) = open_pty()?;
     if let Some(l) = &a.link {
         let _ = std::fs::remove_file(l);
@@ -178,6 +187,9 @@ pub fn serve_with(
     let mut pauses: Vec<PauseTrack> = Vec::new();
     let start = Instant::now();
     let mut last_rx = Instant::now();
+    // When output was last written: the session does not end right after an answer (closing
+    // the master hangs the terminal up, and Linux then discards what the host had not read).
+    let mut last_tx = Instant::now();
     let mut out = String::new();
     let mut pending_out: Vec<u8> = Vec::new();
     let mut buf = [0u8; 4096];
@@ -234,8 +246,21 @@ pub fn serve_with(
             fw.poll(now_us);
             last_poll_us = now_us;
         }
+        if let Some(f) = flash.as_mut() {
+            f.service(&mut fw.printer);
+        }
         rec.on_status(&fw.status(), now_us);
         track(&mut pauses, &fw, &rec, &mut notes_seen);
+        // Idle: no motion (idle, paused, halted, cancelled: anything but a running job or a
+        // wait). Decided before the output is taken: asking for the next step can load a block
+        // and let a waiting command (M400) complete and answer, and that answer must go out
+        // before an idle exit.
+        let st = fw.status().state;
+        let idle = fw.next_step_us(now_us).is_none()
+            && !matches!(
+                st,
+                RunState::Printing | RunState::Pausing | RunState::Resuming
+            );
         // Output.
         out.clear();
         fw.take_output(&mut out);
@@ -244,22 +269,18 @@ pub fn serve_with(
             match nix::unistd::write(&master, &pending_out) {
                 Ok(w) => {
                     pending_out.drain(..w);
+                    last_tx = Instant::now();
                 }
                 Err(nix::errno::Errno::EAGAIN) => {}
                 Err(nix::errno::Errno::EIO) => break,
                 Err(e) => return Err(e).context("writing the pseudo-terminal"),
             }
         }
-        // Idle exit.
-        // No motion (idle, paused, halted, cancelled: anything but a running job or a wait).
-        let st = fw.status().state;
-        let idle = fw.next_step_us(now_us).is_none()
-            && !matches!(
-                st,
-                RunState::Printing | RunState::Pausing | RunState::Resuming
-            );
+        // Idle exit, once every answer is out (the answers of this round included).
         if a.exit_after_idle > 0.0
             && idle
+            && pending_out.is_empty()
+            && last_tx.elapsed() > Duration::from_secs_f64(a.exit_after_idle)
             && last_rx.elapsed() > Duration::from_secs_f64(a.exit_after_idle)
         {
             break;

@@ -246,6 +246,7 @@ pub fn write_command<W: Write>(w: &mut W, c: &Command) -> fmt::Result {
             }
         }
         Command::ReportEndstops => w.write_str("M119"),
+        Command::Settings(c) => super::settings::write(w, c),
         Command::Tool(t) => write!(w, "T{t}"),
         Command::PrintStatsInfo {
             current_layer,

@@ -37,6 +37,9 @@
 
 mod emit;
 mod number;
+// Settings M-codes (M92 M201 M203 M205 M206 M851 M906 M500-M503): parse and emit.
+mod settings;
+pub use settings::{Advanced, SettingsCommand};
 
 use crate::motion::{Axis, AXES};
 use core::fmt;
@@ -370,6 +373,8 @@ pub enum Command {
         /// `TOTAL_LAYER=`.
         total_layer: Option<u32>,
     },
+    /// Settings: M92, M201, M203, M205, M206, M851, M906 and M500–M503 (see [`SettingsCommand`]).
+    Settings(SettingsCommand),
     /// Any other G/M code or extended command: its text (comment stripped), for
     /// `echo:Unknown command: "<text>"`.
     Unknown(Text),
@@ -1208,6 +1213,7 @@ fn build_known(code: (u8, u16), w: &Words<'_>) -> Option<Result<Command, ParseEr
                 none()?;
                 Command::ReportEndstops
             }
+            (b'M', n) if settings::is_settings_code(n) => Command::Settings(settings::build(n, w)?),
             (b'T', n) => {
                 none()?;
                 match u8::try_from(n) {

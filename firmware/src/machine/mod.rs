@@ -232,7 +232,9 @@ impl MachineState {
                 self.pos_mm = pos;
                 for (i, d) in done.iter().enumerate() {
                     if *d {
-                        self.offset_mm[i] = 0.0;
+                        // M206: logical = machine + home offset (machine = logical + offset).
+                        let home = cfg.home_offset_mm.get(i).copied().unwrap_or(0.0);
+                        self.offset_mm[i] = -f64::from(home);
                     }
                 }
                 Ok(Action::Home(AxisFlags(done)))

@@ -146,7 +146,7 @@ impl fmt::Display for Refusal {
                 max,
             } => write!(
                 f,
-                "M760 {letter}{value:.2} refused: must be {min:.2}..{max:.2}, nothing changed"
+                "M760 {letter}{value:.2} outside {min:.2}..{max:.2}, nothing changed"
             ),
         }
     }
@@ -250,7 +250,7 @@ impl Printer {
     pub(super) fn m302(&mut self, min_temp_c: Option<f32>, allow: Option<bool>) {
         if let Some(t) = min_temp_c {
             if !(0.0..=400.0).contains(&t) {
-                self.say(format_args!("M302 S{t:.0} refused: must be 0..400 C"));
+                self.warn(format_args!("M302 S{t:.0} outside 0..400 C"));
                 return;
             }
             self.guard.min_temp_c = t;

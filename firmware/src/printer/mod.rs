@@ -18,13 +18,19 @@
 mod guards;
 mod homing;
 mod host;
+mod park;
 mod pause;
+mod state;
 mod types;
 
 pub use guards::{ExtrusionGuard, Refusal};
+use host::{AfterCancel, HostLines};
+use state::{Pause, Stop};
 
 pub use types::{Command, PausedLines, Policy, Record, Schedule, State, Status, StepperRequest};
 mod service;
+// Settings M-codes and the flash store's requests (M500/M501).
+mod settings;
 
 pub use service::ServiceMove;
 
@@ -32,9 +38,9 @@ use crate::config::MachineConfig;
 use crate::layer::LayerDetector;
 use crate::link::{HostAction, HostLink, Response};
 use crate::machine::{ArcMoves, MachineState};
-use crate::motion::{Axis, LayerMark, MoveRequest, PauseMode, Realtime, StepPos, AXES};
+use crate::motion::{Axis, LayerMark, MoveRequest, PauseMode, Realtime};
 use crate::planner::{BlockKind, PlannedBlock, Planner, PlannerPolicy, RING_CAPACITY};
-use crate::stepgen::{ExecBlock, StepEvent, StepGen};
+use crate::stepgen::{StepEvent, StepGen};
 use crate::thermal::{HeaterId, Thermal, ThermalConfig};
 use core::fmt::Write as _;
 use heapless::{Deque, String};
@@ -53,15 +59,6 @@ pub const BUSY_PERIOD_US: u64 = 2_000_000;
 /// the printer has had nothing to do for this long (job ended before any layer boundary).
 pub const LAYER_PAUSE_IDLE_US: u64 = 2_000_000;
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Phase {
-    Run,
-    Stopping,
-    Parking,
-    Parked,
-    Returning,
-}
-
 /// The executive. See the module documentation.
 pub struct Printer {
     cfg: MachineConfig,
@@ -70,41 +67,31 @@ pub struct Printer {
     stepgen: StepGen,
     cmds: Deque<Command, CMD_CAPACITY>,
     service: Deque<ServiceMove, { service::SERVICE_CAPACITY }>,
-    phase: Phase,
-    mode: Option<PauseMode>,
-    held: Option<ExecBlock>,
-    held_pos: StepPos,
-    retracted_steps: i32,
-    barrier_layer: Option<u32>,
-    fifo_countdown: Option<usize>,
+    /// The pause machine: every pause, cancel and halt state with its data.
+    pause: Pause,
+    /// The host-line side: lines waiting for room, numbering, discarding after a cancel, the
+    /// `ok` an M400 owes, keep-alives.
+    lines: HostLines,
     schedule: Option<Schedule>,
-    deferred_pause: Option<PauseMode>,
-    deferred_resume: bool,
-    hold_deferred: bool,
-    withdraw_after_stop: bool,
-    cancel_pending: bool,
-    cancelled: bool,
-    halted: bool,
     layer: Option<u32>,
+    /// A G4 at the front of the queue waits until this time, µs.
     dwell_until_us: Option<u64>,
+    /// M108 is breaking the heater wait or dwell at the front of the queue (during one feed).
+    break_wait: bool,
     now_us: u64,
+    /// When a host line was last taken or a block last ended, µs ("in a job").
     last_activity_us: u64,
     last_state: State,
     records: Deque<Record, RECORD_CAPACITY>,
     stepper_reqs: Deque<StepperRequest, STEPPER_REQ_CAPACITY>,
     records_dropped: u32,
     link: HostLink,
+    /// The job's modal state (manual lines while parked use the copy in `Pause::Parked`).
     machine: MachineState,
-    saved_machine: Option<MachineState>,
     layers: LayerDetector,
     arc: Option<ArcMoves>,
     thermal: Thermal,
-    last_busy_us: u64,
-    break_wait: bool,
-    reheat_wait: bool,
     fan_pwm: u8,
-    /// An M400 waits for the motion to end: its `ok` is owed, and no further line is taken.
-    sync_ok_owed: bool,
     /// Axes (bit i = X, Y, Z) whose drivers were switched off since they were last homed.
     position_lost: u8,
     /// Cold/long-extrusion protection (M302).
@@ -115,6 +102,8 @@ pub struct Printer {
     homing: Option<crate::homing::Homing>,
     /// Endstop switch states as the driver reported them, bit i = axis i pressed.
     endstops: u8,
+    /// Factory settings and a pending M500/M501 (see `settings.rs`).
+    settings: settings::SettingsLink,
 }
 
 fn steps(cfg: &MachineConfig, axis: Axis, mm: f32) -> i32 {
@@ -141,23 +130,12 @@ impl Printer {
             stepgen: StepGen::new(),
             cmds: Deque::new(),
             service: Deque::new(),
-            phase: Phase::Run,
-            mode: None,
-            held: None,
-            held_pos: [0; AXES],
-            retracted_steps: 0,
-            barrier_layer: None,
-            fifo_countdown: None,
+            pause: Pause::Run,
+            lines: HostLines::default(),
             schedule: None,
-            deferred_pause: None,
-            deferred_resume: false,
-            hold_deferred: false,
-            withdraw_after_stop: false,
-            cancel_pending: false,
-            cancelled: false,
-            halted: false,
             layer: None,
             dwell_until_us: None,
+            break_wait: false,
             now_us: 0,
             last_activity_us: 0,
             last_state: State::Idle,
@@ -166,22 +144,19 @@ impl Printer {
             records_dropped: 0,
             link: HostLink::new(),
             machine: MachineState::new(&cfg),
-            saved_machine: None,
             layers: LayerDetector::new(),
             arc: None,
             thermal: Thermal::new(&ThermalConfig::ENDER3),
-            last_busy_us: 0,
-            break_wait: false,
-            reheat_wait: false,
             fan_pwm: 0,
-            sync_ok_owed: false,
             position_lost: 0,
             guard: ExtrusionGuard::MARLIN,
             homing_cfg: None,
             homing: None,
             endstops: 0,
+            settings: settings::SettingsLink::new(),
         };
         p.set_policy(policy);
+        p.set_factory_settings();
         p
     }
 
@@ -314,10 +289,12 @@ impl Printer {
     /// lane instead.
     pub fn push_command(&mut self, cmd: Command, now_us: u64) -> Result<(), Command> {
         self.set_now(now_us);
-        if self.halted {
+        if self.is_halted() {
             return Err(cmd);
         }
-        if self.phase == Phase::Parked && self.policy.paused_lines == PausedLines::Manual {
+        if matches!(self.pause, Pause::Parked { .. })
+            && self.policy.paused_lines == PausedLines::Manual
+        {
             if let Command::Move(m) = cmd {
                 return self
                     .service
@@ -331,9 +308,7 @@ impl Printer {
         if self.command_room() == 0 {
             return Err(cmd);
         }
-        if self.cancelled {
-            self.cancelled = false;
-        }
+        self.lines.after_cancel = None;
         self.last_activity_us = self.now_us;
         self.cmds.push_back(cmd)?;
         self.feed_planner();
@@ -356,7 +331,17 @@ impl Printer {
             Some(Command::Layer(_)) => self.planner.has_pending() && self.planner.room() == 0,
             Some(_) => false,
         };
-        if stuck && self.fifo_countdown != Some(0) {
+        let tail_due = matches!(
+            self.pause,
+            Pause::Stopping {
+                how: Stop::Tail {
+                    countdown: Some(0),
+                    ..
+                },
+                ..
+            }
+        );
+        if stuck && !tail_due {
             return;
         }
         self.feed_planner_now();
@@ -364,7 +349,7 @@ impl Printer {
 
     #[inline(never)]
     fn feed_planner_now(&mut self) {
-        if self.halted {
+        if self.is_halted() {
             return;
         }
         self.planner.refill();
@@ -383,7 +368,15 @@ impl Printer {
                         break;
                     }
                     match self.planner.push_mark(mark) {
-                        Ok(true) => self.barrier_layer = Some(mark.layer),
+                        Ok(true) => {
+                            if let Pause::Stopping {
+                                how: Stop::Barrier { layer },
+                                ..
+                            } = &mut self.pause
+                            {
+                                *layer = Some(mark.layer);
+                            }
+                        }
                         Ok(false) => {}
                         Err(_) => break,
                     }
@@ -392,7 +385,9 @@ impl Printer {
                 Command::Home { mask } => {
                     // Homing runs before a pending layer barrier (it is part of the job before
                     // the boundary); never while parked or returning.
-                    if !self.motion_idle() || !matches!(self.phase, Phase::Run | Phase::Stopping) {
+                    if !self.motion_idle()
+                        || !matches!(self.pause, Pause::Run | Pause::Stopping { .. })
+                    {
                         break;
                     }
                     if let Some(h) = self.homing_cfg {
@@ -424,7 +419,9 @@ impl Printer {
                     self.break_wait = false;
                 }
                 Command::SetPosition(pos) => {
-                    if !self.motion_idle() || !matches!(self.phase, Phase::Run | Phase::Stopping) {
+                    if !self.motion_idle()
+                        || !matches!(self.pause, Pause::Run | Pause::Stopping { .. })
+                    {
                         break;
                     }
                     self.planner.set_position(pos);
@@ -453,12 +450,13 @@ impl Printer {
                     if self.planner.has_pending() {
                         break;
                     }
-                    if self.phase == Phase::Run {
+                    if matches!(self.pause, Pause::Run) {
                         let id = self.planner.next_id();
                         self.planner.set_barrier(id);
-                        self.phase = Phase::Stopping;
-                        self.mode = Some(PauseMode::Layer);
-                        self.barrier_layer = None;
+                        self.pause = Pause::Stopping {
+                            how: Stop::Barrier { layer: None },
+                            then: state::AfterStop::Park,
+                        };
                         self.say(format_args!(
                             "pause here (M0/M600): stopping after the queued moves"
                         ));
@@ -498,29 +496,31 @@ impl Printer {
                 }
             }
             let _ = self.cmds.pop_front();
-            if let Some(n) = self.fifo_countdown.as_mut() {
+            if let Some(Some(n)) = self.pause.tail_countdown() {
                 *n = n.saturating_sub(1);
             }
         }
-        if self.fifo_countdown == Some(0) && !self.planner.has_pending() {
-            self.fifo_countdown = None;
-            let id = self.planner.next_id();
-            self.planner.set_barrier(id);
+        if !self.planner.has_pending() {
+            if let Some(c @ Some(0)) = self.pause.tail_countdown() {
+                *c = None;
+                let id = self.planner.next_id();
+                self.planner.set_barrier(id);
+            }
         }
     }
 
     /// `busy: processing` at most every [`BUSY_PERIOD_US`] while a host line waits for its
     /// `ok` (heater wait, M400, a full queue while paused), so the host does not time out.
     fn keep_alive(&mut self) {
-        if self.now_us.saturating_sub(self.last_busy_us) >= BUSY_PERIOD_US {
-            self.last_busy_us = self.now_us;
+        if self.now_us.saturating_sub(self.lines.last_busy_us) >= BUSY_PERIOD_US {
+            self.lines.last_busy_us = self.now_us;
             self.link.respond(Response::Busy);
         }
     }
 
     /// Send the `ok` an M400 owes (its wait is over, or the wait was dropped).
     fn pay_sync_ok(&mut self) {
-        if core::mem::take(&mut self.sync_ok_owed) {
+        if core::mem::take(&mut self.lines.sync_ok_owed) {
             self.link.respond(Response::Ok);
         }
     }
@@ -538,14 +538,17 @@ impl Printer {
     /// is already in progress the schedule waits: it is met by that pause if it stops at a
     /// matching boundary, or looked for again among the queued marks when the job resumes.
     fn check_schedule(&mut self, mark: LayerMark) {
-        if self.schedule_hit(&mark) && self.phase == Phase::Run {
+        if self.schedule_hit(&mark) && matches!(self.pause, Pause::Run) {
             self.schedule = None;
             if let Some((id, _)) = self.planner.marks().last() {
                 self.planner.set_barrier(id);
             }
-            self.barrier_layer = Some(mark.layer);
-            self.phase = Phase::Stopping;
-            self.mode = Some(PauseMode::Layer);
+            self.pause = Pause::Stopping {
+                how: Stop::Barrier {
+                    layer: Some(mark.layer),
+                },
+                then: state::AfterStop::Park,
+            };
             self.say(format_args!(
                 "scheduled pause: stopping before layer {}",
                 mark.layer
@@ -563,7 +566,7 @@ impl Printer {
 
     /// Apply the schedule to the layer marks already queued in the planner.
     pub(super) fn schedule_queued_marks(&mut self) {
-        if self.schedule.is_none() || self.phase != Phase::Run {
+        if self.schedule.is_none() || !matches!(self.pause, Pause::Run) {
             return;
         }
         let mut hit = None;
@@ -576,9 +579,12 @@ impl Printer {
         if let Some((id, m)) = hit {
             self.schedule = None;
             self.planner.set_barrier(id);
-            self.barrier_layer = Some(m.layer);
-            self.phase = Phase::Stopping;
-            self.mode = Some(PauseMode::Layer);
+            self.pause = Pause::Stopping {
+                how: Stop::Barrier {
+                    layer: Some(m.layer),
+                },
+                then: state::AfterStop::Park,
+            };
             self.say(format_args!(
                 "scheduled pause: stopping before layer {}",
                 m.layer
@@ -596,19 +602,19 @@ impl Printer {
     pub fn poll(&mut self, now_us: u64) {
         self.set_now(now_us);
         self.take_realtime();
-        if self.halted {
+        if self.is_halted() {
             return;
         }
         // Lines are taken only when one waits (or an arc is being cut): the idle tick costs
         // a compare instead of the line handler's frame.
-        if self.arc.is_some() || self.link.lines_waiting() > 0 {
+        if self.arc.is_some() || self.link.lines_waiting() > 0 || self.lines.held_line.is_some() {
             self.process_lines();
         }
         self.feed_planner();
         self.retire_finished();
         self.update_pause();
         self.feed_planner();
-        if self.sync_ok_owed {
+        if self.lines.sync_ok_owed {
             // An M400 waits for the motion (maybe through a pause) with its `ok` owed.
             self.keep_alive();
         }
@@ -664,8 +670,15 @@ impl Printer {
                     t_us,
                     pos,
                 });
-                if b.kind == BlockKind::Homing && self.hold_deferred {
-                    self.hold_deferred = false;
+                if b.kind == BlockKind::Homing
+                    && matches!(
+                        self.pause,
+                        Pause::Stopping {
+                            how: Stop::Hold { after_homing: true },
+                            ..
+                        }
+                    )
+                {
                     self.begin_hold();
                 }
             }
@@ -674,7 +687,7 @@ impl Printer {
 
     /// Retire a finished block and load the next one. False when nothing can be loaded.
     fn advance_block(&mut self) -> bool {
-        if self.halted {
+        if self.is_halted() {
             return false;
         }
         self.retire_finished();
@@ -720,26 +733,28 @@ impl Printer {
     }
 
     fn next_block(&mut self) -> Option<PlannedBlock> {
-        match self.phase {
-            Phase::Run => self.job_block(),
-            Phase::Stopping => match self.mode {
-                Some(PauseMode::Now) => {
-                    if self.hold_deferred
-                        || (self.stepgen.is_braking() && self.stepgen.exit_speed_mm_s() > 0.0)
-                    {
-                        self.job_block()
-                    } else {
-                        None
-                    }
+        match &mut self.pause {
+            Pause::Run => self.job_block(),
+            Pause::Stopping { how, .. } => {
+                if how.mode() != PauseMode::Now
+                    || matches!(how, Stop::Hold { after_homing: true })
+                    || (self.stepgen.is_braking() && self.stepgen.exit_speed_mm_s() > 0.0)
+                {
+                    // Layer and tail stops run to their barrier; a feed hold brakes through
+                    // the next blocks while it still has speed (or waits for a homing move).
+                    self.job_block()
+                } else {
+                    None
                 }
-                _ => self.job_block(),
-            },
-            Phase::Parking | Phase::Parked | Phase::Returning => {
-                if self.reheat_wait {
-                    if !self.thermal.reached(HeaterId::Hotend) {
-                        return None;
+            }
+            Pause::Parking { .. } | Pause::Parked { .. } | Pause::Returning { .. } => {
+                if let Pause::Returning { reheat, .. } = &mut self.pause {
+                    if *reheat {
+                        if !self.thermal.reached(HeaterId::Hotend) {
+                            return None;
+                        }
+                        *reheat = false;
                     }
-                    self.reheat_wait = false;
                 }
                 while let Some(m) = self.service.pop_front() {
                     let from = self.stepgen.position();
@@ -749,6 +764,7 @@ impl Printer {
                 }
                 None
             }
+            Pause::Halted => None,
         }
     }
 
@@ -759,7 +775,7 @@ impl Printer {
     /// Realtime request (pause button, sim, or parsed from the byte stream).
     pub fn request(&mut self, req: Realtime, now_us: u64) {
         self.set_now(now_us);
-        if self.halted {
+        if self.is_halted() {
             self.say(format_args!("halted: reset required"));
             return;
         }
@@ -783,23 +799,26 @@ impl Printer {
 
     /// The run state now.
     pub fn state(&self) -> State {
-        if self.halted {
-            return State::Halted;
-        }
-        match self.phase {
-            Phase::Stopping | Phase::Parking => State::Pausing,
-            Phase::Parked => State::Paused,
-            Phase::Returning => State::Resuming,
-            Phase::Run => {
-                if self.cancelled {
-                    State::Cancelled
-                } else if self.has_work() {
+        match self.pause {
+            Pause::Halted => State::Halted,
+            Pause::Stopping { .. } | Pause::Parking { .. } => State::Pausing,
+            Pause::Parked { .. } => State::Paused,
+            Pause::Returning { .. } => State::Resuming,
+            Pause::Run => {
+                if self.has_work() {
                     State::Printing
+                } else if self.lines.after_cancel.is_some() {
+                    State::Cancelled
                 } else {
                     State::Idle
                 }
             }
         }
+    }
+
+    /// Emergency-stopped (nothing moves until reset).
+    fn is_halted(&self) -> bool {
+        matches!(self.pause, Pause::Halted)
     }
 
     fn update_state_record(&mut self) {
@@ -813,7 +832,10 @@ impl Printer {
 
     /// A snapshot of the printer.
     pub fn status(&self) -> Status {
-        let exec = usize::from(self.stepgen.current().is_some() || self.held.is_some());
+        let held = self.pause.held();
+        let exec = usize::from(
+            self.stepgen.current().is_some() || held.is_some_and(|h| h.block.is_some()),
+        );
         Status {
             state: self.state(),
             position: self.stepgen.position(),
@@ -821,11 +843,8 @@ impl Printer {
             queue_depth: self.cmds.len() + self.planner.len() + exec,
             planner_blocks: self.planner.len(),
             commands: self.cmds.len(),
-            paused_at: match self.phase {
-                Phase::Parking | Phase::Parked | Phase::Returning => Some(self.held_pos),
-                _ => None,
-            },
-            pause_mode: self.mode,
+            paused_at: held.map(|h| h.pos),
+            pause_mode: self.pause.mode(),
             position_lost: self.position_lost,
         }
     }
@@ -848,7 +867,7 @@ impl Printer {
                 self.link.respond(Response::Error(&t));
                 self.link
                     .respond(Response::Error("Printer halted. kill() called!"));
-                if !self.halted {
+                if !self.is_halted() {
                     self.emergency_stop();
                 }
             }

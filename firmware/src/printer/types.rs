@@ -101,6 +101,13 @@ pub enum PausedLines {
     /// Manual commands: moves run at once in the service lane; the modal state is restored on
     /// resume (for hosts that stop streaming on `//action:paused`, like OctoPrint).
     Manual,
+    /// Decided per line: once the host has numbered its lines (printcore, OctoPrint, Repetier
+    /// and our sender number and checksum every job line), a numbered line while paused is a
+    /// job line ([`PausedLines::Queue`]) and an unnumbered one is a manual command
+    /// ([`PausedLines::Manual`]): printcore's `send_now` and OctoPrint's terminal and jog
+    /// buttons while paused send without numbers. A host that never numbers gets `Queue`.
+    /// See docs/frontend.md, "host rules".
+    Auto,
 }
 
 /// Policy knobs: our firmware and conventional firmware on the same code.
@@ -128,7 +135,7 @@ impl Policy {
         max_blocks: RING_CAPACITY,
         cmd_limit: CMD_CAPACITY,
         stop_at_marks: true,
-        paused_lines: PausedLines::Queue,
+        paused_lines: PausedLines::Auto,
     };
     /// Conventional firmware: no segmentation, pause at the tail, 16 moves queued in all
     /// (15 planner blocks including the executing one, as Marlin's 16-slot ring, plus 1
