@@ -127,6 +127,8 @@ fn extrusion_taken_while_heating_waits_for_the_minimum() {
         "E moved at {first_e} ns, before 170 °C"
     );
     assert_eq!(r.end, [400, 0, 0, 186]);
+    // The host hears from the printer while it waits, as during M109.
+    assert!(r.out.contains("busy: processing"), "{}", r.out);
 }
 
 #[test]

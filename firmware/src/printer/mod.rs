@@ -356,9 +356,12 @@ impl Printer {
         while let Some(cmd) = self.cmds.front().copied() {
             match cmd {
                 Command::Move(req) => {
-                    if !self.planner.can_accept()
-                        || self.waits_for_heat(&req, &self.planner.end_position())
-                    {
+                    if !self.planner.can_accept() {
+                        break;
+                    }
+                    if self.waits_for_heat(&req, &self.planner.end_position()) {
+                        // Like a heater wait: the host's next line may wait for its `ok`.
+                        self.keep_alive();
                         break;
                     }
                     let _ = self.planner.push_move(&self.cfg, &req, BlockKind::Job);
