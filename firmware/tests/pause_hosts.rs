@@ -146,7 +146,8 @@ impl Host {
             return;
         };
         self.in_flight = true;
-        p.receive(line.as_bytes(), now);
+        let taken = p.receive(line.as_bytes(), now);
+        assert_eq!(taken, line.len(), "a one-line-per-ok host's line is always taken");
     }
 }
 
@@ -369,7 +370,8 @@ fn refusals_are_echo_warnings_and_change_nothing() {
         "M114",
         "M105",
     ] {
-        p.receive(format!("{l}\n").as_bytes(), t);
+        let line = format!("{l}\n");
+        assert_eq!(p.receive(line.as_bytes(), t), line.len());
         for _ in 0..2000 {
             t += 1000;
             p.poll(t);

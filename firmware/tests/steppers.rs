@@ -7,7 +7,7 @@ use firmware::printer::{Printer, StepperRequest};
 fn send(p: &mut Printer, line: &str, now_us: u64) {
     let mut l = String::from(line);
     l.push('\n');
-    p.receive(l.as_bytes(), now_us);
+    assert_eq!(p.receive(l.as_bytes(), now_us), l.len());
     p.poll(now_us);
 }
 

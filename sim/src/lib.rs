@@ -18,5 +18,6 @@ pub mod port;
 pub mod recorder;
 pub mod run;
 pub mod serve;
+pub mod session;
 pub mod split;
 pub mod thermal;

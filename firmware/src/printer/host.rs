@@ -105,9 +105,10 @@ impl Printer {
     /// output ring can take its answer).
     fn next_line(&mut self) -> Option<ReceivedLine> {
         if self.lines.held_line.is_some() {
-            if self.link.output_free() < crate::link::OUT_RESERVE {
+            if self.link.line_output_free() < crate::link::OUT_RESERVE {
                 return None;
             }
+            self.link.answer_line_port();
             return self.lines.held_line.take();
         }
         self.link.pop_line()

@@ -36,7 +36,7 @@ pub use service::ServiceMove;
 
 use crate::config::MachineConfig;
 use crate::layer::LayerDetector;
-use crate::link::{HostAction, HostLink, Response};
+use crate::link::{HostAction, HostLink, HostPorts, PortId, Response};
 use crate::machine::{ArcMoves, MachineState};
 use crate::motion::{Axis, LayerMark, MoveRequest, PauseMode, Realtime};
 use crate::planner::{BlockKind, PlannedBlock, Planner, PlannerPolicy, RING_CAPACITY};
@@ -85,7 +85,7 @@ pub struct Printer {
     records: Deque<Record, RECORD_CAPACITY>,
     stepper_reqs: Deque<StepperRequest, STEPPER_REQ_CAPACITY>,
     records_dropped: u32,
-    link: HostLink,
+    link: HostPorts,
     /// The job's modal state (manual lines while parked use the copy in `Pause::Parked`).
     machine: MachineState,
     layers: LayerDetector,
@@ -142,7 +142,7 @@ impl Printer {
             records: Deque::new(),
             stepper_reqs: Deque::new(),
             records_dropped: 0,
-            link: HostLink::new(),
+            link: HostPorts::new(),
             machine: MachineState::new(&cfg),
             layers: LayerDetector::new(),
             arc: None,
@@ -241,38 +241,87 @@ impl Printer {
         self.records_dropped
     }
 
-    /// An `echo:` line to the host.
+    /// An `echo:` line to the port that asked (see [`HostPorts::respond`]).
     fn say(&mut self, args: core::fmt::Arguments) {
         let mut t: String<LINE_LEN> = String::new();
         let _ = t.write_fmt(args);
         self.link.respond(Response::Echo(&t));
     }
 
+    /// An `echo:` line to every port (a notification, not an answer: pause state changes).
+    #[allow(dead_code)]
+    fn notice(&mut self, args: core::fmt::Arguments) {
+        let mut t: String<LINE_LEN> = String::new();
+        let _ = t.write_fmt(args);
+        self.link.notify(Response::Echo(&t));
+    }
+
+    /// A host action, to every port.
     fn action(&mut self, a: HostAction) {
-        self.link.respond(Response::Action(a, ""));
+        self.link.notify(Response::Action(a, ""));
     }
 
-    /// Write every pending host-link line (`ok`, `echo:`, `//action:`, errors ...), each
-    /// followed by `\n`.
+    /// Write every pending host-link line of the USB port (`ok`, `echo:`, `//action:`,
+    /// errors ...), each followed by `\n`. Same as [`Printer::write_output_on`] with
+    /// [`PortId::Usb`].
     pub fn write_output<W: core::fmt::Write>(&mut self, w: &mut W) -> core::fmt::Result {
-        self.link.write_output(w)
+        self.write_output_on(PortId::Usb, w)
     }
 
-    /// Copy pending host-link output bytes into `buf` (for a UART/USB driver); returns how
-    /// many were written.
+    /// Write every pending host-link line of port `port`.
+    pub fn write_output_on<W: core::fmt::Write>(
+        &mut self,
+        port: PortId,
+        w: &mut W,
+    ) -> core::fmt::Result {
+        self.link.write_output(port, w)
+    }
+
+    /// Copy pending USB-port output bytes into `buf` (for a UART/USB driver); returns how many
+    /// were written. Same as [`Printer::read_output_on`] with [`PortId::Usb`].
     pub fn read_output(&mut self, buf: &mut [u8]) -> usize {
-        self.link.read_output(buf)
+        self.read_output_on(PortId::Usb, buf)
     }
 
-    /// Host bytes in: realtime requests act at once; lines are taken, parsed, interpreted by
-    /// the machine state and queued while the command queue has room (each answered `ok`
-    /// when taken).
-    pub fn receive(&mut self, bytes: &[u8], now_us: u64) {
+    /// Copy pending output bytes of port `port` into `buf`; returns how many were written.
+    pub fn read_output_on(&mut self, port: PortId, buf: &mut [u8]) -> usize {
+        self.link.read_output(port, buf)
+    }
+
+    /// One port's host link (line numbers, counters), read-only.
+    pub fn port(&self, port: PortId) -> &HostLink {
+        self.link.port(port)
+    }
+
+    /// Host bytes in on the USB port: [`Printer::receive_on`] with [`PortId::Usb`].
+    #[must_use = "bytes not taken must be offered again later (flow control)"]
+    pub fn receive(&mut self, bytes: &[u8], now_us: u64) -> usize {
+        self.receive_on(PortId::Usb, bytes, now_us)
+    }
+
+    /// Host bytes in on port `port`: realtime requests act at once; lines are taken, parsed,
+    /// interpreted by the machine state and queued while the command queue has room (each
+    /// answered `ok` when taken). Returns how many bytes were taken, from the front: the rest
+    /// did not fit (the line FIFO is full because the command queue is) and must be offered
+    /// again later — the driver leaves them unread (pty) or NAKs them (USB). A host that waits
+    /// for `ok` never has more than its window outstanding, so nothing it sends is lost and its
+    /// realtime lines are always within what is taken.
+    #[must_use = "bytes not taken must be offered again later (flow control)"]
+    pub fn receive_on(&mut self, port: PortId, bytes: &[u8], now_us: u64) -> usize {
         self.set_now(now_us);
-        self.link.receive(bytes);
-        self.take_realtime();
-        self.process_lines();
+        let mut taken = 0;
+        loop {
+            let n = self.link.receive(port, bytes.get(taken..).unwrap_or(&[]));
+            taken += n;
+            self.take_realtime();
+            self.process_lines();
+            // Each round takes at least one byte, or stops.
+            if n == 0 || taken >= bytes.len() {
+                break;
+            }
+        }
         self.update_state_record();
+        taken
     }
 
     /// Room in the command queue under the policy's limit.
@@ -867,9 +916,7 @@ impl Printer {
             if let Some(f) = self.thermal.fault() {
                 let mut t: String<LINE_LEN> = String::new();
                 let _ = write!(t, "{f}");
-                self.link.respond(Response::Error(&t));
-                self.link
-                    .respond(Response::Error("Printer halted. kill() called!"));
+                self.link.notify(Response::Error(&t));
                 if !self.is_halted() {
                     self.emergency_stop();
                 }

@@ -4,7 +4,7 @@
 
 use super::state::{AfterPark, AfterReturn, AfterStop, Pause, Stop};
 use super::{AfterCancel, Printer, Record};
-use crate::link::HostAction;
+use crate::link::{HostAction, Response};
 use crate::motion::PauseMode;
 use crate::planner::BlockKind;
 use crate::printer::LAYER_PAUSE_IDLE_US;
@@ -247,9 +247,10 @@ impl Printer {
         self.cmds.clear();
         self.lines.sync_ok_owed = false;
         self.service.clear();
-        self.say(format_args!(
-            "emergency stop (M112): motors and heaters off, reset required"
-        ));
+        // As Marlin's kill(): an error to every port, then no answer to anything until reset.
+        self.link
+            .notify(Response::Error("Printer halted. kill() called!"));
+        self.link.halt();
     }
 
     pub(super) fn quick_stop(&mut self) {
