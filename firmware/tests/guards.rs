@@ -28,7 +28,12 @@ fn drive(p: &mut Printer, lines: &[&str], hotend_c: impl Fn(u64) -> f32, limit_u
         p.thermal_sample(HeaterId::Hotend, hotend_c(now), now);
         p.thermal_sample(HeaterId::Bed, 25.0, now);
         if !waiting && next < lines.len() {
-            p.receive(format!("{}\n", lines[next]).as_bytes(), now);
+            let l = format!("{}\n", lines[next]);
+            assert_eq!(
+                p.receive(l.as_bytes(), now),
+                l.len(),
+                "one line per ok is always taken"
+            );
             next += 1;
             waiting = true;
         }

@@ -56,12 +56,18 @@ fn drive(
     w.report(p);
     while now <= limit_us {
         if !waiting && next < lines.len() {
-            p.receive(format!("{}\n", lines[next]).as_bytes(), now);
+            let l = format!("{}\n", lines[next]);
+            assert_eq!(
+                p.receive(l.as_bytes(), now),
+                l.len(),
+                "one line per ok is always taken"
+            );
             next += 1;
             waiting = true;
         }
         while next_send < sends.len() && sends[next_send].0 <= now {
-            p.receive(sends[next_send].1.as_bytes(), now);
+            let b = sends[next_send].1.as_bytes();
+            assert_eq!(p.receive(b, now), b.len());
             next_send += 1;
         }
         p.poll(now);
