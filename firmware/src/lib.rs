@@ -27,6 +27,9 @@ pub mod machine;
 pub mod planner;
 pub mod stepgen;
 
+// Homing sequence and endstops (behind embedded-hal input pins).
+pub mod homing;
+
 // Heaters.
 pub mod thermal;
 

@@ -78,7 +78,10 @@ impl Profile {
             s0,
             s_end,
             v0,
-            vc: fmax(vc, 1.0e-3),
+            // Only a profile that never moves gets a stand-in cruise speed (for the time
+            // formulas); a slow block keeps its own: a floor above it would run an axis beyond
+            // its limit (issue 16: `G1 X1 E91335` ran E at 1e-3 mm/s × 91335 = 91 mm/s).
+            vc: if vc > 0.0 { vc } else { 1.0e-3 },
             v1,
             a,
             d_acc,

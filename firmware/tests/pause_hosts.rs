@@ -182,6 +182,8 @@ fn drive(
     mut on_tick: impl FnMut(&mut Host, u64, &[String]),
 ) -> Outcome {
     let mut p = Printer::new(MachineConfig::ENDER3);
+    // No heater model: the jobs extrude cold (as M302 P1).
+    p.extrusion_guard_mut().allow_cold = true;
     let mut executed = Vec::new();
     let mut after_cancel = Vec::new();
     let mut stops = 0;
@@ -356,6 +358,8 @@ fn octoprint_gets_its_in_flight_ok_and_its_terminal_works_while_paused() {
 #[test]
 fn refusals_are_echo_warnings_and_change_nothing() {
     let mut p = Printer::new(MachineConfig::ENDER3);
+    // No heater model: the jobs extrude cold (as M302 P1).
+    p.extrusion_guard_mut().allow_cold = true;
     let mut out = String::new();
     let mut t = 0;
     for l in [

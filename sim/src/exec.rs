@@ -5,6 +5,8 @@
 use crate::port::{BlockTag, ExecStatus, Executive, FirmwareKnobs, Lane, RunState, StepEvent};
 use crate::run::Factory;
 use firmware::config::MachineConfig;
+use firmware::homing::HomingConfig;
+use firmware::motion::Axis;
 use firmware::motion::Realtime;
 use firmware::planner::BlockKind;
 use firmware::printer::{Policy, Printer, Record, State};
@@ -15,6 +17,31 @@ use firmware::thermal::HeaterId;
 pub struct Noted {
     /// The record.
     pub record: Record,
+}
+
+/// Minimum endstops at the machine's minimum: the sim knows where each axis really is (moved by
+/// the step events; the firmware only counts), and reports each switch to the firmware after
+/// every step, as the board does from its pins. Power-on: every axis really at `start_steps`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SimEndstops {
+    /// True position of X Y Z, steps from the machine's minimum (where the switch closes).
+    pub real_steps: [i32; 3],
+}
+
+impl SimEndstops {
+    fn step(&mut self, axis_mask: u8, dir_mask: u8) {
+        for (i, r) in self.real_steps.iter_mut().enumerate() {
+            if axis_mask & (1 << i) != 0 {
+                *r += if dir_mask & (1 << i) != 0 { 1 } else { -1 };
+            }
+        }
+    }
+
+    fn report(&self, p: &mut Printer) {
+        for (axis, r) in [Axis::X, Axis::Y, Axis::Z].into_iter().zip(self.real_steps) {
+            p.set_endstop(axis, r <= 0);
+        }
+    }
 }
 
 /// The firmware executive behind the sim's [`Executive`] trait.
@@ -29,6 +56,8 @@ pub struct PrinterExec {
     pub executed: Vec<(u32, u32, u32)>,
     /// Keep [`Self::executed`].
     pub keep_executed: bool,
+    /// Endstops (None: no switches; G28 then moves to the minimum).
+    pub endstops: Option<SimEndstops>,
 }
 
 impl PrinterExec {
@@ -40,7 +69,18 @@ impl PrinterExec {
             keep_notes: true,
             executed: Vec::new(),
             keep_executed: false,
+            endstops: None,
         }
+    }
+
+    /// Give the printer minimum endstops at the machine's minimum, the axes really at
+    /// `real_steps` (steps from the switches) at power-on: G28 then homes through them.
+    pub fn with_endstops(mut self, real_steps: [i32; 3]) -> Self {
+        self.printer.enable_endstops(HomingConfig::ENDER3);
+        let e = SimEndstops { real_steps };
+        e.report(&mut self.printer);
+        self.endstops = Some(e);
+        self
     }
 
     fn drain_records(&mut self) {
@@ -105,6 +145,10 @@ impl Executive for PrinterExec {
     #[inline]
     fn pop_step(&mut self, _now_us: u64) -> Option<StepEvent> {
         let ev = self.printer.next_step()?;
+        if let Some(e) = self.endstops.as_mut() {
+            e.step(ev.axis_mask, ev.dir_mask);
+            e.report(&mut self.printer);
+        }
         Some(StepEvent {
             t_us: ev.t_us,
             t_ns: ev.t_ns,
@@ -176,6 +220,46 @@ impl Factory for PrinterFactory {
         if let Some(s) = knobs.speedup {
             cfg.pause.speedup_factor = s;
         }
-        PrinterExec::new(Printer::with_policy(cfg, Self::policy(knobs)))
+        let mut printer = Printer::with_policy(cfg, Self::policy(knobs));
+        // The sim's generated jobs extrude without heating first: allow it, as M302 P1 would
+        // (the protection itself is tested in firmware/tests/guards.rs).
+        printer.extrusion_guard_mut().allow_cold = true;
+        PrinterExec::new(printer)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// G28 in the sim with endstops: every axis ends exactly at its switch, whatever the
+    /// firmware believed at power-on.
+    #[test]
+    fn g28_homes_to_the_sim_switches() {
+        let p = Printer::new(MachineConfig::ENDER3);
+        let mut e = PrinterExec::new(p).with_endstops([4_000, 123, 800]);
+        e.receive(b"G28\n", 0);
+        let mut now = 0u64;
+        let mut out = String::new();
+        while now < 120_000_000 {
+            e.poll(now);
+            while let Some(t) = e.next_step_us(now) {
+                if t > now + 1000 {
+                    break;
+                }
+                e.pop_step(now);
+            }
+            e.take_output(&mut out);
+            now += 1000;
+            if now > 1_000_000 && e.status().state == RunState::Idle {
+                break;
+            }
+        }
+        e.receive(b"M119\n", now);
+        e.poll(now);
+        e.take_output(&mut out);
+        assert_eq!(e.endstops.map(|s| s.real_steps), Some([0, 0, 0]), "{out}");
+        assert_eq!(e.status().pos_steps[..3], [0, 0, 0]);
+        assert!(out.contains("x_min: TRIGGERED"), "{out}");
     }
 }

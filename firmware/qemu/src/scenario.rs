@@ -176,6 +176,8 @@ impl Script {
             items[3] = Some(Self::send(format_args!("M82")));
             items[4] = Some(Self::send(format_args!("G28")));
             items[5] = Some(Self::send(format_args!("G92 E0")));
+            // No heater model here: allow extrusion cold (the firmware refuses it otherwise).
+            items[6] = Some(Self::send(format_args!("M302 P1")));
             self.buf = items;
             self.head = 0;
             self.i += 1;

@@ -237,6 +237,15 @@ pub fn write_command<W: Write>(w: &mut W, c: &Command) -> fmt::Result {
                 PauseSchedule::Clear => w.write_str(" C"),
             }
         }
+        Command::ColdExtrusion { min_temp_c, allow } => {
+            w.write_str("M302")?;
+            opt(w, 'S', *min_temp_c)?;
+            match allow {
+                Some(a) => write!(w, " P{}", u8::from(*a)),
+                None => Ok(()),
+            }
+        }
+        Command::ReportEndstops => w.write_str("M119"),
         Command::Settings(c) => super::settings::write(w, c),
         Command::Report(c) => super::report::write(w, c),
         Command::Driver(c) => super::driver::write(w, c),

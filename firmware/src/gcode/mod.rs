@@ -356,6 +356,19 @@ pub enum Command {
     PauseParams(PauseParams),
     /// `M761`: schedule a pause at a layer or height, clear, or report. Firmware-specific.
     SchedulePause(PauseSchedule),
+    // --- machine safety and homing (helper `safety`) ---
+    /// `M302 [S<°C>] [P<0|1>]`: cold-extrusion protection as in Marlin: `S` sets the lowest
+    /// hotend temperature at which E may move, `P1` allows cold extrusion, `P0` forbids it
+    /// again; with neither, report.
+    ColdExtrusion {
+        /// `S`: minimum extrusion temperature, °C.
+        min_temp_c: Option<f32>,
+        /// `P`: allow cold extrusion (`P1`) or not (`P0`).
+        allow: Option<bool>,
+    },
+    /// `M119`: report the endstop states.
+    ReportEndstops,
+    // --- end of the `safety` block ---
     /// `T<n>`: select a tool.
     Tool(u8),
     /// Klipper's `SET_PRINT_STATS_INFO [CURRENT_LAYER=<n>] [TOTAL_LAYER=<n>]`; CURRENT_LAYER is a
@@ -1204,6 +1217,21 @@ fn build_known(code: (u8, u16), w: &Words<'_>) -> Option<Result<Command, ParseEr
                     PauseSchedule::Report
                 };
                 Command::SchedulePause(s)
+            }
+            (b'M', 302) => {
+                w.check(b"SP", b"")?;
+                let allow = match w.find(b'P') {
+                    None => None,
+                    Some(_) => Some(w.bool01(b'P')?),
+                };
+                Command::ColdExtrusion {
+                    min_temp_c: w.f32(b'S')?,
+                    allow,
+                }
+            }
+            (b'M', 119) => {
+                none()?;
+                Command::ReportEndstops
             }
             (b'M', n) if settings::is_settings_code(n) => Command::Settings(settings::build(n, w)?),
             (b'M', n) if report::is_report_code(n) => Command::Report(report::build(n, w)?),

@@ -427,6 +427,9 @@ fn command() -> impl Strategy<Value = Command> {
                 current_layer,
                 total_layer
             }),
+        (onum(), proptest::option::of(any::<bool>()))
+            .prop_map(|(min_temp_c, allow)| Command::ColdExtrusion { min_temp_c, allow }),
+        Just(Command::ReportEndstops),
         any::<u8>().prop_map(Command::Tool),
         (1000u16..9999, axes()).prop_map(|(code, a)| {
             let mut t = Text::new();

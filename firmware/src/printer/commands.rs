@@ -96,7 +96,12 @@ impl Printer {
                 self.lines.sync_ok_owed = queued;
                 return queued;
             }
-            G::PauseParams(p) => self.m760(p),
+            G::PauseParams(p) => match super::guards::check_pause_params(p, &self.cfg) {
+                Ok(()) => self.m760(p),
+                Err(r) => self.warn(format_args!("{r}")),
+            },
+            G::ColdExtrusion { min_temp_c, allow } => self.m302(*min_temp_c, *allow),
+            G::ReportEndstops => self.m119(),
             G::SchedulePause(s) => self.m761(s),
             G::Pause { now, .. } => {
                 let mode = if *now {

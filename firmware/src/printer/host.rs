@@ -292,6 +292,7 @@ impl Printer {
             }
         };
         let modal_before = self.machine;
+        let saved = self.machine;
         let before = self.machine.position_steps(&self.cfg);
         let action = match &parsed.command {
             Some(cmd) => match self.machine.apply(cmd, &self.cfg) {
@@ -304,6 +305,13 @@ impl Printer {
             },
             None => Action::None,
         };
+        if let Err(r) = self.check_action(&action, &saved) {
+            // Refused (cold or over-long extrusion): as if the line had not come.
+            self.machine = saved;
+            self.warn(format_args!("{r}"));
+            self.link.respond(Response::Ok);
+            return;
+        }
         let after = self.machine.position_steps(&self.cfg);
         if !manual {
             let facts = MoveFacts::between(&before, &after, &self.cfg);

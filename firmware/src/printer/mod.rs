@@ -23,6 +23,8 @@
 
 mod commands;
 mod exec;
+mod guards;
+mod homing;
 mod host;
 mod park;
 mod pause;
@@ -30,6 +32,7 @@ mod queue;
 mod state;
 mod types;
 
+pub use guards::{ExtrusionGuard, Refusal};
 use host::{AfterCancel, HostLines};
 use state::Pause;
 
@@ -108,6 +111,14 @@ pub struct Printer {
     fan_pwm: u8,
     /// Axes (bit i = X, Y, Z) whose drivers were switched off since they were last homed.
     position_lost: u8,
+    /// Cold/long-extrusion protection (M302).
+    guard: ExtrusionGuard,
+    /// Homing with endstops (None: this machine's G28 moves to the minimum, no switches).
+    homing_cfg: Option<crate::homing::HomingConfig>,
+    /// The G28 in progress.
+    homing: Option<crate::homing::Homing>,
+    /// Endstop switch states as the driver reported them, bit i = axis i pressed.
+    endstops: u8,
     /// Factory settings and a pending M500/M501 (see `settings.rs`).
     settings: settings::SettingsLink,
     reports: report::Reports,
@@ -159,6 +170,10 @@ impl Printer {
             thermal: Thermal::new(&ThermalConfig::ENDER3),
             fan_pwm: 0,
             position_lost: 0,
+            guard: ExtrusionGuard::MARLIN,
+            homing_cfg: None,
+            homing: None,
+            endstops: 0,
             settings: settings::SettingsLink::new(),
             reports: report::Reports::new(),
             job: job::JobLink::new(),

@@ -231,8 +231,10 @@ impl Printer {
             ));
             return;
         }
-        cur[Axis::X.index()] = steps(&c, Axis::X, c.pause.park_x_mm);
-        cur[Axis::Y.index()] = steps(&c, Axis::Y, c.pause.park_y_mm);
+        // Inside the travel whatever the configuration says (M760 checks its values).
+        let park = |a, mm| steps(&c, a, super::guards::within_travel(&c, a, mm));
+        cur[Axis::X.index()] = park(Axis::X, c.pause.park_x_mm);
+        cur[Axis::Y.index()] = park(Axis::Y, c.pause.park_y_mm);
         let _ = self.service.push_back(ServiceMove {
             target: cur,
             feed_mm_s: c.pause.park_feed_mm_s,

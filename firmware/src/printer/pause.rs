@@ -238,6 +238,7 @@ impl Printer {
     }
 
     pub(super) fn emergency_stop(&mut self) {
+        self.abort_homing();
         self.pause = Pause::Halted;
         self.thermal.kill(self.now_us);
         self.arc = None;
@@ -254,6 +255,7 @@ impl Printer {
     }
 
     pub(super) fn quick_stop(&mut self) {
+        self.abort_homing();
         let _ = self.stepgen.unload();
         self.stepgen.end_hold();
         let pos = self.stepgen.position();

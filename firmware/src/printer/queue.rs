@@ -52,6 +52,11 @@ impl Printer {
                     if !self.planner.can_accept() {
                         break;
                     }
+                    if self.waits_for_heat(&req, &self.planner.end_position()) {
+                        // Like a heater wait: the host's next line may wait for its `ok`.
+                        self.keep_alive();
+                        break;
+                    }
                     let _ = self.planner.push_move(&self.cfg, &req, BlockKind::Job);
                 }
                 Command::Layer(mark) => {
@@ -81,20 +86,26 @@ impl Printer {
                     {
                         break;
                     }
-                    let mut target = self.stepgen.position();
-                    for ax in [Axis::X, Axis::Y, Axis::Z] {
-                        if mask & (1 << ax.index()) != 0 {
-                            let min = self.cfg.axis(ax).min_mm;
-                            target[ax.index()] = steps(&self.cfg, ax, min);
+                    if let Some(h) = self.homing_cfg {
+                        if !self.home_with_endstops(mask, h) {
+                            break;
                         }
+                    } else {
+                        let mut target = self.stepgen.position();
+                        for ax in [Axis::X, Axis::Y, Axis::Z] {
+                            if mask & (1 << ax.index()) != 0 {
+                                let min = self.cfg.axis(ax).min_mm;
+                                target[ax.index()] = steps(&self.cfg, ax, min);
+                            }
+                        }
+                        self.position_lost &= !mask;
+                        let req = MoveRequest {
+                            target,
+                            feed_mm_s: self.cfg.pause.park_feed_mm_s,
+                            seq: u32::MAX,
+                        };
+                        let _ = self.planner.push_move(&self.cfg, &req, BlockKind::Homing);
                     }
-                    self.position_lost &= !mask;
-                    let req = MoveRequest {
-                        target,
-                        feed_mm_s: self.cfg.pause.park_feed_mm_s,
-                        seq: u32::MAX,
-                    };
-                    let _ = self.planner.push_move(&self.cfg, &req, BlockKind::Homing);
                 }
                 Command::WaitHeater(id) => {
                     if !(self.thermal.reached(id) || self.break_wait) {

@@ -200,9 +200,12 @@ pub fn run(p: &mut Printer, cmds: &[Command], reqs: &[Req], limit_us: u64) -> Ru
     r
 }
 
-/// Default printer.
+/// Default printer. These tests model motion, not heaters: cold extrusion is allowed (as
+/// M302 P1); `tests/guards.rs` tests the protection with its own printers.
 pub fn printer() -> Printer {
-    Printer::with_policy(MachineConfig::ENDER3, Policy::FIRMWARE)
+    let mut p = Printer::with_policy(MachineConfig::ENDER3, Policy::FIRMWARE);
+    p.extrusion_guard_mut().allow_cold = true;
+    p
 }
 
 /// Stream G-code lines with ok flow control (next line only after an `ok`); at each

@@ -1,0 +1,324 @@
+//! Machine-safety checks of the executive (issue 16), as Marlin makes them:
+//!
+//! - **Cold extrusion** (`PREVENT_COLD_EXTRUSION`, `EXTRUDE_MINTEMP 170` in Marlin's Ender-3
+//!   example configurations, e.g. `config/examples/Creality/Ender-3/CrealityV427/
+//!   Configuration.h` of MarlinFirmware/Configurations at 25e9ab2318): no E motion while the
+//!   hotend is below the minimum, unless M302 P1 allows it. A line that would move E while the
+//!   hotend is cold and not heating is refused at once; one taken while the hotend heats waits
+//!   in the queue, before the planner, until the hotend has reached the minimum (Marlin checks
+//!   when it plans the move; M109 blocks its parser, our queue takes lines behind a heater
+//!   wait).
+//! - **Over-long extrusion** (`PREVENT_LENGTHY_EXTRUDE`, `EXTRUDE_MAXLENGTH 200`, same file):
+//!   no single move feeds more than 200 mm of filament (`G92 E9999999` then `G1 X5 E0` would
+//!   otherwise unwind 10 km of filament). M302 does not lift it.
+//! - **M760 values and the park position** within the machine's limits (park X/Y inside the
+//!   travel, lift no higher than the Z travel, park feed no faster than X/Y may move, ...).
+//!
+//! Marlin drops the E part of a refused move and goes on; here the whole line is refused with
+//! an `echo:` line (never `Error:`, which makes OctoPrint end the print) and nothing changes:
+//! the machine state is restored, nothing is queued.
+
+use super::Printer;
+use crate::config::MachineConfig;
+use crate::gcode::PauseParams;
+use crate::machine::{Action, MachineState};
+use crate::motion::{Axis, MoveRequest, StepPos};
+use crate::thermal::HeaterId;
+use core::fmt;
+
+/// Marlin's `EXTRUDE_MINTEMP` in its Ender-3 example configurations, °C.
+pub const EXTRUDE_MINTEMP_C: f32 = 170.0;
+
+/// Marlin's `EXTRUDE_MAXLENGTH` in its Ender-3 example configurations, mm.
+pub const EXTRUDE_MAXLENGTH_MM: f32 = 200.0;
+
+/// Longest pause retract (M760 R), mm.
+pub const MAX_PAUSE_RETRACT_MM: f32 = 20.0;
+
+/// Shortest planner segment (M760 L other than 0), mm: shorter ones would flood the ring.
+pub const MIN_SEGMENT_MM: f32 = 0.05;
+
+/// Cold- and long-extrusion protection settings (M302).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ExtrusionGuard {
+    /// Lowest hotend temperature at which E may move, °C (M302 S).
+    pub min_temp_c: f32,
+    /// Cold extrusion allowed (M302 P1).
+    pub allow_cold: bool,
+    /// Longest E motion of one move, mm (not changeable by G-code, as in Marlin).
+    pub max_length_mm: f32,
+}
+
+impl ExtrusionGuard {
+    /// Marlin's defaults: protection on, 170 °C, 200 mm.
+    pub const MARLIN: ExtrusionGuard = ExtrusionGuard {
+        min_temp_c: EXTRUDE_MINTEMP_C,
+        allow_cold: false,
+        max_length_mm: EXTRUDE_MAXLENGTH_MM,
+    };
+
+    /// The hotend at `hotend_c` is too cold to move E.
+    pub fn too_cold(&self, hotend_c: f32) -> bool {
+        // NaN (no reading) counts as cold.
+        !self.allow_cold
+            && hotend_c
+                .partial_cmp(&self.min_temp_c)
+                .is_none_or(|o| o.is_lt())
+    }
+
+    /// May a move feed `de_mm` of filament (either direction), the hotend at `hotend_c` with
+    /// its target `target_c`? Cold with a target at or above the minimum is heating: allowed
+    /// here, the queue holds the move until the hotend is hot ([`Printer::waits_for_heat`]).
+    pub fn check(&self, de_mm: f32, hotend_c: f32, target_c: f32) -> Result<(), Refusal> {
+        if de_mm == 0.0 {
+            return Ok(());
+        }
+        if libm::fabsf(de_mm)
+            .partial_cmp(&self.max_length_mm)
+            .is_none_or(|o| o.is_gt())
+        {
+            return Err(Refusal::LongExtrusion {
+                e_mm: de_mm,
+                max_mm: self.max_length_mm,
+            });
+        }
+        if self.too_cold(hotend_c) && self.too_cold(target_c) {
+            return Err(Refusal::ColdExtrusion {
+                hotend_c,
+                min_c: self.min_temp_c,
+            });
+        }
+        Ok(())
+    }
+}
+
+impl Default for ExtrusionGuard {
+    fn default() -> Self {
+        Self::MARLIN
+    }
+}
+
+/// Why a line was refused. Shown after `echo:`; the first words are Marlin's messages.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Refusal {
+    /// E would move with the hotend below the minimum and not heating.
+    ColdExtrusion {
+        /// Hotend temperature, °C.
+        hotend_c: f32,
+        /// The minimum, °C.
+        min_c: f32,
+    },
+    /// One move would feed more filament than allowed.
+    LongExtrusion {
+        /// The move's E motion, mm.
+        e_mm: f32,
+        /// The limit, mm.
+        max_mm: f32,
+    },
+    /// An M760 value outside the machine's limits.
+    PauseValue {
+        /// The M760 letter.
+        letter: char,
+        /// The value given.
+        value: f32,
+        /// Lowest allowed.
+        min: f32,
+        /// Highest allowed.
+        max: f32,
+    },
+}
+
+impl fmt::Display for Refusal {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            Self::ColdExtrusion { hotend_c, min_c } => write!(
+                f,
+                "cold extrusion prevented: hotend {hotend_c:.0} C, below {min_c:.0} C (M104/M109 to heat, M302 P1 to allow)"
+            ),
+            Self::LongExtrusion { e_mm, max_mm } => write!(
+                f,
+                "too long extrusion prevented: E {e_mm:.2} mm in one move, at most {max_mm:.0} mm"
+            ),
+            Self::PauseValue {
+                letter,
+                value,
+                min,
+                max,
+            } => write!(
+                f,
+                "M760 {letter}{value:.2} outside {min:.2}..{max:.2}, nothing changed"
+            ),
+        }
+    }
+}
+
+/// Check every M760 value against the machine's limits; all or nothing.
+pub fn check_pause_params(p: &PauseParams, cfg: &MachineConfig) -> Result<(), Refusal> {
+    let x = cfg.axis(Axis::X);
+    let y = cfg.axis(Axis::Y);
+    let z = cfg.axis(Axis::Z);
+    let xy_feed_mm_min = x.max_feed_mm_s.min(y.max_feed_mm_s) * 60.0;
+    let checks: [(char, Option<f32>, f32, f32); 8] = [
+        ('R', p.retract_mm, 0.0, MAX_PAUSE_RETRACT_MM),
+        ('Z', p.lift_z_mm, 0.0, z.max_mm - z.min_mm),
+        ('X', p.park_x_mm, x.min_mm, x.max_mm),
+        ('Y', p.park_y_mm, y.min_mm, y.max_mm),
+        ('F', p.park_feed_mm_min, f32::MIN_POSITIVE, xy_feed_mm_min),
+        ('S', p.speedup_factor, 1.0, 10.0),
+        ('V', p.max_volumetric_mm3_s, f32::MIN_POSITIVE, 1000.0),
+        ('L', p.segment_len_mm, 0.0, 1000.0),
+    ];
+    for (letter, value, min, max) in checks {
+        if let Some(v) = value {
+            // `!(..)` so NaN is refused too.
+            let bad_segment = letter == 'L' && v > 0.0 && v < MIN_SEGMENT_MM;
+            if !(v >= min && v <= max) || bad_segment {
+                let min = if bad_segment { MIN_SEGMENT_MM } else { min };
+                return Err(Refusal::PauseValue {
+                    letter,
+                    value: v,
+                    min,
+                    max,
+                });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// `mm` on `axis`, moved inside the axis's travel (for positions from the configuration,
+/// such as the park, which code can set without M760's checks).
+pub fn within_travel(cfg: &MachineConfig, axis: Axis, mm: f32) -> f32 {
+    let a = cfg.axis(axis);
+    if mm.is_nan() {
+        return a.min_mm;
+    }
+    mm.clamp(a.min_mm, a.max_mm)
+}
+
+impl Printer {
+    /// Cold/long-extrusion settings (M302). Test and simulator drivers that model motion
+    /// without heaters set `allow_cold`, as M302 P1 would.
+    pub fn extrusion_guard(&self) -> &ExtrusionGuard {
+        &self.guard
+    }
+
+    /// Change the cold/long-extrusion settings.
+    pub fn extrusion_guard_mut(&mut self) -> &mut ExtrusionGuard {
+        &mut self.guard
+    }
+
+    fn hotend_c(&self) -> f32 {
+        if self.thermal.has_sample(HeaterId::Hotend) {
+            self.thermal.temperature_c(HeaterId::Hotend)
+        } else {
+            f32::NAN
+        }
+    }
+
+    /// Check the action a line produced; `before` is the machine state before the line.
+    pub(super) fn check_action(
+        &self,
+        action: &Action,
+        before: &MachineState,
+    ) -> Result<(), Refusal> {
+        let e = Axis::E.index();
+        let from = before.position_steps(&self.cfg)[e];
+        let to = match action {
+            Action::Move(m) => m.target[e],
+            Action::Arc(_) => self.machine.position_steps(&self.cfg)[e],
+            _ => return Ok(()),
+        };
+        let spm = self.cfg.axis(Axis::E).steps_per_mm;
+        let de_mm = (i64::from(to) - i64::from(from)) as f32 / spm;
+        let target = self.thermal.target_c(HeaterId::Hotend);
+        self.guard.check(de_mm, self.hotend_c(), target)
+    }
+
+    /// A queued move that moves E waits before the planner while the hotend heats towards the
+    /// minimum (taken while heating, see [`ExtrusionGuard::check`]); `from` is where the
+    /// planner's queue ends.
+    pub(super) fn waits_for_heat(&self, req: &MoveRequest, from: &StepPos) -> bool {
+        let e = Axis::E.index();
+        req.target[e] != from[e]
+            && self.guard.too_cold(self.hotend_c())
+            && !self.guard.too_cold(self.thermal.target_c(HeaterId::Hotend))
+            && self.thermal.fault().is_none()
+    }
+
+    /// M302: set, or (without parameters) report, the cold-extrusion protection.
+    pub(super) fn m302(&mut self, min_temp_c: Option<f32>, allow: Option<bool>) {
+        if let Some(t) = min_temp_c {
+            if !(0.0..=400.0).contains(&t) {
+                self.warn(format_args!("M302 S{t:.0} outside 0..400 C"));
+                return;
+            }
+            self.guard.min_temp_c = t;
+        }
+        if let Some(a) = allow {
+            self.guard.allow_cold = a;
+        }
+        if min_temp_c.is_none() && allow.is_none() {
+            // Marlin: "Cold extrudes are enabled|disabled (min temp 170C)".
+            let g = self.guard;
+            self.say(format_args!(
+                "Cold extrudes are {} (min temp {:.0}C)",
+                if g.allow_cold { "enabled" } else { "disabled" },
+                g.min_temp_c
+            ));
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cold_long_and_heating() {
+        let g = ExtrusionGuard::MARLIN;
+        assert!(matches!(
+            g.check(50.0, 25.0, 0.0),
+            Err(Refusal::ColdExtrusion { .. })
+        ));
+        assert!(g.check(-2.0, f32::NAN, 0.0).is_err());
+        assert_eq!(g.check(0.0, 25.0, 0.0), Ok(()));
+        // Heating: taken (the queue waits for the temperature).
+        assert_eq!(g.check(5.0, 25.0, 200.0), Ok(()));
+        assert_eq!(g.check(5.0, 170.0, 0.0), Ok(()));
+        assert!(matches!(
+            g.check(200.5, 210.0, 210.0),
+            Err(Refusal::LongExtrusion { .. })
+        ));
+        assert!(g.check(-9_999_999.0, 210.0, 210.0).is_err());
+        let allowed = ExtrusionGuard {
+            allow_cold: true,
+            ..g
+        };
+        assert_eq!(allowed.check(50.0, 25.0, 0.0), Ok(()));
+        // M302 P1 does not lift the length limit.
+        assert!(allowed.check(91_335.0, 25.0, 0.0).is_err());
+    }
+
+    #[test]
+    fn pause_values_within_the_machine() {
+        let cfg = MachineConfig::ENDER3;
+        let p = |f: fn(&mut PauseParams)| {
+            let mut p = PauseParams::default();
+            f(&mut p);
+            check_pause_params(&p, &cfg)
+        };
+        assert!(p(|p| p.park_x_mm = Some(1000.0)).is_err());
+        assert!(p(|p| p.park_x_mm = Some(235.0)).is_ok());
+        assert!(p(|p| p.park_y_mm = Some(-1.0)).is_err());
+        assert!(p(|p| p.lift_z_mm = Some(251.0)).is_err());
+        assert!(p(|p| p.retract_mm = Some(21.0)).is_err());
+        assert!(p(|p| p.park_feed_mm_min = Some(0.0)).is_err());
+        assert!(p(|p| p.park_feed_mm_min = Some(30_001.0)).is_err());
+        assert!(p(|p| p.speedup_factor = Some(0.5)).is_err());
+        assert!(p(|p| p.segment_len_mm = Some(0.01)).is_err());
+        assert!(p(|p| p.segment_len_mm = Some(0.0)).is_ok());
+        assert_eq!(within_travel(&cfg, Axis::X, 1000.0), 235.0);
+        assert_eq!(within_travel(&cfg, Axis::Y, f32::NAN), 0.0);
+    }
+}
