@@ -60,7 +60,7 @@ impl Printer {
                 match mode {
                     PauseMode::Layer => {
                         self.mode = Some(PauseMode::Layer);
-                        if let Some((id, m)) = self.planner.first_mark() {
+                        if let Some((id, m)) = self.planner.first_reachable_mark() {
                             self.planner.set_barrier(id);
                             self.barrier_layer = Some(m.layer);
                             self.say(format_args!("pause: stopping before layer {}", m.layer));

@@ -114,7 +114,9 @@ pub struct Policy {
     pub max_blocks: usize,
     /// Most commands waiting in the command queue (≤ [`CMD_CAPACITY`]).
     pub cmd_limit: usize,
-    /// Plan a stop at every layer mark (lets a `layer` pause stop at any queued boundary).
+    /// Plan a stop at every layer mark (the old way to let a `layer` pause stop at any queued
+    /// boundary; costs a standstill per mark). Off: a mark costs nothing, a pause stops at the
+    /// first *reachable* one (see `Planner::can_stop_before`).
     pub stop_at_marks: bool,
     /// Meaning of host lines while paused.
     pub paused_lines: PausedLines,
@@ -127,7 +129,7 @@ impl Policy {
         pause_at_tail: false,
         max_blocks: RING_CAPACITY,
         cmd_limit: CMD_CAPACITY,
-        stop_at_marks: true,
+        stop_at_marks: false,
         paused_lines: PausedLines::Queue,
     };
     /// Conventional firmware: no segmentation, pause at the tail, 16 moves queued in all
