@@ -620,3 +620,46 @@ fn dump_firmware_marks() {
         }
     }
 }
+
+/// A `layer` pause requested in the last layer stops at its end — after the last extrusion and
+/// before the end code (PrusaSlicer's: `M104 S0`, `G28 X0`, `M84`), not after it with the
+/// heater off and X homed.
+#[test]
+fn a_request_in_the_last_layer_stops_before_the_end_code() {
+    for comments in [true, false] {
+        let job = load("prusa-zhop.gcode", comments);
+        let ly = analyse(&job);
+        let heater_off = job
+            .iter()
+            .position(|l| l.starts_with("M104 S0"))
+            .expect("end code");
+        // The last extrusion's time in a run without a pause; request 1 s before it.
+        let sc = scenario(comments);
+        let o = run::run(&PrinterFactory, &sc, &job).expect("reference run");
+        let last_ext = ly.extrusions.last().expect("extrusions").line;
+        let t_last = o
+            .run
+            .rec
+            .records
+            .iter()
+            .rev()
+            .find(|r| job_line(&o, r.tag.seq) == Some(last_ext))
+            .expect("last extrusion ran")
+            .t_end_us;
+        let t_req = t_last - 1_000_000;
+        let mut sc = scenario(comments);
+        sc.pause = Some(PauseWhen::AtUs(t_req));
+        sc.resume_after_us = Some(200_000);
+        let o = run::run(&PrinterFactory, &sc, &job).expect("run");
+        let stop = find_stop(&o, t_req, &ly).expect("paused");
+        assert!(!stop.mid_line, "comments={comments}: {stop:?}");
+        assert!(
+            stop.last_line >= last_ext && stop.last_line < heater_off,
+            "comments={comments}: stopped after line {} (last extrusion {last_ext}, heater off {heater_off})",
+            stop.last_line
+        );
+        let p = o.report.pause_point_steps.expect("pause point");
+        assert!(p[0] > 0, "comments={comments}: X homed before the stop: {p:?}");
+        assert!(o.report.finished, "comments={comments}");
+    }
+}

@@ -153,6 +153,8 @@ pub struct LayerDetector {
     last_numbered: Option<u32>,
     /// The end of printing was marked; no other end mark until something extrudes again.
     ended: bool,
+    /// Mark the end of printing ([`LayerDetector::with_end_mark`]).
+    end_mark: bool,
 }
 
 impl Default for LayerDetector {
@@ -174,7 +176,19 @@ impl LayerDetector {
             z_um: None,
             last_numbered: None,
             ended: false,
+            end_mark: false,
         }
+    }
+
+    /// Also mark the end of printing (the printer's detector): the first end-code command
+    /// after an extrusion — a heater switched off (`M104 S0`, `M140 S0`, ...) or the motors
+    /// disabled (`M84`/`M18` without a timeout) — gets a mark ([`LayerSource::End`], numbered
+    /// one after the last layer), so a `layer` pause requested in the last layer stops at the
+    /// end of that layer instead of after the end code, and its speed-up stops there too. The
+    /// mark ends a layer but starts none: layer counts (host-tools' `stats`) leave it out.
+    pub const fn with_end_mark(mut self) -> Self {
+        self.end_mark = true;
+        self
     }
 
     /// Feed one parsed line with the facts of the move its command made (use
@@ -241,7 +255,12 @@ impl LayerDetector {
             }
         }
         // The end of printing: the first end-code command after an extrusion.
-        if out.is_none() && is_end_command(cmd) && self.heights.printed() && !self.ended {
+        if out.is_none()
+            && self.end_mark
+            && is_end_command(cmd)
+            && self.heights.printed()
+            && !self.ended
+        {
             self.ended = true;
             out = Some(self.emit(Pending {
                 source: LayerSource::End,

@@ -7,8 +7,11 @@ const CFG: MachineConfig = MachineConfig::ENDER3;
 
 /// Run a program; return (index of the line each mark precedes, mark).
 fn marks(program: &str) -> Vec<(usize, LayerMark)> {
+    marks_with(program, LayerDetector::new().with_end_mark())
+}
+
+fn marks_with(program: &str, mut d: LayerDetector) -> Vec<(usize, LayerMark)> {
     let mut m = MachineState::new(&CFG);
-    let mut d = LayerDetector::new();
     let mut out = Vec::new();
     for (i, text) in program.lines().enumerate() {
         let line = parse_line(text.as_bytes()).unwrap();
@@ -201,4 +204,6 @@ fn end_of_printing_is_a_boundary() {
     // With markers the end mark follows the last number.
     let m = marks(";LAYER:7\nG1 Z0.3\nG1 X1 E1\nM84");
     assert_eq!(m.iter().map(|(_, k)| k.layer).collect::<Vec<_>>(), vec![7, 8]);
+    // Only the printer's detector marks the end (layer counts leave it out).
+    assert_eq!(marks_with(p, LayerDetector::new()).len(), 1);
 }

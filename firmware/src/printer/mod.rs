@@ -155,7 +155,7 @@ impl Printer {
             link: HostLink::new(),
             machine: MachineState::new(&cfg),
             saved_machine: None,
-            layers: LayerDetector::new(),
+            layers: LayerDetector::new().with_end_mark(),
             arc: None,
             thermal: Thermal::new(&ThermalConfig::ENDER3),
             last_busy_us: 0,
