@@ -162,12 +162,12 @@ fn analyse(lines: &[String]) -> Layers {
                 }
             }
             (Some(28), _) => {
-                let named: Vec<usize> = (0..3)
-                    .filter(|&k| word(code, ['X', 'Y', 'Z'][k]).is_some() || code.contains(['X', 'Y', 'Z'][k]))
-                    .collect();
-                for k in 0..3 {
-                    if named.is_empty() || named.contains(&k) {
-                        pos[k] = 0.0;
+                // G28 homes the named axes (all without names) to 0.
+                let axes = ['X', 'Y', 'Z'];
+                let none_named = !axes.iter().any(|&a| code[3..].contains(a));
+                for (p, a) in pos.iter_mut().zip(axes) {
+                    if none_named || code[3..].contains(a) {
+                        *p = 0.0;
                     }
                 }
             }
@@ -175,7 +175,10 @@ fn analyse(lines: &[String]) -> Layers {
             (_, Some(83)) => abs_e = false,
             _ => {}
         }
-        let d: f64 = (0..3).map(|k| (pos[k] - before[k]).powi(2)).sum::<f64>().sqrt();
+        let d: f64 = (0..3)
+            .map(|k| (pos[k] - before[k]).powi(2))
+            .sum::<f64>()
+            .sqrt();
         path += d;
         out.path_end_mm.push(path);
         let xy = (pos[0] - before[0]).abs() > 1e-9 || (pos[1] - before[1]).abs() > 1e-9;
@@ -237,7 +240,13 @@ fn analyse(lines: &[String]) -> Layers {
                     n
                 }
                 None if has_markers && !seen_marker => None,
-                None => Some(numbers.last().copied().flatten().map_or(idx as u32, |p| p + 1)),
+                None => Some(
+                    numbers
+                        .last()
+                        .copied()
+                        .flatten()
+                        .map_or(idx as u32, |p| p + 1),
+                ),
             };
             numbers.push(n);
         }
@@ -271,10 +280,17 @@ fn analyse(lines: &[String]) -> Layers {
 impl Layers {
     /// Last extruding line of layer `k`.
     fn last_line_of(&self, k: usize) -> Option<usize> {
-        self.extrusions.iter().rev().find(|e| e.layer == k).map(|e| e.line)
+        self.extrusions
+            .iter()
+            .rev()
+            .find(|e| e.layer == k)
+            .map(|e| e.line)
     }
     fn first_line_of(&self, k: usize) -> Option<usize> {
-        self.extrusions.iter().find(|e| e.layer == k).map(|e| e.line)
+        self.extrusions
+            .iter()
+            .find(|e| e.layer == k)
+            .map(|e| e.line)
     }
     fn layer_count(&self) -> usize {
         self.extrusions.last().map_or(0, |e| e.layer + 1)
@@ -537,7 +553,12 @@ fn run_corpus(comments: bool) {
         failures.extend(check_requests(name, comments, 3, &mut rng));
         failures.extend(check_schedules(name, comments, 1, &mut rng));
     }
-    assert!(failures.is_empty(), "{} failures:\n{}", failures.len(), failures.join("\n"));
+    assert!(
+        failures.is_empty(),
+        "{} failures:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
 }
 
 #[test]
@@ -579,7 +600,12 @@ fn dump_layers() {
     let ly = analyse(&job);
     for k in 0..ly.layer_count() {
         let f = ly.first_line_of(k).unwrap();
-        println!("layer {k} number {:?} first line {f}: {}  last {}", ly.number[k], job[f], ly.last_line_of(k).unwrap());
+        println!(
+            "layer {k} number {:?} first line {f}: {}  last {}",
+            ly.number[k],
+            job[f],
+            ly.last_line_of(k).unwrap()
+        );
     }
 }
 
@@ -599,13 +625,40 @@ fn dump_schedule() {
     let o = run::run(&PrinterFactory, &sc, &job).unwrap();
     println!("{:#?}", o.timeline);
     println!("{:#?}", o.report);
-    for r in o.run.rec.records.iter().filter(|r| r.t_start_us > 271_000_000 && r.t_start_us < 290_000_000) {
-        println!("{:?} {:?} {} {:?} {:?}", r.tag, o.run.origin_of_seq(r.tag.seq), r.t_start_us, r.start, r.end);
+    for r in o
+        .run
+        .rec
+        .records
+        .iter()
+        .filter(|r| r.t_start_us > 271_000_000 && r.t_start_us < 290_000_000)
+    {
+        println!(
+            "{:?} {:?} {} {:?} {:?}",
+            r.tag,
+            o.run.origin_of_seq(r.tag.seq),
+            r.t_start_us,
+            r.start,
+            r.end
+        );
     }
-    for n in o.run.fw.notes.iter().filter(|n| !format!("{n:?}").starts_with("State")) {
+    for n in o
+        .run
+        .fw
+        .notes
+        .iter()
+        .filter(|n| !format!("{n:?}").starts_with("State"))
+    {
         println!("{n:?}");
     }
-    for r in o.run.host.received.iter().filter(|r| format!("{r:?}").contains("pause")) { println!("{r:?}"); }
+    for r in o
+        .run
+        .host
+        .received
+        .iter()
+        .filter(|r| format!("{r:?}").contains("pause"))
+    {
+        println!("{r:?}");
+    }
 }
 
 #[test]
@@ -659,7 +712,10 @@ fn a_request_in_the_last_layer_stops_before_the_end_code() {
             stop.last_line
         );
         let p = o.report.pause_point_steps.expect("pause point");
-        assert!(p[0] > 0, "comments={comments}: X homed before the stop: {p:?}");
+        assert!(
+            p[0] > 0,
+            "comments={comments}: X homed before the stop: {p:?}"
+        );
         assert!(o.report.finished, "comments={comments}");
     }
 }
