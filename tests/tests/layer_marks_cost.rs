@@ -14,7 +14,10 @@ use sim::run::{self, Mode, Policy, Scenario};
 
 fn compile(name: &str) -> Vec<String> {
     let p = Profile::ender3();
-    let path = format!("{}/../host-tools/examples/{name}", env!("CARGO_MANIFEST_DIR"));
+    let path = format!(
+        "{}/../host-tools/examples/{name}",
+        env!("CARGO_MANIFEST_DIR")
+    );
     let out = ScriptRunner::new(p.clone())
         .run_file(std::path::Path::new(&path))
         .unwrap_or_else(|e| panic!("{name}: {e}"));
@@ -45,7 +48,11 @@ fn helical_examples_print_as_fast_with_their_turn_markers() {
     for name in ["spiral_cylinder.rhai", "twisted_vase.rhai"] {
         let with = compile(name);
         let mut without = vec![";FLAVOR:Marlin".to_string()];
-        without.extend(with.iter().filter(|l| !l.starts_with(";LAYER_CHANGE")).cloned());
+        without.extend(
+            with.iter()
+                .filter(|l| !l.starts_with(";LAYER_CHANGE"))
+                .cloned(),
+        );
         let (t_with, n_with) = print_time(&with);
         let (t_without, n_without) = print_time(&without);
         assert!(n_with >= 10, "{name}: {n_with} marks crossed");

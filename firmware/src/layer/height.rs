@@ -114,7 +114,14 @@ mod tests {
     fn flat_layers_hops_and_sequential_drops() {
         // 0.3, 0.3 (a hop came back down), 0.6, then a second object back at 0.3.
         assert_eq!(
-            layers(&[(300, 300), (300, 300), (600, 600), (600, 600), (300, 300), (600, 600)]),
+            layers(&[
+                (300, 300),
+                (300, 300),
+                (600, 600),
+                (600, 600),
+                (300, 300),
+                (600, 600)
+            ]),
             vec![0, 2, 4, 5]
         );
     }

@@ -437,9 +437,8 @@ fn classify_comment(c: &[u8]) -> Option<CommentMarker> {
         return mm_to_um(rest).map(CommentMarker::Z);
     }
     if let Some(rest) = t.strip_prefix(b"LAYER:") {
-        return layer_number(trim(rest)).map(|n| {
-            CommentMarker::Layer(Family::Cura, LayerSource::Comment, Some(n), None)
-        });
+        return layer_number(trim(rest))
+            .map(|n| CommentMarker::Layer(Family::Cura, LayerSource::Comment, Some(n), None));
     }
     if t == b"TURN" {
         return Some(CommentMarker::Layer(
