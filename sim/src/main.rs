@@ -177,9 +177,12 @@ fn cmd_run(a: RunArgs) -> anyhow::Result<()> {
     }
     let out = sim::run::run(&PrinterFactory, &sc, &lines)?;
     pb.finish_and_clear();
+    // A job that should have finished and did not is a failure (exit status 1), after the
+    // report is printed.
+    let unfinished = sim::run::unfinished(&sc, &out);
     if a.json {
         println!("{}", serde_json::to_string_pretty(&out.report)?);
-        return Ok(());
+        return unfinished.map_or(Ok(()), |why| Err(anyhow::anyhow!(why)));
     }
     let r = &out.report;
     println!(
@@ -192,7 +195,7 @@ fn cmd_run(a: RunArgs) -> anyhow::Result<()> {
         println!("  {:>10.3} s  {}", ev.t_s, ev.what);
     }
     println!("{}", sim::demo::summary(r));
-    Ok(())
+    unfinished.map_or(Ok(()), |why| Err(anyhow::anyhow!(why)))
 }
 
 fn cmd_lab(a: LabArgs) -> anyhow::Result<()> {

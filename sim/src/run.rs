@@ -175,6 +175,8 @@ pub struct Outcome<E: Executive> {
     pub job: Vec<String>,
     /// Timeline of the run.
     pub timeline: Vec<TimelineEvent>,
+    /// The reference run reached the end of the job.
+    pub reference_finished: bool,
 }
 
 /// Make a job ready for a policy: host-split pre-splits it. Returns the lines to send and,
@@ -429,7 +431,15 @@ pub fn run<F: Factory>(
             "printing again (first job step after resume)".into(),
         );
     }
-    note(a.rec.last_step_us, "job finished".into());
+    note(
+        a.rec.last_step_us,
+        if a_done {
+            "job finished"
+        } else {
+            "last step (the job did not finish)"
+        }
+        .into(),
+    );
     timeline.sort_by(|x, y| x.t_s.total_cmp(&y.t_s));
     Ok(Outcome {
         report,
@@ -437,7 +447,42 @@ pub fn run<F: Factory>(
         reference: b,
         job,
         timeline,
+        reference_finished: b_done,
     })
+}
+
+/// Why a run that should have reached the end of its job did not (`None` when it did, or when
+/// the scenario stays paused by design: a pause without a resume). A job that does not finish
+/// is a failure of the firmware (a pause that never completes, a wait that never ends), so
+/// `sim run` reports it and exits non-zero instead of printing "job finished".
+pub fn unfinished<E: Executive>(sc: &Scenario, o: &Outcome<E>) -> Option<String> {
+    if sc.pause.is_some() && sc.resume_after_us.is_none() {
+        return None;
+    }
+    let why = |e: &Engine<E>, which: &str| {
+        let st = e.fw.status();
+        let last = e
+            .host
+            .received
+            .last()
+            .map_or(String::new(), |r| format!("; last printer line {:?}", r.text));
+        format!(
+            "the job did not finish{which}: printer {:?} at {:.3} s (virtual), {} of {} lines sent, \
+             {} moves queued{last}",
+            st.state,
+            e.now_us as f64 * 1e-6,
+            e.host.cursor(),
+            e.host.job().len(),
+            st.queue_depth,
+        )
+    };
+    if !o.report.finished {
+        return Some(why(&o.run, ""));
+    }
+    if sc.pause.is_some() && !o.reference_finished {
+        return Some(why(&o.reference, " (reference run without the pause)"));
+    }
+    None
 }
 
 /// Step A and B together from the request on; the time of the first step that differs.
