@@ -451,24 +451,18 @@ pub fn run<F: Factory>(
     })
 }
 
-/// Why a run that should have reached the end of its job did not (`None` when it did, or when
-/// the scenario stays paused by design: a pause without a resume). A job that does not finish
+/// Why a run that should have reached the end of its job did not (`None` when it did; with a
+/// pause and no resume, why the pause never completed, if it did not). A job that does not finish
 /// is a failure of the firmware (a pause that never completes, a wait that never ends), so
 /// `sim run` reports it and exits non-zero instead of printing "job finished".
 pub fn unfinished<E: Executive>(sc: &Scenario, o: &Outcome<E>) -> Option<String> {
-    if sc.pause.is_some() && sc.resume_after_us.is_none() {
-        return None;
-    }
-    let why = |e: &Engine<E>, which: &str| {
+    let why = |e: &Engine<E>, what: &str| {
         let st = e.fw.status();
-        let last = e
-            .host
-            .received
-            .last()
-            .map_or(String::new(), |r| format!("; last printer line {:?}", r.text));
+        let last = e.host.received.last().map_or(String::new(), |r| {
+            format!("; last printer line {:?}", r.text)
+        });
         format!(
-            "the job did not finish{which}: printer {:?} at {:.3} s (virtual), {} of {} lines sent, \
-             {} moves queued{last}",
+            "{what}: printer {:?} at {:.3} s (virtual), {} of {} lines sent, {} moves queued{last}",
             st.state,
             e.now_us as f64 * 1e-6,
             e.host.cursor(),
@@ -476,11 +470,22 @@ pub fn unfinished<E: Executive>(sc: &Scenario, o: &Outcome<E>) -> Option<String>
             st.queue_depth,
         )
     };
+    if sc.pause.is_some() && sc.resume_after_us.is_none() {
+        // Staying paused is the plan: the pause must have completed (parked).
+        return o
+            .report
+            .parked_s
+            .is_none()
+            .then(|| why(&o.run, "the pause never completed"));
+    }
     if !o.report.finished {
-        return Some(why(&o.run, ""));
+        return Some(why(&o.run, "the job did not finish"));
     }
     if sc.pause.is_some() && !o.reference_finished {
-        return Some(why(&o.reference, " (reference run without the pause)"));
+        return Some(why(
+            &o.reference,
+            "the job did not finish (reference run without the pause)",
+        ));
     }
     None
 }

@@ -42,3 +42,16 @@ fn a_job_that_never_finishes_exits_non_zero_with_the_reason() {
     assert!(!ok, "{text}");
     assert!(text.contains("\"finished\": false"), "{text}");
 }
+
+#[test]
+fn a_pause_that_never_completes_exits_non_zero() {
+    // Staying paused (`--resume-after -1`) with a pause that parks: success. The feed hold of
+    // issue 14 (`G1 X100 F7800`, `--mode now --pause-at 0.8`) must also reach Paused; until
+    // the executive completes it, `sim run` says so with a failure status.
+    let (ok, text) = sim_run(
+        "G28\nG1 X20 Y20 F3000\nG1 X200 F3000\nG1 X20\n",
+        &["--mode", "now", "--pause-at", "1.0", "--resume-after", "-1"],
+    );
+    assert!(ok, "{text}");
+    assert!(!text.contains("never completed"), "{text}");
+}
