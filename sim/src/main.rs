@@ -166,6 +166,8 @@ fn cmd_run(a: RunArgs) -> anyhow::Result<()> {
     sc.segment_len_mm = a.segment;
     sc.split_mm = a.split;
     sc.measure_segmentation_cost = a.seg_cost;
+    // Without a pause nothing reads the executed-block record: do not keep it.
+    sc.keep_records = false;
     let pb = indicatif::ProgressBar::new_spinner();
     if !a.json {
         pb.set_message(format!(

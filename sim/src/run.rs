@@ -104,6 +104,11 @@ pub struct Scenario {
     pub max_time_us: u64,
     /// Also run the job with segmentation off to measure segmentation's print-time cost.
     pub measure_segmentation_cost: bool,
+    /// Keep the executed-block record of a run without a pause (`Outcome::run.rec.records`).
+    /// A pause always keeps both runs' records (the metrics compare them); without one only
+    /// callers that inspect the records need them (`sim run` does not: memory then stays
+    /// flat with job length, see docs/sim.md).
+    pub keep_records: bool,
 }
 
 impl Scenario {
@@ -121,6 +126,7 @@ impl Scenario {
             split_mm: 0.2,
             max_time_us: 48 * 3600 * 1_000_000,
             measure_segmentation_cost: false,
+            keep_records: true,
         }
     }
 
@@ -245,9 +251,24 @@ pub fn run<F: Factory>(
 ) -> anyhow::Result<Outcome<F::Exec>> {
     let wall = std::time::Instant::now();
     let (job, source) = prepare_job(sc.policy, job_lines, sc.split_mm);
-    let info = JobInfo::parse(&job);
+    // The host's view of the job (layers, states) is only read around a pause.
+    let info = if sc.pause.is_some() {
+        JobInfo::parse(&job)
+    } else {
+        JobInfo::default()
+    };
     let mut a = new_engine(f, sc, job.clone());
-    let mut b = new_engine(f, sc, job.clone());
+    a.rec.keep_records = sc.keep_records || sc.pause.is_some();
+    // Without a pause the reference is the run itself and is never stepped.
+    let mut b = new_engine(
+        f,
+        sc,
+        if sc.pause.is_some() {
+            job.clone()
+        } else {
+            Vec::new()
+        },
+    );
     let mut timeline = Vec::new();
     let mut note = |t_us: u64, what: String| {
         timeline.push(TimelineEvent {
