@@ -14,3 +14,5 @@ if [ ${#need[@]} -gt 0 ]; then
   $SUDO apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${need[@]}" >/dev/null
 fi
+# The real host programs (OctoPrint, printcore) for the host tests, into .hosts/ (ignored).
+bash scripts/setup-hosts.sh

@@ -30,5 +30,8 @@ pub mod stepgen;
 // Heaters.
 pub mod thermal;
 
+// Settings kept in flash (M500/M501) and the NOR-flash model.
+pub mod storage;
+
 // The executive every driver (board, sim, tests) runs.
 pub mod printer;

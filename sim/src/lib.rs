@@ -5,6 +5,7 @@
 pub mod demo;
 pub mod engine;
 pub mod exec;
+pub mod flash;
 pub mod heater;
 pub mod hostlink;
 pub mod job;
@@ -17,5 +18,6 @@ pub mod port;
 pub mod recorder;
 pub mod run;
 pub mod serve;
+pub mod session;
 pub mod split;
 pub mod thermal;

@@ -18,6 +18,7 @@ use crate::metrics::{max_abs_diff, PauseReport};
 use crate::port::{Executive, Lane, RunState};
 use crate::recorder::{Recorder, Scale};
 use crate::run::{Factory, Mode, Policy, Scenario};
+use crate::session::{extrusion_layers, first_boundary_after, MoveLog, SessionReport};
 use crate::thermal::Heaters;
 use anyhow::Context;
 use firmware::motion::{PauseMode, Realtime};
@@ -25,7 +26,6 @@ use firmware::printer::Record;
 use nix::fcntl::{fcntl, FcntlArg, OFlag};
 use nix::poll::{poll, PollFd, PollFlags, PollTimeout};
 use nix::sys::termios;
-use std::collections::BTreeMap;
 use std::io::Write as _;
 use std::os::fd::{AsFd, OwnedFd};
 use std::path::PathBuf;
@@ -51,6 +51,10 @@ pub struct ServeArgs {
     /// Also make a symlink to the device at this path (e.g. /tmp/printer).
     #[arg(long)]
     pub link: Option<PathBuf>,
+    /// Keep the settings (M500) in this flash image between sessions (created erased when
+    /// missing; see `sim::flash`).
+    #[arg(long)]
+    pub flash: Option<PathBuf>,
 }
 
 static STOP: AtomicBool = AtomicBool::new(false);
@@ -85,6 +89,17 @@ struct PauseTrack {
     resume_req_us: Option<u64>,
     rec_idx_resume: usize,
     resumed: Option<(u64, [i32; 4])>,
+    /// The firmware cancelled the job before this pause reached Paused: a cancel, not a pause.
+    cancelled: bool,
+}
+
+/// What `sim serve --record` writes: the whole session, and one object per pause.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct ServeRecord {
+    /// Lines, moves, lost/duplicated, cancelled, finished: with or without a pause.
+    pub session: SessionReport,
+    /// One object per pause (the fields of `sim run --json`).
+    pub pauses: Vec<PauseReport>,
 }
 
 /// Lines from the host, assembled to find realtime requests (for the record only: the
@@ -92,6 +107,9 @@ struct PauseTrack {
 #[derive(Default)]
 struct Sniffer {
     buf: Vec<u8>,
+    /// Complete non-empty lines seen, and of those the numbered ones.
+    lines: u64,
+    numbered: u64,
 }
 
 impl Sniffer {
@@ -105,6 +123,11 @@ impl Sniffer {
                 let line = std::mem::take(&mut self.buf);
                 let text = String::from_utf8_lossy(&line);
                 let body = text.trim();
+                if body.is_empty() {
+                    continue;
+                }
+                self.lines += 1;
+                self.numbered += u64::from(body.starts_with('N'));
                 let body = match body.strip_prefix('N') {
                     Some(rest) => rest.split_once(' ').map_or("", |x| x.1),
                     None => body,
@@ -151,10 +174,15 @@ pub fn serve(a: ServeArgs) -> anyhow::Result<()> {
 pub fn serve_with(
     a: ServeArgs,
     ready: impl FnOnce(&std::path::Path),
-) -> anyhow::Result<Vec<PauseReport>> {
+) -> anyhow::Result<ServeRecord> {
     if !(a.speed.is_finite() && a.speed > 0.0) {
         anyhow::bail!("--speed must be a positive number");
     }
+    let mut flash = a
+        .flash
+        .as_deref()
+        .map(crate::flash::FlashStore::open)
+        .transpose()?;
     let (master, slave, path) = open_pty()?;
     if let Some(l) = &a.link {
         let _ = std::fs::remove_file(l);
@@ -178,10 +206,15 @@ pub fn serve_with(
     let mut pauses: Vec<PauseTrack> = Vec::new();
     let start = Instant::now();
     let mut last_rx = Instant::now();
+    // When output was last written: the session does not end right after an answer (closing
+    // the master hangs the terminal up, and Linux then discards what the host had not read).
+    let mut last_tx = Instant::now();
     let mut out = String::new();
     let mut pending_out: Vec<u8> = Vec::new();
     let mut buf = [0u8; 4096];
+    let mut rx_pending: Vec<u8> = Vec::new();
     let mut notes_seen = 0usize;
+    let mut cancel_marks: Vec<usize> = Vec::new();
     let mut last_poll_us = 0u64;
     let mut first_byte_us: Option<u64> = None;
     let mut hung_up = false;
@@ -190,20 +223,33 @@ pub fn serve_with(
             break;
         }
         let now_us = (start.elapsed().as_secs_f64() * a.speed * 1e6) as u64;
-        // Host bytes.
+        // Settings store: the first pass loads the saved settings (before any host byte is
+        // read, as at power-up), later passes carry out M500/M501.
+        if let Some(f) = flash.as_mut() {
+            f.service(&mut fw.printer);
+        }
+        // Host bytes. Flow control: what the firmware does not take stays in `rx_pending`, and
+        // the pty is not read again until it is all taken, so the host's writes block in the
+        // pty as they would on a USB port that NAKs.
         loop {
+            if !rx_pending.is_empty() {
+                let n = fw.receive(&rx_pending, now_us);
+                let mut reqs = Vec::new();
+                sniff.feed(&rx_pending[..n], &mut reqs);
+                rx_pending.drain(..n);
+                for r in reqs {
+                    note_request(&mut pauses, r, now_us, &rec, &fw);
+                }
+                if !rx_pending.is_empty() {
+                    break;
+                }
+            }
             match nix::unistd::read(master.as_fd(), &mut buf) {
                 Ok(0) => break,
                 Ok(n) => {
-                    let bytes = &buf[..n];
                     last_rx = Instant::now();
                     first_byte_us.get_or_insert(now_us);
-                    let mut reqs = Vec::new();
-                    sniff.feed(bytes, &mut reqs);
-                    fw.receive(bytes, now_us);
-                    for r in reqs {
-                        note_request(&mut pauses, r, now_us, &rec, &fw);
-                    }
+                    rx_pending.extend_from_slice(&buf[..n]);
                 }
                 Err(nix::errno::Errno::EAGAIN) => break,
                 Err(nix::errno::Errno::EIO) => {
@@ -235,7 +281,17 @@ pub fn serve_with(
             last_poll_us = now_us;
         }
         rec.on_status(&fw.status(), now_us);
-        track(&mut pauses, &fw, &rec, &mut notes_seen);
+        track(&mut pauses, &fw, &rec, &mut notes_seen, &mut cancel_marks);
+        // Idle: no motion (idle, paused, halted, cancelled: anything but a running job or a
+        // wait). Decided before the output is taken: asking for the next step can load a block
+        // and let a waiting command (M400) complete and answer, and that answer must go out
+        // before an idle exit.
+        let st = fw.status().state;
+        let idle = fw.next_step_us(now_us).is_none()
+            && !matches!(
+                st,
+                RunState::Printing | RunState::Pausing | RunState::Resuming
+            );
         // Output.
         out.clear();
         fw.take_output(&mut out);
@@ -244,22 +300,18 @@ pub fn serve_with(
             match nix::unistd::write(&master, &pending_out) {
                 Ok(w) => {
                     pending_out.drain(..w);
+                    last_tx = Instant::now();
                 }
                 Err(nix::errno::Errno::EAGAIN) => {}
                 Err(nix::errno::Errno::EIO) => break,
                 Err(e) => return Err(e).context("writing the pseudo-terminal"),
             }
         }
-        // Idle exit.
-        // No motion (idle, paused, halted, cancelled: anything but a running job or a wait).
-        let st = fw.status().state;
-        let idle = fw.next_step_us(now_us).is_none()
-            && !matches!(
-                st,
-                RunState::Printing | RunState::Pausing | RunState::Resuming
-            );
+        // Idle exit, once every answer is out (the answers of this round included).
         if a.exit_after_idle > 0.0
             && idle
+            && pending_out.is_empty()
+            && last_tx.elapsed() > Duration::from_secs_f64(a.exit_after_idle)
             && last_rx.elapsed() > Duration::from_secs_f64(a.exit_after_idle)
         {
             break;
@@ -277,7 +329,21 @@ pub fn serve_with(
     }
     drop(slave);
     let end_us = rec.last_step_us;
-    let mut reports = reports(&pauses, &rec, &fw, &sc, first_byte_us.unwrap_or(0), end_us);
+    let moves = MoveLog {
+        executed: &fw.executed,
+        cancel_marks: &cancel_marks,
+        moving_at_end: fw.printer.next_step_us().is_some(),
+    }
+    .counts();
+    let mut reports = reports(
+        &pauses,
+        &rec,
+        &fw,
+        &sc,
+        first_byte_us.unwrap_or(0),
+        end_us,
+        &moves,
+    );
     // Wall time of the session and virtual time per wall second (≈ `--speed`).
     let wall_s = start.elapsed().as_secs_f64();
     for r in &mut reports {
@@ -288,19 +354,45 @@ pub fn serve_with(
             0.0
         };
     }
+    let layers = extrusion_layers(&rec.records);
+    let cancelled_last = cancel_marks.last().is_some_and(|&m| m >= fw.executed.len());
+    let record = ServeRecord {
+        session: SessionReport {
+            lines_received: sniff.lines,
+            numbered_lines_received: sniff.numbered,
+            moves_executed: moves.moves,
+            segments_executed: moves.segments,
+            lost_moves: moves.lost.0,
+            duplicated_moves: moves.duplicated.0,
+            lost_segments: moves.lost.1,
+            duplicated_segments: moves.duplicated.1,
+            cancelled_moves: moves.cancelled,
+            running_at_end: moves.running_at_end,
+            cancelled: !cancel_marks.is_empty(),
+            finished: fw.status().state == RunState::Idle
+                && !cancelled_last
+                && !moves.running_at_end
+                && moves.lost.0 == 0
+                && moves.moves > 0,
+            layers_extruded: layers.last().map_or(0, |l| l.1 + 1),
+            pauses: reports.len(),
+            print_time_s: end_us.saturating_sub(first_byte_us.unwrap_or(0)) as f64 * 1e-6,
+        },
+        pauses: reports,
+    };
     if let Some(p) = &a.record {
-        std::fs::write(p, serde_json::to_string_pretty(&reports)?)
+        std::fs::write(p, serde_json::to_string_pretty(&record)?)
             .with_context(|| format!("writing {}", p.display()))?;
         eprintln!(
-            "sim serve: wrote {} pause record(s) to {}",
-            reports.len(),
+            "sim serve: wrote the session and {} pause record(s) to {}",
+            record.pauses.len(),
             p.display()
         );
     }
     if let Some(l) = &a.link {
         let _ = std::fs::remove_file(l);
     }
-    Ok(reports)
+    Ok(record)
 }
 
 fn note_request(
@@ -341,8 +433,26 @@ fn note_request(
     }
 }
 
-fn track(pauses: &mut Vec<PauseTrack>, fw: &PrinterExec, rec: &Recorder, seen: &mut usize) {
+fn track(
+    pauses: &mut Vec<PauseTrack>,
+    fw: &PrinterExec,
+    rec: &Recorder,
+    seen: &mut usize,
+    cancel_marks: &mut Vec<usize>,
+) {
     for r in fw.notes.iter().skip(*seen) {
+        if let Record::State {
+            state: firmware::printer::State::Cancelled,
+            ..
+        } = *r
+        {
+            cancel_marks.push(fw.executed.len());
+            if let Some(p) = pauses.last_mut() {
+                if p.parked_us.is_none() {
+                    p.cancelled = true;
+                }
+            }
+        }
         // A pause the firmware started by itself (M761 schedule, M600/M0, M25 in the job):
         // tracked from the moment it began.
         if let Record::State {
@@ -412,40 +522,33 @@ fn reports(
     sc: &Scenario,
     t0_us: u64,
     end_us: u64,
+    moves: &crate::session::MoveCounts,
 ) -> Vec<PauseReport> {
     let scale = Scale::from_config(&sc.machine);
-    // Executed segments per move: (seq) → counts per seg, and the segment count.
-    let mut exec: BTreeMap<u32, (u32, BTreeMap<u32, u32>)> = BTreeMap::new();
-    for &(seq, seg, segs) in &fw.executed {
-        let e = exec.entry(seq).or_insert((segs, BTreeMap::new()));
-        *e.1.entry(seg).or_default() += 1;
-    }
-    let mut lost_moves = 0;
-    let mut dup_moves = 0;
-    let (mut lost_segs, mut dup_segs) = (0, 0);
-    for (segs, counts) in exec.values() {
-        let missing = (0..*segs).filter(|s| !counts.contains_key(s)).count();
-        let dups: u32 = counts.values().map(|c| c.saturating_sub(1)).sum();
-        lost_segs += missing;
-        dup_segs += dups as usize;
-        lost_moves += usize::from(missing > 0);
-        dup_moves += usize::from(dups > 0);
-    }
+    let layers = extrusion_layers(&rec.records);
+    let cancelled_last = fw.notes.iter().rev().find_map(|r| match *r {
+        Record::State { state, .. } => Some(state == firmware::printer::State::Cancelled),
+        _ => None,
+    }) == Some(true);
     // What every record of the session shares.
     let base = PauseReport {
         policy: sc.policy.name().into(),
-        lost_moves,
-        duplicated_moves: dup_moves,
-        lost_segments: lost_segs,
-        duplicated_segments: dup_segs,
-        executed_in_order: lost_segs == 0 && dup_segs == 0,
+        lost_moves: moves.lost.0,
+        duplicated_moves: moves.duplicated.0,
+        lost_segments: moves.lost.1,
+        duplicated_segments: moves.duplicated.1,
+        executed_in_order: moves.lost.1 == 0 && moves.duplicated.1 == 0,
         print_time_s: end_us.saturating_sub(t0_us) as f64 * 1e-6,
-        finished: fw.status().state == RunState::Idle,
+        finished: fw.status().state == RunState::Idle
+            && !cancelled_last
+            && !moves.running_at_end
+            && moves.lost.0 == 0,
         steps: rec.steps,
         ..PauseReport::default()
     };
     let mut out: Vec<PauseReport> = pauses
         .iter()
+        .filter(|p| !p.cancelled)
         .map(|p| {
             let mut r = PauseReport {
                 mode: match p.mode {
@@ -463,7 +566,9 @@ fn reports(
                 r.pause_point_steps = Some(pos);
                 r.stopped_at_layer_boundary = layer.is_some() && !mid;
                 r.stop_layer = layer.and_then(|l| l.checked_sub(1));
-                r.first_boundary_after_request = r.stopped_at_layer_boundary;
+                // Judged from the extrusion heights, not from the firmware's layer detector.
+                r.first_boundary_after_request =
+                    first_boundary_after(&rec.records, &layers, p.t_req_us, t_stop) == Some(true);
                 r.extrusion_after_request_mm = Some(scale.e_mm(&p.pos_req, &pos));
                 // Travel: block pieces between the request and the stop.
                 let mut travel = 0.0;

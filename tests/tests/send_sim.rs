@@ -107,7 +107,8 @@ impl Sim {
         }
         let text = std::fs::read_to_string(&self.record).expect("record");
         let _ = std::fs::remove_file(&self.record);
-        serde_json::from_str(&text).expect("record JSON")
+        let v: serde_json::Value = serde_json::from_str(&text).expect("record JSON");
+        v["pauses"].as_array().cloned().expect("pauses array")
     }
 }
 

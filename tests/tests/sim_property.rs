@@ -46,7 +46,7 @@ fn window(job: &[String]) -> (f64, f64) {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 12, failure_persistence: None, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig { cases: 12, ..ProptestConfig::default() })]
 
     #[test]
     fn layer_pause_stops_at_the_first_boundary_after_any_request(frac in 0.0f64..0.85) {

@@ -64,6 +64,7 @@ fn a_host_prints_pauses_and_resumes_over_the_pseudo_terminal() {
                 policy: Policy::Firmware,
                 exit_after_idle: 1.0,
                 link: None,
+                flash: None,
             },
             move |p| {
                 let _ = tx.send(p.to_path_buf());
@@ -138,10 +139,17 @@ fn a_host_prints_pauses_and_resumes_over_the_pseudo_terminal() {
     host.ok();
     drop(host);
 
-    let reports = server
+    let record = server
         .join()
         .expect("server thread")
         .expect("serve session");
+    let s = &record.session;
+    assert!(s.finished && !s.cancelled, "{s:#?}");
+    assert_eq!(s.lost_moves + s.duplicated_moves, 0, "{s:#?}");
+    assert!(s.moves_executed >= 24, "{s:#?}");
+    // M110, the bad line, its resend, the job and M400, plus the realtime M25 S1 and M24.
+    assert!(s.lines_received >= job.len() as u64 + 4, "{s:#?}");
+    let reports = record.pauses;
     assert_eq!(reports.len(), 1, "{reports:#?}");
     let r = &reports[0];
     assert_eq!(r.mode, "now");

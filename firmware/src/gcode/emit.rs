@@ -237,6 +237,7 @@ pub fn write_command<W: Write>(w: &mut W, c: &Command) -> fmt::Result {
                 PauseSchedule::Clear => w.write_str(" C"),
             }
         }
+        Command::Settings(c) => super::settings::write(w, c),
         Command::Tool(t) => write!(w, "T{t}"),
         Command::PrintStatsInfo {
             current_layer,

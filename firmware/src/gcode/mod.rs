@@ -13,7 +13,7 @@
 //!   (`X1E5` is X=1, E=5), magnitude at most [`MAX_ABS_VALUE`] and, unless zero, at least
 //!   [`MIN_ABS_VALUE`]; some letters are flags that may stand alone (`G28 X Y`);
 //! - comments: `;` to the end of the line, and `( … )` anywhere between words;
-//! - text commands (M117, M118): the rest of the line up to `;`, at most [`TEXT_CAP`] bytes.
+//! - text commands (M117, M118): the rest of the line up to `;`, cut to [`TEXT_CAP`] bytes.
 //!
 //! Every G/M code without a meaning here parses to [`Command::Unknown`] (the executive answers
 //! `echo:Unknown command`, like Marlin). Syntax errors — a letter without a number where one is
@@ -37,6 +37,9 @@
 
 mod emit;
 mod number;
+// Settings M-codes (M92 M201 M203 M205 M206 M851 M906 M500-M503): parse and emit.
+mod settings;
+pub use settings::{Advanced, SettingsCommand};
 
 use crate::motion::{Axis, AXES};
 use core::fmt;
@@ -357,6 +360,8 @@ pub enum Command {
         /// `TOTAL_LAYER=`.
         total_layer: Option<u32>,
     },
+    /// Settings: M92, M201, M203, M205, M206, M851, M906 and M500–M503 (see [`SettingsCommand`]).
+    Settings(SettingsCommand),
     /// Any other G/M code or extended command: its text (comment stripped), for
     /// `echo:Unknown command: "<text>"`.
     Unknown(Text),
@@ -403,7 +408,7 @@ pub enum ParseErrorKind {
     BadCode,
     /// A `(` comment without `)`.
     UnclosedComment,
-    /// M117/M118 or unknown-command text longer than [`TEXT_CAP`].
+    /// Text longer than [`TEXT_CAP`] (no longer produced: display text is cut instead).
     TextTooLong,
     /// Text that is not valid UTF-8 or has control characters.
     BadText,
@@ -818,12 +823,20 @@ fn parse_text(code: &[u8], mut i: usize) -> Result<Text, ParseError> {
     to_text(raw, i)
 }
 
+/// Text that is only displayed or echoed: cut to [`TEXT_CAP`] bytes (at a character boundary)
+/// rather than refused, so a long `M117` or `EXCLUDE_OBJECT_DEFINE` line never stops a job.
 fn to_text(raw: &[u8], at: usize) -> Result<Text, ParseError> {
-    if raw.len() > TEXT_CAP {
-        return Err(err(ParseErrorKind::TextTooLong, at + TEXT_CAP));
-    }
-    let s = core::str::from_utf8(raw)
-        .map_err(|e| err(ParseErrorKind::BadText, at + e.valid_up_to()))?;
+    let cut = raw.len() > TEXT_CAP;
+    let head = raw.get(..TEXT_CAP).unwrap_or(raw);
+    let s = match core::str::from_utf8(head) {
+        Ok(s) => s,
+        // A character cut in two at the cap: drop its first bytes.
+        Err(e) if cut && e.error_len().is_none() => {
+            core::str::from_utf8(head.get(..e.valid_up_to()).unwrap_or(&[]))
+                .map_err(|_| err(ParseErrorKind::BadText, at))?
+        }
+        Err(e) => return Err(err(ParseErrorKind::BadText, at + e.valid_up_to())),
+    };
     if let Some(p) = s.chars().position(char::is_control) {
         return Err(err(ParseErrorKind::BadText, at + p));
     }
@@ -1180,6 +1193,7 @@ fn build_known(code: (u8, u16), w: &Words<'_>) -> Option<Result<Command, ParseEr
                 };
                 Command::SchedulePause(s)
             }
+            (b'M', n) if settings::is_settings_code(n) => Command::Settings(settings::build(n, w)?),
             (b'T', n) => {
                 none()?;
                 match u8::try_from(n) {

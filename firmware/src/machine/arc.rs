@@ -117,43 +117,6 @@ pub(super) fn plan(
     })
 }
 
-impl Plan {
-    /// Number of straight segments.
-    pub(super) fn segments(&self) -> u32 {
-        self.n
-    }
-
-    /// The whole arc lies in the build volume: check the extreme points (where the circle
-    /// crosses an axis through the centre) that fall inside the sweep, with the larger radius.
-    pub(super) fn check_bounds(&self, cfg: &MachineConfig) -> Result<(), MachineError> {
-        let rmax = self.r0.max(self.r1);
-        for k in 0..4 {
-            let a = f64::from(k) * PI / 2.0;
-            if self.within_sweep(a) {
-                let (s, c) = libm::sincos(a);
-                check_axis(Axis::X, self.centre[0] + rmax * c, cfg)?;
-                check_axis(Axis::Y, self.centre[1] + rmax * s, cfg)?;
-            }
-        }
-        Ok(())
-    }
-
-    /// Angle `a` is passed by the sweep.
-    fn within_sweep(&self, a: f64) -> bool {
-        // Angle travelled from a0 to a, in the sweep's direction, in [0, 2π).
-        let mut d = if self.sweep >= 0.0 {
-            a - self.a0
-        } else {
-            self.a0 - a
-        };
-        d = libm::fmod(d, TAU);
-        if d < 0.0 {
-            d += TAU;
-        }
-        d <= self.sweep.abs()
-    }
-}
-
 /// The straight moves of one arc, in order: an iterator of [`MoveRequest`] (no allocation).
 /// Each segment has its own sequence number; the last ends exactly at the commanded end point.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -194,6 +157,23 @@ impl ArcMoves {
     /// Number of segments in total.
     pub fn segments(&self) -> u32 {
         self.plan.n
+    }
+
+    /// Every point the arc runs through lies in the build volume: each segment end, as
+    /// [`Iterator::next`] computes it (the segments between them are straight, and the volume
+    /// is a box, so they stay inside too). Checking only the circle's extremes is not enough:
+    /// the radius changes along the arc when the end point is slightly off the circle, and the
+    /// points between two inside ends can bulge out (issue 16: `G20`, `G3 X3 J200 I4`). Costs
+    /// one `sincos` per segment (at most [`ARC_MAX_SEGMENTS`]), once per arc.
+    pub(super) fn check_bounds(&self, cfg: &MachineConfig) -> Result<(), MachineError> {
+        for k in 1..=self.plan.n {
+            let p = self.point(k);
+            for axis in [Axis::X, Axis::Y, Axis::Z] {
+                check_axis(axis, p[axis.index()], cfg)
+                    .map_err(|_| MachineError::ArcOutOfBounds(axis))?;
+            }
+        }
+        Ok(())
     }
 
     /// Segments not yet returned.

@@ -104,6 +104,8 @@ pub enum MachineError {
     ArcCentreAndRadius,
     /// G2/G3 with R and the end point equal to the start point, or a zero radius.
     ArcDegenerate,
+    /// A point of the arc between its start and end lies outside the build volume.
+    ArcOutOfBounds(Axis),
     /// G2/G3 whose end point is not on the circle (radius mismatch beyond tolerance) or whose R
     /// is shorter than half the chord.
     ArcEndNotOnCircle,
@@ -122,13 +124,14 @@ impl MachineError {
             Self::ArcCentreAndRadius => "arc takes either I/J or R, not both",
             Self::ArcDegenerate => "arc has no extent (zero radius, or R with end = start)",
             Self::ArcEndNotOnCircle => "arc end point is not on the circle",
+            Self::ArcOutOfBounds(_) => "arc leaves the build volume",
         }
     }
 
     /// The axis concerned, if any.
     pub const fn axis(self) -> Option<Axis> {
         match self {
-            Self::OutOfBounds(a) | Self::StepOverflow(a) => Some(a),
+            Self::OutOfBounds(a) | Self::ArcOutOfBounds(a) | Self::StepOverflow(a) => Some(a),
             _ => None,
         }
     }
@@ -229,7 +232,9 @@ impl MachineState {
                 self.pos_mm = pos;
                 for (i, d) in done.iter().enumerate() {
                     if *d {
-                        self.offset_mm[i] = 0.0;
+                        // M206: logical = machine + home offset (machine = logical + offset).
+                        let home = cfg.home_offset_mm.get(i).copied().unwrap_or(0.0);
+                        self.offset_mm[i] = -f64::from(home);
                     }
                 }
                 Ok(Action::Home(AxisFlags(done)))
@@ -374,20 +379,19 @@ impl MachineState {
         };
         let plan = arc::plan(&self.pos_mm, &end, centre, clockwise)?;
         check_bounds(&end, cfg)?;
-        plan.check_bounds(cfg)?;
         let end_steps = to_steps(&end, cfg)?;
-        let n = plan.segments();
-        // Commit.
-        self.feed_mm_s = feed_mm_s;
-        let seq0 = self.take_seq(n);
         let moves = ArcMoves::new(
             plan,
             self.pos_mm,
             end,
-            seq0,
-            self.feed_mm_s * self.feed_pct / 100.0,
+            self.next_seq,
+            feed_mm_s * self.feed_pct / 100.0,
             cfg,
         );
+        moves.check_bounds(cfg)?;
+        // Commit.
+        self.feed_mm_s = feed_mm_s;
+        self.take_seq(moves.segments());
         self.pos_mm = end;
         self.steps = end_steps;
         self.logical_e_mm = logical_e;

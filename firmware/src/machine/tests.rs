@@ -190,7 +190,7 @@ fn arc_bulging_out_of_the_volume_is_refused() {
     // Half circle to the left of x = 5 with radius 10: reaches x = -5.
     assert_eq!(
         run(&mut m, "G2 X5 Y120 I0 J10"),
-        Err(MachineError::OutOfBounds(Axis::X))
+        Err(MachineError::ArcOutOfBounds(Axis::X))
     );
     assert_eq!(m, before);
     // The other way round (through x = 15) stays inside.
@@ -198,6 +198,49 @@ fn arc_bulging_out_of_the_volume_is_refused() {
         run(&mut m, "G3 X5 Y120 I0 J10"),
         Ok(Action::Arc(_))
     ));
+}
+
+/// Regression (issue 16, found by `state_stays_consistent` on a fresh seed): the end point is
+/// inside, no axis extreme of the circle is within the sweep, but the radius changes along the
+/// arc (the end is 0.94 mm off the circle of radius 5081 mm) and the chord points dip below
+/// Y = 0. Every point the arc would run through is checked, not just the extremes.
+#[test]
+fn arc_points_between_inside_ends_are_checked() {
+    let mut m = MachineState::new(&CFG);
+    run(&mut m, "G20").unwrap();
+    let before = m;
+    assert_eq!(
+        run(&mut m, "G3 X3 J200 I4"),
+        Err(MachineError::ArcOutOfBounds(Axis::Y))
+    );
+    assert_eq!(m, before);
+    // The same arc in the other direction goes the long way round: out of the volume as well.
+    assert!(run(&mut m, "G2 X3 J200 I4").is_err());
+    assert_eq!(m, before);
+}
+
+/// Every segment end of an accepted arc lies in the build volume (to half a step).
+fn assert_arc_inside(arc: ArcMoves) {
+    for r in arc {
+        for axis in [Axis::X, Axis::Y, Axis::Z] {
+            let a = CFG.axis(axis);
+            let mm = f64::from(r.target[axis.index()]) / f64::from(a.steps_per_mm);
+            let slack = BOUNDS_TOLERANCE_MM + 0.5 / f64::from(a.steps_per_mm);
+            assert!(mm >= f64::from(a.min_mm) - slack, "{axis:?} {mm}");
+            assert!(mm <= f64::from(a.max_mm) + slack, "{axis:?} {mm}");
+        }
+    }
+}
+
+#[test]
+fn arcs_touching_the_edge_are_taken() {
+    let mut m = MachineState::new(&CFG);
+    mv(&mut m, "G1 X10 Y0");
+    // Half circle from (10, 0) to (30, 0) through (20, 10): the ends on the edge, inside.
+    let Ok(Action::Arc(a)) = run(&mut m, "G2 X30 Y0 I10 J0") else {
+        panic!()
+    };
+    assert_arc_inside(a);
 }
 
 #[test]
@@ -277,9 +320,12 @@ proptest! {
                         prop_assert!(r.seq > last_seq);
                         last_seq = r.seq;
                         for axis in [Axis::X, Axis::Y, Axis::Z] {
-                            let mm = f64::from(r.target[axis.index()]) / f64::from(CFG.axis(axis).steps_per_mm);
-                            prop_assert!(mm >= f64::from(CFG.axis(axis).min_mm) - 0.05);
-                            prop_assert!(mm <= f64::from(CFG.axis(axis).max_mm) + 0.05);
+                            let a = CFG.axis(axis);
+                            let mm = f64::from(r.target[axis.index()]) / f64::from(a.steps_per_mm);
+                            // The commanded point in the volume, rounded to the nearest step.
+                            let slack = BOUNDS_TOLERANCE_MM + 0.5 / f64::from(a.steps_per_mm);
+                            prop_assert!(mm >= f64::from(a.min_mm) - slack, "{:?} {}", axis, mm);
+                            prop_assert!(mm <= f64::from(a.max_mm) + slack, "{:?} {}", axis, mm);
                         }
                         end = Some(r.target);
                     }

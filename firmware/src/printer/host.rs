@@ -2,10 +2,12 @@
 //! state, fed to the layer detector and queued as [`Command`]s; commands that are not motion
 //! (temperatures, reports, M760/M761, ...) are answered here.
 
-use super::{Command, PausedLines, Phase, Printer, Schedule, StepperRequest, LINE_LEN};
+use super::state::Pause;
+use super::{Command, PausedLines, Printer, Schedule, StepperRequest, LINE_LEN};
 use crate::gcode::{self, Heater, PauseSchedule};
 use crate::layer::MoveFacts;
 use crate::link::{PositionReport, ReceivedLine, Response};
+
 use crate::machine::Action;
 use crate::motion::Realtime;
 use crate::printer::service::ServiceMove;
@@ -19,6 +21,40 @@ fn heater_id(h: Heater) -> HeaterId {
         Heater::Hotend => HeaterId::Hotend,
         Heater::Bed => HeaterId::Bed,
     }
+}
+
+/// After a cancel, the host may still stream the rest of the job (printcore ignores
+/// `//action:cancel`; lines were in flight): those lines are discarded (answered `ok`, never
+/// executed) until the host starts anew — a numbered line whose number is not beyond `after`
+/// (the host reset its line numbers with M110, as printcore and OctoPrint do at a job's start),
+/// or any line after the host was silent for [`crate::printer::LAYER_PAUSE_IDLE_US`].
+/// Unnumbered lines from a host that numbers its job (OctoPrint's cancel script, a console
+/// command) are taken.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct AfterCancel {
+    /// The last numbered line taken before the cancel.
+    pub(super) after: Option<u32>,
+    /// Lines discarded so far.
+    pub(super) discarded: u32,
+}
+
+/// The host-line side of the executive (see docs/frontend.md, "Host rules").
+#[derive(Clone, Debug, Default)]
+pub(super) struct HostLines {
+    /// A line taken from the link that waits for queue room (it needs room; lines that need
+    /// none are answered at once, see [`answered_without_room`]).
+    pub(super) held_line: Option<ReceivedLine>,
+    /// The host has sent numbered lines (it numbers its job): with [`PausedLines::Auto`],
+    /// unnumbered lines while paused are manual commands.
+    pub(super) host_numbers: bool,
+    /// Number of the last numbered line taken.
+    pub(super) last_line_no: Option<u32>,
+    /// The job was cancelled: the rest of the host's stream is discarded until it starts anew.
+    pub(super) after_cancel: Option<AfterCancel>,
+    /// An M400 waits for the motion to end: its `ok` is owed, and no further line is taken.
+    pub(super) sync_ok_owed: bool,
+    /// When the last `busy:` keep-alive went out, µs.
+    pub(super) last_busy_us: u64,
 }
 
 impl Printer {
@@ -36,17 +72,54 @@ impl Printer {
             .count()
     }
 
-    /// Room for one more host line: the policy's limit on waiting commands (layer marks do not
-    /// count) and physical room for a mark plus a command.
-    fn line_room(&self) -> bool {
-        self.queued_moves() < self.policy.cmd_limit.clamp(1, CMD_CAPACITY)
-            && self.cmds.len() + 2 <= CMD_CAPACITY
+    /// Command slots kept free while a pause is on its way (stopping, parking): the line the
+    /// host has in flight when the printer announces `//action:paused` always fits, so its
+    /// `ok` follows the announcement and the host can send its resume next (docs/frontend.md,
+    /// "host rules").
+    fn reserved_lines(&self) -> usize {
+        usize::from(matches!(
+            self.pause,
+            Pause::Stopping { .. } | Pause::Parking { .. }
+        ))
     }
 
-    /// Take lines from the link while there is room, and answer each.
+    /// Room for one more host line: the policy's limit on waiting commands (layer marks do not
+    /// count) less the pause's reserve, and physical room for a mark plus a command.
+    fn line_room(&self) -> bool {
+        let reserve = self.reserved_lines();
+        self.queued_moves() + reserve < self.policy.cmd_limit.clamp(1, CMD_CAPACITY)
+            && self.cmds.len() + 2 + reserve <= CMD_CAPACITY
+    }
+
+    /// Whether a host line taken now is a manual command (while parked, see [`PausedLines`]).
+    fn is_manual(&self, line: &ReceivedLine) -> bool {
+        matches!(self.pause, Pause::Parked { .. })
+            && match self.policy.paused_lines {
+                PausedLines::Queue => false,
+                PausedLines::Manual => true,
+                PausedLines::Auto => self.lines.host_numbers && line.number().is_none(),
+            }
+    }
+
+    /// The next host line: the one waiting for room, else the link's next (only while the
+    /// output ring can take its answer).
+    fn next_line(&mut self) -> Option<ReceivedLine> {
+        if self.lines.held_line.is_some() {
+            if self.link.line_output_free() < crate::link::OUT_RESERVE {
+                return None;
+            }
+            self.link.answer_line_port();
+            return self.lines.held_line.take();
+        }
+        self.link.pop_line()
+    }
+
+    /// Take lines from the link while there is room, and answer each. A line that needs no
+    /// queue room (reports, messages) is answered even when the queue is full; one that needs
+    /// room waits in `held_line`, with `busy:` keep-alives while a pause holds the queue.
     pub(super) fn process_lines(&mut self) {
         for _ in 0..64 {
-            if self.halted {
+            if self.is_halted() {
                 return;
             }
             if self.arc.is_some() {
@@ -56,30 +129,141 @@ impl Printer {
                 }
                 self.link.respond(Response::Ok);
             }
-            if self.sync_ok_owed {
+            if self.lines.sync_ok_owed {
                 // M400 is waiting for the motion to end: the next line waits too.
                 return;
             }
-            let manual =
-                self.phase == Phase::Parked && self.policy.paused_lines == PausedLines::Manual;
-            if manual && self.service.is_full() {
-                return;
+            if let Some(held) = &self.lines.held_line {
+                // Known to need room: wait for it without parsing again.
+                let fits = if self.is_manual(held) {
+                    !self.service.is_full()
+                } else {
+                    self.line_room()
+                };
+                if !fits {
+                    if !matches!(self.pause, Pause::Run) {
+                        self.keep_alive();
+                    }
+                    return;
+                }
             }
-            if !manual && !self.line_room() {
-                // Paused with a full queue: the host's line waits for its `ok`; keep the host
-                // from timing out.
-                if self.phase != Phase::Run && self.link.lines_waiting() > 0 {
+            if self.pause.cancelling() {
+                // The cancel is still parking: lines wait (a move taken now would be dropped
+                // with the planner when the cancel completes).
+                if self.link.lines_waiting() > 0 || self.lines.held_line.is_some() {
                     self.keep_alive();
                 }
                 return;
             }
-            let Some(line) = self.link.pop_line() else {
+            let Some(line) = self.next_line() else {
                 return;
             };
-            self.cancelled = false;
+            if self.discard_after_cancel(&line) {
+                self.link.respond(Response::Ok);
+                continue;
+            }
+            let manual = self.is_manual(&line);
+            let fits = if manual {
+                !self.service.is_full()
+            } else {
+                self.line_room()
+            };
+            if !fits {
+                if answered_without_room(&line) {
+                    self.answer_report(&line);
+                    continue;
+                }
+                self.lines.held_line = Some(line);
+                if !matches!(self.pause, Pause::Run) {
+                    // A pause holds the queue: keep the host from timing out.
+                    self.keep_alive();
+                }
+                return;
+            }
+            if line.number().is_some() {
+                self.lines.host_numbers = true;
+                self.lines.last_line_no = line.number();
+            }
             self.last_activity_us = self.now_us;
-            self.handle_line(&line, manual);
+            if manual {
+                self.swap_manual_machine();
+                self.handle_line(&line, true);
+                self.swap_manual_machine();
+            } else {
+                self.handle_line(&line, false);
+            }
             self.feed_planner();
+        }
+    }
+
+    /// Swap the job's modal state with the manual one of the parked pause (if any): manual
+    /// lines are interpreted between two swaps.
+    fn swap_manual_machine(&mut self) {
+        if let Pause::Parked {
+            manual: Some(m), ..
+        } = &mut self.pause
+        {
+            core::mem::swap(&mut self.machine, m);
+        }
+    }
+
+    /// Whether `line` is the rest of a cancelled job (see [`AfterCancel`]): then it is
+    /// counted and must be answered `ok` without being executed. Ends the discarding when the
+    /// host has started anew.
+    fn discard_after_cancel(&mut self, line: &ReceivedLine) -> bool {
+        let Some(mut a) = self.lines.after_cancel else {
+            return false;
+        };
+        let silent_us = self.now_us.saturating_sub(self.last_activity_us);
+        let fresh = silent_us >= crate::printer::LAYER_PAUSE_IDLE_US
+            || match (line.number(), a.after) {
+                // Numbers restarted (M110): a new job.
+                (Some(n), Some(after)) => n <= after,
+                (Some(_), None) => false,
+                // A host that numbers its job sends its own commands unnumbered.
+                (None, _) => self.lines.host_numbers,
+            };
+        self.last_activity_us = self.now_us;
+        if fresh {
+            if line.number().is_some() || silent_us >= crate::printer::LAYER_PAUSE_IDLE_US {
+                if a.discarded > 0 {
+                    self.say(format_args!(
+                        "cancelled: {} lines of the cancelled job discarded",
+                        a.discarded
+                    ));
+                }
+                self.lines.after_cancel = None;
+            }
+            return false;
+        }
+        if a.discarded == 0 {
+            self.say(format_args!(
+                "cancelled: discarding the rest of the job until the host starts anew"
+            ));
+        }
+        a.discarded = a.discarded.saturating_add(1);
+        self.lines.after_cancel = Some(a);
+        true
+    }
+
+    /// Answer a report/message line out of turn (the queue is full): it changes nothing the
+    /// job depends on, so its place in the stream does not matter.
+    fn answer_report(&mut self, line: &ReceivedLine) {
+        match line.parse() {
+            Ok(gcode::Line {
+                command: Some(cmd), ..
+            }) => {
+                if !self.executive(&cmd) {
+                    self.link.respond(Response::Ok);
+                }
+            }
+            Ok(_) => {
+                self.link.respond(Response::Ok);
+            }
+            Err(e) => {
+                self.warn(format_args!("{e}"));
+                self.link.respond(Response::Ok);
+            }
         }
     }
 
@@ -97,17 +281,21 @@ impl Printer {
         }
     }
 
-    fn error(&mut self, args: core::fmt::Arguments) {
+    /// A refused line: `echo:refused: <why>`, never `Error:` (OctoPrint cancels the print on
+    /// any `Error:` that is not about line numbers or checksums). The line changed nothing:
+    /// the machine's state is as before it. See the response table in docs/frontend.md.
+    fn warn(&mut self, args: core::fmt::Arguments) {
         let mut t: String<LINE_LEN> = String::new();
+        let _ = t.write_str("refused: ");
         let _ = t.write_fmt(args);
-        self.link.respond(Response::Error(&t));
+        self.link.respond(Response::Echo(&t));
     }
 
     fn handle_line(&mut self, line: &ReceivedLine, manual: bool) {
         let parsed = match line.parse() {
             Ok(l) => l,
             Err(e) => {
-                self.error(format_args!("{e}"));
+                self.warn(format_args!("{e}"));
                 self.link.respond(Response::Ok);
                 return;
             }
@@ -117,7 +305,7 @@ impl Printer {
             Some(cmd) => match self.machine.apply(cmd, &self.cfg) {
                 Ok(a) => a,
                 Err(e) => {
-                    self.error(format_args!("{e}"));
+                    self.warn(format_args!("{e}"));
                     self.link.respond(Response::Ok);
                     return;
                 }
@@ -153,7 +341,7 @@ impl Printer {
             }
             Action::Arc(a) => {
                 if manual {
-                    self.error(format_args!("arcs are not taken while paused"));
+                    self.warn(format_args!("arcs are not taken while paused"));
                 } else {
                     self.arc = Some(a);
                     self.push_arc();
@@ -164,7 +352,7 @@ impl Printer {
             }
             Action::Home(flags) => {
                 if manual {
-                    self.error(format_args!("homing is not allowed while paused"));
+                    self.warn(format_args!("homing is not allowed while paused"));
                 } else {
                     let mut mask = 0u8;
                     for (i, on) in flags.0.iter().enumerate() {
@@ -202,7 +390,7 @@ impl Printer {
                 let id = heater_id(*heater);
                 if let Some(t) = r.or(*s) {
                     if let Err(e) = self.thermal.set_target(id, t) {
-                        self.error(format_args!("{e}"));
+                        self.warn(format_args!("{e}"));
                         return false;
                     }
                 }
@@ -268,7 +456,7 @@ impl Printer {
             G::WaitMoves => {
                 // As Marlin: the `ok` comes when the moves queued before it have ended.
                 let queued = self.cmds.push_back(Command::Sync).is_ok();
-                self.sync_ok_owed = queued;
+                self.lines.sync_ok_owed = queued;
                 return queued;
             }
             G::PauseParams(p) => self.m760(p),
@@ -320,7 +508,7 @@ impl Printer {
                             kd: d.unwrap_or(base.kd),
                         };
                         if let Err(e) = self.thermal.set_pid(id, g) {
-                            self.error(format_args!("{e}"));
+                            self.warn(format_args!("{e}"));
                         }
                     }
                 }
@@ -340,7 +528,7 @@ impl Printer {
                 let c = cycles.unwrap_or(5).min(255) as u8;
                 let now = self.now_us;
                 if let Err(e) = self.thermal.start_autotune(id, t, c, *use_result, now) {
-                    self.error(format_args!("{e}"));
+                    self.warn(format_args!("{e}"));
                 }
             }
             G::EnableSteppers(axes) => {
@@ -355,7 +543,7 @@ impl Printer {
                         .cmds
                         .push_back(Command::Steppers(StepperRequest::IdleTimeout { s: *s }));
                 }
-                Some(_) => self.error(format_args!("M84 S: timeout must be >= 0 s")),
+                Some(_) => self.warn(format_args!("M84 S: timeout must be >= 0 s")),
                 None => {
                     let mask = axis_mask(axes);
                     let _ = self
@@ -365,14 +553,14 @@ impl Printer {
             },
             G::Tool(0) | G::Progress(_) => {}
             G::PrintStatsInfo { .. } | G::SetLineNumber(_) => {}
-            G::Tool(n) => self.error(format_args!("T{n}: only one extruder")),
+            G::Tool(n) => self.warn(format_args!("T{n}: only one extruder")),
             G::Stop { ms, s, .. } => {
                 if ms.is_some() || s.is_some() {
                     match crate::machine::dwell_ms(*ms, *s) {
                         Ok(ms) => {
                             let _ = self.cmds.push_back(Command::Dwell { ms });
                         }
-                        Err(e) => self.error(format_args!("{e}")),
+                        Err(e) => self.warn(format_args!("{e}")),
                     }
                 } else {
                     let _ = self.cmds.push_back(Command::PauseHere);
@@ -382,6 +570,7 @@ impl Printer {
                 // Park at the pause position; the user unloads/loads, then resumes (M24).
                 let _ = self.cmds.push_back(Command::PauseHere);
             }
+            G::Settings(c) => self.settings_command(c),
             G::Unknown(t) => {
                 self.link.respond(Response::UnknownCommand(t));
             }
@@ -483,6 +672,37 @@ impl Printer {
                 self.schedule_queued_marks();
             }
         }
+    }
+}
+
+/// Lines the executive answers without command-queue room, even while a pause holds a full
+/// queue: reports and messages, which queue nothing and change no state a later job line is
+/// interpreted in (and lines that do not parse: answered, nothing queued). Realtime lines
+/// (M24/M25/M108/M112/M410/M524/M601/M602) never wait: the link acts on them as they arrive.
+pub(super) fn answered_without_room(line: &ReceivedLine) -> bool {
+    use gcode::Command as G;
+    match line.parse() {
+        Err(_) => true,
+        Ok(gcode::Line { command: None, .. }) => false,
+        Ok(gcode::Line {
+            command: Some(c), ..
+        }) => match c {
+            G::ReportTemperatures
+            | G::ReportPosition
+            | G::FirmwareInfo
+            | G::Message(_)
+            | G::Echo(_)
+            | G::Progress(_)
+            | G::PrintStatsInfo { .. }
+            | G::FeedOverride(None)
+            | G::FlowOverride(None)
+            | G::SchedulePause(PauseSchedule::Report)
+            | G::SetLineNumber(_)
+            | G::Tool(0)
+            | G::Unknown(_) => true,
+            G::PauseParams(p) => p.is_empty(),
+            _ => false,
+        },
     }
 }
 

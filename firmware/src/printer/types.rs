@@ -101,6 +101,13 @@ pub enum PausedLines {
     /// Manual commands: moves run at once in the service lane; the modal state is restored on
     /// resume (for hosts that stop streaming on `//action:paused`, like OctoPrint).
     Manual,
+    /// Decided per line: once the host has numbered its lines (printcore, OctoPrint, Repetier
+    /// and our sender number and checksum every job line), a numbered line while paused is a
+    /// job line ([`PausedLines::Queue`]) and an unnumbered one is a manual command
+    /// ([`PausedLines::Manual`]): printcore's `send_now` and OctoPrint's terminal and jog
+    /// buttons while paused send without numbers. A host that never numbers gets `Queue`.
+    /// See docs/frontend.md, "host rules".
+    Auto,
 }
 
 /// Policy knobs: our firmware and conventional firmware on the same code.
@@ -114,9 +121,9 @@ pub struct Policy {
     pub max_blocks: usize,
     /// Most commands waiting in the command queue (≤ [`CMD_CAPACITY`]).
     pub cmd_limit: usize,
-    /// Plan a stop at every layer mark (the old way to let a `layer` pause stop at any queued
-    /// boundary; costs a standstill per mark). Off: a mark costs nothing, a pause stops at the
-    /// first *reachable* one (see `Planner::can_stop_before`).
+    /// Plan a stop at every layer mark (lets a `layer` pause stop at any queued boundary; costs
+    /// a standstill per mark). Off: a mark costs nothing, a pause stops at the first
+    /// *reachable* one (see `Planner::can_stop_before`).
     pub stop_at_marks: bool,
     /// Meaning of host lines while paused.
     pub paused_lines: PausedLines,
@@ -129,8 +136,10 @@ impl Policy {
         pause_at_tail: false,
         max_blocks: RING_CAPACITY,
         cmd_limit: CMD_CAPACITY,
-        stop_at_marks: false,
-        paused_lines: PausedLines::Queue,
+        // Still on: with marks free, the feed-hold property test (pause_prop now_pause_random,
+        // main's seeds) brakes 0.06 mm beyond v²/2a on one case; open, see docs/planner.md.
+        stop_at_marks: true,
+        paused_lines: PausedLines::Auto,
     };
     /// Conventional firmware: no segmentation, pause at the tail, 16 moves queued in all
     /// (15 planner blocks including the executing one, as Marlin's 16-slot ring, plus 1

@@ -1,0 +1,60 @@
+//! Settings kept in flash: the record M500 saves ([`Settings`]), the store that keeps records
+//! power-safe in a NOR-flash area ([`SettingsStore`], through sequential-storage), and a
+//! NOR-flash model that can lose power at any operation ([`NorFlashModel`], for the sim and the
+//! tests).
+//!
+//! On the SKR 2 (STM32F407VG, 1 MiB) the area is the last two 128 KiB sectors, 10 and 11
+//! (`0x080C_0000..0x0810_0000`; RM0090 table 5: sectors 5–11 are 128 KiB each on the 1 MiB
+//! parts, F407 and F429 alike); see [`SKR2_AREA`]. The image must end below it (`memory.x`).
+//! See `docs/settings.md` for the M-codes, the format and the power-fail guarantees.
+
+mod flash;
+mod job;
+mod record;
+mod store;
+
+pub use flash::{block_on, Blocking, Cut, FlashOp, ModelError, NorFlashModel};
+pub use job::{
+    JobSource, ModalState, PausedJob, JOB_BODY_LEN, JOB_FORMAT_VERSION, JOB_PATH_CAP,
+    JOB_RECORD_LEN,
+};
+pub use record::{
+    Bound, RecordError, Settings, ACCEL, BODY_LEN, DEFAULT_DRIVER_CURRENT_MA, DRIVER_CURRENT,
+    FORMAT_VERSION, HOME_OFFSET, JUNCTION_DEVIATION, MAX_FEED, PAUSE_VALUE, PID_GAIN, RECORD_LEN,
+    STEPS_PER_MM,
+};
+pub use store::{SettingsStore, StoreError, BUF_LEN, JOB_KEY, SETTINGS_KEY};
+
+/// Where the settings live on the SKR 2: absolute addresses of the area in the STM32F407's
+/// flash, and its sector size.
+pub struct FlashArea {
+    /// First byte (absolute address).
+    pub start: u32,
+    /// One past the last byte.
+    pub end: u32,
+    /// Erase unit, bytes.
+    pub sector_bytes: u32,
+}
+
+impl FlashArea {
+    /// Size of the area, bytes.
+    pub const fn len(&self) -> u32 {
+        self.end - self.start
+    }
+
+    /// True for an area of no bytes.
+    pub const fn is_empty(&self) -> bool {
+        self.end == self.start
+    }
+}
+
+/// The SKR 2's settings area: sectors 10 and 11 of the STM32F407VG.
+pub const SKR2_AREA: FlashArea = FlashArea {
+    start: 0x080C_0000,
+    end: 0x0810_0000,
+    sector_bytes: 128 * 1024,
+};
+
+/// The flash model the sim uses for `--flash FILE`: the SKR 2's area geometry (two 128 KiB
+/// sectors, 16-byte program words as embassy-stm32 writes the F4's flash).
+pub type Skr2FlashModel<B> = NorFlashModel<B, 16, { 128 * 1024 }>;

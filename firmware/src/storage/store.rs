@@ -1,0 +1,432 @@
+//! The store: records kept in a NOR-flash area through sequential-storage's map, which appends
+//! every save as a new item (header CRC, data CRC) and only erases a sector once the items
+//! still current have been copied out of it. A power cut during a save therefore leaves either
+//! the previous item or the new one current; a half-written item fails its CRC and is skipped.
+//!
+//! The store is generic over the blocking [`NorFlash`] traits: the board passes its flash
+//! sectors, the sim a file-backed model, the tests [`super::NorFlashModel`].
+
+use super::flash::{block_on, Blocking};
+use super::job::{PausedJob, JOB_RECORD_LEN};
+use super::record::{RecordError, Settings, RECORD_LEN};
+use embedded_storage::nor_flash::NorFlash;
+use sequential_storage::cache::{Cache, Uncached};
+use sequential_storage::map::{MapConfig, MapStorage};
+
+/// Map key of the settings record.
+pub const SETTINGS_KEY: u8 = 1;
+/// Map key of the paused-job record.
+pub const JOB_KEY: u8 = 2;
+
+/// Bytes of the work buffer: room for the longest record plus its key byte, rounded up to the
+/// largest flash word sequential-storage supports (32 B).
+pub const BUF_LEN: usize = 256;
+const _: () = assert!((RECORD_LEN + 1).div_ceil(32) * 32 <= BUF_LEN);
+const _: () = assert!((JOB_RECORD_LEN + 1).div_ceil(32) * 32 <= BUF_LEN);
+
+/// What a cleared paused-job entry holds (no job).
+const NO_JOB: [u8; 1] = [0];
+
+/// Why the store could not load or save.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StoreError {
+    /// The flash area is not a whole number (≥ 2) of sectors, or its sectors are too small.
+    Config,
+    /// The flash driver reported an error (the operation may have been cut short).
+    Flash,
+    /// The area is full of current items (cannot happen with the few keys kept here).
+    Full,
+    /// The area's contents make no sense to sequential-storage and could not be repaired.
+    Corrupted,
+    /// An item was found but its record was refused.
+    Record(RecordError),
+    /// The area has been written, but holds no valid record of the kind asked for (its item
+    /// was damaged: sequential-storage's CRC skipped it).
+    NoValidRecord,
+    /// Any other sequential-storage error.
+    Other,
+}
+
+impl core::fmt::Display for StoreError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            StoreError::Config => f.write_str("settings area misconfigured"),
+            StoreError::Flash => f.write_str("flash error"),
+            StoreError::Full => f.write_str("settings area full"),
+            StoreError::Corrupted => f.write_str("settings area corrupted"),
+            StoreError::Record(e) => write!(f, "{e}"),
+            StoreError::NoValidRecord => f.write_str("no valid record in a used flash area"),
+            StoreError::Other => f.write_str("settings store error"),
+        }
+    }
+}
+
+fn store_error<E>(e: sequential_storage::Error<E>) -> StoreError {
+    match e {
+        sequential_storage::Error::Storage { .. } => StoreError::Flash,
+        sequential_storage::Error::FullStorage => StoreError::Full,
+        sequential_storage::Error::Corrupted { .. } => StoreError::Corrupted,
+        _ => StoreError::Other,
+    }
+}
+
+/// A 4-byte-aligned work buffer (some internal flash drivers need aligned sources).
+#[repr(align(4))]
+struct Buf([u8; BUF_LEN]);
+
+/// Records in a NOR-flash area. See the module documentation.
+pub struct SettingsStore<F: NorFlash> {
+    map: MapStorage<u8, Blocking<F>, Cache<Uncached, Uncached, Uncached, u8>>,
+    buf: Buf,
+    /// Some byte of the area was not erased when the store was made (or a record was stored
+    /// since): a missing record then means a damaged one.
+    used: bool,
+}
+
+impl<F: NorFlash> SettingsStore<F> {
+    /// A store in `range` (byte offsets within `flash`, whole sectors, at least two).
+    pub fn new(mut flash: F, range: core::ops::Range<u32>) -> Result<Self, StoreError> {
+        let config =
+            MapConfig::<Blocking<F>>::try_new(range.clone()).map_err(|_| StoreError::Config)?;
+        let used = !is_erased(&mut flash, range);
+        Ok(Self {
+            map: MapStorage::new(Blocking(flash), config, Cache::new_uncached()),
+            buf: Buf([0; BUF_LEN]),
+            used,
+        })
+    }
+
+    /// The flash back (to reboot a model in tests, or to close the sim's file).
+    pub fn into_flash(self) -> F {
+        self.map.destroy().0 .0
+    }
+
+    /// The raw bytes stored under `key` (None: nothing stored), handed to `decode`.
+    pub fn fetch<T>(
+        &mut self,
+        key: u8,
+        decode: impl FnOnce(&[u8]) -> Result<T, RecordError>,
+    ) -> Result<Option<T>, StoreError> {
+        let item =
+            block_on(self.map.fetch_item::<&[u8]>(&mut self.buf.0, &key)).map_err(store_error)?;
+        match item {
+            None => Ok(None),
+            Some(bytes) => decode(bytes).map(Some).map_err(StoreError::Record),
+        }
+    }
+
+    /// Store `bytes` under `key` (the previous value stays current until this one is whole).
+    pub fn store(&mut self, key: u8, bytes: &[u8]) -> Result<(), StoreError> {
+        self.used = true;
+        block_on(self.map.store_item(&mut self.buf.0, &key, &bytes)).map_err(store_error)
+    }
+
+    /// True when some record (of any key) can be read.
+    fn any_record(&mut self) -> bool {
+        [SETTINGS_KEY, JOB_KEY]
+            .into_iter()
+            .any(|k| matches!(self.fetch(k, |_| Ok(())), Ok(Some(()))))
+    }
+
+    /// The saved settings: `Ok(None)` when none were ever saved, an error when what is there
+    /// cannot be read or is refused (the caller falls back to the factory defaults).
+    pub fn load(&mut self) -> Result<Option<Settings>, StoreError> {
+        match self.fetch(SETTINGS_KEY, Settings::decode)? {
+            Some(s) => Ok(Some(s)),
+            // Written, but no readable record at all: the settings item was damaged.
+            None if self.used && !self.any_record() => Err(StoreError::NoValidRecord),
+            None => Ok(None),
+        }
+    }
+
+    /// Save `s` (checked first: out-of-range settings are never written).
+    pub fn save(&mut self, s: &Settings) -> Result<(), StoreError> {
+        s.validate().map_err(StoreError::Record)?;
+        self.store(SETTINGS_KEY, &s.encode())
+    }
+
+    /// The paused job kept for a power-cut resume (None: none, or cleared).
+    pub fn load_job(&mut self) -> Result<Option<PausedJob>, StoreError> {
+        let got = self.fetch(JOB_KEY, |b| {
+            if b == NO_JOB {
+                Ok(None)
+            } else {
+                PausedJob::decode(b).map(Some)
+            }
+        })?;
+        Ok(got.flatten())
+    }
+
+    /// Keep `job` for a power-cut resume (replaces the previous one only once whole).
+    pub fn save_job(&mut self, job: &PausedJob) -> Result<(), StoreError> {
+        self.store(JOB_KEY, &job.encode())
+    }
+
+    /// Forget the paused job (it resumed, or was cancelled).
+    pub fn clear_job(&mut self) -> Result<(), StoreError> {
+        self.store(JOB_KEY, &NO_JOB)
+    }
+}
+
+/// True when every byte of `range` reads `0xFF` (a read error counts as written).
+fn is_erased<F: NorFlash>(flash: &mut F, range: core::ops::Range<u32>) -> bool {
+    let mut chunk = [0u8; 64];
+    let mut at = range.start;
+    while at < range.end {
+        let n = (range.end - at).min(chunk.len() as u32) as usize;
+        let Some(part) = chunk.get_mut(..n) else {
+            return false;
+        };
+        if flash.read(at, part).is_err() || part.iter().any(|b| *b != 0xFF) {
+            return false;
+        }
+        at += n as u32;
+    }
+    true
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::MachineConfig;
+    use crate::storage::{Cut, FlashOp, NorFlashModel};
+    use crate::thermal::pid::PidGains;
+
+    /// Small sectors so a few dozen saves wrap around the area.
+    type Small = NorFlashModel<Vec<u8>, 4, 1024>;
+    const SMALL_RANGE: core::ops::Range<u32> = 0..3 * 1024;
+
+    fn factory() -> Settings {
+        Settings::from_config(
+            &MachineConfig::ENDER3,
+            Some(PidGains {
+                kp: 21.73,
+                ki: 1.54,
+                kd: 76.55,
+            }),
+            None,
+        )
+    }
+
+    /// The k-th distinct settings (k = 0 is the factory set).
+    fn nth(k: u32) -> Settings {
+        let mut s = factory();
+        s.steps_per_mm[0] = 80.0 + k as f32 * 0.125;
+        s.max_feed_mm_s[2] = 5.0 + (k % 7) as f32;
+        s.driver_current_ma[3] = 600 + (k % 50) as u16;
+        s
+    }
+
+    fn small_store(bytes: Vec<u8>) -> SettingsStore<Small> {
+        SettingsStore::new(Small::new(bytes), SMALL_RANGE).unwrap()
+    }
+
+    #[test]
+    fn an_empty_area_loads_nothing_and_a_save_loads_back() {
+        let mut st = small_store(vec![0xFF; 3 * 1024]);
+        assert_eq!(st.load(), Ok(None));
+        st.save(&nth(3)).unwrap();
+        assert_eq!(st.load(), Ok(Some(nth(3))));
+        // A reboot (a new store on the same bytes) sees the same.
+        let bytes = st.into_flash().into_inner();
+        assert_eq!(small_store(bytes).load(), Ok(Some(nth(3))));
+    }
+
+    #[test]
+    fn the_board_geometry_works_and_erases_rarely() {
+        // Two 128 KiB sectors as on the STM32F407 (sectors 10 and 11), 16-byte words.
+        type Board = NorFlashModel<Vec<u8>, 16, { 128 * 1024 }>;
+        let mut st = SettingsStore::new(Board::erased(vec![0; 256 * 1024]), 0..256 * 1024).unwrap();
+        for k in 0..200 {
+            st.save(&nth(k)).unwrap();
+        }
+        assert_eq!(st.load(), Ok(Some(nth(199))));
+        let flash = st.into_flash();
+        assert_eq!(
+            flash.erases(),
+            0,
+            "200 saves fit one sector without an erase"
+        );
+        // Bytes per save: the record, its key and sequential-storage's item header, padded to
+        // the 16-byte word.
+        let used = flash.bytes().iter().rposition(|b| *b != 0xFF).unwrap_or(0);
+        let per_save = used.div_ceil(200);
+        println!(
+            "record {RECORD_LEN} B, {per_save} B of flash per save, {} saves per 128 KiB sector",
+            128 * 1024 / per_save
+        );
+        assert!(
+            (RECORD_LEN..RECORD_LEN + 48).contains(&per_save),
+            "{per_save}"
+        );
+    }
+
+    #[test]
+    fn out_of_range_settings_are_never_written() {
+        let mut st = small_store(vec![0xFF; 3 * 1024]);
+        let mut bad = factory();
+        bad.accel_print_mm_s2 = -1.0;
+        assert!(matches!(st.save(&bad), Err(StoreError::Record(_))));
+        assert_eq!(st.into_flash().ops(), 0);
+    }
+
+    #[test]
+    fn another_version_or_garbage_is_an_error_not_a_crash() {
+        let mut st = small_store(vec![0xFF; 3 * 1024]);
+        let mut old = factory().encode();
+        old[0] = 0; // format 0
+        let crc = crc32fast::hash(&old[..old.len() - 4]);
+        let n = old.len();
+        old[n - 4..].copy_from_slice(&crc.to_le_bytes());
+        st.store(SETTINGS_KEY, &old).unwrap();
+        assert_eq!(st.load(), Err(StoreError::Record(RecordError::Version(0))));
+        // Every byte of the area garbage: never a panic, never settings.
+        let mut seed = 0x1234_5678u32;
+        let garbage: Vec<u8> = (0..3 * 1024)
+            .map(|_| {
+                seed ^= seed << 13;
+                seed ^= seed >> 17;
+                seed ^= seed << 5;
+                seed as u8
+            })
+            .collect();
+        let mut st = small_store(garbage);
+        assert!(!matches!(st.load(), Ok(Some(_))));
+        // And the store can be used again after that (sequential-storage repairs or erases).
+        match st.save(&nth(1)) {
+            Ok(()) => assert_eq!(st.load(), Ok(Some(nth(1)))),
+            Err(e) => assert_eq!(e, StoreError::Corrupted),
+        }
+    }
+
+    /// Settings and a paused job side by side: a cut during a job save or clear keeps the
+    /// settings whole and the job old-or-new; a cut during a settings save keeps the job.
+    #[test]
+    fn a_power_cut_while_saving_one_record_never_touches_the_other() {
+        use crate::storage::job::tests::sample;
+        let mut cuts = 0;
+        for before in 1..30u32 {
+            let mut st = small_store(vec![0xFF; 3 * 1024]);
+            for k in 0..before {
+                st.save(&nth(k)).unwrap();
+                st.save_job(&sample(k, k % 2 == 0)).unwrap();
+            }
+            let base = st.into_flash().into_inner();
+            let (s_old, j_old) = (nth(before - 1), sample(before - 1, (before - 1) % 2 == 0));
+            let s_new = nth(before);
+            let j_new = sample(before, before % 2 == 0);
+            // 0: save a job, 1: clear the job, 2: save settings.
+            for what in 0..3 {
+                for n in 0.. {
+                    let mut flash = Small::new(base.clone());
+                    flash.cut_power(n, Cut::Partial);
+                    let mut st = SettingsStore::new(flash, SMALL_RANGE).unwrap();
+                    let r = match what {
+                        0 => st.save_job(&j_new),
+                        1 => st.clear_job(),
+                        _ => st.save(&s_new),
+                    };
+                    if r.is_ok() {
+                        break;
+                    }
+                    cuts += 1;
+                    let mut flash = st.into_flash();
+                    flash.restore_power();
+                    let mut st = SettingsStore::new(flash, SMALL_RANGE).unwrap();
+                    let s = st.load().unwrap();
+                    let j = st.load_job().unwrap();
+                    let ctx = format!("{before} saves, op {what}, cut at {n}");
+                    match what {
+                        0 => {
+                            assert_eq!(s, Some(s_old), "{ctx}");
+                            assert!(
+                                j == Some(j_old.clone()) || j == Some(j_new.clone()),
+                                "{ctx}"
+                            );
+                        }
+                        1 => {
+                            assert_eq!(s, Some(s_old), "{ctx}");
+                            assert!(j == Some(j_old.clone()) || j.is_none(), "{ctx}");
+                        }
+                        _ => {
+                            assert!(s == Some(s_old) || s == Some(s_new), "{ctx}");
+                            assert_eq!(j, Some(j_old.clone()), "{ctx}");
+                        }
+                    }
+                }
+            }
+        }
+        assert!(cuts > 200, "{cuts}");
+        println!("two-record power-fail sweep: {cuts} cuts");
+    }
+
+    #[test]
+    fn a_job_saved_loads_and_a_cleared_one_is_gone() {
+        use crate::storage::job::tests::sample;
+        let mut st = small_store(vec![0xFF; 3 * 1024]);
+        assert_eq!(st.load_job(), Ok(None));
+        st.save_job(&sample(4, false)).unwrap();
+        let bytes = st.into_flash().into_inner();
+        let mut st = small_store(bytes);
+        assert_eq!(st.load_job(), Ok(Some(sample(4, false))));
+        st.clear_job().unwrap();
+        assert_eq!(st.load_job(), Ok(None));
+        // A job alone is no damaged settings record.
+        assert_eq!(st.load(), Ok(None));
+    }
+
+    /// Cut the power at every write and erase of a save, after `before` earlier saves (so the
+    /// save lands at every place of the sectors, page closes and erases included): the next
+    /// boot loads the previous settings or the new ones, never anything else, and a later save
+    /// works.
+    #[test]
+    fn a_power_cut_at_any_flash_operation_of_a_save_keeps_old_or_new() {
+        let mut cuts = 0;
+        let mut new_seen = 0;
+        let mut erases_cut = 0;
+        for (before, kind) in (1..40u32).flat_map(|b| [(b, Cut::Partial), (b, Cut::Before)]) {
+            let mut st = small_store(vec![0xFF; 3 * 1024]);
+            for k in 0..before {
+                st.save(&nth(k)).unwrap();
+            }
+            let base = st.into_flash().into_inner();
+            let old = nth(before - 1);
+            let new = nth(before);
+            for n in 0.. {
+                let mut flash = Small::new(base.clone());
+                flash.cut_power(n, kind);
+                let mut st = SettingsStore::new(flash, SMALL_RANGE).unwrap();
+                let saved = st.save(&new);
+                let mut flash = st.into_flash();
+                if saved.is_ok() {
+                    assert!(!flash.is_off());
+                    break; // n is past the save's last operation
+                }
+                cuts += 1;
+                if flash.cut_op() == Some(FlashOp::Erase) {
+                    erases_cut += 1;
+                }
+                flash.restore_power();
+                let mut st = SettingsStore::new(flash, SMALL_RANGE).unwrap();
+                let got = st.load().unwrap_or_else(|e| {
+                    panic!("{before} saves, {kind:?} cut at op {n}: load failed: {e}")
+                });
+                assert!(
+                    got == Some(old) || got == Some(new),
+                    "{before} saves, {kind:?} cut at op {n}: {got:?}"
+                );
+                if got == Some(new) {
+                    new_seen += 1;
+                }
+                st.save(&nth(1000)).unwrap();
+                assert_eq!(st.load(), Ok(Some(nth(1000))));
+            }
+        }
+        // sequential-storage's last write of a save is the one that makes the new item whole,
+        // so every cut (even one just before that write) loads the old settings; a save whose
+        // operations all ran loads the new ones (the `break` above). Erases were cut too.
+        assert!(cuts > 200, "{cuts} cuts tested");
+        assert!(erases_cut > 0, "no erase was cut");
+        println!("power-fail sweep: {cuts} cuts, {new_seen} loaded the new settings, {erases_cut} during an erase");
+    }
+}

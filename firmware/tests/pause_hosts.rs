@@ -1,0 +1,521 @@
+//! The host rules (docs/frontend.md, "host rules"): models of the two hosts' send paths, driven
+//! through the byte link on virtual time, must never deadlock around a firmware pause.
+//!
+//! - printcore (Printrun): job lines numbered and checksummed, one per `ok`; `send_now()` lines
+//!   go to a priority queue that is sent, unnumbered, before the next job line after an `ok`.
+//!   It ignores `//action:` and keeps streaming while the printer is paused.
+//! - OctoPrint: one line per `ok`; on `//action:paused` it stops streaming, waits for the `ok`
+//!   of its in-flight line, then sends terminal lines (unnumbered while paused) and resumes
+//!   streaming on `//action:resumed`.
+mod support;
+
+use firmware::config::MachineConfig;
+use firmware::link::checksum;
+use firmware::planner::BlockKind;
+use firmware::printer::{Printer, Record, State};
+use std::collections::VecDeque;
+
+/// A comment-free layered job (what printcore and OctoPrint send): `layers` layers of a
+/// zigzag of `moves` extruding lines each, layer changes by a Z rise.
+fn job(layers: u32, moves: u32) -> Vec<String> {
+    let mut v = vec!["G90".to_string(), "M83".into(), "G92 E0".into()];
+    for l in 0..layers {
+        let z = 0.2 * (l + 1) as f32;
+        v.push(format!("G1 Z{z:.2} F600"));
+        v.push("G1 X10 Y10 F6000".into());
+        for i in 0..moves {
+            let x = if i % 2 == 0 { 40 } else { 10 };
+            v.push(format!("G1 X{x} Y{} E0.8 F2400", 10 + i));
+        }
+    }
+    v
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum Kind {
+    Printcore,
+    OctoPrint,
+}
+
+/// A host on the byte link: see the module documentation.
+struct Host {
+    kind: Kind,
+    job: Vec<String>,
+    next: usize,
+    lineno: u32,
+    in_flight: bool,
+    /// printcore's priority queue / OctoPrint's terminal lines.
+    pri: VecDeque<String>,
+    /// OctoPrint: streaming stopped by `//action:paused` until `//action:resumed`.
+    held: bool,
+    out: String,
+    paused_at_us: Option<u64>,
+    /// When the first `ok` after `//action:paused` arrived.
+    ok_after_paused_us: Option<u64>,
+    /// Wait this long after an `ok` before the next job line (a slow host).
+    gap_us: u64,
+    last_ok_us: u64,
+    cancelled_at_us: Option<u64>,
+}
+
+impl Host {
+    fn new(kind: Kind, job: Vec<String>) -> Self {
+        Host {
+            kind,
+            job,
+            next: 0,
+            lineno: 1,
+            in_flight: false,
+            pri: VecDeque::new(),
+            held: false,
+            out: String::new(),
+            paused_at_us: None,
+            ok_after_paused_us: None,
+            gap_us: 0,
+            last_ok_us: 0,
+            cancelled_at_us: None,
+        }
+    }
+
+    /// Start a new job the way the host does: printcore sends `N-1 M110` and numbers from 0,
+    /// OctoPrint sends `M110 N0` and numbers from 1.
+    fn start_job(&mut self, job: Vec<String>) {
+        let (reset, first) = match self.kind {
+            Kind::Printcore => {
+                let pre = "N-1 M110";
+                (format!("{pre}*{}", checksum(pre.as_bytes())), 0)
+            }
+            Kind::OctoPrint => ("M110 N0".to_string(), 1),
+        };
+        self.pri.push_back(reset);
+        self.job = job;
+        self.next = 0;
+        self.lineno = first;
+        self.held = false;
+    }
+
+    fn done(&self) -> bool {
+        self.next >= self.job.len() && !self.in_flight && self.pri.is_empty()
+    }
+
+    /// Read the printer's output; returns the lines.
+    fn read(&mut self, p: &mut Printer, now: u64) -> Vec<String> {
+        let mut s = String::new();
+        p.write_output(&mut s).unwrap();
+        self.out.push_str(&s);
+        let lines: Vec<String> = s.lines().map(str::to_string).collect();
+        for l in &lines {
+            if l.starts_with("ok") {
+                self.in_flight = false;
+                self.last_ok_us = now;
+                if self.paused_at_us.is_some() && self.ok_after_paused_us.is_none() {
+                    self.ok_after_paused_us = Some(now);
+                }
+            } else if l == "//action:paused" {
+                self.paused_at_us = Some(now);
+                if self.kind == Kind::OctoPrint {
+                    self.held = true;
+                }
+            } else if l == "//action:resumed" {
+                self.held = false;
+            } else if l == "//action:cancel" {
+                self.cancelled_at_us = Some(now);
+                if self.kind == Kind::OctoPrint {
+                    // OctoPrint cancels its job: no more job lines.
+                    self.next = self.job.len();
+                }
+            }
+            assert!(!l.starts_with("Resend") && !l.starts_with("Error"), "{l}");
+        }
+        lines
+    }
+
+    /// Send the next line if none is in flight.
+    fn send(&mut self, p: &mut Printer, now: u64) {
+        if self.in_flight {
+            return;
+        }
+        let line = if let Some(l) = self.pri.pop_front() {
+            format!("{l}\n")
+        } else if !self.held && self.next < self.job.len() && now >= self.last_ok_us + self.gap_us {
+            let pre = format!("N{} {}", self.lineno, self.job[self.next]);
+            self.next += 1;
+            self.lineno += 1;
+            format!("{pre}*{}\n", checksum(pre.as_bytes()))
+        } else {
+            return;
+        };
+        self.in_flight = true;
+        let taken = p.receive(line.as_bytes(), now);
+        assert_eq!(taken, line.len(), "a one-line-per-ok host's line is always taken");
+    }
+}
+
+struct Outcome {
+    host: Host,
+    executed: Vec<(u32, u32)>,
+    /// Job blocks executed after `//action:cancel`: (seq, seg, position after).
+    after_cancel: Vec<(u32, u32, [i32; 4])>,
+    stops: usize,
+    end_state: State,
+    /// Highest Z the head reached, steps.
+    max_z: i32,
+    /// Z where the head stopped for the (last) pause, steps.
+    stop_z: i32,
+}
+
+/// Run `host` against a printer: `on_tick(host, now, output lines)` queues terminal lines.
+fn drive(
+    mut host: Host,
+    limit_us: u64,
+    mut on_tick: impl FnMut(&mut Host, u64, &[String]),
+) -> Outcome {
+    let mut p = Printer::new(MachineConfig::ENDER3);
+    let mut executed = Vec::new();
+    let mut after_cancel = Vec::new();
+    let mut stops = 0;
+    let mut max_z = i32::MIN;
+    let mut stop_z = 0;
+    let mut now = 0u64;
+    while now < limit_us {
+        host.send(&mut p, now);
+        p.poll(now);
+        let until_ns = (now + 1000) * 1000;
+        while let Some(t) = p.next_step_ns() {
+            if t > until_ns || p.next_step().is_none() {
+                break;
+            }
+            max_z = max_z.max(p.status().position[2]);
+        }
+        p.poll(now + 1000);
+        while let Some(r) = p.pop_record() {
+            match r {
+                Record::Executed {
+                    seq,
+                    seg,
+                    kind: BlockKind::Job,
+                    pos,
+                    ..
+                } => {
+                    executed.push((seq, seg));
+                    if host.cancelled_at_us.is_some() {
+                        after_cancel.push((seq, seg, pos));
+                    }
+                }
+                Record::Stopped { pos, .. } => {
+                    stops += 1;
+                    stop_z = pos[2];
+                }
+                _ => {}
+            }
+        }
+        let lines = host.read(&mut p, now);
+        on_tick(&mut host, now, &lines);
+        now += 1000;
+        if host.done() && p.status().state == State::Idle && p.next_step_ns().is_none() {
+            break;
+        }
+    }
+    Outcome {
+        host,
+        executed,
+        after_cancel,
+        stops,
+        end_state: p.status().state,
+        max_z,
+        stop_z,
+    }
+}
+
+fn baseline(job: &[String]) -> Vec<(u32, u32)> {
+    drive(
+        Host::new(Kind::Printcore, job.to_vec()),
+        600_000_000,
+        |_, _, _| {},
+    )
+    .executed
+}
+
+/// printcore keeps streaming job lines through the pause; `send_now("M602")` after the
+/// printer announced `//action:paused` goes out with the next `ok` and resumes the job.
+#[test]
+fn printcore_streaming_through_a_pause_can_send_its_resume() {
+    let job = job(6, 30);
+    let base = baseline(&job);
+    let mut asked = false;
+    let mut resumed_asked = false;
+    let o = drive(
+        Host::new(Kind::Printcore, job.clone()),
+        600_000_000,
+        |h, now, lines| {
+            if !asked && now >= 3_000_000 {
+                h.pri.push_back("M601".into());
+                asked = true;
+            }
+            if !resumed_asked && lines.iter().any(|l| l == "//action:paused") {
+                h.pri.push_back("M602".into());
+                resumed_asked = true;
+            }
+        },
+    );
+    let out = &o.host.out;
+    let tail: String = out.lines().rev().take(12).collect::<Vec<_>>().join("\n");
+    assert!(resumed_asked, "never paused:\n{tail}");
+    assert!(
+        out.contains("//action:resumed"),
+        "M602 never got through:\n{tail}"
+    );
+    assert!(o.host.done(), "job not sent to the end:\n{tail}");
+    assert_eq!(o.end_state, State::Idle);
+    assert_eq!(o.stops, 1);
+    assert_eq!(o.executed, base, "every segment once, in order");
+}
+
+/// OctoPrint stops streaming at `//action:paused` and stays "Pausing" until its in-flight line
+/// is acknowledged: that `ok` must come. Then its terminal works while paused: a status line
+/// is answered, a jog (unnumbered while paused) moves the parked head and changes nothing of
+/// the job, and M602 resumes.
+#[test]
+fn octoprint_gets_its_in_flight_ok_and_its_terminal_works_while_paused() {
+    let job = job(6, 30);
+    let base = baseline(&job);
+    let mut asked = false;
+    let mut terminal = false;
+    let o = drive(
+        Host::new(Kind::OctoPrint, job.clone()),
+        600_000_000,
+        |h, now, _| {
+            if !asked && now >= 3_000_000 {
+                h.pri.push_back("M601".into());
+                asked = true;
+            }
+            if let Some(ok_us) = h.ok_after_paused_us {
+                if !terminal && now >= ok_us + 2_000_000 {
+                    for l in [
+                        "M105",
+                        "M114",
+                        "G91",
+                        "G1 Z5 F600",
+                        "G1 X10 F3000",
+                        "G90",
+                        "M602",
+                    ] {
+                        h.pri.push_back(l.into());
+                    }
+                    terminal = true;
+                }
+            }
+        },
+    );
+    let out = &o.host.out;
+    let tail: String = out.lines().rev().take(16).collect::<Vec<_>>().join("\n");
+    let paused = o.host.paused_at_us.expect("never paused");
+    let ok = o
+        .host
+        .ok_after_paused_us
+        .expect("in-flight line never acknowledged");
+    // The in-flight line is answered at once (same tick or the next).
+    assert!(ok <= paused + 1_000, "ok {ok} µs after paused {paused} µs");
+    assert!(
+        out.contains("ok T:"),
+        "M105 not answered while paused:\n{tail}"
+    );
+    // The jog ran at once from the parked position: 5 mm above the park height.
+    let cfg = MachineConfig::ENDER3;
+    let spm = cfg.axes[2].steps_per_mm;
+    let top_mm = o.stop_z as f32 / spm + cfg.pause.lift_z_mm + 5.0;
+    assert!(
+        (o.max_z as f32 / spm - top_mm).abs() < 0.3,
+        "max Z {} mm, expected about {top_mm} mm",
+        o.max_z as f32 / spm
+    );
+    assert!(out.contains("//action:resumed"), "{tail}");
+    assert!(o.host.done(), "{tail}");
+    assert_eq!(o.end_state, State::Idle);
+    assert_eq!(o.stops, 1);
+    assert_eq!(
+        o.executed, base,
+        "the jog is not a job move; every segment once, in order"
+    );
+}
+
+/// `Error:` only for what hosts treat as a resend or a real fault: a move outside the volume,
+/// a line that does not parse, an unknown word, an over-limit temperature are `echo:`
+/// warnings, and the machine's state is as before them (refused, not clamped).
+#[test]
+fn refusals_are_echo_warnings_and_change_nothing() {
+    let mut p = Printer::new(MachineConfig::ENDER3);
+    let mut out = String::new();
+    let mut t = 0;
+    for l in [
+        "G1 X20 Y20 F3000",
+        "M104 S200",
+        "M400",
+        "M114",
+        "M105",
+        "G1 X400",
+        "G1 X10 Y",
+        "G1 X10 Q5",
+        "G1 X30 F-5",
+        "M104 S999",
+        "G1 X-50",
+        "T3",
+        "M84 S-1",
+        "FOO",
+        "M400",
+        "M114",
+        "M105",
+    ] {
+        let line = format!("{l}\n");
+        assert_eq!(p.receive(line.as_bytes(), t), line.len());
+        for _ in 0..2000 {
+            t += 1000;
+            p.poll(t);
+            while p.next_step_ns().is_some_and(|s| s <= t * 1000) {
+                p.next_step();
+            }
+        }
+        p.write_output(&mut out).unwrap();
+    }
+    assert!(!out.contains("Error"), "{out}");
+    let refused = out
+        .lines()
+        .filter(|l| l.starts_with("echo:refused:"))
+        .count();
+    let unknown = out
+        .lines()
+        .filter(|l| l.starts_with("echo:Unknown command"))
+        .count();
+    assert!(refused + unknown >= 9, "{out}");
+    let oks = out.lines().filter(|l| l.starts_with("ok")).count();
+    assert_eq!(oks, 17, "every line answered: {out}");
+    let pos: Vec<&str> = out.lines().filter(|l| l.starts_with("X:")).collect();
+    assert_eq!(pos.len(), 2, "{out}");
+    assert_eq!(pos[0], pos[1], "position unchanged by the refused lines");
+    assert_eq!(
+        p.thermal().target_c(firmware::thermal::HeaterId::Hotend),
+        200.0
+    );
+}
+
+fn xy_steps(x: f32, y: f32) -> (i32, i32) {
+    let cfg = MachineConfig::ENDER3;
+    (
+        (x * cfg.axes[0].steps_per_mm).round() as i32,
+        (y * cfg.axes[1].steps_per_mm).round() as i32,
+    )
+}
+
+/// printcore ignores `//action:cancel` and streams the rest of the job: none of it prints
+/// (discarded, each answered `ok`); its next job, after its `N-1 M110`, prints.
+#[test]
+fn printcore_streaming_after_a_cancel_does_not_print_the_rest_of_the_job() {
+    let mut asked = false;
+    let mut restarted = false;
+    let o = drive(
+        Host::new(Kind::Printcore, job(6, 30)),
+        600_000_000,
+        |h, now, _| {
+            if !asked && now >= 3_000_000 {
+                h.pri.push_back("M524".into());
+                asked = true;
+            }
+            if !restarted && h.cancelled_at_us.is_some() && h.next >= h.job.len() && !h.in_flight {
+                h.start_job(vec!["G90".into(), "G1 X5 Y5 F3000".into()]);
+                restarted = true;
+            }
+        },
+    );
+    let out = &o.host.out;
+    assert!(o.host.cancelled_at_us.is_some(), "{out}");
+    assert!(restarted && o.host.done());
+    assert!(
+        out.contains("lines of the cancelled job discarded"),
+        "{out}"
+    );
+    // After the cancel only the new job's move ran.
+    let (x, y) = xy_steps(5.0, 5.0);
+    let last = o.after_cancel.last().expect("the new job ran");
+    assert_eq!((last.2[0], last.2[1]), (x, y));
+    let seqs: std::collections::BTreeSet<u32> = o.after_cancel.iter().map(|e| e.0).collect();
+    assert_eq!(
+        seqs.len(),
+        1,
+        "only the new job's move after the cancel: {seqs:?}"
+    );
+    assert_eq!(o.end_state, State::Idle);
+}
+
+/// OctoPrint stops at `//action:cancel`, sends its cancel script unnumbered (taken and run),
+/// then starts a new job with `M110 N0` (printed).
+#[test]
+fn octoprint_cancel_script_and_next_job_run_after_a_cancel() {
+    let mut asked = false;
+    let mut script = false;
+    let mut restarted = false;
+    let o = drive(
+        Host::new(Kind::OctoPrint, job(6, 30)),
+        600_000_000,
+        |h, now, _| {
+            if !asked && now >= 3_000_000 {
+                h.pri.push_back("M524".into());
+                asked = true;
+            }
+            if let Some(t) = h.cancelled_at_us {
+                if !script {
+                    for l in ["M104 S0", "G91", "G1 Z2 F600", "G90"] {
+                        h.pri.push_back(l.into());
+                    }
+                    script = true;
+                }
+                if !restarted && now > t + 500_000 && h.pri.is_empty() && !h.in_flight {
+                    h.start_job(vec!["G1 X5 Y5 F3000".into()]);
+                    restarted = true;
+                }
+            }
+        },
+    );
+    let out = &o.host.out;
+    assert!(restarted && o.host.done(), "{out}");
+    let (x, y) = xy_steps(5.0, 5.0);
+    let last = o.after_cancel.last().expect("moves after the cancel");
+    assert_eq!((last.2[0], last.2[1]), (x, y), "{out}");
+    // The script's Z lift ran: 2 mm above where the cancel parked.
+    let cfg = MachineConfig::ENDER3;
+    let spm = cfg.axes[2].steps_per_mm;
+    let lifted = o.stop_z as f32 / spm + cfg.pause.lift_z_mm + 2.0;
+    assert!(
+        (o.max_z as f32 / spm - lifted).abs() < 0.05,
+        "max Z {}",
+        o.max_z as f32 / spm
+    );
+    assert_eq!(o.end_state, State::Idle);
+}
+
+/// A slow host (the queue runs empty between its lines): M524 is still "in a job", as the
+/// pause is, and the lines that follow are not printed.
+#[test]
+fn cancel_between_the_lines_of_a_slow_host_cancels() {
+    let mut h = Host::new(Kind::Printcore, job(2, 10));
+    h.gap_us = 1_200_000;
+    let mut asked = false;
+    let o = drive(h, 600_000_000, |h, now, _| {
+        // Right after a short move has ended, before the next line.
+        if !asked && h.next > 8 && now >= h.last_ok_us + 900_000 {
+            h.pri.push_back("M524".into());
+            asked = true;
+        }
+    });
+    let out = &o.host.out;
+    assert!(!out.contains("nothing to cancel"), "{out}");
+    assert!(o.host.cancelled_at_us.is_some(), "{out}");
+    assert!(
+        o.after_cancel.is_empty(),
+        "job moves after the cancel: {:?}",
+        o.after_cancel
+    );
+    assert!(
+        out.contains("lines of the cancelled job discarded") || out.contains("discarding"),
+        "{out}"
+    );
+}

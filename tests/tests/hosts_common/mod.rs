@@ -1,0 +1,146 @@
+//! What the real-host tests share: the binaries of this workspace, a `sim serve` session on a
+//! pseudo-terminal with its `--record`, the host programs that `scripts/setup-hosts.sh`
+//! installed under `.hosts/`, and bounded runs of them.
+#![allow(dead_code)]
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use tests::workspace_root;
+
+/// `target/<profile>` of this test binary.
+fn profile_dir() -> PathBuf {
+    let exe = std::env::current_exe().expect("test exe");
+    exe.parent()
+        .and_then(Path::parent)
+        .map(Path::to_path_buf)
+        .expect("target dir")
+}
+
+/// A workspace binary, built with cargo first (a no-op when up to date).
+pub fn bin(package: &str, name: &str) -> PathBuf {
+    let dir = profile_dir();
+    let target = dir.parent().expect("target root");
+    let mut c = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
+    c.args(["build", "-q", "-p", package, "--bin", name])
+        .current_dir(workspace_root())
+        .env("CARGO_TARGET_DIR", target);
+    if dir.file_name().is_some_and(|n| n == "release") {
+        c.arg("--release");
+    }
+    assert!(
+        c.status().expect("cargo build").success(),
+        "building {name}"
+    );
+    dir.join(name)
+}
+
+/// The Python of a host venv made by `scripts/setup-hosts.sh` (`printrun` or `octoprint`).
+pub fn host_python(venv: &str) -> PathBuf {
+    let dir = std::env::var_os("HOSTS_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| workspace_root().join(".hosts"));
+    let py = dir.join(venv).join("bin").join("python");
+    assert!(
+        py.exists(),
+        "{} is missing: run `bash scripts/setup-hosts.sh` (installs the real hosts from PyPI)",
+        py.display()
+    );
+    py
+}
+
+/// A `sim serve` process on a pseudo-terminal, writing its record on exit.
+pub struct Sim {
+    child: Child,
+    /// The device path it printed.
+    pub device: String,
+    record: PathBuf,
+}
+
+impl Sim {
+    /// Start `sim serve --speed <speed> --exit-after-idle <idle_s> --record …`.
+    pub fn start(tag: &str, speed: &str, idle_s: &str) -> Sim {
+        let record = std::env::temp_dir().join(format!("hosts_{tag}_{}.json", std::process::id()));
+        let _ = std::fs::remove_file(&record);
+        let mut child = Command::new(bin("sim", "sim"))
+            .args(["serve", "--speed", speed, "--exit-after-idle", idle_s])
+            .arg("--record")
+            .arg(&record)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("start sim serve");
+        let mut line = String::new();
+        let out = child.stdout.take().expect("stdout");
+        BufReader::new(out)
+            .read_line(&mut line)
+            .expect("device path");
+        let device = line.trim().to_string();
+        assert!(device.starts_with("/dev/"), "sim printed {device:?}");
+        Sim {
+            child,
+            device,
+            record,
+        }
+    }
+
+    /// End the session (SIGTERM, as Ctrl-C would) and return its record.
+    pub fn finish(mut self) -> serde_json::Value {
+        let _ = Command::new("kill")
+            .args(["-TERM", &self.child.id().to_string()])
+            .status();
+        let t0 = Instant::now();
+        loop {
+            if let Ok(Some(_)) = self.child.try_wait() {
+                break;
+            }
+            assert!(
+                t0.elapsed() < Duration::from_secs(30),
+                "sim serve did not end"
+            );
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        let text = std::fs::read_to_string(&self.record).expect("record");
+        let _ = std::fs::remove_file(&self.record);
+        serde_json::from_str(&text).expect("record JSON")
+    }
+}
+
+impl Drop for Sim {
+    fn drop(&mut self) {
+        if let Ok(None) = self.child.try_wait() {
+            let _ = self.child.kill();
+            let _ = self.child.wait();
+        }
+    }
+}
+
+/// Run a command to its end, killed after `limit`; returns (success, stdout, stderr).
+pub fn run_bounded(mut cmd: Command, limit: Duration) -> (bool, String, String) {
+    let child = cmd
+        .current_dir(workspace_root())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn");
+    let pid = child.id();
+    let t0 = Instant::now();
+    let guard = std::thread::spawn(move || {
+        while t0.elapsed() < limit {
+            std::thread::sleep(Duration::from_millis(100));
+            if !Path::new(&format!("/proc/{pid}")).exists() {
+                return;
+            }
+        }
+        let _ = Command::new("kill").arg(pid.to_string()).status();
+    });
+    let out = child.wait_with_output().expect("output");
+    let _ = guard.join();
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
