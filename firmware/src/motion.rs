@@ -63,8 +63,12 @@ pub enum LayerSource {
     Comment,
     /// A command (`M73 L`, `SET_PRINT_STATS_INFO CURRENT_LAYER=`).
     Command,
-    /// No marker in the file: Z rose before the next extruding move.
+    /// No marker in the file: the extrusion height changed (see [`crate::layer`]: Z rose or
+    /// dropped before the next extruding move, or a helix rose by a layer height).
     ZRise,
+    /// The end of printing: the first end-code command (heater off, motors off) after the
+    /// last extrusion, so a pause in the last layer stops before the end code.
+    End,
     /// The host compiler's own marker for layer-free (helical) prints: one per turn.
     Turn,
 }

@@ -167,6 +167,8 @@ fn cmd_run(a: RunArgs) -> anyhow::Result<()> {
     sc.segment_len_mm = a.segment;
     sc.split_mm = a.split;
     sc.measure_segmentation_cost = a.seg_cost;
+    // Without a pause nothing reads the executed-block record: do not keep it.
+    sc.keep_records = false;
     let pb = indicatif::ProgressBar::new_spinner();
     if !a.json {
         pb.set_message(format!(
@@ -178,10 +180,14 @@ fn cmd_run(a: RunArgs) -> anyhow::Result<()> {
     }
     let out = sim::run::run(&PrinterFactory, &sc, &lines)?;
     pb.finish_and_clear();
+    // A job that should have finished and did not is a failure (exit status 1), after the
+    // report is printed.
+    let unfinished = sim::run::unfinished(&sc, &out);
     let mut o = stdout();
     if a.json {
         writeln!(o, "{}", serde_json::to_string_pretty(&out.report)?).context(STDOUT)?;
-        return o.flush().context(STDOUT);
+        o.flush().context(STDOUT)?;
+        return unfinished.map_or(Ok(()), |why| Err(anyhow::anyhow!(why)));
     }
     let r = &out.report;
     writeln!(
@@ -196,7 +202,8 @@ fn cmd_run(a: RunArgs) -> anyhow::Result<()> {
         writeln!(o, "  {:>10.3} s  {}", ev.t_s, ev.what).context(STDOUT)?;
     }
     writeln!(o, "{}", sim::demo::summary(r)).context(STDOUT)?;
-    o.flush().context(STDOUT)
+    o.flush().context(STDOUT)?;
+    unfinished.map_or(Ok(()), |why| Err(anyhow::anyhow!(why)))
 }
 
 /// What a failed write to standard output says (a closed pipe, a full disk).

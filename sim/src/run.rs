@@ -104,6 +104,11 @@ pub struct Scenario {
     pub max_time_us: u64,
     /// Also run the job with segmentation off to measure segmentation's print-time cost.
     pub measure_segmentation_cost: bool,
+    /// Keep the executed-block record of a run without a pause (`Outcome::run.rec.records`).
+    /// A pause always keeps both runs' records (the metrics compare them); without one only
+    /// callers that inspect the records need them (`sim run` does not: memory then stays
+    /// flat with job length, see docs/sim.md).
+    pub keep_records: bool,
 }
 
 impl Scenario {
@@ -121,6 +126,7 @@ impl Scenario {
             split_mm: 0.2,
             max_time_us: 48 * 3600 * 1_000_000,
             measure_segmentation_cost: false,
+            keep_records: true,
         }
     }
 
@@ -175,6 +181,8 @@ pub struct Outcome<E: Executive> {
     pub job: Vec<String>,
     /// Timeline of the run.
     pub timeline: Vec<TimelineEvent>,
+    /// The reference run reached the end of the job.
+    pub reference_finished: bool,
 }
 
 /// Make a job ready for a policy: host-split pre-splits it. Returns the lines to send and,
@@ -243,9 +251,24 @@ pub fn run<F: Factory>(
 ) -> anyhow::Result<Outcome<F::Exec>> {
     let wall = std::time::Instant::now();
     let (job, source) = prepare_job(sc.policy, job_lines, sc.split_mm);
-    let info = JobInfo::parse(&job);
+    // The host's view of the job (layers, states) is only read around a pause.
+    let info = if sc.pause.is_some() {
+        JobInfo::parse(&job)
+    } else {
+        JobInfo::default()
+    };
     let mut a = new_engine(f, sc, job.clone());
-    let mut b = new_engine(f, sc, job.clone());
+    a.rec.keep_records = sc.keep_records || sc.pause.is_some();
+    // Without a pause the reference is the run itself and is never stepped.
+    let mut b = new_engine(
+        f,
+        sc,
+        if sc.pause.is_some() {
+            job.clone()
+        } else {
+            Vec::new()
+        },
+    );
     let mut timeline = Vec::new();
     let mut note = |t_us: u64, what: String| {
         timeline.push(TimelineEvent {
@@ -429,7 +452,15 @@ pub fn run<F: Factory>(
             "printing again (first job step after resume)".into(),
         );
     }
-    note(a.rec.last_step_us, "job finished".into());
+    note(
+        a.rec.last_step_us,
+        if a_done {
+            "job finished"
+        } else {
+            "last step (the job did not finish)"
+        }
+        .into(),
+    );
     timeline.sort_by(|x, y| x.t_s.total_cmp(&y.t_s));
     Ok(Outcome {
         report,
@@ -437,7 +468,47 @@ pub fn run<F: Factory>(
         reference: b,
         job,
         timeline,
+        reference_finished: b_done,
     })
+}
+
+/// Why a run that should have reached the end of its job did not (`None` when it did; with a
+/// pause and no resume, why the pause never completed, if it did not). A job that does not finish
+/// is a failure of the firmware (a pause that never completes, a wait that never ends), so
+/// `sim run` reports it and exits non-zero instead of printing "job finished".
+pub fn unfinished<E: Executive>(sc: &Scenario, o: &Outcome<E>) -> Option<String> {
+    let why = |e: &Engine<E>, what: &str| {
+        let st = e.fw.status();
+        let last = e.host.received.last().map_or(String::new(), |r| {
+            format!("; last printer line {:?}", r.text)
+        });
+        format!(
+            "{what}: printer {:?} at {:.3} s (virtual), {} of {} lines sent, {} moves queued{last}",
+            st.state,
+            e.now_us as f64 * 1e-6,
+            e.host.cursor(),
+            e.host.job().len(),
+            st.queue_depth,
+        )
+    };
+    if sc.pause.is_some() && sc.resume_after_us.is_none() {
+        // Staying paused is the plan: the pause must have completed (parked).
+        return o
+            .report
+            .parked_s
+            .is_none()
+            .then(|| why(&o.run, "the pause never completed"));
+    }
+    if !o.report.finished {
+        return Some(why(&o.run, "the job did not finish"));
+    }
+    if sc.pause.is_some() && !o.reference_finished {
+        return Some(why(
+            &o.reference,
+            "the job did not finish (reference run without the pause)",
+        ));
+    }
+    None
 }
 
 /// Step A and B together from the request on; the time of the first step that differs.

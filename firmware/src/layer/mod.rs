@@ -69,6 +69,7 @@ use crate::config::MachineConfig;
 use crate::gcode::{Command, Line};
 use crate::motion::{Axis, LayerMark, LayerSource, StepPos};
 
+mod height;
 #[cfg(test)]
 mod tests;
 
@@ -127,21 +128,33 @@ enum Family {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct Pending {
     source: LayerSource,
+    /// The slicer's own layer number, if the marker carries one.
+    number: Option<u32>,
     z_um: Option<i32>,
 }
 
 /// The streaming layer detector. See the module documentation.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct LayerDetector {
+    /// Marks emitted.
     count: u32,
+    /// Unnumbered markers of the locked family (`;LAYER_CHANGE`, `;TURN`) or height-rule
+    /// layers seen: the number of the next such layer.
+    counted: u32,
+    /// Number of the last mark (the next unnumbered one follows it).
+    last_number: Option<u32>,
     family: Option<Family>,
     pending: Option<Pending>,
-    /// Z at the end of the last extruding move, µm (Z-rise fallback).
-    last_extrusion_z_um: Option<i32>,
+    /// Extrusion heights (the comment-free rule).
+    heights: height::Heights,
     /// Last known Z, µm.
     z_um: Option<i32>,
     /// Last layer number seen in an `M73 L` / `CURRENT_LAYER=`.
     last_numbered: Option<u32>,
+    /// The end of printing was marked; no other end mark until something extrudes again.
+    ended: bool,
+    /// Mark the end of printing ([`LayerDetector::with_end_mark`]).
+    end_mark: bool,
 }
 
 impl Default for LayerDetector {
@@ -155,12 +168,27 @@ impl LayerDetector {
     pub const fn new() -> Self {
         LayerDetector {
             count: 0,
+            counted: 0,
+            last_number: None,
             family: None,
             pending: None,
-            last_extrusion_z_um: None,
+            heights: height::Heights::new(),
             z_um: None,
             last_numbered: None,
+            ended: false,
+            end_mark: false,
         }
+    }
+
+    /// Also mark the end of printing (the printer's detector): the first end-code command
+    /// after an extrusion — a heater switched off (`M104 S0`, `M140 S0`, ...) or the motors
+    /// disabled (`M84`/`M18` without a timeout) — gets a mark ([`LayerSource::End`], numbered
+    /// one after the last layer), so a `layer` pause requested in the last layer stops at the
+    /// end of that layer instead of after the end code, and its speed-up stops there too. The
+    /// mark ends a layer but starts none: layer counts (host-tools' `stats`) leave it out.
+    pub const fn with_end_mark(mut self) -> Self {
+        self.end_mark = true;
+        self
     }
 
     /// Feed one parsed line with the facts of the move its command made (use
@@ -173,14 +201,23 @@ impl LayerDetector {
         if let Some(comment) = line.comment {
             match classify_comment(comment) {
                 // `accept_family` locks the family on the first marker.
-                Some(CommentMarker::Layer(family, source, z)) if self.accept_family(family) => {
+                Some(CommentMarker::Layer(family, source, number, z))
+                    if self.accept_family(family) =>
+                {
                     out = self.pending.take().map(|p| self.emit(p));
-                    self.pending = Some(Pending { source, z_um: z });
+                    self.pending = Some(Pending {
+                        source,
+                        number,
+                        z_um: z,
+                    });
                 }
                 Some(CommentMarker::Z(z)) => {
                     if let Some(p) = &mut self.pending {
                         p.z_um = Some(z);
                     }
+                }
+                Some(CommentMarker::Header(family)) => {
+                    let _ = self.accept_family(family);
                 }
                 _ => {}
             }
@@ -211,27 +248,38 @@ impl LayerDetector {
                 if out.is_none() {
                     out = Some(self.emit(Pending {
                         source: LayerSource::Command,
+                        number: Some(n),
                         z_um: None,
                     }));
                 }
             }
         }
-        // Z-rise fallback, only while no explicit marker has been seen.
+        // The end of printing: the first end-code command after an extrusion.
+        if out.is_none()
+            && self.end_mark
+            && is_end_command(cmd)
+            && self.heights.printed()
+            && !self.ended
+        {
+            self.ended = true;
+            out = Some(self.emit(Pending {
+                source: LayerSource::End,
+                number: None,
+                z_um: None,
+            }));
+        }
         if facts.extrudes {
-            if self.family.is_none() && out.is_none() {
-                let rose = match self.last_extrusion_z_um {
-                    None => true,
-                    Some(z) => facts.z_start_um > z,
-                };
-                if rose {
-                    self.z_um = Some(facts.z_start_um);
-                    out = Some(self.emit(Pending {
-                        source: LayerSource::ZRise,
-                        z_um: Some(facts.z_start_um),
-                    }));
-                }
+            self.ended = false;
+            // The height rule, only while no marker family is known.
+            let starts = self.heights.extrusion(facts.z_start_um, facts.z_end_um);
+            if starts && self.family.is_none() && out.is_none() {
+                self.z_um = Some(facts.z_start_um);
+                out = Some(self.emit(Pending {
+                    source: LayerSource::ZRise,
+                    number: None,
+                    z_um: Some(facts.z_start_um),
+                }));
             }
-            self.last_extrusion_z_um = Some(facts.z_end_um);
         }
         self.z_um = Some(facts.z_end_um);
         out
@@ -245,12 +293,13 @@ impl LayerDetector {
         self.pending.take().map(|p| self.emit(p))
     }
 
-    /// Number of marks emitted so far (the number of the next layer).
+    /// Number of marks emitted so far.
     pub fn layers(&self) -> u32 {
         self.count
     }
 
-    /// True once an explicit marker has been seen (the Z-rise fallback is off).
+    /// True once an explicit marker (or a slicer header naming the marker family) has been
+    /// seen: the height rule is off.
     pub fn has_explicit_markers(&self) -> bool {
         self.family.is_some()
     }
@@ -266,8 +315,20 @@ impl LayerDetector {
     }
 
     fn emit(&mut self, p: Pending) -> LayerMark {
+        // The slicer's own number when the marker has one; else the count of the family's
+        // unnumbered markers (from 0), or one more than the last mark (the end mark).
+        let layer = match (p.number, p.source) {
+            (Some(n), _) => n,
+            (None, LayerSource::End) => self.last_number.map_or(0, |n| n.saturating_add(1)),
+            (None, _) => {
+                let n = self.counted;
+                self.counted = self.counted.saturating_add(1);
+                n
+            }
+        };
+        self.last_number = Some(layer);
         let mark = LayerMark {
-            layer: self.count,
+            layer,
             z_um: p.z_um.or(self.z_um),
             source: p.source,
         };
@@ -276,13 +337,29 @@ impl LayerDetector {
     }
 }
 
+/// End-code commands: a heater switched off (`M104 S0`, `M140 S0`, `M109 S0`...) or the
+/// motors disabled (`M84`/`M18` without a timeout).
+fn is_end_command(cmd: &Command) -> bool {
+    match cmd {
+        Command::SetTemperature { s, r, .. } => {
+            let off = |v: &Option<f32>| v.is_some_and(|t| t <= 0.0);
+            (off(s) && r.is_none()) || (off(r) && s.is_none()) || (off(s) && off(r))
+        }
+        Command::DisableSteppers { s: None, .. } => true,
+        _ => false,
+    }
+}
+
 /// What a comment says about layers.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum CommentMarker {
-    /// A layer starts (family, source, height if the marker carries one).
-    Layer(Family, LayerSource, Option<i32>),
+    /// A layer starts (family, source, the slicer's number, height if the marker has them).
+    Layer(Family, LayerSource, Option<u32>, Option<i32>),
     /// `;Z:<mm>`: height of the pending layer.
     Z(i32),
+    /// A header naming the slicer, so its marker family before its first marker (the start
+    /// code's purge line is then no layer of its own).
+    Header(Family),
 }
 
 fn strip_prefix_ci<'a>(s: &'a [u8], prefix: &[u8]) -> Option<&'a [u8]> {
@@ -313,9 +390,23 @@ fn mm_to_um(s: &[u8]) -> Option<i32> {
     Some(libm::roundf(v * 1000.0) as i32)
 }
 
-fn is_int(s: &[u8]) -> bool {
-    let s = s.strip_prefix(b"-").unwrap_or(s);
-    !s.is_empty() && s.iter().all(u8::is_ascii_digit)
+/// A layer number: digits, or a negative number (Cura's raft layers), which counts as 0.
+fn layer_number(s: &[u8]) -> Option<u32> {
+    let (neg, digits) = match s.strip_prefix(b"-") {
+        Some(d) => (true, d),
+        None => (false, s),
+    };
+    if digits.is_empty() || !digits.iter().all(u8::is_ascii_digit) {
+        return None;
+    }
+    if neg {
+        return Some(0);
+    }
+    let mut n: u32 = 0;
+    for d in digits {
+        n = n.saturating_mul(10).saturating_add(u32::from(d - b'0'));
+    }
+    Some(n)
 }
 
 fn classify_comment(c: &[u8]) -> Option<CommentMarker> {
@@ -325,24 +416,46 @@ fn classify_comment(c: &[u8]) -> Option<CommentMarker> {
             Family::Prusa,
             LayerSource::Comment,
             None,
+            None,
         ));
+    }
+    // Cura's header (`;FLAVOR:Marlin` first, `;Generated with Cura_SteamEngine`) and its
+    // `;LAYER_COUNT:` announce `;LAYER:n` before the start code's purge line.
+    if t.starts_with(b"FLAVOR:")
+        || t.starts_with(b"LAYER_COUNT:")
+        || t.starts_with(b"Generated with Cura")
+    {
+        return Some(CommentMarker::Header(Family::Cura));
+    }
+    if let Some(rest) = t.strip_prefix(b"generated by ") {
+        let prusa_like: [&[u8]; 3] = [b"PrusaSlicer", b"SuperSlicer", b"OrcaSlicer"];
+        if prusa_like.iter().any(|p| rest.starts_with(p)) {
+            return Some(CommentMarker::Header(Family::Prusa));
+        }
     }
     if let Some(rest) = t.strip_prefix(b"Z:") {
         return mm_to_um(rest).map(CommentMarker::Z);
     }
     if let Some(rest) = t.strip_prefix(b"LAYER:") {
-        return is_int(trim(rest)).then_some(CommentMarker::Layer(
-            Family::Cura,
-            LayerSource::Comment,
+        return layer_number(trim(rest))
+            .map(|n| CommentMarker::Layer(Family::Cura, LayerSource::Comment, Some(n), None));
+    }
+    if t == b"TURN" {
+        return Some(CommentMarker::Layer(
+            Family::Turn,
+            LayerSource::Turn,
+            None,
             None,
         ));
     }
-    if t == b"TURN" || t.strip_prefix(b"TURN:").is_some_and(|r| is_int(trim(r))) {
-        return Some(CommentMarker::Layer(Family::Turn, LayerSource::Turn, None));
+    if let Some(rest) = t.strip_prefix(b"TURN:") {
+        return layer_number(trim(rest))
+            .map(|n| CommentMarker::Layer(Family::Turn, LayerSource::Turn, Some(n), None));
     }
     // Simplify3D: "; layer 12, Z = 2.600".
     if let Some(rest) = strip_prefix_ci(t, b"layer ") {
         let digits = rest.iter().take_while(|c| c.is_ascii_digit()).count();
+        let number = rest.get(..digits).and_then(layer_number);
         if digits > 0 && matches!(rest.get(digits), None | Some(b',')) {
             let z = rest
                 .windows(3)
@@ -352,6 +465,7 @@ fn classify_comment(c: &[u8]) -> Option<CommentMarker> {
             return Some(CommentMarker::Layer(
                 Family::Simplify3d,
                 LayerSource::Comment,
+                number,
                 z,
             ));
         }

@@ -2,6 +2,10 @@
 //! rest of the layer, and the release of held blocks on resume.
 
 use super::{Barrier, Planner};
+use crate::motion::LayerMark;
+
+/// Speed² counted as standstill, mm²/s² (0.03 mm/s).
+const STOP_EPS_V2: f32 = 1.0e-3;
 
 impl Planner {
     /// Place the barrier before block `id` and replan to stop there.
@@ -12,6 +16,45 @@ impl Planner {
             self.fast = false;
         }
         self.replan_all();
+    }
+
+    /// True when the plan can still stop before block `id`: braking from the head's fixed entry
+    /// speed (the exit of the executing block) over the queued blocks before `id` reaches
+    /// standstill there. A boundary nearer than the braking distance is not reachable (the
+    /// pause takes the following one); one behind the ring's end always is (the plan always
+    /// ends at standstill within the queued distance).
+    pub fn can_stop_before(&self, id: u32) -> bool {
+        let mut end = 0;
+        while end < self.len && (self.ring[self.idx(end)].id.wrapping_sub(id) as i32) < 0 {
+            end += 1;
+        }
+        if end == 0 {
+            // Between the executing block and the ring: only if that block stops at its end.
+            let exit = if self.len > 0 {
+                self.ring[self.head].entry_v2
+            } else {
+                self.head_entry_v2
+            };
+            return !self.executing || exit <= STOP_EPS_V2;
+        }
+        if !self.executing {
+            // Nothing moving: the whole ring can still be planned from standstill.
+            return true;
+        }
+        let mut v2 = 0.0f32;
+        for k in (1..end).rev() {
+            let b = &self.ring[self.idx(k)];
+            v2 = super::fmin(b.entry_max_v2, v2 + 2.0 * b.accel_mm_s2 * b.len_mm);
+        }
+        let h = &self.ring[self.head];
+        let head_max_v2 = v2 + 2.0 * h.accel_mm_s2 * h.len_mm;
+        h.entry_v2 <= head_max_v2 * (1.0 + 1.0e-4) + STOP_EPS_V2
+    }
+
+    /// The first queued layer mark the plan can still stop at ([`Planner::can_stop_before`]):
+    /// the *first reachable boundary*. `None` when every queued mark is too close.
+    pub fn first_reachable_mark(&self) -> Option<(u32, LayerMark)> {
+        self.marks().find(|(id, _)| self.can_stop_before(*id))
     }
 
     /// Place the barrier at the next layer mark that will be queued.

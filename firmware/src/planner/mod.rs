@@ -12,9 +12,11 @@
 //!   fixed entry speed (the exit of the executing block), so the plan is always one the head can
 //!   follow, and it always ends at standstill within the queued distance.
 //! * **Layer marks** sit between blocks ([`LayerMark`] queued with the id of the block that
-//!   follows). By default a mark is also a stop point of the plan (layer changes are Z moves,
-//!   whose corners are near standstill anyway), so a `layer` pause can stop exactly at any
-//!   queued boundary whenever it is requested.
+//!   follows). A mark costs nothing: the plan runs through it at full speed (helical and vase
+//!   prints have one per turn and no corner there). A `layer` pause places the barrier at the
+//!   *first reachable* mark ([`Planner::first_reachable_mark`]): the first one the head can
+//!   still brake to from its current speed over the queued blocks; a mark inside the braking
+//!   distance is passed and the pause takes the following one.
 //! * **Barrier**: a block id the plan may not pass. Blocks at and behind it stay queued,
 //!   unplanned and untouched until [`Planner::release`].
 
@@ -120,7 +122,9 @@ pub struct PlannerPolicy {
     pub segment: bool,
     /// Highest number of blocks queued, the executing one included (≤ [`RING_CAPACITY`]).
     pub max_blocks: usize,
-    /// Plan a stop at every layer mark so a `layer` pause can stop at any queued boundary.
+    /// Plan a stop at every layer mark (a standstill per mark, whether a pause needs it or
+    /// not). Off by default: a pause stops at the first mark it can still reach
+    /// ([`Planner::first_reachable_mark`]).
     pub stop_at_marks: bool,
 }
 
@@ -129,7 +133,7 @@ impl Default for PlannerPolicy {
         Self {
             segment: true,
             max_blocks: RING_CAPACITY,
-            stop_at_marks: true,
+            stop_at_marks: false,
         }
     }
 }
@@ -231,7 +235,7 @@ impl Planner {
             policy: PlannerPolicy {
                 segment: true,
                 max_blocks: RING_CAPACITY,
-                stop_at_marks: true,
+                stop_at_marks: false,
             },
         }
     }

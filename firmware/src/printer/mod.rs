@@ -165,7 +165,7 @@ impl Printer {
             records_dropped: 0,
             link: HostPorts::new(),
             machine: MachineState::new(&cfg),
-            layers: LayerDetector::new(),
+            layers: LayerDetector::new().with_end_mark(),
             arc: None,
             thermal: Thermal::new(&ThermalConfig::ENDER3),
             fan_pwm: 0,

@@ -75,7 +75,7 @@ impl Printer {
                 match mode {
                     PauseMode::Layer => {
                         let mut layer = None;
-                        if let Some((id, m)) = self.planner.first_mark() {
+                        if let Some((id, m)) = self.planner.first_reachable_mark() {
                             self.planner.set_barrier(id);
                             layer = Some(m.layer);
                             self.say(format_args!("pause: stopping before layer {}", m.layer));

@@ -276,7 +276,8 @@ impl Printer {
         }
         let mut hit = None;
         for (id, m) in self.planner.marks() {
-            if self.schedule_hit(&m) {
+            // A matching mark too close to brake for: the next reachable one (it matches too).
+            if self.schedule_hit(&m) && self.planner.can_stop_before(id) {
                 hit = Some((id, m));
                 break;
             }
