@@ -48,8 +48,8 @@ fn bench(c: &mut Criterion) {
             let mut sink = [0u8; 256];
             // The host sends one line per ok; feed line by line and answer each.
             for l in &lines {
-                link.receive(black_box(l));
-                link.receive(b"\n");
+                let _ = link.receive(black_box(l));
+                let _ = link.receive(b"\n");
                 while let Some(rx) = link.pop_line() {
                     if let Ok(p) = parse_line(rx.text()) {
                         n += p.command.is_some() as usize;

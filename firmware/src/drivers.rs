@@ -4,6 +4,7 @@
 //! instantiates them with embassy-stm32's `Output`/`Input`.
 
 pub mod adc;
+pub mod tmc2209;
 
 use crate::motion::{PauseMode, Realtime, AXES};
 use embedded_hal::digital::{InputPin, OutputPin};

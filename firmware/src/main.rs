@@ -38,6 +38,7 @@ mod image {
     use embassy_usb::class::cdc_acm::{CdcAcmClass, State as CdcState};
     use embassy_usb::UsbDevice;
     use firmware::config::MachineConfig;
+    use firmware::link::PortId;
     use firmware::motion::{Axis, Realtime};
     use firmware::planner::BlockKind;
     use firmware::printer::{Command, Printer, State, StepperRequest};
@@ -152,9 +153,16 @@ mod image {
                 .borrow_mut()
                 .push_command(Command::SetPosition(target), 0);
         }
+        // Saved settings (M500) replace the factory ones; M500/M501 run in their own task.
+        crate::board::flash::start(&spawner, printer);
 
-        let steppers = StepperPins::new(pins.step, pins.dir, pins.enable, 0b1111);
-        let endstops = Endstops::new(pins.endstops, 0b111);
+        let steppers = StepperPins::new(
+            pins.step,
+            pins.dir,
+            pins.enable,
+            cfg.dir_high_positive_mask(),
+        );
+        let endstops = Endstops::new(pins.endstops, cfg.endstop_hit_high_mask());
         let producer = stepper::init(steppers, endstops);
 
         // USB CDC-ACM.
@@ -234,28 +242,18 @@ mod image {
         }
     }
 
-    /// Pushes pending host-link output to both ports, as far as both pipes have room (a port
-    /// that does not drain, e.g. USB not connected, loses bytes rather than stalling the
-    /// printer; the executive keeps what neither pipe could take).
+    /// Pushes each port's pending host-link output to its pipe (USB, TFT UART), as far as the
+    /// pipe has room; the executive keeps the rest in that port's output ring.
     fn flush_output(p: &mut Printer) {
         let mut buf = [0u8; 128];
-        loop {
-            let room = USB_OUT
-                .free_capacity()
-                .max(UART_OUT.free_capacity())
-                .min(buf.len());
-            if room == 0 {
-                return;
-            }
-            let n = p.read_output(buf.get_mut(..room).unwrap_or(&mut []));
-            if n == 0 {
-                return;
-            }
-            let data = buf.get(..n).unwrap_or(&[]);
-            for pipe in [&USB_OUT, &UART_OUT] {
-                if pipe.free_capacity() >= n {
-                    let _ = pipe.try_write(data);
+        for (port, pipe) in [(PortId::Usb, &USB_OUT), (PortId::Tft, &UART_OUT)] {
+            loop {
+                let room = pipe.free_capacity().min(buf.len());
+                let n = p.read_output_on(port, buf.get_mut(..room).unwrap_or(&mut []));
+                if n == 0 {
+                    break;
                 }
+                let _ = pipe.try_write(buf.get(..n).unwrap_or(&[]));
             }
         }
     }
@@ -605,8 +603,20 @@ mod image {
             loop {
                 rx.wait_connection().await;
                 while let Ok(n) = rx.read_packet(&mut buf).await {
-                    let data = buf.get(..n).unwrap_or(&[]);
-                    printer.borrow_mut().receive(data, printer_now_us());
+                    // Flow control: bytes the printer cannot take yet are offered again; the
+                    // next packet is not read meanwhile, so the endpoint NAKs the host.
+                    let mut data = buf.get(..n).unwrap_or(&[]);
+                    loop {
+                        let taken =
+                            printer
+                                .borrow_mut()
+                                .receive_on(PortId::Usb, data, printer_now_us());
+                        data = data.get(taken..).unwrap_or(&[]);
+                        if data.is_empty() {
+                            break;
+                        }
+                        Timer::after_millis(1).await;
+                    }
                 }
             }
         };
@@ -635,8 +645,26 @@ mod image {
         loop {
             match select(rx.read(&mut inbuf), UART_OUT.read(&mut outbuf)).await {
                 Either::First(Ok(n)) => {
-                    let data = inbuf.get(..n).unwrap_or(&[]);
-                    printer.borrow_mut().receive(data, printer_now_us());
+                    // Port 1: its own line assembler, line numbers and `ok`s. Bytes not taken
+                    // are offered again (the UART's RX buffer holds the rest meanwhile), while
+                    // the answers keep flowing.
+                    let mut data = inbuf.get(..n).unwrap_or(&[]);
+                    loop {
+                        let taken =
+                            printer
+                                .borrow_mut()
+                                .receive_on(PortId::Tft, data, printer_now_us());
+                        data = data.get(taken..).unwrap_or(&[]);
+                        if data.is_empty() {
+                            break;
+                        }
+                        match UART_OUT.try_read(&mut outbuf) {
+                            Ok(k) => {
+                                let _ = tx.write_all(outbuf.get(..k).unwrap_or(&[])).await;
+                            }
+                            Err(_) => Timer::after_millis(1).await,
+                        }
+                    }
                 }
                 Either::First(Err(_)) => {}
                 Either::Second(n) => {

@@ -36,7 +36,7 @@ use core::fmt;
 pub use autotune::{Autotune, AutotuneError, AutotuneStatus};
 pub use pid::{Pid, PidGains, PID_MAX};
 pub use protection::{Protection, ProtectionConfig, WatchdogTrip};
-pub use thermistor::{SensorFault, Thermistor, ThermistorTable};
+pub use thermistor::{Curve, SensorFault, Thermistor, ThermistorTable};
 
 /// Number of heaters.
 pub const HEATERS: usize = 2;
@@ -130,13 +130,13 @@ pub struct ThermalConfig {
 }
 
 impl ThermalConfig {
-    /// Ender-3 class: 100k B3950 thermistors, the PID gains of Marlin's Creality Ender-3
+    /// Ender-3 class: Marlin thermistor table 1 (EPCOS 100k) on both heaters (see [`Thermistor::MARLIN_1`]), the PID gains of Marlin's Creality Ender-3
     /// example configurations (hot end 21.73/1.54/76.55, bed 462.10/85.47/624.59 — run M303 on
     /// your own printer), MAXTEMP 275 °C / 125 °C, MINTEMP 5 °C,
     /// Marlin's protection periods, fan at 50 °C, residency 10 s within 1 °C.
     pub const ENDER3: ThermalConfig = ThermalConfig {
         hotend: HeaterConfig {
-            thermistor: Thermistor::NTC_100K_3950,
+            thermistor: Thermistor::MARLIN_1,
             control: Control::Pid(PidGains {
                 kp: 21.73,
                 ki: 1.54,
@@ -150,7 +150,7 @@ impl ThermalConfig {
             residency_s: 10.0,
         },
         bed: HeaterConfig {
-            thermistor: Thermistor::NTC_100K_3950,
+            thermistor: Thermistor::MARLIN_1,
             control: Control::Pid(PidGains {
                 kp: 462.1,
                 ki: 85.47,

@@ -231,11 +231,11 @@ fn manual_policy_job_lines_during_the_return_keep_the_job_state() {
 fn m400_is_answered_when_the_moves_before_it_have_ended() {
     let mut p = printer();
     let mut out = String::new();
-    p.receive(b"G1 X100 F3000\n", 0);
+    assert_eq!(p.receive(b"G1 X100 F3000\n", 0), 14);
     let _ = p.write_output(&mut out);
     assert_eq!(out, "ok\n");
     out.clear();
-    p.receive(b"M400\nM105\n", 1000);
+    assert_eq!(p.receive(b"M400\nM105\n", 1000), 10);
     p.poll(1000);
     let _ = p.write_output(&mut out);
     assert_eq!(out, "", "M400 answered before the move ran");
@@ -292,7 +292,8 @@ fn homing_waits_until_the_last_segment_has_run() {
     let mut now = 0u64;
     while now < 20_000_000 {
         if !waiting && next < lines.len() {
-            p.receive(format!("{}\n", lines[next]).as_bytes(), now);
+            let l = format!("{}\n", lines[next]);
+            assert_eq!(p.receive(l.as_bytes(), now), l.len());
             next += 1;
             waiting = true;
         }

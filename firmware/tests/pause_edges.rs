@@ -249,7 +249,11 @@ fn emergency_stop_at_any_point_halts() {
         );
         assert_eq!(p.status().state, State::Halted);
         assert!(p.next_step_ns().is_none());
-        assert!(r.out.contains("emergency stop"), "{}", r.out);
+        assert!(
+            r.out.contains("Error:Printer halted. kill() called!"),
+            "{}",
+            r.out
+        );
         p.request(Realtime::Resume, 40_000_000);
         assert_eq!(p.status().state, State::Halted);
     }

@@ -52,6 +52,10 @@ struct Host {
     paused_at_us: Option<u64>,
     /// When the first `ok` after `//action:paused` arrived.
     ok_after_paused_us: Option<u64>,
+    /// Wait this long after an `ok` before the next job line (a slow host).
+    gap_us: u64,
+    last_ok_us: u64,
+    cancelled_at_us: Option<u64>,
 }
 
 impl Host {
@@ -67,7 +71,27 @@ impl Host {
             out: String::new(),
             paused_at_us: None,
             ok_after_paused_us: None,
+            gap_us: 0,
+            last_ok_us: 0,
+            cancelled_at_us: None,
         }
+    }
+
+    /// Start a new job the way the host does: printcore sends `N-1 M110` and numbers from 0,
+    /// OctoPrint sends `M110 N0` and numbers from 1.
+    fn start_job(&mut self, job: Vec<String>) {
+        let (reset, first) = match self.kind {
+            Kind::Printcore => {
+                let pre = "N-1 M110";
+                (format!("{pre}*{}", checksum(pre.as_bytes())), 0)
+            }
+            Kind::OctoPrint => ("M110 N0".to_string(), 1),
+        };
+        self.pri.push_back(reset);
+        self.job = job;
+        self.next = 0;
+        self.lineno = first;
+        self.held = false;
     }
 
     fn done(&self) -> bool {
@@ -83,6 +107,7 @@ impl Host {
         for l in &lines {
             if l.starts_with("ok") {
                 self.in_flight = false;
+                self.last_ok_us = now;
                 if self.paused_at_us.is_some() && self.ok_after_paused_us.is_none() {
                     self.ok_after_paused_us = Some(now);
                 }
@@ -93,6 +118,12 @@ impl Host {
                 }
             } else if l == "//action:resumed" {
                 self.held = false;
+            } else if l == "//action:cancel" {
+                self.cancelled_at_us = Some(now);
+                if self.kind == Kind::OctoPrint {
+                    // OctoPrint cancels its job: no more job lines.
+                    self.next = self.job.len();
+                }
             }
             assert!(!l.starts_with("Resend") && !l.starts_with("Error"), "{l}");
         }
@@ -106,7 +137,7 @@ impl Host {
         }
         let line = if let Some(l) = self.pri.pop_front() {
             format!("{l}\n")
-        } else if !self.held && self.next < self.job.len() {
+        } else if !self.held && self.next < self.job.len() && now >= self.last_ok_us + self.gap_us {
             let pre = format!("N{} {}", self.lineno, self.job[self.next]);
             self.next += 1;
             self.lineno += 1;
@@ -115,13 +146,16 @@ impl Host {
             return;
         };
         self.in_flight = true;
-        p.receive(line.as_bytes(), now);
+        let taken = p.receive(line.as_bytes(), now);
+        assert_eq!(taken, line.len(), "a one-line-per-ok host's line is always taken");
     }
 }
 
 struct Outcome {
     host: Host,
     executed: Vec<(u32, u32)>,
+    /// Job blocks executed after `//action:cancel`: (seq, seg, position after).
+    after_cancel: Vec<(u32, u32, [i32; 4])>,
     stops: usize,
     end_state: State,
     /// Highest Z the head reached, steps.
@@ -138,6 +172,7 @@ fn drive(
 ) -> Outcome {
     let mut p = Printer::new(MachineConfig::ENDER3);
     let mut executed = Vec::new();
+    let mut after_cancel = Vec::new();
     let mut stops = 0;
     let mut max_z = i32::MIN;
     let mut stop_z = 0;
@@ -159,8 +194,14 @@ fn drive(
                     seq,
                     seg,
                     kind: BlockKind::Job,
+                    pos,
                     ..
-                } => executed.push((seq, seg)),
+                } => {
+                    executed.push((seq, seg));
+                    if host.cancelled_at_us.is_some() {
+                        after_cancel.push((seq, seg, pos));
+                    }
+                }
                 Record::Stopped { pos, .. } => {
                     stops += 1;
                     stop_z = pos[2];
@@ -178,6 +219,7 @@ fn drive(
     Outcome {
         host,
         executed,
+        after_cancel,
         stops,
         end_state: p.status().state,
         max_z,
@@ -324,7 +366,8 @@ fn refusals_are_echo_warnings_and_change_nothing() {
         "M114",
         "M105",
     ] {
-        p.receive(format!("{l}\n").as_bytes(), t);
+        let line = format!("{l}\n");
+        assert_eq!(p.receive(line.as_bytes(), t), line.len());
         for _ in 0..2000 {
             t += 1000;
             p.poll(t);
@@ -352,5 +395,127 @@ fn refusals_are_echo_warnings_and_change_nothing() {
     assert_eq!(
         p.thermal().target_c(firmware::thermal::HeaterId::Hotend),
         200.0
+    );
+}
+
+fn xy_steps(x: f32, y: f32) -> (i32, i32) {
+    let cfg = MachineConfig::ENDER3;
+    (
+        (x * cfg.axes[0].steps_per_mm).round() as i32,
+        (y * cfg.axes[1].steps_per_mm).round() as i32,
+    )
+}
+
+/// printcore ignores `//action:cancel` and streams the rest of the job: none of it prints
+/// (discarded, each answered `ok`); its next job, after its `N-1 M110`, prints.
+#[test]
+fn printcore_streaming_after_a_cancel_does_not_print_the_rest_of_the_job() {
+    let mut asked = false;
+    let mut restarted = false;
+    let o = drive(
+        Host::new(Kind::Printcore, job(6, 30)),
+        600_000_000,
+        |h, now, _| {
+            if !asked && now >= 3_000_000 {
+                h.pri.push_back("M524".into());
+                asked = true;
+            }
+            if !restarted && h.cancelled_at_us.is_some() && h.next >= h.job.len() && !h.in_flight {
+                h.start_job(vec!["G90".into(), "G1 X5 Y5 F3000".into()]);
+                restarted = true;
+            }
+        },
+    );
+    let out = &o.host.out;
+    assert!(o.host.cancelled_at_us.is_some(), "{out}");
+    assert!(restarted && o.host.done());
+    assert!(
+        out.contains("lines of the cancelled job discarded"),
+        "{out}"
+    );
+    // After the cancel only the new job's move ran.
+    let (x, y) = xy_steps(5.0, 5.0);
+    let last = o.after_cancel.last().expect("the new job ran");
+    assert_eq!((last.2[0], last.2[1]), (x, y));
+    let seqs: std::collections::BTreeSet<u32> = o.after_cancel.iter().map(|e| e.0).collect();
+    assert_eq!(
+        seqs.len(),
+        1,
+        "only the new job's move after the cancel: {seqs:?}"
+    );
+    assert_eq!(o.end_state, State::Idle);
+}
+
+/// OctoPrint stops at `//action:cancel`, sends its cancel script unnumbered (taken and run),
+/// then starts a new job with `M110 N0` (printed).
+#[test]
+fn octoprint_cancel_script_and_next_job_run_after_a_cancel() {
+    let mut asked = false;
+    let mut script = false;
+    let mut restarted = false;
+    let o = drive(
+        Host::new(Kind::OctoPrint, job(6, 30)),
+        600_000_000,
+        |h, now, _| {
+            if !asked && now >= 3_000_000 {
+                h.pri.push_back("M524".into());
+                asked = true;
+            }
+            if let Some(t) = h.cancelled_at_us {
+                if !script {
+                    for l in ["M104 S0", "G91", "G1 Z2 F600", "G90"] {
+                        h.pri.push_back(l.into());
+                    }
+                    script = true;
+                }
+                if !restarted && now > t + 500_000 && h.pri.is_empty() && !h.in_flight {
+                    h.start_job(vec!["G1 X5 Y5 F3000".into()]);
+                    restarted = true;
+                }
+            }
+        },
+    );
+    let out = &o.host.out;
+    assert!(restarted && o.host.done(), "{out}");
+    let (x, y) = xy_steps(5.0, 5.0);
+    let last = o.after_cancel.last().expect("moves after the cancel");
+    assert_eq!((last.2[0], last.2[1]), (x, y), "{out}");
+    // The script's Z lift ran: 2 mm above where the cancel parked.
+    let cfg = MachineConfig::ENDER3;
+    let spm = cfg.axes[2].steps_per_mm;
+    let lifted = o.stop_z as f32 / spm + cfg.pause.lift_z_mm + 2.0;
+    assert!(
+        (o.max_z as f32 / spm - lifted).abs() < 0.05,
+        "max Z {}",
+        o.max_z as f32 / spm
+    );
+    assert_eq!(o.end_state, State::Idle);
+}
+
+/// A slow host (the queue runs empty between its lines): M524 is still "in a job", as the
+/// pause is, and the lines that follow are not printed.
+#[test]
+fn cancel_between_the_lines_of_a_slow_host_cancels() {
+    let mut h = Host::new(Kind::Printcore, job(2, 10));
+    h.gap_us = 1_200_000;
+    let mut asked = false;
+    let o = drive(h, 600_000_000, |h, now, _| {
+        // Right after a short move has ended, before the next line.
+        if !asked && h.next > 8 && now >= h.last_ok_us + 900_000 {
+            h.pri.push_back("M524".into());
+            asked = true;
+        }
+    });
+    let out = &o.host.out;
+    assert!(!out.contains("nothing to cancel"), "{out}");
+    assert!(o.host.cancelled_at_us.is_some(), "{out}");
+    assert!(
+        o.after_cancel.is_empty(),
+        "job moves after the cancel: {:?}",
+        o.after_cancel
+    );
+    assert!(
+        out.contains("lines of the cancelled job discarded") || out.contains("discarding"),
+        "{out}"
     );
 }

@@ -49,13 +49,16 @@ proptest! {
         let mut p = Printer::new(MachineConfig::ENDER3);
         let mut now = 0u64;
         let mut out = String::new();
-        p.receive(&noise, now);
+        // Bytes not taken yet wait here (flow control), offered again at every tick.
+        let mut pending = noise;
         let mut reqs = reqs;
         reqs.sort_by_key(|r| r.0);
         let mut ri = 0;
         for l in &lines {
-            p.receive(format!("{l}\n").as_bytes(), now);
+            pending.extend_from_slice(format!("{l}\n").as_bytes());
             for _ in 0..50 {
+                let n = p.receive(&pending, now);
+                pending.drain(..n);
                 while ri < reqs.len() && reqs[ri].0 <= now {
                     p.request(reqs[ri].1, now);
                     ri += 1;

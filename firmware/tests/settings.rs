@@ -55,7 +55,8 @@ impl Bench {
 
     /// Send one line; return everything written until its `ok` (and the ok).
     fn send(&mut self, line: &str) -> String {
-        self.p.receive(format!("{line}\n").as_bytes(), self.now_us);
+        let bytes = format!("{line}\n");
+        assert_eq!(self.p.receive(bytes.as_bytes(), self.now_us), bytes.len());
         let mut out = String::new();
         for _ in 0..120_000 {
             out.push_str(&self.tick());
@@ -174,7 +175,7 @@ fn steps_per_mm_change_only_when_idle_and_keep_the_head_where_it_is() {
     b.send("M400");
     assert_eq!(b.p.status().position[0], 8000, "50 mm × 160 steps/mm");
     // While moving: refused, nothing changes.
-    b.p.receive(b"G1 X200 F600\n", b.now_us);
+    assert_eq!(b.p.receive(b"G1 X200 F600\n", b.now_us), 13);
     for _ in 0..50 {
         b.tick();
     }

@@ -124,7 +124,17 @@ impl Write for Board {
                 let w = self.to_board.get(self.sent).copied().unwrap_or(Wire::Clean);
                 self.sent += 1;
                 for l in apply(w, &self.inbuf) {
-                    self.link.receive(&l);
+                    // Flow control: what the link does not take waits until lines are handled.
+                    let mut rest = &l[..];
+                    while !rest.is_empty() {
+                        let mut n = self.link.receive(rest);
+                        if n == 0 {
+                            self.run();
+                            n = self.link.receive(rest);
+                            assert!(n > 0, "link wedged");
+                        }
+                        rest = &rest[n..];
+                    }
                 }
                 self.inbuf.clear();
             }

@@ -48,6 +48,9 @@ pub struct Engine<E: Executive> {
     pub events: u64,
     /// Which host line each job sequence number came from.
     pub seqs: SeqMap,
+    /// Bytes that arrived but that the firmware has not taken yet (flow control: they wait on
+    /// the wire and are offered again at every poll).
+    rx_pending: Vec<u8>,
 }
 
 /// Job sequence numbers → the host line that produced them. The firmware numbers moves itself
@@ -106,7 +109,19 @@ impl<E: Executive> Engine<E> {
             out: String::new(),
             events: 0,
             seqs: SeqMap::default(),
+            rx_pending: Vec::new(),
         }
+    }
+
+    /// Offer the bytes waiting on the wire to the firmware.
+    fn offer_pending(&mut self) {
+        if self.rx_pending.is_empty() {
+            return;
+        }
+        self.track_seq();
+        let n = self.fw.receive(&self.rx_pending, self.now_us);
+        self.rx_pending.drain(..n.min(self.rx_pending.len()));
+        self.track_seq();
     }
 
     fn flush_output(&mut self) {
@@ -141,6 +156,7 @@ impl<E: Executive> Engine<E> {
         self.track_seq();
         self.fw.poll(self.now_us);
         self.track_seq();
+        self.offer_pending();
         self.flush_output();
         let st = self.fw.status();
         self.rec.on_status(&st, self.now_us);
@@ -151,6 +167,7 @@ impl<E: Executive> Engine<E> {
         let st = self.fw.status().state;
         self.host.done()
             && self.host.rx.is_idle()
+            && self.rx_pending.is_empty()
             && self.fw.next_step_us(self.now_us).is_none()
             && matches!(st, RunState::Idle | RunState::Cancelled | RunState::Halted)
     }
@@ -167,6 +184,7 @@ impl<E: Executive> Engine<E> {
                 || t_tx.is_some()
                 || t_rx.is_some()
                 || !self.host.done()
+                || !self.rx_pending.is_empty()
                 || self.fw.status().state != RunState::Idle;
             if !busy {
                 return Stop::Finished;
@@ -189,9 +207,8 @@ impl<E: Executive> Engine<E> {
             }
             if t_tx.is_some_and(|x| x <= self.now_us) {
                 while let Some(bytes) = self.host.tx.take_arrived(self.now_us) {
-                    self.track_seq();
-                    self.fw.receive(&bytes, self.now_us);
-                    self.track_seq();
+                    self.rx_pending.extend_from_slice(&bytes);
+                    self.offer_pending();
                 }
                 self.poll_fw();
                 continue;

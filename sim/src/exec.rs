@@ -81,9 +81,10 @@ fn state_of(s: State) -> RunState {
 }
 
 impl Executive for PrinterExec {
-    fn receive(&mut self, bytes: &[u8], now_us: u64) {
-        self.printer.receive(bytes, now_us);
+    fn receive(&mut self, bytes: &[u8], now_us: u64) -> usize {
+        let n = self.printer.receive(bytes, now_us);
         self.drain_records();
+        n
     }
 
     fn request(&mut self, req: Realtime, now_us: u64) {

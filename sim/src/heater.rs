@@ -44,7 +44,7 @@ impl HeaterParams {
         power_w: 40.0,
         ambient_c: 25.0,
         sensor_lag_s: 1.5,
-        thermistor: Thermistor::NTC_100K_3950,
+        thermistor: Thermistor::MARLIN_1,
     };
     /// An Ender-3-class 24 V bed: 220 W, 700 J/K, 1.6 W/K (about 2 minutes to 60 °C).
     pub const ENDER3_BED: HeaterParams = HeaterParams {
@@ -53,7 +53,7 @@ impl HeaterParams {
         power_w: 220.0,
         ambient_c: 25.0,
         sensor_lag_s: 4.0,
-        thermistor: Thermistor::NTC_100K_3950,
+        thermistor: Thermistor::MARLIN_1,
     };
 }
 

@@ -95,7 +95,9 @@ pub struct FirmwareKnobs {
 /// What the simulator drives. Implemented for the real executive in [`crate::exec`].
 pub trait Executive {
     /// Host bytes arrived at `now_us` (realtime requests are handled at once by the firmware).
-    fn receive(&mut self, bytes: &[u8], now_us: u64);
+    /// Returns how many were taken, from the front; the rest must be offered again later
+    /// (flow control: they stay on the wire).
+    fn receive(&mut self, bytes: &[u8], now_us: u64) -> usize;
     /// A realtime request raised at `now_us` outside the serial link (pause button).
     fn request(&mut self, req: Realtime, now_us: u64);
     /// Let the firmware's main loop run at `now_us`.

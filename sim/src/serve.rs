@@ -213,9 +213,13 @@ pub fn serve_with(
     let mut pauses: Vec<PauseTrack> = Vec::new();
     let start = Instant::now();
     let mut last_rx = Instant::now();
+    // When output was last written: the session does not end right after an answer (closing
+    // the master hangs the terminal up, and Linux then discards what the host had not read).
+    let mut last_tx = Instant::now();
     let mut out = String::new();
     let mut pending_out: Vec<u8> = Vec::new();
     let mut buf = [0u8; 4096];
+    let mut rx_pending: Vec<u8> = Vec::new();
     let mut notes_seen = 0usize;
     let mut cancel_marks: Vec<usize> = Vec::new();
     let mut last_poll_us = 0u64;
@@ -226,20 +230,33 @@ pub fn serve_with(
             break;
         }
         let now_us = (start.elapsed().as_secs_f64() * a.speed * 1e6) as u64;
-        // Host bytes.
+        // Settings store: the first pass loads the saved settings (before any host byte is
+        // read, as at power-up), later passes carry out M500/M501.
+        if let Some(f) = flash.as_mut() {
+            f.service(&mut fw.printer);
+        }
+        // Host bytes. Flow control: what the firmware does not take stays in `rx_pending`, and
+        // the pty is not read again until it is all taken, so the host's writes block in the
+        // pty as they would on a USB port that NAKs.
         loop {
+            if !rx_pending.is_empty() {
+                let n = fw.receive(&rx_pending, now_us);
+                let mut reqs = Vec::new();
+                sniff.feed(&rx_pending[..n], &mut reqs);
+                rx_pending.drain(..n);
+                for r in reqs {
+                    note_request(&mut pauses, r, now_us, &rec, &fw);
+                }
+                if !rx_pending.is_empty() {
+                    break;
+                }
+            }
             match nix::unistd::read(master.as_fd(), &mut buf) {
                 Ok(0) => break,
                 Ok(n) => {
-                    let bytes = &buf[..n];
                     last_rx = Instant::now();
                     first_byte_us.get_or_insert(now_us);
-                    let mut reqs = Vec::new();
-                    sniff.feed(bytes, &mut reqs);
-                    fw.receive(bytes, now_us);
-                    for r in reqs {
-                        note_request(&mut pauses, r, now_us, &rec, &fw);
-                    }
+                    rx_pending.extend_from_slice(&buf[..n]);
                 }
                 Err(nix::errno::Errno::EAGAIN) => break,
                 Err(nix::errno::Errno::EIO) => {
@@ -270,11 +287,18 @@ pub fn serve_with(
             fw.poll(now_us);
             last_poll_us = now_us;
         }
-        if let Some(f) = flash.as_mut() {
-            f.service(&mut fw.printer);
-        }
         rec.on_status(&fw.status(), now_us);
         track(&mut pauses, &fw, &rec, &mut notes_seen, &mut cancel_marks);
+        // Idle: no motion (idle, paused, halted, cancelled: anything but a running job or a
+        // wait). Decided before the output is taken: asking for the next step can load a block
+        // and let a waiting command (M400) complete and answer, and that answer must go out
+        // before an idle exit.
+        let st = fw.status().state;
+        let idle = fw.next_step_us(now_us).is_none()
+            && !matches!(
+                st,
+                RunState::Printing | RunState::Pausing | RunState::Resuming
+            );
         // Output.
         out.clear();
         fw.take_output(&mut out);
@@ -283,22 +307,18 @@ pub fn serve_with(
             match nix::unistd::write(&master, &pending_out) {
                 Ok(w) => {
                     pending_out.drain(..w);
+                    last_tx = Instant::now();
                 }
                 Err(nix::errno::Errno::EAGAIN) => {}
                 Err(nix::errno::Errno::EIO) => break,
                 Err(e) => return Err(e).context("writing the pseudo-terminal"),
             }
         }
-        // Idle exit.
-        // No motion (idle, paused, halted, cancelled: anything but a running job or a wait).
-        let st = fw.status().state;
-        let idle = fw.next_step_us(now_us).is_none()
-            && !matches!(
-                st,
-                RunState::Printing | RunState::Pausing | RunState::Resuming
-            );
+        // Idle exit, once every answer is out (the answers of this round included).
         if a.exit_after_idle > 0.0
             && idle
+            && pending_out.is_empty()
+            && last_tx.elapsed() > Duration::from_secs_f64(a.exit_after_idle)
             && last_rx.elapsed() > Duration::from_secs_f64(a.exit_after_idle)
         {
             break;

@@ -31,7 +31,11 @@ fn assert_clean_resume(r: &sim::metrics::PauseReport) {
 #[test]
 fn prusaslicer_layer_pause_stops_at_the_boundary_and_resumes_exactly() {
     let job = fixture("prusaslicer.gcode");
-    for at in [200.0, 430.0] {
+    // The requests land where the ×3 speed-up has something to speed up. (With Marlin's
+    // Ender-3 junction deviation, 0.08 mm, 430 s falls in layer 12's internal infill, whose
+    // 6-12 mm moves at 500 mm/s² never reach their 80 mm/s feed: nothing changes for 1.9 s
+    // there, and the stop still comes at the boundary 2.9 s after the request.)
+    for at in [200.0, 426.0] {
         let r = run_pause(&job, Mode::Layer, at);
         assert!(
             r.stopped_at_layer_boundary,

@@ -19,7 +19,7 @@ fuzz_target!(|data: &[u8]| {
     // The first byte picks the chunk size, so splits are explored too.
     let chunk = usize::from(data.first().copied().unwrap_or(1)).max(1);
     for piece in data.chunks(chunk) {
-        link.receive(piece);
+        let _ = link.receive(piece);
         assert!(link.lines_waiting() <= LINE_QUEUE);
         while link.take_realtime().is_some() {}
         while let Some(line) = link.pop_line() {

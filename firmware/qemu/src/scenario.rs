@@ -54,6 +54,12 @@ pub enum ScenarioError {
     },
     /// Ended away from the last target.
     WrongEnd,
+    /// The printer did not take a whole line from a host that waits for `ok` (flow control
+    /// must never hold such a line back).
+    LineNotTaken {
+        /// Script item it was at.
+        item: u32,
+    },
 }
 
 /// What is being measured.
@@ -312,8 +318,11 @@ pub fn run(meter: &mut impl Meter) -> Result<Digest, ScenarioError> {
                         false
                     } else {
                         meter.begin();
-                        p.receive(line.bytes(), now);
+                        let taken = p.receive(line.bytes(), now);
                         meter.end(Work::Plan);
+                        if taken < line.bytes().len() {
+                            return Err(ScenarioError::LineNotTaken { item: item_no });
+                        }
                         awaiting_ok = true;
                         true
                     }

@@ -5,11 +5,13 @@
 //!   timeout, homing), in the library as `firmware::drivers` so a simulator or a test can run
 //!   them with its own pins;
 //! * [`clock`] — TIM5 time base (4 MHz, 64-bit);
+//! * [`flash`] — the settings store in flash sectors 10–11 (M500/M501);
 //! * [`stepper`] — the step interrupt and its event queue;
 //! * [`heaters`] — thermistor sampling, software PWM, hot-end fan;
 //! * [`safety`] — heaters off from any context (panic, HardFault).
 
 pub mod clock;
+pub mod flash;
 pub use firmware::drivers;
 pub mod heaters;
 pub mod pins;

@@ -13,7 +13,7 @@
 //!   (`X1E5` is X=1, E=5), magnitude at most [`MAX_ABS_VALUE`] and, unless zero, at least
 //!   [`MIN_ABS_VALUE`]; some letters are flags that may stand alone (`G28 X Y`);
 //! - comments: `;` to the end of the line, and `( … )` anywhere between words;
-//! - text commands (M117, M118): the rest of the line up to `;`, at most [`TEXT_CAP`] bytes.
+//! - text commands (M117, M118): the rest of the line up to `;`, cut to [`TEXT_CAP`] bytes.
 //!
 //! Every G/M code without a meaning here parses to [`Command::Unknown`] (the executive answers
 //! `echo:Unknown command`, like Marlin). Syntax errors — a letter without a number where one is
@@ -413,7 +413,7 @@ pub enum ParseErrorKind {
     BadCode,
     /// A `(` comment without `)`.
     UnclosedComment,
-    /// M117/M118 or unknown-command text longer than [`TEXT_CAP`].
+    /// Text longer than [`TEXT_CAP`] (no longer produced: display text is cut instead).
     TextTooLong,
     /// Text that is not valid UTF-8 or has control characters.
     BadText,
@@ -828,12 +828,20 @@ fn parse_text(code: &[u8], mut i: usize) -> Result<Text, ParseError> {
     to_text(raw, i)
 }
 
+/// Text that is only displayed or echoed: cut to [`TEXT_CAP`] bytes (at a character boundary)
+/// rather than refused, so a long `M117` or `EXCLUDE_OBJECT_DEFINE` line never stops a job.
 fn to_text(raw: &[u8], at: usize) -> Result<Text, ParseError> {
-    if raw.len() > TEXT_CAP {
-        return Err(err(ParseErrorKind::TextTooLong, at + TEXT_CAP));
-    }
-    let s = core::str::from_utf8(raw)
-        .map_err(|e| err(ParseErrorKind::BadText, at + e.valid_up_to()))?;
+    let cut = raw.len() > TEXT_CAP;
+    let head = raw.get(..TEXT_CAP).unwrap_or(raw);
+    let s = match core::str::from_utf8(head) {
+        Ok(s) => s,
+        // A character cut in two at the cap: drop its first bytes.
+        Err(e) if cut && e.error_len().is_none() => {
+            core::str::from_utf8(head.get(..e.valid_up_to()).unwrap_or(&[]))
+                .map_err(|_| err(ParseErrorKind::BadText, at))?
+        }
+        Err(e) => return Err(err(ParseErrorKind::BadText, at + e.valid_up_to())),
+    };
     if let Some(p) = s.chars().position(char::is_control) {
         return Err(err(ParseErrorKind::BadText, at + p));
     }

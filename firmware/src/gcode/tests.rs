@@ -139,8 +139,23 @@ fn text_commands() {
         cmd("M118 E1 hello"),
         Command::Echo(Text::try_from("E1 hello").unwrap())
     );
+    // Display text is cut, never refused (a long M117 must not stop a job).
     let long = format!("M117 {}", "x".repeat(TEXT_CAP + 1));
-    assert_eq!(kind(&long), ParseErrorKind::TextTooLong);
+    assert_eq!(
+        cmd(&long),
+        Command::Message(Text::try_from("x".repeat(TEXT_CAP).as_str()).unwrap())
+    );
+    // ... at a character boundary: `é` (2 bytes) straddling the cap is dropped whole.
+    let long = format!("M118 {}é{}", "x".repeat(TEXT_CAP - 1), "y".repeat(9));
+    assert_eq!(
+        cmd(&long),
+        Command::Echo(Text::try_from("x".repeat(TEXT_CAP - 1).as_str()).unwrap())
+    );
+    let long = format!(
+        "EXCLUDE_OBJECT_DEFINE NAME=a POLYGON=[{}]",
+        "[1,2],".repeat(40)
+    );
+    assert!(matches!(cmd(&long), Command::Unknown(t) if t.len() == TEXT_CAP));
     assert_eq!(kind("M117 a\u{1}b"), ParseErrorKind::BadText);
 }
 

@@ -1,23 +1,37 @@
 //! The host link: bytes from the serial port in, complete checked lines and realtime requests
 //! out, responses back to the host. Speaks what Pronterface/printcore, OctoPrint and
-//! Repetier-Host speak to Marlin.
+//! Repetier-Host speak to Marlin. One [`HostLink`] per port; [`HostPorts`] puts the USB port
+//! and the TFT's UART in front of one executive.
 //!
 //! # Flow
-//! 1. The driver calls [`HostLink::receive`] with every received byte. Realtime requests are
-//!    picked out at once, ahead of everything queued ([`HostLink::take_realtime`]).
+//! 1. The driver calls [`HostLink::receive`] with received bytes; it takes what it has room
+//!    for and returns how many it took — the driver keeps the rest and offers it again later
+//!    (**flow control, never refusal**: the bytes stay in the pty, the USB endpoint NAKs).
+//!    Realtime requests are picked out of every byte taken, ahead of everything queued
+//!    ([`HostLink::take_realtime`]).
 //! 2. Other lines are checked (line number, checksum) and wait in a small FIFO of
 //!    [`LINE_QUEUE`] lines. The executive takes one with [`HostLink::pop_line`] **only when its
 //!    command queue has room**, handles it, and answers `ok` with
-//!    [`HostLink::respond`]`(`[`Response::Ok`]`)` (or the `ok T:…` of M105). The host sends
-//!    the next line only after an `ok`, so no line is ever dropped and every line is answered.
+//!    [`HostLink::respond`]`(`[`Response::Ok`]`)` (or the `ok T:…` of M105). When the FIFO is
+//!    full, the link stops before the next command line's end; so no line is ever dropped and
+//!    every line is answered.
 //! 3. The driver sends what [`HostLink::write_output`] / [`HostLink::read_output`] give.
 //!
+//! The rule that keeps realtime requests reachable: a host that waits for `ok` (or keeps its
+//! own window of lines in flight) never has more than its window outstanding, so its resume
+//! and cancel lines are always within the bytes the link takes. Marlin's emergency parser works
+//! the same way on its receive ring.
+//!
 //! # Lines
-//! A line ends at `\n` or `\r`; empty lines are ignored (no `ok`, as in Marlin). A line may be
-//! at most [`LINE_CAP`] bytes (line number and checksum included): a longer one is rejected with
-//! `Error:Line too long` — never truncated — and the link resynchronises at the next line end.
-//! Comment-only lines are passed on and acknowledged (they may carry layer markers); unlike
-//! Marlin, which drops them silently. Hosts normally strip comments anyway.
+//! A line ends at `\n` or `\r`; empty lines are ignored (no `ok`, as in Marlin). Command text
+//! is kept up to [`LINE_CAP`] bytes; comment text (after `;`) up to [`COMMENT_KEEP`] bytes and
+//! the rest of a comment is dropped as it arrives, never an error (the checksum is still
+//! computed over every byte). A line whose command text is longer than [`LINE_CAP`] is passed
+//! on cut if it is display text (`M117`, `M118`, unknown commands that are only echoed, such
+//! as Klipper's `EXCLUDE_OBJECT_DEFINE`), otherwise ignored with
+//! `echo:Line too long (max 128 bytes), ignored` and `ok` — never an `Error:`, which would
+//! end an OctoPrint print. Comment-only lines are passed on and acknowledged (they may carry
+//! layer markers); unlike Marlin, which drops them silently. Hosts normally strip comments.
 //!
 //! # Line numbers and checksums (Marlin behaviour)
 //! `N<n> <command>*<checksum>`, checksum = XOR of every byte before `*`. With `L` the last line
@@ -25,16 +39,20 @@
 //! - `n == L+1`, checksum right: accepted, `L = n`;
 //! - bad checksum, or `N` without `*`: `Error:checksum mismatch, Last Line: L` (or
 //!   `Error:No Checksum with line number, Last Line: L`), `Resend: L+1`, `ok`;
+//! - a checksum without `N` (`Error:No Line Number with checksum`) asks for `L+1` again too:
+//!   hosts send checksums only with line numbers, so it is a numbered line whose `N` was
+//!   corrupted or the tail of a line broken by a corrupted line end; dropping it would lose
+//!   the line silently (Marlin would even run it);
 //! - `n > L+1` (a line was lost), or `n` far behind: `Error:Line Number is not Last Line
 //!   Number+1, Last Line: L`, `Resend: L+1`, `ok`;
 //! - `L-`[`DUPLICATE_WINDOW`]` < n <= L` (a line resent after a resend request we had already
 //!   accepted): ignored and acknowledged with `ok`;
 //! - `M110 N<m>` sets `L = m` (or `N<n> M110` sets `L = n`) and is answered `ok` at once.
 //!
-//! Lines without `N` are accepted as they come (with a checksum, if given, checked).
+//! Lines without `N` and without a checksum are accepted as they come (a terminal).
 //!
 //! # Realtime requests
-//! Parsed out of the byte stream when their line ends, even when every queue is full: `M108`
+//! Parsed out of the byte stream when their line ends, even when the line FIFO is full: `M108`
 //! BreakWait, `M112` EmergencyStop, `M410` QuickStop, `M25`/`M601` Pause at the layer
 //! boundary, `M25 S1`/`M601 S1` Pause now, `M24`/`M602` Resume, `M524` Cancel — with or
 //! without `N…` and `*…`. A realtime line is consumed by the realtime path (it never reaches
@@ -45,6 +63,10 @@
 //! (`n <= L`) does not act again. A realtime line with a bad checksum does not act (it is
 //! resent like any line).
 //!
+//! `M112` (line or control byte) halts the link as Marlin's `kill()` does: no `ok`, and from
+//! then on every byte is taken and ignored, unanswered; the executive reports
+//! `Error:Printer halted. kill() called!` on every port.
+//!
 //! Single control bytes act the moment they arrive, anywhere in the stream (they are removed
 //! from the line they interrupt and never acknowledged): see [`control_byte`] —
 //! `0x18` (Ctrl-X) emergency stop, `0x19` (Ctrl-Y) quick stop, `0x10` (Ctrl-P) pause at the
@@ -54,14 +76,15 @@
 //! # Output
 //! Responses are formatted into a byte ring of [`OUT_CAP`] bytes (ASCII: other characters are
 //! written as `?`). [`HostLink::pop_line`] hands out a line only while at least
-//! [`OUT_RESERVE`] bytes are free, so answering it can never overflow the ring.
+//! [`OUT_RESERVE`] bytes are free, so answering it can never overflow the ring; the link takes
+//! a line end only while [`LINK_RESERVE`] bytes are free for its own answers.
 //!
 //! ```
 //! use firmware::link::{HostLink, Response};
 //! use firmware::motion::{PauseMode, Realtime};
 //! let mut link = HostLink::new();
-//! link.receive(b"N1 G1 X10*");
-//! link.receive(b"80\nM25\n");
+//! assert_eq!(link.receive(b"N1 G1 X10*"), 10);
+//! assert_eq!(link.receive(b"80\nM25\n"), 7);
 //! // The pause acted at once, ahead of the queued G1, and was acknowledged.
 //! assert_eq!(link.take_realtime(), Some(Realtime::Pause(PauseMode::Layer)));
 //! // The executive takes the G1 when its queue has room, then acknowledges it.
@@ -74,7 +97,11 @@
 //! assert_eq!(out, "ok\nok\n");
 //! ```
 
+mod assemble;
+mod ports;
 mod response;
+
+pub use ports::{HostPorts, PortId, PORTS};
 
 pub use response::{
     HostAction, PositionReport, Response, TempReport, CAPABILITIES, FIRMWARE_NAME,
@@ -83,17 +110,25 @@ pub use response::{
 
 use crate::gcode::{self, Command};
 use crate::motion::{PauseMode, Realtime};
+use assemble::{trim, Assembled, Assembler};
 use core::fmt::{self, Write};
 use heapless::{Deque, Vec};
 
-/// Longest line accepted, bytes, line number and checksum included, line end excluded.
+/// Longest command text kept per line, bytes, line number, comment head and checksum included,
+/// line end excluded (longer lines: see the module documentation).
 pub const LINE_CAP: usize = 128;
 /// Checked lines waiting for the executive. A host that waits for `ok` before each line (every
-/// common host) never has more than one; send-ahead hosts may have up to this many in flight.
+/// common host) never has more than one; beyond this many the link stops taking bytes.
 pub const LINE_QUEUE: usize = 4;
-/// Realtime requests waiting for the executive (an emergency stop is never lost: it is latched
-/// separately).
+/// Realtime requests waiting for the executive (an emergency stop is latched separately);
+/// beyond this many the link stops taking bytes.
 pub const REALTIME_QUEUE: usize = 8;
+/// Comment text kept per line, bytes after the `;` (every layer marker is shorter); the rest
+/// of a comment is dropped as it arrives, never an error.
+pub const COMMENT_KEEP: usize = 64;
+/// Free output bytes the link needs before it takes a line end: room for its own answers
+/// (`Error:…`, `Resend:`, `ok`, about 100 bytes at most).
+pub const LINK_RESERVE: usize = 160;
 /// Output ring, bytes.
 pub const OUT_CAP: usize = 4096;
 /// Free output space needed before [`HostLink::pop_line`] hands out a line: the longest answer
@@ -183,7 +218,7 @@ pub struct LinkStats {
     pub realtime: u32,
     /// `Resend` requests sent.
     pub resends: u32,
-    /// Lines rejected (checksum, line number, too long, queue full).
+    /// Lines refused (checksum, line number, too long).
     pub rejected: u32,
     /// Duplicate lines ignored.
     pub duplicates: u32,
@@ -191,15 +226,16 @@ pub struct LinkStats {
     pub output_dropped: u32,
 }
 
-/// The host link state. See the module documentation.
+/// The host link state of one port. See the module documentation.
 #[derive(Clone, Debug)]
 pub struct HostLink {
-    buf: Vec<u8, LINE_CAP>,
-    overlong: bool,
+    asm: Assembler,
     last_line: u32,
     lines: Deque<ReceivedLine, LINE_QUEUE>,
     realtime: Deque<Realtime, REALTIME_QUEUE>,
     estop: bool,
+    /// An emergency stop was received or [`HostLink::halt`] called: input is swallowed unanswered.
+    halted: bool,
     /// A realtime line that acted ahead of its turn: (line number, request).
     early: Option<(u32, Realtime)>,
     out: Deque<u8, OUT_CAP>,
@@ -223,12 +259,12 @@ impl HostLink {
     /// An idle link: no line numbers seen yet (`L = 0`), empty queues.
     pub const fn new() -> Self {
         HostLink {
-            buf: Vec::new(),
-            overlong: false,
+            asm: Assembler::new(),
             last_line: 0,
             lines: Deque::new(),
             realtime: Deque::new(),
             estop: false,
+            halted: false,
             early: None,
             out: Deque::new(),
             stats: LinkStats {
@@ -242,41 +278,34 @@ impl HostLink {
         }
     }
 
-    /// Feed received bytes (any amount, any split). Never blocks, never panics.
-    pub fn receive(&mut self, bytes: &[u8]) {
-        let mut rest = bytes;
-        let mut scan = 0;
-        loop {
-            // The next C0 byte: a line end, a control byte, or another control character
-            // (that one stays in the line, for the parser to reject).
-            let tail = rest.get(scan..).unwrap_or(&[]);
-            let j = scan + first_c0(tail);
-            let Some(&b) = rest.get(j) else {
-                self.append(rest);
-                return;
-            };
-            let rt = control_byte(b);
-            if rt.is_none() && b != b'\n' && b != b'\r' {
-                scan = j + 1;
-                continue;
+    /// Feed received bytes (any amount, any split). Takes only what it has room for and returns
+    /// how many bytes it took, from the front: the caller keeps the rest and offers them again
+    /// later (flow control — the bytes stay in the pty or the USB endpoint NAKs). It stops
+    /// before a line end when the line FIFO is full, before a control byte or realtime line
+    /// when the realtime queue is full, and before any line end while fewer than
+    /// [`LINK_RESERVE`] output bytes are free. Realtime requests and control bytes are seen for
+    /// every byte taken. After an emergency stop every byte is taken and ignored, unanswered.
+    /// Never blocks, never panics.
+    #[must_use = "bytes not taken must be offered again later (flow control)"]
+    pub fn receive(&mut self, bytes: &[u8]) -> usize {
+        for (i, &b) in bytes.iter().enumerate() {
+            if self.halted {
+                return bytes.len();
             }
-            self.append(rest.get(..j).unwrap_or(&[]));
-            match rt {
-                Some(rt) => self.push_realtime(rt),
-                None => self.end_line(),
+            if let Some(rt) = control_byte(b) {
+                if rt != Realtime::EmergencyStop && self.realtime.is_full() {
+                    return i;
+                }
+                self.push_realtime(rt);
+            } else if b == b'\n' || b == b'\r' {
+                if !self.end_line() {
+                    return i;
+                }
+            } else {
+                self.asm.push(b);
             }
-            rest = rest.get(j + 1..).unwrap_or(&[]);
-            scan = 0;
         }
-    }
-
-    /// Add line bytes; past [`LINE_CAP`] the line is marked over-long (its head is kept).
-    fn append(&mut self, text: &[u8]) {
-        if !self.overlong && self.buf.extend_from_slice(text).is_err() {
-            let room = LINE_CAP - self.buf.len();
-            let _ = self.buf.extend_from_slice(text.get(..room).unwrap_or(&[]));
-            self.overlong = true;
-        }
+        bytes.len()
     }
 
     /// The next realtime request (an emergency stop first), if any.
@@ -290,9 +319,9 @@ impl HostLink {
 
     /// Take the oldest checked line — call only when the command queue has room for it, then
     /// answer it with `ok`. `None` when no line waits, or while the output ring is too full to
-    /// answer (drain it with [`HostLink::write_output`]).
+    /// answer (drain it with [`HostLink::write_output`]), or once halted.
     pub fn pop_line(&mut self) -> Option<ReceivedLine> {
-        if self.output_free() < OUT_RESERVE {
+        if self.halted || self.output_free() < OUT_RESERVE {
             return None;
         }
         self.lines.pop_front()
@@ -301,6 +330,18 @@ impl HostLink {
     /// Number of checked lines waiting for the executive.
     pub fn lines_waiting(&self) -> usize {
         self.lines.len()
+    }
+
+    /// Stop for good (emergency stop): from now on every received byte is taken and ignored
+    /// without an answer, and no waiting line is handed out — as Marlin's `kill()`, which
+    /// answers nothing until reset. Output already queued is still sent.
+    pub fn halt(&mut self) {
+        self.halted = true;
+    }
+
+    /// Whether [`HostLink::halt`] was called or an emergency stop received.
+    pub fn is_halted(&self) -> bool {
+        self.halted
     }
 
     /// Queue one response (a line end is added). Returns false, and counts it in
@@ -379,29 +420,48 @@ impl HostLink {
         self.stats.realtime = self.stats.realtime.saturating_add(1);
         if rt == Realtime::EmergencyStop {
             self.estop = true;
-        } else if self.realtime.push_back(rt).is_err() {
-            self.respond(Response::Error("realtime queue full, request dropped"));
+            self.halted = true;
+        } else {
+            // The callers checked for room.
+            let _ = self.realtime.push_back(rt);
         }
     }
 
-    fn reject(&mut self, msg: &str, resend: bool) {
+    /// Refuse a line and ask for `L+1` again (Marlin: error, `Resend:`, `ok`).
+    fn resend(&mut self, msg: &str) {
         self.stats.rejected = self.stats.rejected.saturating_add(1);
-        if resend {
-            self.respond(Response::LineError(msg, self.last_line));
-            self.stats.resends = self.stats.resends.saturating_add(1);
-            self.respond(Response::Resend(self.last_line.wrapping_add(1)));
-        } else {
-            self.respond(Response::Error(msg));
-        }
+        self.respond(Response::LineError(msg, self.last_line));
+        self.stats.resends = self.stats.resends.saturating_add(1);
+        self.respond(Response::Resend(self.last_line.wrapping_add(1)));
         self.respond(Response::Ok);
     }
 
-    /// A line end arrived: check and route the line in `buf`.
-    fn end_line(&mut self) {
-        let overlong = core::mem::replace(&mut self.overlong, false);
-        match classify(&self.buf, overlong) {
-            Verdict::Empty => {}
-            Verdict::Reject(msg, resend) => self.reject(msg, resend),
+    /// A line end arrived: check and route the line. Returns false, leaving everything as it
+    /// was, when there is no room for what the line needs (the line end is then not taken).
+    fn end_line(&mut self) -> bool {
+        if self.asm.is_empty() {
+            // Blank: ignored, no `ok` (Marlin).
+            self.asm.clear();
+            return true;
+        }
+        if self.output_free() < LINK_RESERVE {
+            return false;
+        }
+        let verdict = classify(&self.asm.line());
+        match &verdict {
+            Verdict::Command(line) if self.lines.is_full() && self.takes_slot(line.number) => {
+                return false;
+            }
+            Verdict::Realtime(_, rt)
+                if *rt != Realtime::EmergencyStop && self.realtime.is_full() =>
+            {
+                return false;
+            }
+            _ => {}
+        }
+        self.asm.clear();
+        match verdict {
+            Verdict::Resend(msg) => self.resend(msg),
             Verdict::SetLineNumber(l) => {
                 if let Some(l) = l {
                     self.last_line = l;
@@ -410,9 +470,21 @@ impl HostLink {
                 self.respond(Response::Ok);
             }
             Verdict::Realtime(number, rt) => self.realtime_line(number, rt),
-            Verdict::Command(number, start, end) => self.command_line(number, start, end),
+            Verdict::Command(line) => self.command_line(line),
+            Verdict::TooLong(number) => {
+                if self.number_ok(number) {
+                    self.stats.rejected = self.stats.rejected.saturating_add(1);
+                    self.respond(Response::Echo(TOO_LONG));
+                    self.respond(Response::Ok);
+                }
+            }
         }
-        self.buf.clear();
+        true
+    }
+
+    /// Whether a command line with this number would go into the FIFO.
+    fn takes_slot(&self, number: Option<u32>) -> bool {
+        number.is_none_or(|n| matches!(self.seq(n), Seq::Next))
     }
 
     fn seq(&self, n: u32) -> Seq {
@@ -425,10 +497,37 @@ impl HostLink {
         }
     }
 
+    /// Line-number bookkeeping for a line that is not realtime: true (and `L` advanced) when
+    /// the line is to be handled; a duplicate is acknowledged, a gap asks for a resend.
+    fn number_ok(&mut self, number: Option<u32>) -> bool {
+        let Some(n) = number else {
+            return true;
+        };
+        match self.seq(n) {
+            Seq::Next => {
+                self.last_line = n;
+                true
+            }
+            Seq::Duplicate => {
+                self.stats.duplicates = self.stats.duplicates.saturating_add(1);
+                self.respond(Response::Ok);
+                false
+            }
+            Seq::Gap => {
+                self.resend("Line Number is not Last Line Number+1");
+                false
+            }
+        }
+    }
+
     fn realtime_line(&mut self, number: Option<u32>, rt: Realtime) {
+        // M112 halts: like Marlin's kill(), no `ok`.
+        let answer = rt != Realtime::EmergencyStop;
         let Some(n) = number else {
             self.push_realtime(rt);
-            self.respond(Response::Ok);
+            if answer {
+                self.respond(Response::Ok);
+            }
             return;
         };
         match self.seq(n) {
@@ -439,7 +538,9 @@ impl HostLink {
                 }
                 self.early = None;
                 self.last_line = n;
-                self.respond(Response::Ok);
+                if answer {
+                    self.respond(Response::Ok);
+                }
             }
             Seq::Duplicate => {
                 self.stats.duplicates = self.stats.duplicates.saturating_add(1);
@@ -450,147 +551,95 @@ impl HostLink {
                     self.push_realtime(rt);
                     self.early = Some((n, rt));
                 }
-                self.reject("Line Number is not Last Line Number+1", true);
+                if answer {
+                    self.resend("Line Number is not Last Line Number+1");
+                }
             }
         }
     }
 
-    /// A checked command line: `buf[start..end]` is its text.
-    fn command_line(&mut self, number: Option<u32>, start: usize, end: usize) {
-        if let Some(n) = number {
-            match self.seq(n) {
-                Seq::Next => {}
-                Seq::Duplicate => {
-                    self.stats.duplicates = self.stats.duplicates.saturating_add(1);
-                    self.respond(Response::Ok);
-                    return;
-                }
-                Seq::Gap => {
-                    self.reject("Line Number is not Last Line Number+1", true);
-                    return;
-                }
-            }
-        }
-        let mut t = Vec::new();
-        // Part of a line of at most LINE_CAP bytes, so it fits.
-        let _ = t.extend_from_slice(self.buf.get(start..end).unwrap_or(&[]));
-        let line = ReceivedLine { text: t, number };
-        if self.lines.push_back(line).is_err() {
-            self.reject("Line queue full (send one line per ok)", number.is_some());
+    /// A checked command line for the FIFO (room was checked).
+    fn command_line(&mut self, line: ReceivedLine) {
+        if !self.number_ok(line.number) {
             return;
         }
-        if let Some(n) = number {
-            self.last_line = n;
+        if self.lines.push_back(line).is_ok() {
+            self.stats.lines = self.stats.lines.saturating_add(1);
         }
-        self.stats.lines = self.stats.lines.saturating_add(1);
     }
 }
 
+/// The answer to a line longer than [`LINE_CAP`] that is not display text.
+const TOO_LONG: &str = "Line too long (max 128 bytes), ignored";
+
 /// What a complete line is, decided without changing any state.
 enum Verdict {
-    /// Blank: ignored, no `ok`.
-    Empty,
-    /// Refused: message, and whether to ask for a resend.
-    Reject(&'static str, bool),
+    /// Refused with `Resend: L+1`: the line looked numbered or carried a checksum, and did not
+    /// check out.
+    Resend(&'static str),
     /// M110: the new last line number, if one was given.
     SetLineNumber(Option<u32>),
     /// A realtime request (line number, request).
     Realtime(Option<u32>, Realtime),
-    /// A command line for the FIFO: line number and the text's range in the buffer.
-    Command(Option<u32>, usize, usize),
+    /// A command line for the FIFO.
+    Command(ReceivedLine),
+    /// A checked line longer than [`LINE_CAP`] that is not display text: ignored, `echo:`.
+    TooLong(Option<u32>),
 }
 
-fn classify(buf: &[u8], overlong: bool) -> Verdict {
-    let raw = trim(buf);
-    let (number, rest) = split_number(raw);
-    if overlong {
-        return Verdict::Reject("Line too long (max 128 bytes)", number.is_some());
-    }
-    if raw.is_empty() {
-        return Verdict::Empty;
-    }
+fn classify(a: &Assembled<'_>) -> Verdict {
+    let (number, rest) = split_number(a.raw);
     let number = match number {
         Some(Ok(n)) => Some(n),
-        Some(Err(())) => return Verdict::Reject("Bad line number", false),
+        Some(Err(())) => return Verdict::Resend("Bad line number"),
         None => None,
     };
-    // Checksum: `*` and 1-3 digits at the end.
-    let (body, cs) = split_checksum(rest);
-    match (number, cs) {
-        (Some(_), None) => return Verdict::Reject("No Checksum with line number", true),
-        (n, Some(cs)) => {
-            let star = raw.len() - rest.len() + body.len();
-            if checksum(raw.get(..star).unwrap_or(&[])) != cs {
-                return Verdict::Reject("checksum mismatch", n.is_some());
-            }
-            // Two lines merged by a lost line end (`N19 M400*31` + its own resend): the XOR of
-            // the repeated text cancels and the sum of the merge can be right. A checksum-like
-            // `*<digit>` inside the text is refused as Marlin does (it checks up to the first
-            // `*`), so the host resends instead of the line being lost.
-            if body
-                .windows(2)
-                .any(|w| matches!(w, [b'*', d] if d.is_ascii_digit()))
-            {
-                return Verdict::Reject("checksum mismatch", n.is_some());
-            }
-        }
-        (None, None) => {}
+    match (number, a.checksum) {
+        (Some(_), None) => return Verdict::Resend("No Checksum with line number"),
+        // Hosts send a checksum only with a line number: a checksum without one is a numbered
+        // line whose `N` was corrupted, or the tail of a line broken in two by a corrupted
+        // line end. Either way the host must send L+1 again.
+        (None, Some(_)) => return Verdict::Resend("No Line Number with checksum"),
+        // A wrong checksum means a corrupted line, whatever happened to its `N` (a corrupted
+        // `N` makes the line look unnumbered: it is resent all the same).
+        (_, Some(_)) if !a.sum_ok => return Verdict::Resend("checksum mismatch"),
+        // Two lines merged by a lost line end (`N19 M400*31` + its own resend): the XOR of the
+        // repeated text cancels and the sum of the merge can be right. A checksum-like
+        // `*<digit>` inside the text is refused as Marlin does (it checks up to the first
+        // `*`), so the host resends instead of the line being lost.
+        (_, Some(_)) if a.merged => return Verdict::Resend("checksum mismatch"),
+        _ => {}
     }
-    let text = trim(body);
-    // `text` is a sub-slice of `buf`: its offset, without indexing arithmetic on `buf`.
-    // (An empty `text` may be a static empty slice: then offset 0.)
-    let start = if text.is_empty() {
-        0
-    } else {
-        (text.as_ptr() as usize).saturating_sub(buf.as_ptr() as usize)
-    };
+    let text = trim(rest);
     // Commands the link handles itself: M110 and the realtime requests.
-    if let Some(b'M' | b'm') = text.first() {
-        if let Ok(gcode::Line {
-            command: Some(c), ..
-        }) = gcode::parse_line(text)
-        {
-            if let Command::SetLineNumber(m) = c {
-                return Verdict::SetLineNumber(m.or(number));
-            }
-            if let Some(rt) = realtime_of(&c) {
+    let command = if a.cut || matches!(text.first(), Some(b'M' | b'm')) {
+        gcode::parse_line(text).ok().and_then(|l| l.command)
+    } else {
+        None
+    };
+    if a.cut {
+        // Only display text may be cut (M117/M118, unknown commands that are only echoed);
+        // anything else cut short could do the wrong thing.
+        if !matches!(
+            command,
+            Some(Command::Message(_) | Command::Echo(_) | Command::Unknown(_))
+        ) {
+            return Verdict::TooLong(number);
+        }
+    }
+    match command {
+        Some(Command::SetLineNumber(m)) => return Verdict::SetLineNumber(m.or(number)),
+        Some(ref c) => {
+            if let Some(rt) = realtime_of(c) {
                 return Verdict::Realtime(number, rt);
             }
         }
+        None => {}
     }
-    Verdict::Command(number, start, start + text.len())
-}
-
-/// Index of the first byte below 0x20 (or the length), eight bytes at a time.
-fn first_c0(s: &[u8]) -> usize {
-    const LOW: u64 = 0x2020_2020_2020_2020;
-    const HIGH: u64 = 0x8080_8080_8080_8080;
-    let mut chunks = s.chunks_exact(8);
-    let mut i = 0;
-    for c in &mut chunks {
-        let mut a = [0u8; 8];
-        a.copy_from_slice(c);
-        let w = u64::from_le_bytes(a);
-        // Sets the high bit of every byte < 0x20 (bytes >= 0x80 are masked by !w); borrows
-        // only spill upwards, so the lowest flagged byte is a true one.
-        let m = w.wrapping_sub(LOW) & !w & HIGH;
-        if m != 0 {
-            return i + (m.trailing_zeros() / 8) as usize;
-        }
-        i += 8;
-    }
-    let r = chunks.remainder();
-    i + r.iter().position(|&b| b < 0x20).unwrap_or(r.len())
-}
-
-/// Trim spaces and tabs at both ends.
-fn trim(s: &[u8]) -> &[u8] {
-    let start = s.iter().position(|c| !matches!(c, b' ' | b'\t'));
-    let end = s.iter().rposition(|c| !matches!(c, b' ' | b'\t'));
-    match (start, end) {
-        (Some(a), Some(b)) => s.get(a..=b).unwrap_or(&[]),
-        _ => &[],
-    }
+    let mut t = Vec::new();
+    // Part of a line of at most LINE_CAP bytes, so it fits.
+    let _ = t.extend_from_slice(text);
+    Verdict::Command(ReceivedLine { text: t, number })
 }
 
 /// Split a leading `N<digits>`: (number or error, rest). `None` when the line has no number.
@@ -616,48 +665,6 @@ fn split_number(raw: &[u8]) -> (Option<Result<u32, ()>>, &[u8]) {
         i += 1;
     }
     (Some(Ok(n as u32)), raw.get(i..).unwrap_or(&[]))
-}
-
-/// Split a trailing `*<1-3 digits>` checksum (spaces allowed after it): (body before `*`,
-/// checksum). Looks at the end of the line only.
-fn split_checksum(s: &[u8]) -> (&[u8], Option<u8>) {
-    let t = trim(s);
-    let tail_digits = t
-        .iter()
-        .rev()
-        .take(4)
-        .take_while(|c| c.is_ascii_digit())
-        .count();
-    if tail_digits == 0 || tail_digits > 3 {
-        return (s, None);
-    }
-    let Some(star) = t.len().checked_sub(tail_digits + 1) else {
-        return (s, None);
-    };
-    if t.get(star) != Some(&b'*') {
-        return (s, None);
-    }
-    let v = t
-        .get(star + 1..)
-        .unwrap_or(&[])
-        .iter()
-        .fold(0u32, |a, d| a * 10 + u32::from(d - b'0'));
-    match u8::try_from(v) {
-        // `t` starts where `s` does after leading spaces.
-        Ok(cs) => {
-            let lead = s.len() - trim_start(s).len();
-            (s.get(..lead + star).unwrap_or(&[]), Some(cs))
-        }
-        Err(_) => (s, None),
-    }
-}
-
-fn trim_start(s: &[u8]) -> &[u8] {
-    let a = s
-        .iter()
-        .position(|c| !matches!(c, b' ' | b'\t'))
-        .unwrap_or(s.len());
-    s.get(a..).unwrap_or(&[])
 }
 
 /// Writes into the output ring, ASCII only (others become `?`).

@@ -116,6 +116,9 @@ pub enum Response<'a> {
     UnknownCommand(&'a str),
     /// `busy: processing` (keep-alive during long waits, about every 2 s).
     Busy,
+    /// `busy: paused for user` (Marlin's keep-alive while it waits for the user, e.g. paused
+    /// with the host's line held).
+    BusyPaused,
     /// `//action:<name>` or `//action:notification <text>`.
     Action(HostAction, &'a str),
     /// `ok T:.. /.. B:.. /.. @:.. B@:..` (M105), or without `ok` (`with_ok` false) as the
@@ -148,6 +151,7 @@ impl fmt::Display for Response<'_> {
             Response::Echo(t) => write!(f, "echo:{t}"),
             Response::UnknownCommand(t) => write!(f, "echo:Unknown command: \"{t}\""),
             Response::Busy => f.write_str("busy: processing"),
+            Response::BusyPaused => f.write_str("busy: paused for user"),
             Response::Action(HostAction::Notification, t) => {
                 write!(f, "//action:notification {t}")
             }

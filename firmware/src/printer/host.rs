@@ -2,7 +2,8 @@
 //! state, fed to the layer detector and queued as [`Command`]s; commands that are not motion
 //! (temperatures, reports, M760/M761, ...) are answered here.
 
-use super::{Command, PausedLines, Phase, Printer, Schedule, StepperRequest, LINE_LEN};
+use super::state::Pause;
+use super::{Command, PausedLines, Printer, Schedule, StepperRequest, LINE_LEN};
 use crate::gcode::{self, Heater, PauseSchedule};
 use crate::layer::MoveFacts;
 use crate::link::{PositionReport, ReceivedLine, Response};
@@ -20,6 +21,40 @@ fn heater_id(h: Heater) -> HeaterId {
         Heater::Hotend => HeaterId::Hotend,
         Heater::Bed => HeaterId::Bed,
     }
+}
+
+/// After a cancel, the host may still stream the rest of the job (printcore ignores
+/// `//action:cancel`; lines were in flight): those lines are discarded (answered `ok`, never
+/// executed) until the host starts anew — a numbered line whose number is not beyond `after`
+/// (the host reset its line numbers with M110, as printcore and OctoPrint do at a job's start),
+/// or any line after the host was silent for [`crate::printer::LAYER_PAUSE_IDLE_US`].
+/// Unnumbered lines from a host that numbers its job (OctoPrint's cancel script, a console
+/// command) are taken.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct AfterCancel {
+    /// The last numbered line taken before the cancel.
+    pub(super) after: Option<u32>,
+    /// Lines discarded so far.
+    pub(super) discarded: u32,
+}
+
+/// The host-line side of the executive (see docs/frontend.md, "Host rules").
+#[derive(Clone, Debug, Default)]
+pub(super) struct HostLines {
+    /// A line taken from the link that waits for queue room (it needs room; lines that need
+    /// none are answered at once, see [`answered_without_room`]).
+    pub(super) held_line: Option<ReceivedLine>,
+    /// The host has sent numbered lines (it numbers its job): with [`PausedLines::Auto`],
+    /// unnumbered lines while paused are manual commands.
+    pub(super) host_numbers: bool,
+    /// Number of the last numbered line taken.
+    pub(super) last_line_no: Option<u32>,
+    /// The job was cancelled: the rest of the host's stream is discarded until it starts anew.
+    pub(super) after_cancel: Option<AfterCancel>,
+    /// An M400 waits for the motion to end: its `ok` is owed, and no further line is taken.
+    pub(super) sync_ok_owed: bool,
+    /// When the last `busy:` keep-alive went out, µs.
+    pub(super) last_busy_us: u64,
 }
 
 impl Printer {
@@ -42,7 +77,10 @@ impl Printer {
     /// `ok` follows the announcement and the host can send its resume next (docs/frontend.md,
     /// "host rules").
     fn reserved_lines(&self) -> usize {
-        usize::from(matches!(self.phase, Phase::Stopping | Phase::Parking))
+        usize::from(matches!(
+            self.pause,
+            Pause::Stopping { .. } | Pause::Parking { .. }
+        ))
     }
 
     /// Room for one more host line: the policy's limit on waiting commands (layer marks do not
@@ -55,22 +93,23 @@ impl Printer {
 
     /// Whether a host line taken now is a manual command (while parked, see [`PausedLines`]).
     fn is_manual(&self, line: &ReceivedLine) -> bool {
-        self.phase == Phase::Parked
+        matches!(self.pause, Pause::Parked { .. })
             && match self.policy.paused_lines {
                 PausedLines::Queue => false,
                 PausedLines::Manual => true,
-                PausedLines::Auto => self.host_numbers && line.number().is_none(),
+                PausedLines::Auto => self.lines.host_numbers && line.number().is_none(),
             }
     }
 
     /// The next host line: the one waiting for room, else the link's next (only while the
     /// output ring can take its answer).
     fn next_line(&mut self) -> Option<ReceivedLine> {
-        if self.held_line.is_some() {
-            if self.link.output_free() < crate::link::OUT_RESERVE {
+        if self.lines.held_line.is_some() {
+            if self.link.line_output_free() < crate::link::OUT_RESERVE {
                 return None;
             }
-            return self.held_line.take();
+            self.link.answer_line_port();
+            return self.lines.held_line.take();
         }
         self.link.pop_line()
     }
@@ -80,7 +119,7 @@ impl Printer {
     /// room waits in `held_line`, with `busy:` keep-alives while a pause holds the queue.
     pub(super) fn process_lines(&mut self) {
         for _ in 0..64 {
-            if self.halted {
+            if self.is_halted() {
                 return;
             }
             if self.arc.is_some() {
@@ -90,11 +129,11 @@ impl Printer {
                 }
                 self.link.respond(Response::Ok);
             }
-            if self.sync_ok_owed {
+            if self.lines.sync_ok_owed {
                 // M400 is waiting for the motion to end: the next line waits too.
                 return;
             }
-            if let Some(held) = &self.held_line {
+            if let Some(held) = &self.lines.held_line {
                 // Known to need room: wait for it without parsing again.
                 let fits = if self.is_manual(held) {
                     !self.service.is_full()
@@ -102,15 +141,27 @@ impl Printer {
                     self.line_room()
                 };
                 if !fits {
-                    if self.phase != Phase::Run {
+                    if !matches!(self.pause, Pause::Run) {
                         self.keep_alive();
                     }
                     return;
                 }
             }
+            if self.pause.cancelling() {
+                // The cancel is still parking: lines wait (a move taken now would be dropped
+                // with the planner when the cancel completes).
+                if self.link.lines_waiting() > 0 || self.lines.held_line.is_some() {
+                    self.keep_alive();
+                }
+                return;
+            }
             let Some(line) = self.next_line() else {
                 return;
             };
+            if self.discard_after_cancel(&line) {
+                self.link.respond(Response::Ok);
+                continue;
+            }
             let manual = self.is_manual(&line);
             let fits = if manual {
                 !self.service.is_full()
@@ -122,31 +173,77 @@ impl Printer {
                     self.answer_report(&line);
                     continue;
                 }
-                self.held_line = Some(line);
-                if self.phase != Phase::Run {
+                self.lines.held_line = Some(line);
+                if !matches!(self.pause, Pause::Run) {
                     // A pause holds the queue: keep the host from timing out.
                     self.keep_alive();
                 }
                 return;
             }
             if line.number().is_some() {
-                self.host_numbers = true;
+                self.lines.host_numbers = true;
+                self.lines.last_line_no = line.number();
             }
-            self.cancelled = false;
             self.last_activity_us = self.now_us;
             if manual {
-                if let Some(m) = self.manual_machine.as_mut() {
-                    core::mem::swap(&mut self.machine, m);
-                }
+                self.swap_manual_machine();
                 self.handle_line(&line, true);
-                if let Some(m) = self.manual_machine.as_mut() {
-                    core::mem::swap(&mut self.machine, m);
-                }
+                self.swap_manual_machine();
             } else {
                 self.handle_line(&line, false);
             }
             self.feed_planner();
         }
+    }
+
+    /// Swap the job's modal state with the manual one of the parked pause (if any): manual
+    /// lines are interpreted between two swaps.
+    fn swap_manual_machine(&mut self) {
+        if let Pause::Parked {
+            manual: Some(m), ..
+        } = &mut self.pause
+        {
+            core::mem::swap(&mut self.machine, m);
+        }
+    }
+
+    /// Whether `line` is the rest of a cancelled job (see [`AfterCancel`]): then it is
+    /// counted and must be answered `ok` without being executed. Ends the discarding when the
+    /// host has started anew.
+    fn discard_after_cancel(&mut self, line: &ReceivedLine) -> bool {
+        let Some(mut a) = self.lines.after_cancel else {
+            return false;
+        };
+        let silent_us = self.now_us.saturating_sub(self.last_activity_us);
+        let fresh = silent_us >= crate::printer::LAYER_PAUSE_IDLE_US
+            || match (line.number(), a.after) {
+                // Numbers restarted (M110): a new job.
+                (Some(n), Some(after)) => n <= after,
+                (Some(_), None) => false,
+                // A host that numbers its job sends its own commands unnumbered.
+                (None, _) => self.lines.host_numbers,
+            };
+        self.last_activity_us = self.now_us;
+        if fresh {
+            if line.number().is_some() || silent_us >= crate::printer::LAYER_PAUSE_IDLE_US {
+                if a.discarded > 0 {
+                    self.say(format_args!(
+                        "cancelled: {} lines of the cancelled job discarded",
+                        a.discarded
+                    ));
+                }
+                self.lines.after_cancel = None;
+            }
+            return false;
+        }
+        if a.discarded == 0 {
+            self.say(format_args!(
+                "cancelled: discarding the rest of the job until the host starts anew"
+            ));
+        }
+        a.discarded = a.discarded.saturating_add(1);
+        self.lines.after_cancel = Some(a);
+        true
     }
 
     /// Answer a report/message line out of turn (the queue is full): it changes nothing the
@@ -359,7 +456,7 @@ impl Printer {
             G::WaitMoves => {
                 // As Marlin: the `ok` comes when the moves queued before it have ended.
                 let queued = self.cmds.push_back(Command::Sync).is_ok();
-                self.sync_ok_owed = queued;
+                self.lines.sync_ok_owed = queued;
                 return queued;
             }
             G::PauseParams(p) => self.m760(p),

@@ -16,8 +16,13 @@
 //! ```
 
 mod host;
+mod park;
 mod pause;
+mod state;
 mod types;
+
+use host::{AfterCancel, HostLines};
+use state::{Pause, Stop};
 
 pub use types::{Command, PausedLines, Policy, Record, Schedule, State, Status, StepperRequest};
 mod service;
@@ -30,11 +35,11 @@ pub use service::ServiceMove;
 
 use crate::config::MachineConfig;
 use crate::layer::LayerDetector;
-use crate::link::{HostAction, HostLink, ReceivedLine, Response};
+use crate::link::{HostAction, HostLink, HostPorts, PortId, Response};
 use crate::machine::{ArcMoves, MachineState};
-use crate::motion::{Axis, LayerMark, MoveRequest, PauseMode, Realtime, StepPos, AXES};
+use crate::motion::{Axis, LayerMark, MoveRequest, PauseMode, Realtime};
 use crate::planner::{BlockKind, PlannedBlock, Planner, PlannerPolicy, RING_CAPACITY};
-use crate::stepgen::{ExecBlock, StepEvent, StepGen};
+use crate::stepgen::{StepEvent, StepGen};
 use crate::thermal::{HeaterId, Thermal, ThermalConfig};
 use core::fmt::Write as _;
 use heapless::{Deque, String};
@@ -53,15 +58,6 @@ pub const BUSY_PERIOD_US: u64 = 2_000_000;
 /// the printer has had nothing to do for this long (job ended before any layer boundary).
 pub const LAYER_PAUSE_IDLE_US: u64 = 2_000_000;
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Phase {
-    Run,
-    Stopping,
-    Parking,
-    Parked,
-    Returning,
-}
-
 /// The executive. See the module documentation.
 pub struct Printer {
     cfg: MachineConfig,
@@ -70,49 +66,31 @@ pub struct Printer {
     stepgen: StepGen,
     cmds: Deque<Command, CMD_CAPACITY>,
     service: Deque<ServiceMove, { service::SERVICE_CAPACITY }>,
-    phase: Phase,
-    mode: Option<PauseMode>,
-    held: Option<ExecBlock>,
-    held_pos: StepPos,
-    retracted_steps: i32,
-    barrier_layer: Option<u32>,
-    fifo_countdown: Option<usize>,
+    /// The pause machine: every pause, cancel and halt state with its data.
+    pause: Pause,
+    /// The host-line side: lines waiting for room, numbering, discarding after a cancel, the
+    /// `ok` an M400 owes, keep-alives.
+    lines: HostLines,
     schedule: Option<Schedule>,
-    deferred_pause: Option<PauseMode>,
-    deferred_resume: bool,
-    hold_deferred: bool,
-    withdraw_after_stop: bool,
-    cancel_pending: bool,
-    cancelled: bool,
-    halted: bool,
     layer: Option<u32>,
+    /// A G4 at the front of the queue waits until this time, µs.
     dwell_until_us: Option<u64>,
+    /// M108 is breaking the heater wait or dwell at the front of the queue (during one feed).
+    break_wait: bool,
     now_us: u64,
+    /// When a host line was last taken or a block last ended, µs ("in a job").
     last_activity_us: u64,
     last_state: State,
     records: Deque<Record, RECORD_CAPACITY>,
     stepper_reqs: Deque<StepperRequest, STEPPER_REQ_CAPACITY>,
     records_dropped: u32,
-    link: HostLink,
+    link: HostPorts,
+    /// The job's modal state (manual lines while parked use the copy in `Pause::Parked`).
     machine: MachineState,
-    /// While parked: the modal state manual lines are interpreted in (starts at the parked
-    /// position); the job's own state in `machine` is never touched by them.
-    manual_machine: Option<MachineState>,
-    /// A host line taken from the link that waits for queue room (it needs room; lines that
-    /// need none are answered at once, see `host::answered_without_room`).
-    held_line: Option<ReceivedLine>,
-    /// The host has sent numbered lines (it numbers its job): with [`PausedLines::Auto`],
-    /// unnumbered lines while paused are manual commands.
-    host_numbers: bool,
     layers: LayerDetector,
     arc: Option<ArcMoves>,
     thermal: Thermal,
-    last_busy_us: u64,
-    break_wait: bool,
-    reheat_wait: bool,
     fan_pwm: u8,
-    /// An M400 waits for the motion to end: its `ok` is owed, and no further line is taken.
-    sync_ok_owed: bool,
     /// Axes (bit i = X, Y, Z) whose drivers were switched off since they were last homed.
     position_lost: u8,
     /// Factory settings and a pending M500/M501 (see `settings.rs`).
@@ -144,42 +122,24 @@ impl Printer {
             stepgen: StepGen::new(),
             cmds: Deque::new(),
             service: Deque::new(),
-            phase: Phase::Run,
-            mode: None,
-            held: None,
-            held_pos: [0; AXES],
-            retracted_steps: 0,
-            barrier_layer: None,
-            fifo_countdown: None,
+            pause: Pause::Run,
+            lines: HostLines::default(),
             schedule: None,
-            deferred_pause: None,
-            deferred_resume: false,
-            hold_deferred: false,
-            withdraw_after_stop: false,
-            cancel_pending: false,
-            cancelled: false,
-            halted: false,
             layer: None,
             dwell_until_us: None,
+            break_wait: false,
             now_us: 0,
             last_activity_us: 0,
             last_state: State::Idle,
             records: Deque::new(),
             stepper_reqs: Deque::new(),
             records_dropped: 0,
-            link: HostLink::new(),
+            link: HostPorts::new(),
             machine: MachineState::new(&cfg),
-            manual_machine: None,
-            held_line: None,
-            host_numbers: false,
             layers: LayerDetector::new(),
             arc: None,
             thermal: Thermal::new(&ThermalConfig::ENDER3),
-            last_busy_us: 0,
-            break_wait: false,
-            reheat_wait: false,
             fan_pwm: 0,
-            sync_ok_owed: false,
             position_lost: 0,
             settings: settings::SettingsLink::new(),
             reports: report::Reports::new(),
@@ -270,38 +230,87 @@ impl Printer {
         self.records_dropped
     }
 
-    /// An `echo:` line to the host.
+    /// An `echo:` line to the port that asked (see [`HostPorts::respond`]).
     fn say(&mut self, args: core::fmt::Arguments) {
         let mut t: String<LINE_LEN> = String::new();
         let _ = t.write_fmt(args);
         self.link.respond(Response::Echo(&t));
     }
 
+    /// An `echo:` line to every port (a notification, not an answer: pause state changes).
+    #[allow(dead_code)]
+    fn notice(&mut self, args: core::fmt::Arguments) {
+        let mut t: String<LINE_LEN> = String::new();
+        let _ = t.write_fmt(args);
+        self.link.notify(Response::Echo(&t));
+    }
+
+    /// A host action, to every port.
     fn action(&mut self, a: HostAction) {
-        self.link.respond(Response::Action(a, ""));
+        self.link.notify(Response::Action(a, ""));
     }
 
-    /// Write every pending host-link line (`ok`, `echo:`, `//action:`, errors ...), each
-    /// followed by `\n`.
+    /// Write every pending host-link line of the USB port (`ok`, `echo:`, `//action:`,
+    /// errors ...), each followed by `\n`. Same as [`Printer::write_output_on`] with
+    /// [`PortId::Usb`].
     pub fn write_output<W: core::fmt::Write>(&mut self, w: &mut W) -> core::fmt::Result {
-        self.link.write_output(w)
+        self.write_output_on(PortId::Usb, w)
     }
 
-    /// Copy pending host-link output bytes into `buf` (for a UART/USB driver); returns how
-    /// many were written.
+    /// Write every pending host-link line of port `port`.
+    pub fn write_output_on<W: core::fmt::Write>(
+        &mut self,
+        port: PortId,
+        w: &mut W,
+    ) -> core::fmt::Result {
+        self.link.write_output(port, w)
+    }
+
+    /// Copy pending USB-port output bytes into `buf` (for a UART/USB driver); returns how many
+    /// were written. Same as [`Printer::read_output_on`] with [`PortId::Usb`].
     pub fn read_output(&mut self, buf: &mut [u8]) -> usize {
-        self.link.read_output(buf)
+        self.read_output_on(PortId::Usb, buf)
     }
 
-    /// Host bytes in: realtime requests act at once; lines are taken, parsed, interpreted by
-    /// the machine state and queued while the command queue has room (each answered `ok`
-    /// when taken).
-    pub fn receive(&mut self, bytes: &[u8], now_us: u64) {
+    /// Copy pending output bytes of port `port` into `buf`; returns how many were written.
+    pub fn read_output_on(&mut self, port: PortId, buf: &mut [u8]) -> usize {
+        self.link.read_output(port, buf)
+    }
+
+    /// One port's host link (line numbers, counters), read-only.
+    pub fn port(&self, port: PortId) -> &HostLink {
+        self.link.port(port)
+    }
+
+    /// Host bytes in on the USB port: [`Printer::receive_on`] with [`PortId::Usb`].
+    #[must_use = "bytes not taken must be offered again later (flow control)"]
+    pub fn receive(&mut self, bytes: &[u8], now_us: u64) -> usize {
+        self.receive_on(PortId::Usb, bytes, now_us)
+    }
+
+    /// Host bytes in on port `port`: realtime requests act at once; lines are taken, parsed,
+    /// interpreted by the machine state and queued while the command queue has room (each
+    /// answered `ok` when taken). Returns how many bytes were taken, from the front: the rest
+    /// did not fit (the line FIFO is full because the command queue is) and must be offered
+    /// again later — the driver leaves them unread (pty) or NAKs them (USB). A host that waits
+    /// for `ok` never has more than its window outstanding, so nothing it sends is lost and its
+    /// realtime lines are always within what is taken.
+    #[must_use = "bytes not taken must be offered again later (flow control)"]
+    pub fn receive_on(&mut self, port: PortId, bytes: &[u8], now_us: u64) -> usize {
         self.set_now(now_us);
-        self.link.receive(bytes);
-        self.take_realtime();
-        self.process_lines();
+        let mut taken = 0;
+        loop {
+            let n = self.link.receive(port, bytes.get(taken..).unwrap_or(&[]));
+            taken += n;
+            self.take_realtime();
+            self.process_lines();
+            // Each round takes at least one byte, or stops.
+            if n == 0 || taken >= bytes.len() {
+                break;
+            }
+        }
         self.update_state_record();
+        taken
     }
 
     /// Room in the command queue under the policy's limit.
@@ -318,10 +327,12 @@ impl Printer {
     /// lane instead.
     pub fn push_command(&mut self, cmd: Command, now_us: u64) -> Result<(), Command> {
         self.set_now(now_us);
-        if self.halted {
+        if self.is_halted() {
             return Err(cmd);
         }
-        if self.phase == Phase::Parked && self.policy.paused_lines == PausedLines::Manual {
+        if matches!(self.pause, Pause::Parked { .. })
+            && self.policy.paused_lines == PausedLines::Manual
+        {
             if let Command::Move(m) = cmd {
                 return self
                     .service
@@ -335,9 +346,7 @@ impl Printer {
         if self.command_room() == 0 {
             return Err(cmd);
         }
-        if self.cancelled {
-            self.cancelled = false;
-        }
+        self.lines.after_cancel = None;
         self.last_activity_us = self.now_us;
         self.cmds.push_back(cmd)?;
         self.feed_planner();
@@ -360,7 +369,17 @@ impl Printer {
             Some(Command::Layer(_)) => self.planner.has_pending() && self.planner.room() == 0,
             Some(_) => false,
         };
-        if stuck && self.fifo_countdown != Some(0) {
+        let tail_due = matches!(
+            self.pause,
+            Pause::Stopping {
+                how: Stop::Tail {
+                    countdown: Some(0),
+                    ..
+                },
+                ..
+            }
+        );
+        if stuck && !tail_due {
             return;
         }
         self.feed_planner_now();
@@ -368,7 +387,7 @@ impl Printer {
 
     #[inline(never)]
     fn feed_planner_now(&mut self) {
-        if self.halted {
+        if self.is_halted() {
             return;
         }
         self.planner.refill();
@@ -385,7 +404,15 @@ impl Printer {
                         break;
                     }
                     match self.planner.push_mark(mark) {
-                        Ok(true) => self.barrier_layer = Some(mark.layer),
+                        Ok(true) => {
+                            if let Pause::Stopping {
+                                how: Stop::Barrier { layer },
+                                ..
+                            } = &mut self.pause
+                            {
+                                *layer = Some(mark.layer);
+                            }
+                        }
                         Ok(false) => {}
                         Err(_) => break,
                     }
@@ -394,7 +421,9 @@ impl Printer {
                 Command::Home { mask } => {
                     // Homing runs before a pending layer barrier (it is part of the job before
                     // the boundary); never while parked or returning.
-                    if !self.motion_idle() || !matches!(self.phase, Phase::Run | Phase::Stopping) {
+                    if !self.motion_idle()
+                        || !matches!(self.pause, Pause::Run | Pause::Stopping { .. })
+                    {
                         break;
                     }
                     let mut target = self.stepgen.position();
@@ -421,7 +450,9 @@ impl Printer {
                     self.break_wait = false;
                 }
                 Command::SetPosition(pos) => {
-                    if !self.motion_idle() || !matches!(self.phase, Phase::Run | Phase::Stopping) {
+                    if !self.motion_idle()
+                        || !matches!(self.pause, Pause::Run | Pause::Stopping { .. })
+                    {
                         break;
                     }
                     self.planner.set_position(pos);
@@ -450,12 +481,13 @@ impl Printer {
                     if self.planner.has_pending() {
                         break;
                     }
-                    if self.phase == Phase::Run {
+                    if matches!(self.pause, Pause::Run) {
                         let id = self.planner.next_id();
                         self.planner.set_barrier(id);
-                        self.phase = Phase::Stopping;
-                        self.mode = Some(PauseMode::Layer);
-                        self.barrier_layer = None;
+                        self.pause = Pause::Stopping {
+                            how: Stop::Barrier { layer: None },
+                            then: state::AfterStop::Park,
+                        };
                         self.say(format_args!(
                             "pause here (M0/M600): stopping after the queued moves"
                         ));
@@ -495,30 +527,33 @@ impl Printer {
                 }
             }
             let _ = self.cmds.pop_front();
-            if let Some(n) = self.fifo_countdown.as_mut() {
+            if let Some(Some(n)) = self.pause.tail_countdown() {
                 *n = n.saturating_sub(1);
             }
         }
-        if self.fifo_countdown == Some(0) && !self.planner.has_pending() {
-            self.fifo_countdown = None;
-            let id = self.planner.next_id();
-            self.planner.set_barrier(id);
+        if !self.planner.has_pending() {
+            if let Some(c @ Some(0)) = self.pause.tail_countdown() {
+                *c = None;
+                let id = self.planner.next_id();
+                self.planner.set_barrier(id);
+            }
         }
     }
 
-    /// `busy: processing` at most every [`BUSY_PERIOD_US`] while a host line waits for its
+    /// `busy: processing` at most every M113 period ([`BUSY_PERIOD_US`] by default; M113 S0:
+    /// never) while a host line waits for its
     /// `ok` (heater wait, M400, a full queue while paused), so the host does not time out.
     fn keep_alive(&mut self) {
         let period = self.reports.busy_us;
-        if period > 0 && self.now_us.saturating_sub(self.last_busy_us) >= period {
-            self.last_busy_us = self.now_us;
+        if period > 0 && self.now_us.saturating_sub(self.lines.last_busy_us) >= period {
+            self.lines.last_busy_us = self.now_us;
             self.link.respond(Response::Busy);
         }
     }
 
     /// Send the `ok` an M400 owes (its wait is over, or the wait was dropped).
     fn pay_sync_ok(&mut self) {
-        if core::mem::take(&mut self.sync_ok_owed) {
+        if core::mem::take(&mut self.lines.sync_ok_owed) {
             self.link.respond(Response::Ok);
         }
     }
@@ -536,14 +571,17 @@ impl Printer {
     /// is already in progress the schedule waits: it is met by that pause if it stops at a
     /// matching boundary, or looked for again among the queued marks when the job resumes.
     fn check_schedule(&mut self, mark: LayerMark) {
-        if self.schedule_hit(&mark) && self.phase == Phase::Run {
+        if self.schedule_hit(&mark) && matches!(self.pause, Pause::Run) {
             self.schedule = None;
             if let Some((id, _)) = self.planner.marks().last() {
                 self.planner.set_barrier(id);
             }
-            self.barrier_layer = Some(mark.layer);
-            self.phase = Phase::Stopping;
-            self.mode = Some(PauseMode::Layer);
+            self.pause = Pause::Stopping {
+                how: Stop::Barrier {
+                    layer: Some(mark.layer),
+                },
+                then: state::AfterStop::Park,
+            };
             self.say(format_args!(
                 "scheduled pause: stopping before layer {}",
                 mark.layer
@@ -561,7 +599,7 @@ impl Printer {
 
     /// Apply the schedule to the layer marks already queued in the planner.
     pub(super) fn schedule_queued_marks(&mut self) {
-        if self.schedule.is_none() || self.phase != Phase::Run {
+        if self.schedule.is_none() || !matches!(self.pause, Pause::Run) {
             return;
         }
         let mut hit = None;
@@ -574,9 +612,12 @@ impl Printer {
         if let Some((id, m)) = hit {
             self.schedule = None;
             self.planner.set_barrier(id);
-            self.barrier_layer = Some(m.layer);
-            self.phase = Phase::Stopping;
-            self.mode = Some(PauseMode::Layer);
+            self.pause = Pause::Stopping {
+                how: Stop::Barrier {
+                    layer: Some(m.layer),
+                },
+                then: state::AfterStop::Park,
+            };
             self.say(format_args!(
                 "scheduled pause: stopping before layer {}",
                 m.layer
@@ -594,19 +635,19 @@ impl Printer {
     pub fn poll(&mut self, now_us: u64) {
         self.set_now(now_us);
         self.take_realtime();
-        if self.halted {
+        if self.is_halted() {
             return;
         }
         // Lines are taken only when one waits (or an arc is being cut): the idle tick costs
         // a compare instead of the line handler's frame.
-        if self.arc.is_some() || self.link.lines_waiting() > 0 || self.held_line.is_some() {
+        if self.arc.is_some() || self.link.lines_waiting() > 0 || self.lines.held_line.is_some() {
             self.process_lines();
         }
         self.feed_planner();
         self.retire_finished();
         self.update_pause();
         self.feed_planner();
-        if self.sync_ok_owed {
+        if self.lines.sync_ok_owed {
             // An M400 waits for the motion (maybe through a pause) with its `ok` owed.
             self.keep_alive();
         }
@@ -663,8 +704,15 @@ impl Printer {
                     t_us,
                     pos,
                 });
-                if b.kind == BlockKind::Homing && self.hold_deferred {
-                    self.hold_deferred = false;
+                if b.kind == BlockKind::Homing
+                    && matches!(
+                        self.pause,
+                        Pause::Stopping {
+                            how: Stop::Hold { after_homing: true },
+                            ..
+                        }
+                    )
+                {
                     self.begin_hold();
                 }
             }
@@ -673,7 +721,7 @@ impl Printer {
 
     /// Retire a finished block and load the next one. False when nothing can be loaded.
     fn advance_block(&mut self) -> bool {
-        if self.halted {
+        if self.is_halted() {
             return false;
         }
         self.retire_finished();
@@ -719,26 +767,28 @@ impl Printer {
     }
 
     fn next_block(&mut self) -> Option<PlannedBlock> {
-        match self.phase {
-            Phase::Run => self.job_block(),
-            Phase::Stopping => match self.mode {
-                Some(PauseMode::Now) => {
-                    if self.hold_deferred
-                        || (self.stepgen.is_braking() && self.stepgen.exit_speed_mm_s() > 0.0)
-                    {
-                        self.job_block()
-                    } else {
-                        None
-                    }
+        match &mut self.pause {
+            Pause::Run => self.job_block(),
+            Pause::Stopping { how, .. } => {
+                if how.mode() != PauseMode::Now
+                    || matches!(how, Stop::Hold { after_homing: true })
+                    || (self.stepgen.is_braking() && self.stepgen.exit_speed_mm_s() > 0.0)
+                {
+                    // Layer and tail stops run to their barrier; a feed hold brakes through
+                    // the next blocks while it still has speed (or waits for a homing move).
+                    self.job_block()
+                } else {
+                    None
                 }
-                _ => self.job_block(),
-            },
-            Phase::Parking | Phase::Parked | Phase::Returning => {
-                if self.reheat_wait {
-                    if !self.thermal.reached(HeaterId::Hotend) {
-                        return None;
+            }
+            Pause::Parking { .. } | Pause::Parked { .. } | Pause::Returning { .. } => {
+                if let Pause::Returning { reheat, .. } = &mut self.pause {
+                    if *reheat {
+                        if !self.thermal.reached(HeaterId::Hotend) {
+                            return None;
+                        }
+                        *reheat = false;
                     }
-                    self.reheat_wait = false;
                 }
                 while let Some(m) = self.service.pop_front() {
                     let from = self.stepgen.position();
@@ -748,6 +798,7 @@ impl Printer {
                 }
                 None
             }
+            Pause::Halted => None,
         }
     }
 
@@ -758,7 +809,7 @@ impl Printer {
     /// Realtime request (pause button, sim, or parsed from the byte stream).
     pub fn request(&mut self, req: Realtime, now_us: u64) {
         self.set_now(now_us);
-        if self.halted {
+        if self.is_halted() {
             self.say(format_args!("halted: reset required"));
             return;
         }
@@ -782,23 +833,26 @@ impl Printer {
 
     /// The run state now.
     pub fn state(&self) -> State {
-        if self.halted {
-            return State::Halted;
-        }
-        match self.phase {
-            Phase::Stopping | Phase::Parking => State::Pausing,
-            Phase::Parked => State::Paused,
-            Phase::Returning => State::Resuming,
-            Phase::Run => {
-                if self.cancelled {
-                    State::Cancelled
-                } else if self.has_work() {
+        match self.pause {
+            Pause::Halted => State::Halted,
+            Pause::Stopping { .. } | Pause::Parking { .. } => State::Pausing,
+            Pause::Parked { .. } => State::Paused,
+            Pause::Returning { .. } => State::Resuming,
+            Pause::Run => {
+                if self.has_work() {
                     State::Printing
+                } else if self.lines.after_cancel.is_some() {
+                    State::Cancelled
                 } else {
                     State::Idle
                 }
             }
         }
+    }
+
+    /// Emergency-stopped (nothing moves until reset).
+    fn is_halted(&self) -> bool {
+        matches!(self.pause, Pause::Halted)
     }
 
     fn update_state_record(&mut self) {
@@ -812,7 +866,10 @@ impl Printer {
 
     /// A snapshot of the printer.
     pub fn status(&self) -> Status {
-        let exec = usize::from(self.stepgen.current().is_some() || self.held.is_some());
+        let held = self.pause.held();
+        let exec = usize::from(
+            self.stepgen.current().is_some() || held.is_some_and(|h| h.block.is_some()),
+        );
         Status {
             state: self.state(),
             position: self.stepgen.position(),
@@ -820,11 +877,8 @@ impl Printer {
             queue_depth: self.cmds.len() + self.planner.len() + exec,
             planner_blocks: self.planner.len(),
             commands: self.cmds.len(),
-            paused_at: match self.phase {
-                Phase::Parking | Phase::Parked | Phase::Returning => Some(self.held_pos),
-                _ => None,
-            },
-            pause_mode: self.mode,
+            paused_at: held.map(|h| h.pos),
+            pause_mode: self.pause.mode(),
             position_lost: self.position_lost,
         }
     }
@@ -844,10 +898,8 @@ impl Printer {
             if let Some(f) = self.thermal.fault() {
                 let mut t: String<LINE_LEN> = String::new();
                 let _ = write!(t, "{f}");
-                self.link.respond(Response::Error(&t));
-                self.link
-                    .respond(Response::Error("Printer halted. kill() called!"));
-                if !self.halted {
+                self.link.notify(Response::Error(&t));
+                if !self.is_halted() {
                     self.emergency_stop();
                 }
             }

@@ -1,21 +1,28 @@
-//! The pause state machine: requests (pause, resume, cancel, stops), the stop detection, the
-//! park and return sequences in the service lane, and the release of the held blocks.
+//! Requests to the pause machine ([`super::state::Pause`]): pause, resume, cancel, quick and
+//! emergency stops, and the notion of "in a job" they share. What happens once the head has
+//! stopped (park, return, release) is in `park.rs`.
 
-use super::{steps, PausedLines, Phase, Printer, Record, ServiceMove};
-use crate::link::HostAction;
-use crate::motion::{Axis, PauseMode};
-use crate::planner::{Barrier, BlockKind};
+use super::state::{AfterPark, AfterReturn, AfterStop, Pause, Stop};
+use super::{AfterCancel, Printer, Record};
+use crate::link::{HostAction, Response};
+use crate::motion::PauseMode;
+use crate::planner::BlockKind;
 use crate::printer::LAYER_PAUSE_IDLE_US;
 
 impl Printer {
+    /// Feed hold for the stopping pause: brake from the executing block on (the stop becomes
+    /// [`Stop::Hold`]). While a homing move runs, the brake waits for its end.
     pub(super) fn begin_hold(&mut self) {
-        if self
+        let homing = self
             .stepgen
             .current()
-            .is_some_and(|e| e.planned.block.kind == BlockKind::Homing && !e.finished())
-        {
-            self.hold_deferred = true;
-            self.mode = Some(PauseMode::Now);
+            .is_some_and(|e| e.planned.block.kind == BlockKind::Homing && !e.finished());
+        if let Pause::Stopping { how, .. } = &mut self.pause {
+            *how = Stop::Hold {
+                after_homing: homing,
+            };
+        }
+        if homing {
             return;
         }
         let now = self.now_ns();
@@ -24,7 +31,6 @@ impl Printer {
             .stepgen
             .current()
             .map_or(0.0, |e| e.planned.block.accel_mm_s2);
-        self.mode = Some(PauseMode::Now);
         let t_us = self.t_us();
         self.record(Record::Brake {
             v_mm_s: v,
@@ -33,41 +39,54 @@ impl Printer {
         });
     }
 
+    /// Whether the printer is in a job — the same notion for pause and cancel: work queued or
+    /// moving, or a host streaming one (a line taken or a move ended within
+    /// [`LAYER_PAUSE_IDLE_US`]: between lines, or at a boundary the host drained with M400),
+    /// and not a job just cancelled.
+    pub(super) fn in_job(&self) -> bool {
+        if self.has_work() {
+            return true;
+        }
+        let idle_us = self.now_us.saturating_sub(self.last_activity_us);
+        self.lines.after_cancel.is_none()
+            && self.last_activity_us != 0
+            && idle_us < LAYER_PAUSE_IDLE_US
+    }
+
     pub(super) fn request_pause(&mut self, mode: PauseMode) {
-        match self.phase {
-            Phase::Run => {
-                // An idle printer is still in a job while the host streams it (between lines,
-                // or at a boundary the host drained with M400): the pause is taken unless
-                // nothing has moved or arrived for `LAYER_PAUSE_IDLE_US`.
-                let idle_us = self.now_us.saturating_sub(self.last_activity_us);
-                if !self.has_work()
-                    && (self.cancelled
-                        || self.last_activity_us == 0
-                        || idle_us >= LAYER_PAUSE_IDLE_US)
-                {
+        match &mut self.pause {
+            Pause::Run => {
+                if !self.in_job() {
                     self.say(format_args!("pause: nothing to pause"));
                     return;
                 }
-                self.phase = Phase::Stopping;
-                self.withdraw_after_stop = false;
                 if self.policy.pause_at_tail {
-                    self.mode = Some(mode);
-                    self.fifo_countdown = Some(self.cmds.len());
+                    self.pause = Pause::Stopping {
+                        how: Stop::Tail {
+                            mode,
+                            countdown: Some(self.cmds.len()),
+                        },
+                        then: AfterStop::Park,
+                    };
                     self.feed_planner();
                     self.say(format_args!("pause queued behind the buffered moves"));
                     return;
                 }
                 match mode {
                     PauseMode::Layer => {
-                        self.mode = Some(PauseMode::Layer);
+                        let mut layer = None;
                         if let Some((id, m)) = self.planner.first_mark() {
                             self.planner.set_barrier(id);
-                            self.barrier_layer = Some(m.layer);
+                            layer = Some(m.layer);
                             self.say(format_args!("pause: stopping before layer {}", m.layer));
                         } else {
                             self.planner.set_barrier_next_mark();
                             self.say(format_args!("pause: stopping at the next layer"));
                         }
+                        self.pause = Pause::Stopping {
+                            how: Stop::Barrier { layer },
+                            then: AfterStop::Park,
+                        };
                         if self.cfg.pause.speedup_factor > 1.0 {
                             self.planner.speed_up();
                             let t_us = self.t_us();
@@ -75,67 +94,85 @@ impl Printer {
                         }
                     }
                     PauseMode::Now => {
+                        self.pause = Pause::Stopping {
+                            how: Stop::Hold {
+                                after_homing: false,
+                            },
+                            then: AfterStop::Park,
+                        };
                         self.begin_hold();
                         self.say(format_args!("pause: stopping now"));
                     }
                 }
             }
-            Phase::Stopping => {
-                if mode == PauseMode::Now
-                    && self.mode == Some(PauseMode::Layer)
-                    && !self.policy.pause_at_tail
-                {
+            Pause::Stopping { how, then } => {
+                // A new pause request takes back a withdrawal (never a cancel).
+                if *then == AfterStop::Continue {
+                    *then = AfterStop::Park;
+                }
+                if mode == PauseMode::Now && matches!(how, Stop::Barrier { .. }) {
                     self.begin_hold();
                     self.say(format_args!("pause: stopping now"));
                 } else {
                     self.say(format_args!("pause already in progress"));
                 }
-                self.withdraw_after_stop = false;
             }
-            Phase::Parking | Phase::Parked => {
+            Pause::Parking { .. } | Pause::Parked { .. } => {
                 self.say(format_args!("already paused"));
             }
-            Phase::Returning => {
-                self.deferred_pause = Some(mode);
+            Pause::Returning { then, .. } => {
+                if *then != AfterReturn::Cancel {
+                    *then = AfterReturn::Pause(mode);
+                }
                 self.say(format_args!("pause deferred until the resume completes"));
             }
+            Pause::Halted => {}
         }
     }
 
     pub(super) fn request_resume(&mut self) {
-        match self.phase {
-            Phase::Parked => self.start_resume(),
-            Phase::Parking => {
-                self.deferred_resume = true;
+        match &mut self.pause {
+            Pause::Parked { .. } => self.start_resume(),
+            Pause::Parking { then, .. } => {
+                if *then != AfterPark::Cancel {
+                    *then = AfterPark::Resume;
+                }
                 self.say(format_args!("resume deferred until parked"));
             }
-            Phase::Stopping => {
-                if self.mode == Some(PauseMode::Now) || self.hold_deferred {
-                    self.withdraw_after_stop = true;
+            Pause::Stopping { how, then } => {
+                if how.mode() == PauseMode::Now {
+                    // A feed hold cannot be taken back mid-brake: stop, then continue without
+                    // parking.
+                    if *then != AfterStop::Cancel {
+                        *then = AfterStop::Continue;
+                    }
                 } else {
                     self.planner.clear_barrier();
-                    self.fifo_countdown = None;
-                    self.phase = Phase::Run;
-                    self.mode = None;
-                    self.barrier_layer = None;
+                    self.pause = Pause::Run;
                 }
                 self.say(format_args!("pause withdrawn"));
             }
-            Phase::Run => self.say(format_args!("not paused")),
-            Phase::Returning => self.say(format_args!("already resuming")),
+            Pause::Run => self.say(format_args!("not paused")),
+            Pause::Returning { .. } => self.say(format_args!("already resuming")),
+            Pause::Halted => {}
         }
     }
 
+    /// Drop the queued and held job for a cancel; from here on the rest of the job a host still
+    /// sends is discarded ([`AfterCancel`]).
     pub(super) fn drop_job(&mut self) {
         let cmds = self.cmds.len();
-        let held = usize::from(self.held.take().is_some());
+        let held = usize::from(self.pause.held_mut().and_then(|h| h.block.take()).is_some());
         let pos = self.stepgen.position();
         let (blocks, segs, marks) = self.planner.clear(pos);
         self.cmds.clear();
         self.pay_sync_ok();
         self.arc = None;
-        self.fifo_countdown = None;
         self.schedule = None;
+        self.lines.after_cancel = Some(AfterCancel {
+            after: self.lines.last_line_no,
+            discarded: 0,
+        });
         self.action(HostAction::Cancel);
         self.say(format_args!(
             "cancelled: dropped {} commands, {} blocks, {} uncut segments, {} layer marks",
@@ -147,44 +184,51 @@ impl Printer {
     }
 
     pub(super) fn request_cancel(&mut self) {
-        match self.phase {
-            Phase::Parked => {
+        match &mut self.pause {
+            Pause::Parked { .. } => {
                 self.drop_job();
                 self.finish_cancel();
             }
-            Phase::Parking => {
+            Pause::Parking { then, .. } => {
+                *then = AfterPark::Cancel;
                 self.drop_job();
-                self.cancel_pending = true;
             }
-            Phase::Returning => {
+            Pause::Returning { then, .. } => {
+                *then = AfterReturn::Cancel;
                 self.service.clear();
                 self.drop_job();
-                self.cancel_pending = true;
             }
-            Phase::Stopping | Phase::Run => {
-                if !self.has_work() {
+            Pause::Stopping { .. } | Pause::Run => {
+                if !self.in_job() {
                     self.say(format_args!("nothing to cancel"));
                     return;
                 }
-                self.cancel_pending = true;
-                self.phase = Phase::Stopping;
-                if self.mode != Some(PauseMode::Now) {
+                // A feed hold already braking (or a tail stop asked for now) goes on as it is;
+                // anything else brakes now.
+                let how = match self.pause {
+                    Pause::Stopping { how, .. } if how.mode() == PauseMode::Now => Some(how),
+                    _ => None,
+                };
+                self.pause = Pause::Stopping {
+                    how: how.unwrap_or(Stop::Hold {
+                        after_homing: false,
+                    }),
+                    then: AfterStop::Cancel,
+                };
+                if how.is_none() {
                     self.begin_hold();
                 }
             }
+            Pause::Halted => {}
         }
     }
 
+    /// The cancel is complete: back to [`Pause::Run`] where the head is.
     pub(super) fn finish_cancel(&mut self) {
-        self.phase = Phase::Run;
-        self.mode = None;
-        self.cancel_pending = false;
-        self.cancelled = true;
-        self.deferred_pause = None;
-        self.deferred_resume = false;
-        self.held = None;
-        self.barrier_layer = None;
-        self.manual_machine = None;
+        self.pause = Pause::Run;
+        // The host's silence is measured from here: lines that waited during the cancel's
+        // park are not a fresh start.
+        self.last_activity_us = self.now_us;
         let pos = self.stepgen.position();
         self.planner.clear(pos);
         self.planner.exec_done();
@@ -193,19 +237,19 @@ impl Printer {
     }
 
     pub(super) fn emergency_stop(&mut self) {
-        self.halted = true;
+        self.pause = Pause::Halted;
         self.thermal.kill(self.now_us);
         self.arc = None;
         let _ = self.stepgen.unload();
         let pos = self.stepgen.position();
         self.planner.clear(pos);
         self.cmds.clear();
-        self.sync_ok_owed = false;
+        self.lines.sync_ok_owed = false;
         self.service.clear();
-        self.held = None;
-        self.say(format_args!(
-            "emergency stop (M112): motors and heaters off, reset required"
-        ));
+        // As Marlin's kill(): an error to every port, then no answer to anything until reset.
+        self.link
+            .notify(Response::Error("Printer halted. kill() called!"));
+        self.link.halt();
     }
 
     pub(super) fn quick_stop(&mut self) {
@@ -215,248 +259,12 @@ impl Printer {
         let (blocks, segs, _) = self.planner.clear(pos);
         self.planner.exec_done();
         self.service.clear();
-        self.held = None;
-        self.phase = Phase::Run;
-        self.mode = None;
-        self.barrier_layer = None;
-        self.fifo_countdown = None;
+        self.pause = Pause::Run;
         self.arc = None;
-        self.manual_machine = None;
         self.machine.set_position_steps(&pos, &self.cfg);
         self.say(format_args!(
             "quick stop (M410): dropped {} blocks, {} uncut segments",
             blocks, segs
         ));
-    }
-
-    pub(super) fn stopped_for_pause(&mut self) -> bool {
-        if self.hold_deferred {
-            return false;
-        }
-        match self.mode {
-            Some(PauseMode::Now) => {
-                // Stopped: no step left in the loaded block (held mid-way), or between blocks
-                // with nothing to brake through. A brake that ends exactly at the last queued
-                // point may leave a rounding-sized exit speed with no block after it: the head
-                // is at the end of the queued motion, and that is the stop (issue 14 item 7).
-                self.stepgen.is_stopped()
-                    && (self.stepgen.current().is_some()
-                        || self.stepgen.exit_speed_mm_s() <= 0.0
-                        || self.planner.is_empty()
-                        || self.planner.at_barrier())
-            }
-            _ => {
-                if self.stepgen.current().is_some() {
-                    return false;
-                }
-                if self.planner.at_barrier() {
-                    return true;
-                }
-                // The job ended before any layer boundary: stop at its end.
-                if self.planner.barrier() == Barrier::NextMark
-                    && self.cmds.is_empty()
-                    && self.planner.is_empty()
-                    && self.now_us.saturating_sub(self.last_activity_us) >= LAYER_PAUSE_IDLE_US
-                {
-                    // A marker comment seen but no motion after it: the head is at that
-                    // boundary (the host stopped streaming there).
-                    if let Some(mark) = self.layers.finish() {
-                        if let Ok(true) = self.planner.push_mark(mark) {
-                            self.barrier_layer = Some(mark.layer);
-                            return true;
-                        }
-                    }
-                    let id = self.planner.next_id();
-                    self.planner.set_barrier(id);
-                    return true;
-                }
-                false
-            }
-        }
-    }
-
-    pub(super) fn update_pause(&mut self) {
-        self.retire_finished();
-        match self.phase {
-            Phase::Run => {
-                if !self.has_work() && self.fifo_countdown.is_none() {
-                    // Idle: nothing to do.
-                }
-            }
-            Phase::Stopping => {
-                if !self.stopped_for_pause() {
-                    return;
-                }
-                let mid = self.stepgen.current().is_some();
-                self.held = self.stepgen.unload();
-                self.stepgen.end_hold();
-                self.held_pos = self.stepgen.position();
-                let t_us = self.t_us();
-                let layer = if self.mode == Some(PauseMode::Now) {
-                    None
-                } else {
-                    self.barrier_layer
-                };
-                self.record(Record::Stopped {
-                    pos: self.held_pos,
-                    layer,
-                    mid_block: mid,
-                    t_us,
-                });
-                // A layer stop at a boundary the schedule asks for meets the schedule too.
-                if layer.is_some() {
-                    if let Some((_, m)) = self.planner.first_mark() {
-                        if self.schedule_hit(&m) {
-                            self.schedule = None;
-                            self.say(format_args!(
-                                "scheduled pause met by this pause (layer {})",
-                                m.layer
-                            ));
-                        }
-                    }
-                }
-                if self.withdraw_after_stop && !self.cancel_pending {
-                    self.withdraw_after_stop = false;
-                    self.release_held();
-                    return;
-                }
-                if self.cancel_pending {
-                    self.drop_job();
-                }
-                self.start_park();
-            }
-            Phase::Parking => {
-                if !self.service.is_empty() || self.stepgen.current().is_some() {
-                    return;
-                }
-                if self.cancel_pending {
-                    self.finish_cancel();
-                    return;
-                }
-                self.phase = Phase::Parked;
-                if self.policy.paused_lines != PausedLines::Queue {
-                    // Manual commands while paused are interpreted in a copy of the job's modal
-                    // state that starts at the parked position: they cannot change what the
-                    // job resumes with. (Job lines while paused keep using the job's state.)
-                    let mut m = self.machine;
-                    let here = self.stepgen.position();
-                    m.set_position_steps(&here, &self.cfg);
-                    self.manual_machine = Some(m);
-                }
-                self.thermal.pause_idle_start(self.now_us);
-                self.action(HostAction::Paused);
-                if self.deferred_resume {
-                    self.deferred_resume = false;
-                    self.start_resume();
-                }
-            }
-            Phase::Parked => {}
-            Phase::Returning => {
-                if !self.service.is_empty() || self.stepgen.current().is_some() || self.reheat_wait
-                {
-                    return;
-                }
-                if self.cancel_pending {
-                    self.finish_cancel();
-                    return;
-                }
-                // Logical E: the job continues from the held E count (no E jump).
-                let mut pos = self.stepgen.position();
-                pos[Axis::E.index()] = self.held_pos[Axis::E.index()];
-                self.stepgen.set_position(pos);
-                self.release_held();
-                self.action(HostAction::Resumed);
-                if let Some(m) = self.deferred_pause.take() {
-                    self.request_pause(m);
-                }
-            }
-        }
-    }
-
-    pub(super) fn release_held(&mut self) {
-        let rem = self.held.map(|e| {
-            let b = e.planned.block;
-            (e.remaining_mm(), b.accel_mm_s2, b.base_v2)
-        });
-        let exit = self.planner.release(rem);
-        if let Some(mut e) = self.held.take() {
-            e.planned.block.nominal_v2 = e.planned.block.base_v2;
-            self.stepgen.restore(e);
-            let now = self.now_ns();
-            self.stepgen.resume_held(exit, now);
-        }
-        self.phase = Phase::Run;
-        self.mode = None;
-        self.barrier_layer = None;
-        self.feed_planner();
-        // A schedule that came due while this pause was in progress stops at its boundary.
-        self.schedule_queued_marks();
-    }
-
-    pub(super) fn start_park(&mut self) {
-        self.phase = Phase::Parking;
-        self.service.clear();
-        let p = self.held_pos;
-        let c = self.cfg;
-        let r = steps(&c, Axis::E, c.pause.retract_mm);
-        self.retracted_steps = r;
-        let mut cur = p;
-        cur[Axis::E.index()] = cur[Axis::E.index()].wrapping_sub(r);
-        let _ = self.service.push_back(ServiceMove {
-            target: cur,
-            feed_mm_s: c.pause.retract_feed_mm_s,
-        });
-        let zmax = steps(&c, Axis::Z, c.axis(Axis::Z).max_mm);
-        let lift = steps(&c, Axis::Z, c.pause.lift_z_mm);
-        cur[Axis::Z.index()] = p[Axis::Z.index()].saturating_add(lift).min(zmax).max(p[2]);
-        let _ = self.service.push_back(ServiceMove {
-            target: cur,
-            feed_mm_s: c.axis(Axis::Z).max_feed_mm_s,
-        });
-        if self.position_lost & 0b011 != 0 {
-            // X/Y not homed since their motors were off: a park to bed coordinates could
-            // drive into a frame end. Retract and lift only.
-            self.say(format_args!(
-                "pause: X/Y position lost (M18/M84), not parking"
-            ));
-            return;
-        }
-        cur[Axis::X.index()] = steps(&c, Axis::X, c.pause.park_x_mm);
-        cur[Axis::Y.index()] = steps(&c, Axis::Y, c.pause.park_y_mm);
-        let _ = self.service.push_back(ServiceMove {
-            target: cur,
-            feed_mm_s: c.pause.park_feed_mm_s,
-        });
-    }
-
-    pub(super) fn start_resume(&mut self) {
-        self.phase = Phase::Returning;
-        // From here on host lines are job lines again (they queue behind the held blocks while
-        // the head returns): they must be interpreted in the job's modal state, not in the
-        // parked one manual commands used.
-        self.manual_machine = None;
-        // A nozzle cooled by the pause idle timeout must be hot again before the return.
-        self.reheat_wait = self.thermal.pause_idle_end().is_some();
-        self.service.clear();
-        let p = self.held_pos;
-        let c = self.cfg;
-        let mut cur = self.stepgen.position();
-        cur[Axis::X.index()] = p[Axis::X.index()];
-        cur[Axis::Y.index()] = p[Axis::Y.index()];
-        let _ = self.service.push_back(ServiceMove {
-            target: cur,
-            feed_mm_s: c.pause.park_feed_mm_s,
-        });
-        cur[Axis::Z.index()] = p[Axis::Z.index()];
-        let _ = self.service.push_back(ServiceMove {
-            target: cur,
-            feed_mm_s: c.axis(Axis::Z).max_feed_mm_s,
-        });
-        cur[Axis::E.index()] = cur[Axis::E.index()].wrapping_add(self.retracted_steps);
-        let _ = self.service.push_back(ServiceMove {
-            target: cur,
-            feed_mm_s: c.pause.retract_feed_mm_s,
-        });
-        self.action(HostAction::Resume);
     }
 }

@@ -3,12 +3,14 @@
 //! requests the driver carries out with its flash ([`Printer::service_store`]); M502 restores
 //! the factory values; M503 reports every setting as G-code that can be sent back.
 //!
-//! A value out of range is refused with an `echo:` naming it and its range, and nothing of that
-//! command changes (no `Error:`: a host would stop the job for it). Steps per mm change only
+//! A value out of range is refused with `echo:refused: …` (the executive's convention for
+//! refusals) naming it and its range, and nothing of that command changes (no `Error:`: a host
+//! would stop the job for it). Steps per mm change only
 //! while nothing is queued or moving: the position is re-expressed in the new steps then, as
 //! Marlin's M92 does, so no move jumps.
 
-use super::{Phase, Printer};
+use super::state::Pause;
+use super::Printer;
 use crate::gcode::{self, AxisWords, Heater, PauseParams, SettingsCommand};
 use crate::link::Response;
 use crate::motion::{Axis, AXES};
@@ -75,7 +77,7 @@ impl Printer {
     /// True when nothing is queued or moving and no pause is under way: steps per mm may
     /// change.
     fn settings_idle(&self) -> bool {
-        self.phase == Phase::Run && !self.has_work()
+        matches!(self.pause, Pause::Run) && !self.has_work()
     }
 
     /// Apply `s`. Refused (nothing changes) when the steps per mm differ while motion is
@@ -206,7 +208,7 @@ impl Printer {
                 }
             }),
             S::ProbeOffset(_) => {
-                self.say(format_args!("M851: this machine has no Z probe"));
+                self.say(format_args!("refused: M851: this machine has no Z probe"));
             }
             S::DriverCurrent(a) => self.m906(a),
             S::Save => self.settings.request = Some(StoreRequest::Save(self.settings())),
@@ -215,7 +217,7 @@ impl Printer {
                 let f = self.factory_settings();
                 match self.apply_settings(&f) {
                     Ok(()) => self.say(format_args!("Hardcoded Default Settings Loaded")),
-                    Err(e) => self.say(format_args!("M502 refused: {e}")),
+                    Err(e) => self.say(format_args!("refused: M502: {e}")),
                 }
             }
             S::Report => self.m503(),
@@ -232,7 +234,7 @@ impl Printer {
     fn refuse(&mut self, code: &str, axis: usize, v: f32, b: &Bound) {
         let l = LETTERS.get(axis).copied().unwrap_or('?');
         self.say(format_args!(
-            "{code} {l}{v}: {} out of range ({}..{} {}); nothing changed",
+            "refused: {code} {l}{v}: {} out of range ({}..{} {}); nothing changed",
             b.name, b.min, b.max, b.unit
         ));
     }
@@ -276,7 +278,7 @@ impl Printer {
             }
         }
         if let Err(e) = self.apply_settings(&s) {
-            self.say(format_args!("M92 refused: {e}"));
+            self.say(format_args!("refused: M92: {e}"));
         }
     }
 
@@ -289,7 +291,7 @@ impl Printer {
             if !JUNCTION_DEVIATION.contains(j) {
                 let b = JUNCTION_DEVIATION;
                 self.say(format_args!(
-                    "M205 J{j}: {} out of range ({}..{} {}); nothing changed",
+                    "refused: M205 J{j}: {} out of range ({}..{} {}); nothing changed",
                     b.name, b.min, b.max, b.unit
                 ));
                 return;
@@ -298,7 +300,7 @@ impl Printer {
         }
         if unused {
             self.say(format_args!(
-                "M205: X Y Z E (jerk), B, S, T not used: corners are planned by junction deviation (J)"
+                "refused: M205 X Y Z E (jerk), B, S, T: not used, corners are planned by junction deviation (J)"
             ));
         } else if p.junction_mm.is_none() {
             self.report_line(&self.current("M205"));

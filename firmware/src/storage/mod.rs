@@ -9,10 +9,15 @@
 //! See `docs/settings.md` for the M-codes, the format and the power-fail guarantees.
 
 mod flash;
+mod job;
 mod record;
 mod store;
 
 pub use flash::{block_on, Blocking, Cut, FlashOp, ModelError, NorFlashModel};
+pub use job::{
+    JobSource, ModalState, PausedJob, JOB_BODY_LEN, JOB_FORMAT_VERSION, JOB_PATH_CAP,
+    JOB_RECORD_LEN,
+};
 pub use record::{
     Bound, RecordError, Settings, ACCEL, BODY_LEN, DEFAULT_DRIVER_CURRENT_MA, DRIVER_CURRENT,
     FORMAT_VERSION, HOME_OFFSET, JUNCTION_DEVIATION, MAX_FEED, PAUSE_VALUE, PID_GAIN, RECORD_LEN,

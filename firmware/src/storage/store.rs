@@ -7,6 +7,7 @@
 //! sectors, the sim a file-backed model, the tests [`super::NorFlashModel`].
 
 use super::flash::{block_on, Blocking};
+use super::job::{PausedJob, JOB_RECORD_LEN};
 use super::record::{RecordError, Settings, RECORD_LEN};
 use embedded_storage::nor_flash::NorFlash;
 use sequential_storage::cache::{Cache, Uncached};
@@ -21,6 +22,10 @@ pub const JOB_KEY: u8 = 2;
 /// largest flash word sequential-storage supports (32 B).
 pub const BUF_LEN: usize = 256;
 const _: () = assert!((RECORD_LEN + 1).div_ceil(32) * 32 <= BUF_LEN);
+const _: () = assert!((JOB_RECORD_LEN + 1).div_ceil(32) * 32 <= BUF_LEN);
+
+/// What a cleared paused-job entry holds (no job).
+const NO_JOB: [u8; 1] = [0];
 
 /// Why the store could not load or save.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -138,6 +143,28 @@ impl<F: NorFlash> SettingsStore<F> {
     pub fn save(&mut self, s: &Settings) -> Result<(), StoreError> {
         s.validate().map_err(StoreError::Record)?;
         self.store(SETTINGS_KEY, &s.encode())
+    }
+
+    /// The paused job kept for a power-cut resume (None: none, or cleared).
+    pub fn load_job(&mut self) -> Result<Option<PausedJob>, StoreError> {
+        let got = self.fetch(JOB_KEY, |b| {
+            if b == NO_JOB {
+                Ok(None)
+            } else {
+                PausedJob::decode(b).map(Some)
+            }
+        })?;
+        Ok(got.flatten())
+    }
+
+    /// Keep `job` for a power-cut resume (replaces the previous one only once whole).
+    pub fn save_job(&mut self, job: &PausedJob) -> Result<(), StoreError> {
+        self.store(JOB_KEY, &job.encode())
+    }
+
+    /// Forget the paused job (it resumed, or was cancelled).
+    pub fn clear_job(&mut self) -> Result<(), StoreError> {
+        self.store(JOB_KEY, &NO_JOB)
     }
 }
 
@@ -270,6 +297,82 @@ mod tests {
             Ok(()) => assert_eq!(st.load(), Ok(Some(nth(1)))),
             Err(e) => assert_eq!(e, StoreError::Corrupted),
         }
+    }
+
+    /// Settings and a paused job side by side: a cut during a job save or clear keeps the
+    /// settings whole and the job old-or-new; a cut during a settings save keeps the job.
+    #[test]
+    fn a_power_cut_while_saving_one_record_never_touches_the_other() {
+        use crate::storage::job::tests::sample;
+        let mut cuts = 0;
+        for before in 1..30u32 {
+            let mut st = small_store(vec![0xFF; 3 * 1024]);
+            for k in 0..before {
+                st.save(&nth(k)).unwrap();
+                st.save_job(&sample(k, k % 2 == 0)).unwrap();
+            }
+            let base = st.into_flash().into_inner();
+            let (s_old, j_old) = (nth(before - 1), sample(before - 1, (before - 1) % 2 == 0));
+            let s_new = nth(before);
+            let j_new = sample(before, before % 2 == 0);
+            // 0: save a job, 1: clear the job, 2: save settings.
+            for what in 0..3 {
+                for n in 0.. {
+                    let mut flash = Small::new(base.clone());
+                    flash.cut_power(n, Cut::Partial);
+                    let mut st = SettingsStore::new(flash, SMALL_RANGE).unwrap();
+                    let r = match what {
+                        0 => st.save_job(&j_new),
+                        1 => st.clear_job(),
+                        _ => st.save(&s_new),
+                    };
+                    if r.is_ok() {
+                        break;
+                    }
+                    cuts += 1;
+                    let mut flash = st.into_flash();
+                    flash.restore_power();
+                    let mut st = SettingsStore::new(flash, SMALL_RANGE).unwrap();
+                    let s = st.load().unwrap();
+                    let j = st.load_job().unwrap();
+                    let ctx = format!("{before} saves, op {what}, cut at {n}");
+                    match what {
+                        0 => {
+                            assert_eq!(s, Some(s_old), "{ctx}");
+                            assert!(
+                                j == Some(j_old.clone()) || j == Some(j_new.clone()),
+                                "{ctx}"
+                            );
+                        }
+                        1 => {
+                            assert_eq!(s, Some(s_old), "{ctx}");
+                            assert!(j == Some(j_old.clone()) || j.is_none(), "{ctx}");
+                        }
+                        _ => {
+                            assert!(s == Some(s_old) || s == Some(s_new), "{ctx}");
+                            assert_eq!(j, Some(j_old.clone()), "{ctx}");
+                        }
+                    }
+                }
+            }
+        }
+        assert!(cuts > 200, "{cuts}");
+        println!("two-record power-fail sweep: {cuts} cuts");
+    }
+
+    #[test]
+    fn a_job_saved_loads_and_a_cleared_one_is_gone() {
+        use crate::storage::job::tests::sample;
+        let mut st = small_store(vec![0xFF; 3 * 1024]);
+        assert_eq!(st.load_job(), Ok(None));
+        st.save_job(&sample(4, false)).unwrap();
+        let bytes = st.into_flash().into_inner();
+        let mut st = small_store(bytes);
+        assert_eq!(st.load_job(), Ok(Some(sample(4, false))));
+        st.clear_job().unwrap();
+        assert_eq!(st.load_job(), Ok(None));
+        // A job alone is no damaged settings record.
+        assert_eq!(st.load(), Ok(None));
     }
 
     /// Cut the power at every write and erase of a save, after `before` earlier saves (so the

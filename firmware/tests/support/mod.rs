@@ -219,12 +219,18 @@ pub fn run_gcode(p: &mut Printer, lines: &[&str], sends: &[(u64, &str)], limit_u
     loop {
         if !waiting_ok && next_line < lines.len() {
             let l = format!("{}\n", lines[next_line]);
-            p.receive(l.as_bytes(), now);
+            // One line per `ok`: always taken whole (flow control never holds it back).
+            assert_eq!(
+                p.receive(l.as_bytes(), now),
+                l.len(),
+                "line not taken: {l:?}"
+            );
             next_line += 1;
             waiting_ok = true;
         }
         while next_send < sends.len() && sends[next_send].0 <= now {
-            p.receive(sends[next_send].1.as_bytes(), now);
+            let b = sends[next_send].1.as_bytes();
+            assert_eq!(p.receive(b, now), b.len(), "realtime line not taken");
             r.req_times.push(now);
             // A realtime line is answered `ok` too, but the host does not wait for it.
             oks_pending += 1;

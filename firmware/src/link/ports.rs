@@ -1,0 +1,173 @@
+//! Two host ports in front of one executive: the USB serial port and the TFT's UART (the SKR 2
+//! has both, and a BigTreeTech touch screen polls `M105` on its UART while a host prints over
+//! USB). Each port has its own [`HostLink`]: its own line assembler, line numbers, FIFO and
+//! output ring, so a TFT line split around a USB line is still one line. Answers go to the
+//! port that asked; notifications (`//action:`, thermal errors, pause messages) go to both.
+//!
+//! Memory is fixed: [`PORTS`] links of about 4.8 KB each (the 4 KB output ring dominates).
+
+use super::{HostLink, ReceivedLine, Response};
+use crate::motion::Realtime;
+use core::fmt::{self, Write};
+
+/// Number of host ports.
+pub const PORTS: usize = 2;
+
+/// A host port.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum PortId {
+    /// The USB serial port (the host: OctoPrint, Pronterface, the simulator's pty).
+    Usb,
+    /// The TFT's UART (a touch screen).
+    Tft,
+}
+
+impl PortId {
+    /// Every port, in index order.
+    pub const ALL: [PortId; PORTS] = [PortId::Usb, PortId::Tft];
+
+    /// The port's index, `0..PORTS`.
+    pub const fn index(self) -> usize {
+        match self {
+            PortId::Usb => 0,
+            PortId::Tft => 1,
+        }
+    }
+}
+
+/// The host links of every port, and where answers go. The executive uses it as it would one
+/// link: [`HostPorts::pop_line`] takes lines from the ports in turn and makes the line's port
+/// the one [`HostPorts::respond`] answers; [`HostPorts::take_realtime`] does the same for the
+/// request it returns until the next call; [`HostPorts::notify`] writes to every port.
+#[derive(Clone, Debug, Default)]
+pub struct HostPorts {
+    links: [HostLink; PORTS],
+    /// Port of the last line handed out: its answers (`ok`, reports, errors) go there, also
+    /// the `ok` owed for an M400 or an arc, given later.
+    line_port: Option<PortId>,
+    /// Port of the realtime request being handled (until the next `take_realtime` or
+    /// `pop_line`).
+    request_port: Option<PortId>,
+    /// The port `pop_line` tries first, so one busy port cannot starve the other.
+    next: usize,
+}
+
+impl HostPorts {
+    /// Idle links on every port.
+    pub const fn new() -> Self {
+        HostPorts {
+            links: [HostLink::new(), HostLink::new()],
+            line_port: None,
+            request_port: None,
+            next: 0,
+        }
+    }
+
+    /// One port's link (read-only: counters, line numbers).
+    pub fn port(&self, p: PortId) -> &HostLink {
+        let [usb, tft] = &self.links;
+        match p {
+            PortId::Usb => usb,
+            PortId::Tft => tft,
+        }
+    }
+
+    fn port_mut(&mut self, p: PortId) -> &mut HostLink {
+        let [usb, tft] = &mut self.links;
+        match p {
+            PortId::Usb => usb,
+            PortId::Tft => tft,
+        }
+    }
+
+    /// Bytes received on port `p`; returns how many were taken (see [`HostLink::receive`]).
+    pub fn receive(&mut self, p: PortId, bytes: &[u8]) -> usize {
+        self.port_mut(p).receive(bytes)
+    }
+
+    /// The next realtime request of any port (emergency stops first). Until the next call (or
+    /// [`HostPorts::pop_line`]), [`HostPorts::respond`] answers the port it came from.
+    pub fn take_realtime(&mut self) -> Option<Realtime> {
+        self.request_port = None;
+        let first = PortId::ALL
+            .into_iter()
+            .find(|&p| self.port(p).estop)
+            .or_else(|| {
+                PortId::ALL
+                    .into_iter()
+                    .find(|&p| !self.port(p).realtime.is_empty())
+            })?;
+        let rt = self.port_mut(first).take_realtime()?;
+        self.request_port = Some(first);
+        Some(rt)
+    }
+
+    /// The oldest checked line of the next port that has one (ports take turns); its answers
+    /// go to that port. See [`HostLink::pop_line`].
+    pub fn pop_line(&mut self) -> Option<ReceivedLine> {
+        for k in 0..PORTS {
+            let i = (self.next + k) % PORTS;
+            let Some(&p) = PortId::ALL.get(i) else {
+                continue;
+            };
+            if let Some(l) = self.port_mut(p).pop_line() {
+                self.next = (i + 1) % PORTS;
+                self.line_port = Some(p);
+                self.request_port = None;
+                return Some(l);
+            }
+        }
+        None
+    }
+
+    /// Answers go to the port of the last line handed out again (after a realtime request was
+    /// handled): for a line the executive kept waiting for room and takes up now.
+    pub fn answer_line_port(&mut self) {
+        self.request_port = None;
+    }
+
+    /// Free output bytes of the port the last line came from (its answer goes there).
+    pub fn line_output_free(&self) -> usize {
+        self.port(self.line_port.unwrap_or(PortId::Usb)).output_free()
+    }
+
+    /// Lines waiting on every port.
+    pub fn lines_waiting(&self) -> usize {
+        self.links.iter().map(HostLink::lines_waiting).sum()
+    }
+
+    /// The port answers go to now (the USB port before any line).
+    pub fn reply_port(&self) -> PortId {
+        self.request_port.or(self.line_port).unwrap_or(PortId::Usb)
+    }
+
+    /// Answer the port that asked (see the type documentation).
+    pub fn respond(&mut self, r: Response<'_>) -> bool {
+        let p = self.reply_port();
+        self.port_mut(p).respond(r)
+    }
+
+    /// Write a notification to every port.
+    pub fn notify(&mut self, r: Response<'_>) {
+        for l in &mut self.links {
+            l.respond(r);
+        }
+    }
+
+    /// Halt every port (emergency stop): see [`HostLink::halt`].
+    pub fn halt(&mut self) {
+        for l in &mut self.links {
+            l.halt();
+        }
+    }
+
+    /// Move up to `buf.len()` bytes of port `p`'s output into `buf`; returns the count.
+    pub fn read_output(&mut self, p: PortId, buf: &mut [u8]) -> usize {
+        self.port_mut(p).read_output(buf)
+    }
+
+    /// Move all of port `p`'s output into `w`.
+    pub fn write_output<W: Write>(&mut self, p: PortId, w: &mut W) -> fmt::Result {
+        self.port_mut(p).write_output(w)
+    }
+}

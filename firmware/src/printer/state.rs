@@ -1,0 +1,196 @@
+//! The pause machine's state as one type: each variant carries the data that exists only in
+//! it, so impossible combinations (a deferred resume while printing, a held block while
+//! stopping, a cancel and a withdrawal at once...) cannot be written.
+//!
+//! ```text
+//! Run ──pause/cancel──► Stopping{how, then} ──head stopped──► Parking{held, then}
+//!   ▲                      │ then = Continue: release, back to Run      │ then = Cancel
+//!   │                      ▼                                            ▼
+//!   └──── Returning{held, then} ◄──resume── Parked{held, manual}     Run (cancelled)
+//! any ──M112──► Halted
+//! ```
+
+use crate::machine::MachineState;
+use crate::motion::{PauseMode, StepPos};
+use crate::stepgen::ExecBlock;
+
+/// Where the pause machine is.
+#[derive(Clone, Debug)]
+pub(super) enum Pause {
+    /// Printing or idle: no pause.
+    Run,
+    /// A pause (or a cancel) on its way: the head moves until it has stopped.
+    Stopping {
+        /// How it stops.
+        how: Stop,
+        /// What happens once it has stopped.
+        then: AfterStop,
+    },
+    /// Retract, lift and park in the service lane.
+    Parking {
+        /// The held job.
+        held: Held,
+        /// What happens once parked.
+        then: AfterPark,
+    },
+    /// Parked; the held job waits.
+    Parked {
+        /// The held job.
+        held: Held,
+        /// The modal state manual lines are interpreted in (a copy of the job's, at the parked
+        /// position; `None` when every line is a job line, [`super::PausedLines::Queue`]).
+        manual: Option<MachineState>,
+    },
+    /// Returning to the held position: XY, Z, un-retract, then the held job is released.
+    Returning {
+        /// The held job.
+        held: Held,
+        /// Waiting for the nozzle to be hot again (the pause idle timeout cooled it).
+        reheat: bool,
+        /// What happens once back.
+        then: AfterReturn,
+    },
+    /// Emergency stop: nothing moves until reset.
+    Halted,
+}
+
+/// How a stopping pause stops.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Stop {
+    /// At the layer barrier in the planner (layer pause, scheduled pause, M0/M600); `layer`
+    /// is the mark the barrier stands at, once known.
+    Barrier {
+        /// The barrier's layer mark.
+        layer: Option<u32>,
+    },
+    /// Feed hold: brake now. `after_homing`: a homing move is running; the brake starts when
+    /// it has finished.
+    Hold {
+        /// Waiting for a homing move to finish before braking.
+        after_homing: bool,
+    },
+    /// Conventional firmware ([`super::Policy::pause_at_tail`]): after everything queued at
+    /// the request. `countdown`: commands still to enter the planner before the barrier is set
+    /// at the planner's tail.
+    Tail {
+        /// Requested mode (reported; the stop is at the tail either way).
+        mode: PauseMode,
+        /// Commands left before the tail barrier is set.
+        countdown: Option<usize>,
+    },
+}
+
+impl Stop {
+    /// The pause mode this stop reports.
+    pub(super) fn mode(self) -> PauseMode {
+        match self {
+            Stop::Barrier { .. } => PauseMode::Layer,
+            Stop::Hold { .. } => PauseMode::Now,
+            Stop::Tail { mode, .. } => mode,
+        }
+    }
+}
+
+/// What a stopping pause does once the head has stopped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum AfterStop {
+    /// Park (the pause).
+    Park,
+    /// The pause was withdrawn during a feed hold: continue from where it stopped.
+    Continue,
+    /// A cancel: drop the job, park, then back to [`Pause::Run`].
+    Cancel,
+}
+
+/// What a parking pause does once parked.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum AfterPark {
+    /// Stay parked (announce `//action:paused`).
+    Wait,
+    /// A resume came while parking: return at once.
+    Resume,
+    /// A cancel: finish it (the job is already dropped).
+    Cancel,
+}
+
+/// What a returning pause does once back at the held position.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum AfterReturn {
+    /// Release the held job.
+    Print,
+    /// A pause came while returning: release, then pause again.
+    Pause(PauseMode),
+    /// A cancel came while returning: finish it where the head is.
+    Cancel,
+}
+
+/// The job held by a pause: where it stopped and what it left.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Held {
+    /// The block interrupted mid-way (feed hold), to be finished on resume.
+    pub(super) block: Option<ExecBlock>,
+    /// Where the head stopped, steps.
+    pub(super) pos: StepPos,
+    /// E retracted by the park, steps (given back by the return).
+    pub(super) retracted_steps: i32,
+    /// The pause's mode (reported).
+    pub(super) mode: PauseMode,
+}
+
+impl Pause {
+    /// The held job, from the stop to the release.
+    pub(super) fn held(&self) -> Option<&Held> {
+        match self {
+            Pause::Parking { held, .. }
+            | Pause::Parked { held, .. }
+            | Pause::Returning { held, .. } => Some(held),
+            _ => None,
+        }
+    }
+
+    /// The held job, mutable.
+    pub(super) fn held_mut(&mut self) -> Option<&mut Held> {
+        match self {
+            Pause::Parking { held, .. }
+            | Pause::Parked { held, .. }
+            | Pause::Returning { held, .. } => Some(held),
+            _ => None,
+        }
+    }
+
+    /// The current pause's mode, if a pause is in progress.
+    pub(super) fn mode(&self) -> Option<PauseMode> {
+        match self {
+            Pause::Stopping { how, .. } => Some(how.mode()),
+            _ => self.held().map(|h| h.mode),
+        }
+    }
+
+    /// A cancel is on its way (it completes when the head has stopped and parked).
+    pub(super) fn cancelling(&self) -> bool {
+        matches!(
+            self,
+            Pause::Stopping {
+                then: AfterStop::Cancel,
+                ..
+            } | Pause::Parking {
+                then: AfterPark::Cancel,
+                ..
+            } | Pause::Returning {
+                then: AfterReturn::Cancel,
+                ..
+            }
+        )
+    }
+
+    /// The tail barrier's countdown of the conventional policy, while stopping.
+    pub(super) fn tail_countdown(&mut self) -> Option<&mut Option<usize>> {
+        match self {
+            Pause::Stopping {
+                how: Stop::Tail { countdown, .. },
+                ..
+            } => Some(countdown),
+            _ => None,
+        }
+    }
+}

@@ -1,0 +1,30 @@
+#!/usr/bin/env bash
+# Runs each fuzz target of firmware/fuzz briefly (default 20 s each; FUZZ_SECONDS to change,
+# e.g. FUZZ_SECONDS=600 before a release) from the committed seed corpus. Fails on any finding
+# (the crashing input is left in firmware/fuzz/artifacts/<target>/).
+#
+# Builds with nightly and the flags cargo-fuzz passes (coverage instrumentation for libFuzzer,
+# debug assertions, overflow checks; no AddressSanitizer: the firmware library is safe Rust, a
+# panic is the finding), so cargo-fuzz itself is not needed. `cargo +nightly fuzz run <target>`
+# from firmware/fuzz works too when cargo-fuzz is installed.
+set -euo pipefail
+cd "$(dirname "$0")/../firmware/fuzz"
+secs="${FUZZ_SECONDS:-20}"
+targets=(parse_stream executive host_stream)
+if ! rustup toolchain list | grep -q '^nightly'; then
+  rustup toolchain install nightly --profile minimal
+fi
+export RUSTFLAGS="-Cpasses=sancov-module -Cllvm-args=-sanitizer-coverage-level=4 \
+-Cllvm-args=-sanitizer-coverage-inline-8bit-counters -Cllvm-args=-sanitizer-coverage-pc-table \
+-Cllvm-args=-sanitizer-coverage-trace-compares --cfg fuzzing -Cdebug-assertions -Coverflow-checks"
+# --target keeps the flags off build scripts (as cargo-fuzz does).
+triple=x86_64-unknown-linux-gnu
+cargo +nightly build --release --target "$triple" --bins
+for t in "${targets[@]}"; do
+  mkdir -p "corpus/$t" "artifacts/$t"
+  seeds=()
+  [ -d "seeds/$t" ] && seeds=("seeds/$t")
+  echo "== fuzz $t (${secs} s)"
+  "target/$triple/release/$t" -max_total_time="$secs" -timeout=10 -rss_limit_mb=1024 \
+    -print_final_stats=1 -artifact_prefix="artifacts/$t/" "corpus/$t" "${seeds[@]}"
+done
