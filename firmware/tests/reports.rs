@@ -67,12 +67,12 @@ fn m31_times_the_job_from_its_heater_wait_and_m27_answers_without_sd() {
     let r = run_gcode(&mut p, &["M104 S200", "M109 S200"], &[], 3_200_000);
     assert!(lines_starting(&r.out, "T:").len() >= 3, "{}", r.out);
     // The wait still runs: M31 is answered at once (it takes no queue room).
-    p.receive(b"M31\n", 3_300_000);
+    assert_eq!(p.receive(b"M31\n", 3_300_000), 4);
     p.poll(3_300_000);
     let mut out = String::new();
     p.write_output(&mut out).unwrap();
     assert!(out.contains("echo:Print time: 3s"), "{out}");
-    p.receive(b"M73 P42\nM27\n", 3_400_000);
+    assert_eq!(p.receive(b"M73 P42\nM27\n", 3_400_000), 12);
     p.poll(3_400_000);
     out.clear();
     p.write_output(&mut out).unwrap();
