@@ -10,7 +10,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/../firmware/fuzz"
 secs="${FUZZ_SECONDS:-20}"
-targets=(parse_stream executive host_stream)
+# FUZZ_TARGETS to choose (CI leaves out `executive` while its known finding is open, see
+# docs/frontend.md "Fuzzing").
+read -r -a targets <<< "${FUZZ_TARGETS:-parse_stream executive host_stream}"
 if ! rustup toolchain list | grep -q '^nightly'; then
   rustup toolchain install nightly --profile minimal
 fi
@@ -19,12 +21,13 @@ export RUSTFLAGS="-Cpasses=sancov-module -Cllvm-args=-sanitizer-coverage-level=4
 -Cllvm-args=-sanitizer-coverage-trace-compares --cfg fuzzing -Cdebug-assertions -Coverflow-checks"
 # --target keeps the flags off build scripts (as cargo-fuzz does).
 triple=x86_64-unknown-linux-gnu
+tdir="${CARGO_TARGET_DIR:-target}"
 cargo +nightly build --release --target "$triple" --bins
 for t in "${targets[@]}"; do
   mkdir -p "corpus/$t" "artifacts/$t"
   seeds=()
   [ -d "seeds/$t" ] && seeds=("seeds/$t")
   echo "== fuzz $t (${secs} s)"
-  "target/$triple/release/$t" -max_total_time="$secs" -timeout=10 -rss_limit_mb=1024 \
+  "$tdir/$triple/release/$t" -max_total_time="$secs" -timeout=10 -rss_limit_mb=1024 \
     -print_final_stats=1 -artifact_prefix="artifacts/$t/" "corpus/$t" "${seeds[@]}"
 done

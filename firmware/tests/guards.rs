@@ -12,7 +12,8 @@ fn arc_leaving_the_volume_is_refused_with_echo() {
     let mut p = printer();
     let r = run_gcode(&mut p, &["G20", "G3 X3 J200 I4", "M114"], &[], 5_000_000);
     assert!(
-        r.out.contains("echo:refused: arc leaves the build volume (Y)"),
+        r.out
+            .contains("echo:refused: arc leaves the build volume (Y)"),
         "{}",
         r.out
     );

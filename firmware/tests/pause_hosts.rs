@@ -147,7 +147,11 @@ impl Host {
         };
         self.in_flight = true;
         let taken = p.receive(line.as_bytes(), now);
-        assert_eq!(taken, line.len(), "a one-line-per-ok host's line is always taken");
+        assert_eq!(
+            taken,
+            line.len(),
+            "a one-line-per-ok host's line is always taken"
+        );
     }
 }
 

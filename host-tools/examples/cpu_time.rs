@@ -5,6 +5,7 @@
 //! Run: `cargo run --release -p host-tools --example cpu_time [LARGE.gcode]`
 //! (`CPU_TIME_N=<n>` sets the number of globe compiles, default 100).
 
+use host_tools::checks::{check, CheckOptions};
 use host_tools::modulate::{globe, Bitmap, Globe};
 use host_tools::profile::Profile;
 use host_tools::stats::stats;
@@ -43,6 +44,23 @@ fn main() -> anyhow::Result<()> {
             (b - a) * 1000.0 / n as f64,
             t1 * 1000.0 / n as f64,
             buf.len()
+        );
+    }
+    // The printability checks on the same model (`compile` runs them by default): the target
+    // is no more than the compile itself.
+    let (m, _) = globe(&Globe::default(), &map)?;
+    let (c0, t0) = (cpu_s(), std::time::Instant::now());
+    let mut issues = 0;
+    for _ in 0..n {
+        issues += check(&m, &p, &CheckOptions::default()).total();
+    }
+    let (c1, t1) = (cpu_s(), t0.elapsed().as_secs_f64());
+    if let (Some(a), Some(b)) = (c0, c1) {
+        println!(
+            "globe (45,000 strings) checks: {:.2} ms CPU, {:.2} ms wall per check ({} issues)",
+            (b - a) * 1000.0 / n as f64,
+            t1 * 1000.0 / n as f64,
+            issues / n
         );
     }
     if let Some(path) = std::env::args().nth(1) {

@@ -1,19 +1,27 @@
 //! Printability checks before writing, each with the step index and the place:
-//! - **outside the bed** (or below 0 / above the build height);
-//! - **unsupported**: a string with nothing printed below it within `support_radius_mm`
-//!   (the turtle paper's "cannot print in the air");
-//! - **widening too fast**: the supporting string is offset sideways by more than half the
-//!   string's width (width ≈ cross-section ÷ vertical gap), so the wall cannot stack (the
-//!   paper's collapsing cylinder);
+//! - **outside the bed** (or below 0 / above the build height), and extruding strings below
+//!   `min_z_mm` (a first layer at Z0 would press the nozzle into the bed);
+//! - **unsupported**: a point of a string (every `sample_mm` along it, not only its ends: a
+//!   bridge onto a pillar is caught in the middle) with nothing printed below it within
+//!   `support_radius_mm` (the turtle paper's "cannot print in the air");
+//! - **widening too fast**: at a string's end, the supporting material is offset sideways by
+//!   more than half the string's width (width ≈ cross-section ÷ vertical gap) plus half the
+//!   sample spacing (the nearest sample may lie that far from the supporting string's
+//!   nearest point), so the wall cannot stack (the paper's collapsing cylinder);
 //! - **travel crosses printed material** at or above the nozzle's height;
 //! - **flow above the profile's maximum** (cross-section × speed).
 //!
-//! Printed material is indexed in an R*-tree (`rstar`) of points sampled along the strings.
+//! Printed material is indexed in a uniform grid ([`crate::checks::grid`]): points sampled
+//! along the strings in cubic cells of the support radius, with the highest point per XY
+//! column for the travel check; every query touches a fixed handful of cells, so the checks
+//! cost about as much as writing the G-code.
+
+mod grid;
 
 use crate::model::{Model, Step};
 use crate::profile::Profile;
 use glam::DVec3;
-use rstar::{RTree, AABB};
+use grid::Grid;
 
 /// Check parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -33,6 +41,8 @@ pub struct CheckOptions {
     pub travel_clearance_mm: f64,
     /// Issues listed per kind (all are counted).
     pub max_listed: usize,
+    /// Lowest height of an extruding string, mm: below it the nozzle presses into the bed.
+    pub min_z_mm: f64,
 }
 
 impl Default for CheckOptions {
@@ -45,6 +55,7 @@ impl Default for CheckOptions {
             nozzle_radius_mm: 0.3,
             travel_clearance_mm: 0.1,
             max_listed: 10,
+            min_z_mm: 0.05,
         }
     }
 }
@@ -143,7 +154,7 @@ pub fn check(model: &Model, profile: &Profile, o: &CheckOptions) -> CheckReport 
             && p.z >= -1e-9
             && p.z <= b.z_max_mm + 1e-9
     };
-    let mut tree: RTree<[f64; 3]> = RTree::new();
+    let mut tree = Grid::new(o.support_radius_mm.max(o.nozzle_radius_mm).max(0.1));
     let mut pos: Option<DVec3> = None;
     let r2 = o.support_radius_mm * o.support_radius_mm;
     for (i, step) in model.steps.iter().enumerate() {
@@ -187,13 +198,34 @@ pub fn check(model: &Model, profile: &Profile, o: &CheckOptions) -> CheckReport 
                     );
                 }
                 if s.cross_mm2 > 0.0 {
-                    let q = s.end;
-                    if q.z > bed_contact_z {
-                        support_check(&tree, o, r2, i, q, s.cross_mm2, &mut rep);
+                    let low = s.start.z.min(s.end.z);
+                    if low < o.min_z_mm && low >= -1e-9 {
+                        let at = if s.start.z <= s.end.z { s.start } else { s.end };
+                        rep.add(
+                            o.max_listed,
+                            Issue {
+                                kind: IssueKind::OutsideBed,
+                                step: i,
+                                at,
+                                msg: format!(
+                                    "extruding at z {:.3} mm, below {} mm: the nozzle would press into the bed (a first layer needs z ≈ its height)",
+                                    at.z, o.min_z_mm
+                                ),
+                            },
+                        );
                     }
-                    // Sample the string into the index (after the check: it cannot support
-                    // itself).
+                    // Support at every sample point along the string (its start is the
+                    // previous string's end, already checked), then the string goes into the
+                    // index (after the check: it cannot support itself).
                     let n = ((s.len_mm() / o.sample_mm).ceil() as usize).clamp(1, 10_000);
+                    for k in 1..=n {
+                        let q = s.start.lerp(s.end, k as f64 / n as f64);
+                        if q.z > bed_contact_z
+                            && !support_check(&tree, o, r2, i, q, s.cross_mm2, k == n, &mut rep)
+                        {
+                            break;
+                        }
+                    }
                     for k in 1..=n {
                         let p = s.start.lerp(s.end, k as f64 / n as f64);
                         tree.insert([p.x, p.y, p.z]);
@@ -227,42 +259,42 @@ pub fn check(model: &Model, profile: &Profile, o: &CheckOptions) -> CheckReport 
     rep
 }
 
+/// Checks that `q` rests on printed material (and, at a string's `end`, that it does not
+/// widen too fast); false when an issue was reported (the rest of the string is not checked).
+#[allow(clippy::too_many_arguments)]
 fn support_check(
-    tree: &RTree<[f64; 3]>,
+    tree: &Grid,
     o: &CheckOptions,
     r2: f64,
     i: usize,
     q: DVec3,
     cross: f64,
+    end: bool,
     rep: &mut CheckReport,
-) {
-    let mut best: Option<(f64, [f64; 3])> = None;
-    for p in tree.locate_within_distance([q.x, q.y, q.z], r2) {
-        if p[2] <= q.z - o.min_drop_mm {
-            let d2 = (p[0] - q.x).powi(2) + (p[1] - q.y).powi(2) + (p[2] - q.z).powi(2);
-            if best.is_none_or(|(b, _)| d2 < b) {
-                best = Some((d2, *p));
-            }
-        }
-    }
-    match best {
-        None => rep.add(
+) -> bool {
+    match tree.nearest_below([q.x, q.y, q.z], r2, q.z - o.min_drop_mm) {
+        None => {
+            rep.add(
             o.max_listed,
             Issue {
                 kind: IssueKind::Unsupported,
                 step: i,
                 at: q,
-                msg: format!(
-                    "nothing printed within {} mm below ({:.2}, {:.2}, {:.2}): printing in the air",
-                    o.support_radius_mm, q.x, q.y, q.z
-                ),
-            },
-        ),
-        Some((_, p)) => {
+                        msg: format!(
+                            "nothing printed within {} mm below ({:.2}, {:.2}, {:.2}): printing in the air",
+                            o.support_radius_mm, q.x, q.y, q.z
+                        ),
+                    },
+            );
+            false
+        }
+        Some(_) if !end => true,
+        Some(p) => {
             let drop = q.z - p[2];
             let side = ((q.x - p[0]).powi(2) + (q.y - p[1]).powi(2)).sqrt();
             let width = cross / drop.max(0.05);
-            if side > 0.5 * width + o.sample_mm * 0.5 {
+            let allowance = o.sample_mm * 0.5;
+            if side > 0.5 * width + allowance {
                 rep.add(
                     o.max_listed,
                     Issue {
@@ -270,18 +302,20 @@ fn support_check(
                         step: i,
                         at: q,
                         msg: format!(
-                            "offset {side:.2} mm from the string {drop:.2} mm below exceeds half the string width ({:.2} mm)",
+                            "offset {side:.2} mm from the string {drop:.2} mm below exceeds half the string width ({:.2} mm) plus the {allowance:.2} mm sampling allowance",
                             0.5 * width
                         ),
                     },
                 );
+                return false;
             }
+            true
         }
     }
 }
 
 fn travel_check(
-    tree: &RTree<[f64; 3]>,
+    tree: &Grid,
     o: &CheckOptions,
     i: usize,
     from: DVec3,
@@ -298,11 +332,11 @@ fn travel_check(
     for k in 0..=n.min(100_000) {
         let d = skip + (len - 2.0 * skip) * k as f64 / n.max(1) as f64;
         let p = from.lerp(to, d / len);
-        let env = AABB::from_corners(
-            [p.x - r, p.y - r, p.z - o.travel_clearance_mm],
-            [p.x + r, p.y + r, f64::MAX],
-        );
-        if tree.locate_in_envelope(env).next().is_some() {
+        if tree.any_at_or_above(
+            [p.x - r, p.y - r],
+            [p.x + r, p.y + r],
+            p.z - o.travel_clearance_mm,
+        ) {
             rep.add(
                 o.max_listed,
                 Issue {
@@ -409,5 +443,57 @@ mod tests {
         });
         let r = check(&m, &Profile::ender3(), &CheckOptions::default());
         assert_eq!(r.count(IssueKind::TravelCrossesPrint), 1, "{:?}", r.issues);
+    }
+
+    fn line(m: &mut Model, a: [f64; 3], b: [f64; 3]) {
+        m.push(Step::String(crate::model::Str::line(
+            a.into(),
+            b.into(),
+            0.2,
+            20.0,
+        )));
+    }
+
+    /// A 40 mm bridge from one pillar onto another: both ends rest on the pillars, the middle
+    /// is in the air.
+    #[test]
+    fn bridge_is_unsupported_in_the_middle() {
+        let mut m = Model::new([0.0, 0.0]);
+        for k in 0..10 {
+            let z = 0.2 * (k + 1) as f64;
+            line(&mut m, [100.0, 100.0, z], [101.0, 100.0, z]);
+            line(&mut m, [140.0, 100.0, z], [141.0, 100.0, z]);
+        }
+        line(&mut m, [101.0, 100.0, 2.2], [140.0, 100.0, 2.2]);
+        let r = check(&m, &Profile::ender3(), &CheckOptions::default());
+        assert_eq!(r.count(IssueKind::Unsupported), 1, "{:?}", r.issues);
+        let at = r.issues.iter().find(|i| i.kind == IssueKind::Unsupported);
+        assert!(at.is_some_and(|i| i.at.x > 102.0 && i.at.x < 139.0));
+    }
+
+    #[test]
+    fn first_layer_at_z0_is_flagged() {
+        let mut m = Model::new([0.0, 0.0]);
+        line(&mut m, [100.0, 100.0, 0.0], [120.0, 100.0, 0.0]);
+        let r = check(&m, &Profile::ender3(), &CheckOptions::default());
+        assert_eq!(r.count(IssueKind::OutsideBed), 1, "{:?}", r.issues);
+        let mut ok = Model::new([0.0, 0.0]);
+        line(&mut ok, [100.0, 100.0, 0.2], [120.0, 100.0, 0.2]);
+        assert!(check(&ok, &Profile::ender3(), &CheckOptions::default()).is_clean());
+    }
+
+    /// The message names the limit the check applies: half the width plus the allowance.
+    #[test]
+    fn widening_message_states_the_limit_used() {
+        let r = check(&helix(2.0), &Profile::ender3(), &CheckOptions::default());
+        let i = r
+            .issues
+            .iter()
+            .find(|i| i.kind == IssueKind::WideningTooFast);
+        assert!(
+            i.is_some_and(|i| i.msg.contains("plus the 0.25 mm sampling allowance")),
+            "{:?}",
+            r.issues
+        );
     }
 }

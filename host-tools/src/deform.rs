@@ -2,7 +2,14 @@
 //! its cross-section with `fc` and its speed with `fv`; `deform_cylinder` does the same in
 //! cylindrical coordinates `(r, θ, z)` about the model's axis (θ in radians). Only end points
 //! move, so strings stay straight; with a chord tolerance, strings are first subdivided until
-//! the deformed midpoint lies within the tolerance of the deformed chord.
+//! the deformed string follows the deformation within the tolerance: a string longer than
+//! [`PROBE_SPACING_MM`] is probed every (at most) that distance, and pieces are halved until
+//! every probe lies within the tolerance of the deformed chord; pieces between neighbouring
+//! probes are then halved while their deformed midpoint is off. Features of the deformation
+//! shorter than the probe spacing can still be missed between probes.
+//!
+//! Bounds: a tolerance below [`MIN_TOLERANCE_MM`] is an error (the writer resolves 1 µm), and
+//! a deformation that would write more than [`MAX_STRINGS`] strings is an error.
 //!
 //! `fc` and `fv` receive the value and the *original* coordinates of the string's midpoint.
 //! Built-ins: [`cup_to_dish`], [`helix_to_sphere`], [`heart_dish`], [`twisted_vase`].
@@ -13,6 +20,12 @@ use std::f64::consts::PI;
 
 /// Deepest recursive subdivision (2^12 pieces per string at most).
 pub const MAX_SUBDIVISION_DEPTH: u32 = 12;
+/// Longest distance between probes of the tolerance test along one string, mm.
+pub const PROBE_SPACING_MM: f64 = 1.0;
+/// Smallest chord tolerance, mm.
+pub const MIN_TOLERANCE_MM: f64 = 1e-4;
+/// Most strings a deformation may produce.
+pub const MAX_STRINGS: usize = 20_000_000;
 
 /// Deformation errors.
 #[derive(Debug, thiserror::Error, PartialEq)]
@@ -32,6 +45,9 @@ pub enum DeformError {
     /// A user (script) function failed.
     #[error("{0}")]
     Callback(String),
+    /// The deformation would exceed a documented bound.
+    #[error("{0}")]
+    Limit(String),
 }
 
 /// A point map that may fail (script callbacks do).
@@ -57,6 +73,11 @@ pub fn deform_xyz_try(
     chord_tol_mm: Option<f64>,
 ) -> Result<Model, DeformError> {
     let tol = chord_tol_mm.filter(|t| t.is_finite() && *t > 0.0);
+    if let Some(t) = tol.filter(|t| *t < MIN_TOLERANCE_MM) {
+        return Err(DeformError::Limit(format!(
+            "chord tolerance {t} mm is below {MIN_TOLERANCE_MM} mm"
+        )));
+    }
     let model = model.arcs_to_lines(tol.unwrap_or(0.01));
     let mut out = Model {
         steps: Vec::with_capacity(model.steps.len()),
@@ -84,7 +105,12 @@ pub fn deform_xyz_try(
                 let b = map(s.end, fd)?;
                 last = Some((s.end, b));
                 pieces.clear();
-                subdivide(s.start, s.end, a, b, tol, 0, fd, &mut pieces)?;
+                subdivide_string(s.start, s.end, a, b, tol, fd, &mut pieces)?;
+                if out.steps.len() + pieces.len() > MAX_STRINGS {
+                    return Err(DeformError::Limit(format!(
+                        "the deformation makes more than {MAX_STRINGS} strings; use a larger tolerance"
+                    )));
+                }
                 for &(p0, p1, q0, q1) in &pieces {
                     let mid = 0.5 * (p0 + p1);
                     let c = fc(s.cross_mm2, mid)?;
@@ -110,6 +136,63 @@ pub fn deform_xyz_try(
 }
 
 type Piece = (DVec3, DVec3, DVec3, DVec3);
+
+/// Subdivides one string (see the module docs): probes every [`PROBE_SPACING_MM`], halves
+/// probe ranges until every probe inside is within `tol` of the chord, then refines pieces
+/// between neighbouring probes by their midpoints.
+fn subdivide_string(
+    p0: DVec3,
+    p1: DVec3,
+    q0: DVec3,
+    q1: DVec3,
+    tol: Option<f64>,
+    fd: &mut PointFn<'_>,
+    out: &mut Vec<Piece>,
+) -> Result<(), DeformError> {
+    let Some(t) = tol else {
+        out.push((p0, p1, q0, q1));
+        return Ok(());
+    };
+    let max_n = 1usize << MAX_SUBDIVISION_DEPTH;
+    let n = ((p0.distance(p1) / PROBE_SPACING_MM).ceil() as usize).clamp(1, max_n);
+    if n <= 2 {
+        // One probe at most: the midpoint test alone (the probe is the midpoint).
+        return subdivide(p0, p1, q0, q1, tol, 0, fd, out);
+    }
+    let ps: Vec<DVec3> = (0..=n).map(|i| p0.lerp(p1, i as f64 / n as f64)).collect();
+    let mut qs = Vec::with_capacity(n + 1);
+    qs.push(q0);
+    for &p in &ps[1..n] {
+        let q = fd(p)?;
+        if !q.is_finite() {
+            return Err(invalid(p, format!("point mapped to {q:?}")));
+        }
+        qs.push(q);
+    }
+    qs.push(q1);
+    // Depth left for the midpoint refinement between neighbouring probes.
+    let depth = MAX_SUBDIVISION_DEPTH.saturating_sub(n.next_power_of_two().trailing_zeros());
+    let mut stack = vec![(0usize, n)];
+    // Ranges are taken from the stack in order: push the right half first.
+    while let Some((i, j)) = stack.pop() {
+        if j == i + 1 {
+            subdivide(ps[i], ps[j], qs[i], qs[j], tol, depth, fd, out)?;
+            continue;
+        }
+        let off = (i + 1..j).any(|k| {
+            let f = (k - i) as f64 / (j - i) as f64;
+            qs[k].distance(qs[i].lerp(qs[j], f)) > t
+        });
+        if off {
+            let m = (i + j) / 2;
+            stack.push((m, j));
+            stack.push((i, m));
+        } else {
+            out.push((ps[i], ps[j], qs[i], qs[j]));
+        }
+    }
+    Ok(())
+}
 
 #[allow(clippy::too_many_arguments)]
 fn subdivide(
@@ -533,6 +616,47 @@ mod tests {
             .expect("vase");
         assert_eq!(coarse.string_count(), 4);
         assert!(fine.string_count() > 20);
+    }
+
+    /// A 40 mm line under a sine wave of 20 mm period: the deformed midpoint lies on the chord
+    /// (sin 2π = 0), yet the string must follow the wave within the tolerance everywhere.
+    #[test]
+    fn tolerance_holds_along_the_whole_string_not_only_at_its_midpoint() {
+        let mut m = Model::new([0.0, 0.0]);
+        m.push(Step::String(Str::line(
+            DVec3::new(0.0, 0.0, 5.0),
+            DVec3::new(40.0, 0.0, 5.0),
+            0.2,
+            20.0,
+        )));
+        let wave = |p: DVec3| DVec3::new(p.x, p.y, p.z + 2.0 * (2.0 * PI * p.x / 20.0).sin());
+        let tol = 0.05;
+        let out = deform_xyz(m, wave, |c, _| c, |v, _| v, Some(tol)).expect("deform");
+        assert!(out.string_count() > 20, "{} strings", out.string_count());
+        // Every piece: the wave at 5 points inside it lies within the tolerance of the chord
+        // (plus the second-order error of sampling between probes).
+        for s in out.strings() {
+            for k in 1..5 {
+                let f = k as f64 / 5.0;
+                let x = s.start.x + (s.end.x - s.start.x) * f;
+                let want = wave(DVec3::new(x, 0.0, 5.0));
+                let got = s.start.lerp(s.end, f);
+                assert!(
+                    (got.z - want.z).abs() <= 1.5 * tol,
+                    "piece {:?}→{:?} is {} mm off at x = {x}",
+                    s.start,
+                    s.end,
+                    (got.z - want.z).abs()
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn tiny_tolerance_is_an_error_not_endless_memory() {
+        let h = Helix::default().build().expect("h");
+        let r = deform_xyz(h, |p| p * 1.01, |c, _| c, |v, _| v, Some(1e-12));
+        assert!(matches!(r, Err(DeformError::Limit(_))), "{r:?}");
     }
 
     #[test]

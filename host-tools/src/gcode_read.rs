@@ -58,7 +58,7 @@ pub enum Event {
 }
 
 /// A G-code parse error with its line.
-#[derive(Debug, thiserror::Error, PartialEq)]
+#[derive(Clone, Debug, thiserror::Error, PartialEq, serde::Serialize)]
 #[error("line {line}: {msg}")]
 pub struct ReadError {
     /// 1-based line number.
@@ -74,7 +74,24 @@ pub struct ReadCounts {
     pub lines: u64,
     /// Commands that do not move the head (temperatures, fans, unknown M-codes, ...).
     pub skipped: u64,
+    /// Lines the firmware would reject, skipped under [`BadLines::Skip`].
+    pub bad: u64,
 }
+
+/// What a [`FirmwareReader`] does with a line the firmware's parser rejects.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum BadLines {
+    /// Stop with the line's error (the default: tools that write or resample G-code must not
+    /// guess).
+    #[default]
+    Refuse,
+    /// Skip the line as the printer would (it answers `Error:` and does nothing), keep the
+    /// first [`MAX_KEPT_BAD_LINES`] errors in [`FirmwareReader::bad_lines`] and count all.
+    Skip,
+}
+
+/// Errors of skipped lines a reader keeps.
+pub const MAX_KEPT_BAD_LINES: usize = 20;
 
 /// A source of motion events.
 pub trait GcodeReader {
@@ -100,6 +117,10 @@ pub struct FirmwareReader {
     z_cache: (f64, i32),
     /// Longest chord used to expand G2/G3 arcs, mm.
     pub arc_seg_mm: f64,
+    /// Rejected lines: refuse (default) or skip.
+    pub bad_line_policy: BadLines,
+    /// The first [`MAX_KEPT_BAD_LINES`] skipped lines' errors.
+    pub bad_lines: Vec<ReadError>,
 }
 
 impl Default for FirmwareReader {
@@ -113,6 +134,8 @@ impl Default for FirmwareReader {
             layers: LayerDetector::new(),
             z_cache: (0.0, 0),
             arc_seg_mm: 0.5,
+            bad_line_policy: BadLines::Refuse,
+            bad_lines: Vec::new(),
         }
     }
 }
@@ -453,22 +476,40 @@ impl GcodeReader for FirmwareReader {
             }
             counts.lines += 1;
             let err = |msg: String| ReadError { line: line_no, msg };
-            let text = unframe(raw).map_err(|m| err(m.into()))?;
+            // A rejected line: an error, or under `BadLines::Skip` noted and skipped.
+            macro_rules! reject {
+                ($msg:expr) => {{
+                    let e = err($msg);
+                    if self.bad_line_policy == BadLines::Refuse {
+                        return Err(e);
+                    }
+                    counts.bad += 1;
+                    if self.bad_lines.len() < MAX_KEPT_BAD_LINES {
+                        self.bad_lines.push(e);
+                    }
+                    continue;
+                }};
+            }
+            let text = match unframe(raw) {
+                Ok(t) => t,
+                Err(m) => reject!(m.into()),
+            };
             // Borrowed in place: moving the parsed line (≈ 140 bytes) out of the `Result`
             // cost a measurable share of the reading time.
             let parsed = parse_line(text);
             let line = match &parsed {
                 Ok(l) => l,
-                Err(e) => return Err(err(e.to_string())),
+                Err(e) => reject!(e.to_string()),
             };
             let from = self.pos;
             let action = match &line.command {
-                Some(cmd) => match self.action(cmd).map_err(|m| err(m.into()))? {
-                    Some(a) => a,
-                    None => {
+                Some(cmd) => match self.action(cmd) {
+                    Ok(Some(a)) => a,
+                    Ok(None) => {
                         counts.skipped += 1;
                         Action::None
                     }
+                    Err(m) => reject!(m.into()),
                 },
                 None => Action::None,
             };
@@ -651,7 +692,8 @@ mod tests {
             c,
             Ok(ReadCounts {
                 lines: 3,
-                skipped: 2
+                skipped: 2,
+                bad: 0
             })
         );
     }

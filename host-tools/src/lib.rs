@@ -13,6 +13,7 @@ pub mod timebased;
 // Design compiler (ht-design).
 pub mod checks;
 pub mod deform;
+pub mod fileio;
 pub mod gcode_read;
 pub mod model;
 pub mod modulate;

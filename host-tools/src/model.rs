@@ -12,6 +12,10 @@
 
 use glam::DVec3;
 
+/// Height above everything printed so far at which [`Model::assemble`] travels between
+/// parts, mm.
+pub const ASSEMBLY_CLEARANCE_MM: f64 = 1.0;
+
 /// A true circular arc in the XY plane (optionally rising in Z: a helical arc), written as
 /// G2/G3 when the design keeps it; deformations turn arcs into straight strings.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -227,11 +231,63 @@ impl Model {
         self
     }
 
-    /// Assembly of many parts in order.
+    /// Assembly of many parts in order. Between parts that do not join, the head lifts
+    /// straight up to [`ASSEMBLY_CLEARANCE_MM`] above everything printed so far (and above
+    /// both ends), crosses at that height and descends onto the next part's first point: the
+    /// travel never drives through a printed part.
     pub fn assemble(parts: impl IntoIterator<Item = Model>) -> Model {
         let mut it = parts.into_iter();
-        let first = it.next().unwrap_or_default();
-        it.fold(first, Model::then)
+        let mut out = it.next().unwrap_or_default();
+        let mut top_z = out.top_z();
+        for part in it {
+            if let (Some(from), Some(to), Some(top)) = (out.last_point(), part.first_point(), top_z)
+            {
+                if from != to {
+                    let safe_z = top.max(from.z).max(to.z) + ASSEMBLY_CLEARANCE_MM;
+                    for p in [
+                        DVec3::new(from.x, from.y, safe_z),
+                        DVec3::new(to.x, to.y, safe_z),
+                        to,
+                    ] {
+                        out.push(Step::Travel {
+                            to: p,
+                            speed_mm_s: None,
+                        });
+                    }
+                }
+            }
+            top_z = match (top_z, part.top_z()) {
+                (Some(a), Some(b)) => Some(a.max(b)),
+                (a, b) => a.or(b),
+            };
+            out = out.then(part);
+        }
+        out
+    }
+
+    /// Highest point of any string, mm; `None` without strings.
+    fn top_z(&self) -> Option<f64> {
+        self.strings()
+            .map(|s| s.start.z.max(s.end.z))
+            .reduce(f64::max)
+    }
+
+    /// Where the head is after the model: the end of its last string or travel.
+    fn last_point(&self) -> Option<DVec3> {
+        self.steps.iter().rev().find_map(|s| match s {
+            Step::String(s) => Some(s.end),
+            Step::Travel { to, .. } => Some(*to),
+            _ => None,
+        })
+    }
+
+    /// Where the model's first string or travel goes to first.
+    fn first_point(&self) -> Option<DVec3> {
+        self.steps.iter().find_map(|s| match s {
+            Step::String(s) => Some(s.start),
+            Step::Travel { to, .. } => Some(*to),
+            _ => None,
+        })
     }
 
     /// The strings, in order.
@@ -437,6 +493,43 @@ mod tests {
 
     fn s(a: [f64; 3], b: [f64; 3]) -> Step {
         Step::String(Str::line(a.into(), b.into(), 0.2, 20.0))
+    }
+
+    /// Assembly never travels through a printed part: from the end of a 10 mm tower the head
+    /// rises above the tower's top, crosses, and comes down onto the next part.
+    #[test]
+    fn assembly_lifts_over_printed_parts() {
+        let mut tower = Model::new([0.0, 0.0]);
+        for k in 0..50 {
+            let z = 0.2 * (k + 1) as f64;
+            tower.push(s([0., 0., z], [2., 0., z]));
+        }
+        let mut next = Model::new([0.0, 0.0]);
+        next.push(s([-10., 0., 0.2], [-12., 0., 0.2]));
+        let m = Model::assemble([tower, next]);
+        let travels: Vec<DVec3> = m
+            .steps
+            .iter()
+            .filter_map(|st| match st {
+                Step::Travel { to, .. } => Some(*to),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(
+            travels,
+            [
+                DVec3::new(2.0, 0.0, 11.0),
+                DVec3::new(-10.0, 0.0, 11.0),
+                DVec3::new(-10.0, 0.0, 0.2)
+            ]
+        );
+        // Joined parts get no travel.
+        let mut a = Model::new([0.0, 0.0]);
+        a.push(s([0., 0., 0.2], [1., 0., 0.2]));
+        let mut b = Model::new([0.0, 0.0]);
+        b.push(s([1., 0., 0.2], [2., 0., 0.2]));
+        let j = Model::assemble([a, b]);
+        assert!(j.steps.iter().all(|st| !matches!(st, Step::Travel { .. })));
     }
 
     #[test]

@@ -10,7 +10,7 @@
 //! 150 turns × 300 strings, one pixel per string, thinned near the poles at emission.
 
 use crate::deform::{helix_to_sphere, DeformError};
-use crate::model::{Model, Step};
+use crate::model::{MarkerKind, Model, Step};
 use crate::parts::Helix;
 
 /// Default contrast (speed ratio) of the paper.
@@ -68,8 +68,8 @@ impl Bitmap {
 
     /// Reads a PNG file.
     pub fn load(path: &std::path::Path) -> Result<Bitmap, ModulateError> {
-        let bytes = std::fs::read(path)
-            .map_err(|e| ModulateError::Image(format!("{}: {e}", path.display())))?;
+        let bytes = crate::fileio::read_bounded(path, crate::fileio::Limit::Drawing)
+            .map_err(|e| ModulateError::Image(format!("{e:#}")))?;
         Bitmap::from_png(&bytes)
     }
 
@@ -142,7 +142,9 @@ pub fn modulate_by(
 
 /// Modulates a helix-like model with `per_turn` strings per turn: string `i` is turn
 /// `i / per_turn` (from the bottom, mapped to picture rows from the bottom) and column
-/// `i % per_turn` (mapped to picture columns), both scaled to the picture size.
+/// `i % per_turn` (mapped to picture columns), both scaled to the picture size. Strings are
+/// counted from the first turn marker: a floor before the helix (`cylinder()`'s disc) is not
+/// part of the picture and is left as it is (a model without turn markers counts them all).
 pub fn modulate_helix(
     model: Model,
     bitmap: &Bitmap,
@@ -152,10 +154,29 @@ pub fn modulate_helix(
     if per_turn == 0 {
         return Err(ModulateError::Bad("strings per turn must be ≥ 1".into()));
     }
-    let n = model.string_count();
+    let floor = model
+        .steps
+        .iter()
+        .position(|s| {
+            matches!(
+                s,
+                Step::Marker {
+                    kind: MarkerKind::Turn,
+                    ..
+                }
+            )
+        })
+        .map_or(0, |k| {
+            model.steps[..k]
+                .iter()
+                .filter(|s| matches!(s, Step::String(_)))
+                .count()
+        });
+    let n = model.string_count() - floor;
     let turns = n.div_ceil(per_turn).max(1);
     let (w, h) = (bitmap.width() as usize, bitmap.height() as usize);
     modulate_by(model, bitmap, contrast, |i| {
+        let i = i.checked_sub(floor)?;
         let turn = i / per_turn;
         let col = i % per_turn;
         let x = col * w / per_turn;
@@ -284,5 +305,38 @@ mod tests {
         let frac = slowed as f64 / 45_000.0;
         assert!(frac > 0.2 && frac < 0.45, "ink fraction {frac}");
         assert!(m.emission.thin_min_len_mm.is_some());
+    }
+
+    /// A cylinder's floor disc is not part of the picture: a picture of two vertical halves
+    /// (ink on the left) slows exactly the first half of every wall turn, the floor not at all.
+    #[test]
+    fn cylinder_floor_does_not_shear_the_picture() {
+        let per_turn = 40;
+        let m = crate::parts::cylinder([100.0, 100.0], 0.2, 10.0, 4.2, 0.4, per_turn, 0.2, 20.0)
+            .expect("cylinder");
+        let floor = m
+            .steps
+            .iter()
+            .take_while(|s| {
+                !matches!(
+                    s,
+                    Step::Marker {
+                        kind: MarkerKind::Turn,
+                        ..
+                    }
+                )
+            })
+            .filter(|s| matches!(s, Step::String(_)))
+            .count();
+        assert!(floor > 0);
+        let (w, h) = (8u32, 4u32);
+        let ink = (0..w * h).map(|k| k % w < w / 2).collect();
+        let b = Bitmap::from_ink(w, h, ink).expect("bitmap");
+        let (out, _) = modulate_helix(m, &b, per_turn, 1.3).expect("modulate");
+        for (i, s) in out.strings().enumerate() {
+            let slowed = s.speed_mm_s < 20.0 - 1e-9;
+            let want = i >= floor && (i - floor) % per_turn < per_turn / 2;
+            assert_eq!(slowed, want, "string {i} (floor {floor})");
+        }
     }
 }

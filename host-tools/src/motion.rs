@@ -460,8 +460,18 @@ pub fn plan_gcode(
     out: &mut dyn FnMut(Segment),
     layer: &mut dyn FnMut(u32, Option<f64>, f64),
 ) -> Result<PlanTotals, ReadError> {
+    plan_gcode_with(&mut default_reader(), input, limits, out, layer)
+}
+
+/// [`plan_gcode`] with a given reader (e.g. one that skips rejected lines).
+pub fn plan_gcode_with(
+    reader: &mut crate::gcode_read::FirmwareReader,
+    input: &[u8],
+    limits: MotionLimits,
+    out: &mut dyn FnMut(Segment),
+    layer: &mut dyn FnMut(u32, Option<f64>, f64),
+) -> Result<PlanTotals, ReadError> {
     let mut planner = Planner::new(limits);
-    let mut reader = default_reader();
     let mut cur_layer = 0u32;
     let mut moves = 0u64;
     let mut dwell_s = 0.0;
@@ -507,6 +517,7 @@ pub fn plan_gcode(
         explicit_layers,
         lines: counts.lines,
         skipped: counts.skipped,
+        bad_lines: counts.bad,
         dwell_s,
     })
 }
@@ -527,6 +538,8 @@ pub struct PlanTotals {
     pub lines: u64,
     /// Commands skipped as not affecting motion.
     pub skipped: u64,
+    /// Lines the firmware would reject, skipped (only with a skipping reader).
+    pub bad_lines: u64,
     /// Time spent in dwells, s.
     pub dwell_s: f64,
 }

@@ -412,17 +412,34 @@ pub fn render(
         .extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase())
         .unwrap_or_default();
-    match ext.as_str() {
+    // Drawn in memory, then written with the safe output writer (never half a picture, never
+    // a device or link replaced by a regular file).
+    let (bytes, summary) = match ext.as_str() {
         "svg" => {
-            let root = SVGBackend::new(out, size).into_drawing_area();
-            draw(root, &segs, profile, o).map_err(|e| anyhow::anyhow!("drawing SVG: {e}"))
+            let mut text = String::new();
+            let s = {
+                let root = SVGBackend::with_string(&mut text, size).into_drawing_area();
+                draw(root, &segs, profile, o).map_err(|e| anyhow::anyhow!("drawing SVG: {e}"))?
+            };
+            (text.into_bytes(), s)
         }
         "png" => {
-            let root = BitMapBackend::new(out, size).into_drawing_area();
-            draw(root, &segs, profile, o).map_err(|e| anyhow::anyhow!("drawing PNG: {e}"))
+            let mut rgb = vec![0u8; 3 * size.0 as usize * size.1 as usize];
+            let s = {
+                let root = BitMapBackend::with_buffer(&mut rgb, size).into_drawing_area();
+                draw(root, &segs, profile, o).map_err(|e| anyhow::anyhow!("drawing PNG: {e}"))?
+            };
+            let img = image::RgbImage::from_raw(size.0, size.1, rgb)
+                .ok_or_else(|| anyhow::anyhow!("drawing PNG: buffer size"))?;
+            let mut png = std::io::Cursor::new(Vec::new());
+            img.write_to(&mut png, image::ImageFormat::Png)
+                .map_err(|e| anyhow::anyhow!("encoding PNG: {e}"))?;
+            (png.into_inner(), s)
         }
         _ => anyhow::bail!("{}: the output must end in .svg or .png", out.display()),
-    }
+    };
+    crate::fileio::write_bytes(out, &bytes)?;
+    Ok(summary)
 }
 
 #[cfg(test)]

@@ -151,12 +151,13 @@ impl Profile {
             return Ok(p);
         }
         let path = Path::new(name_or_path);
-        let text = std::fs::read_to_string(path).map_err(|e| {
-            anyhow::anyhow!(
-                "printer profile `{name_or_path}`: not a built-in ({}) and not readable: {e}",
-                BUILTIN.join(", ")
-            )
-        })?;
+        let text =
+            crate::fileio::read_text_bounded(path, crate::fileio::Limit::Profile).map_err(|e| {
+                anyhow::anyhow!(
+                    "printer profile `{name_or_path}`: not a built-in ({}) and not readable: {e:#}",
+                    BUILTIN.join(", ")
+                )
+            })?;
         Profile::from_toml(&text).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
     }
 

@@ -187,12 +187,15 @@ impl ScriptRunner {
     /// Runs the script in `path`.
     pub fn run_file(&self, path: &Path) -> Result<ScriptOutput, ScriptError> {
         let name = path.display().to_string();
-        let src = std::fs::read_to_string(path).map_err(|e| ScriptError {
-            file: name.clone(),
-            line: 0,
-            col: 0,
-            msg: format!("cannot read: {e}"),
-        })?;
+        let src =
+            crate::fileio::read_text_bounded(path, crate::fileio::Limit::Script).map_err(|e| {
+                ScriptError {
+                    file: name.clone(),
+                    line: 0,
+                    col: 0,
+                    msg: format!("cannot read: {e:#}"),
+                }
+            })?;
         let dir = path
             .parent()
             .map(Path::to_path_buf)
@@ -253,7 +256,8 @@ impl ScriptRunner {
     fn engine(&self, dir: &Path, shared: Arc<Mutex<Shared>>) -> Engine {
         let mut e = Engine::new_raw();
         e.register_global_module(StandardPackage::new().as_shared_module());
-        e.set_max_operations(self.limits.max_operations);
+        // 0 would turn Rhai's operation limit off: the sandbox always keeps a limit.
+        e.set_max_operations(self.limits.max_operations.max(1));
         e.set_max_call_levels(self.limits.max_call_levels);
         e.set_max_string_size(self.limits.max_string_size);
         e.set_max_array_size(self.limits.max_array_size);

@@ -8,7 +8,8 @@
 //! any, a layer whenever Z has risen before an extruding move — the same boundaries the
 //! printer's layer pause stops at.
 
-use crate::motion::{plan_gcode, MotionLimits, MoveKind, Segment};
+use crate::gcode_read::{default_reader, BadLines, ReadError};
+use crate::motion::{plan_gcode_with, MotionLimits, MoveKind, Segment};
 use crate::profile::Profile;
 use serde::Serialize;
 
@@ -67,10 +68,16 @@ pub struct Stats {
     pub bytes: u64,
     /// Time per layer.
     pub layer_times: Vec<LayerTime>,
+    /// Lines the firmware would reject: skipped (the printer answers `Error:` and does
+    /// nothing), counted here.
+    pub bad_lines: u64,
+    /// The first of those lines with their errors.
+    pub bad_line_errors: Vec<ReadError>,
 }
 
-/// Computes statistics of `input` for `profile`.
-pub fn stats(input: &[u8], profile: &Profile) -> Result<Stats, crate::gcode_read::ReadError> {
+/// Computes statistics of `input` for `profile`. Lines the firmware's parser rejects are
+/// skipped and reported in [`Stats::bad_lines`] (a bad line does not hide the whole file).
+pub fn stats(input: &[u8], profile: &Profile) -> Result<Stats, ReadError> {
     let limits = MotionLimits::from_profile(profile);
     let mut print_moves = 0u64;
     let mut travel_moves = 0u64;
@@ -125,7 +132,9 @@ pub fn stats(input: &[u8], profile: &Profile) -> Result<Stats, crate::gcode_read
             zs.push((layer, z));
         }
     };
-    let totals = plan_gcode(input, limits, &mut seg_sink, &mut layer_sink)?;
+    let mut reader = default_reader();
+    reader.bad_line_policy = BadLines::Skip;
+    let totals = plan_gcode_with(&mut reader, input, limits, &mut seg_sink, &mut layer_sink)?;
     let marks = totals.layer_marks as usize;
     if marker_time.len() <= marks {
         marker_time.resize(marks + 1, 0.0);
@@ -183,6 +192,8 @@ pub fn stats(input: &[u8], profile: &Profile) -> Result<Stats, crate::gcode_read
         lines: totals.lines,
         bytes: input.len() as u64,
         layer_times,
+        bad_lines: totals.bad_lines,
+        bad_line_errors: reader.bad_lines,
     })
 }
 
@@ -222,5 +233,27 @@ mod tests {
         let s = stats(g, &Profile::ender3()).expect("stats");
         assert_eq!(s.layer_source, "z");
         assert_eq!(s.layers, 3);
+    }
+
+    /// A bad line in the middle is skipped with its error; the rest of the file counts.
+    #[test]
+    fn bad_line_is_skipped_and_reported() {
+        let g = b"G90\nM82\nG1 X10 E1 F1200\nG1 X1e99 Y?\nG1 X20 E2\nN5 G1 X30 E3*99\nG1 X40 E4\n";
+        let s = stats(g, &Profile::ender3()).expect("stats reads past bad lines");
+        assert_eq!(s.bad_lines, 2);
+        assert_eq!(
+            s.bad_line_errors.iter().map(|e| e.line).collect::<Vec<_>>(),
+            [4, 6]
+        );
+        assert_eq!(s.bbox_mm.max[0], 40.0);
+        assert!((s.filament_mm - 4.0).abs() < 1e-9);
+        // The strict reader the writers use still refuses.
+        let strict = crate::motion::plan_gcode(
+            g,
+            MotionLimits::from_profile(&Profile::ender3()),
+            &mut |_| {},
+            &mut |_, _, _| {},
+        );
+        assert_eq!(strict.map_err(|e| e.line), Err(4));
     }
 }

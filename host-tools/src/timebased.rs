@@ -10,6 +10,8 @@
 //! ;TIMEBASED period_ms=100 samples=N
 //! ;FORMAT line k (k = 0..N-1) of the motion lines below is the head position at t = k*period;
 //! ;FORMAT G1 moves reach it in one period (F = distance / period), G4 P<period> = head still
+//! (the printer's start code: homing, heating — `timebased` writes the profile's)
+//! ;TIMEBASED_BEGIN
 //! G90
 //! M82
 //! G92 E0
@@ -17,7 +19,11 @@
 //! ;LAYER_CHANGE / ;Z:..       <- where the source's layer changes (not a sample)
 //! G1 X.. Y.. E.. F..          <- sample 1, only changed axes written
 //! G4 P100                     <- sample k while the head stands still (dwell, heating)
+//! ;TIMEBASED_END
+//! (the printer's end code)
 //! ```
+//! Only the lines between `;TIMEBASED_BEGIN` and `;TIMEBASED_END` are samples; start and end
+//! code around them may move the head (homing, purge line, parking) without shifting times.
 //! E is absolute (a running total, as the motion model reports it). A sample is *extruding*
 //! when E grows towards it; travels and retractions do not deposit material. The file is
 //! ordinary G-code that any firmware runs at the right pace, and `cure-check` reads it back
@@ -30,6 +36,10 @@ use std::fmt::Write as _;
 
 /// The first line of a time-based file.
 pub const HEADER_TAG: &str = ";TIMEBASED";
+/// The line before the first sample.
+pub const BEGIN_TAG: &str = ";TIMEBASED_BEGIN";
+/// The line after the last sample.
+pub const END_TAG: &str = ";TIMEBASED_END";
 
 /// One sample of the toolpath.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -86,7 +96,8 @@ pub fn write_timebased(samples: &[Sample], period_s: f64, source: &str) -> Strin
     );
     out.push_str(";FORMAT line k (k = 0..N-1) of the motion lines below is the head position at t = k*period;\n");
     out.push_str(";FORMAT G1 moves reach it in one period (F = distance / period), G4 P<period> = head still\n");
-    out.push_str("G90\nM82\nG92 E0\n");
+    out.push_str(BEGIN_TAG);
+    out.push_str("\nG90\nM82\nG92 E0\n");
     let mut prev: Option<Sample> = None;
     let mut last_layer = 0u32;
     let mut last_f = f64::NAN;
@@ -142,7 +153,71 @@ pub fn write_timebased(samples: &[Sample], period_s: f64, source: &str) -> Strin
         out.push('\n');
         prev = Some(*s);
     }
+    out.push_str(END_TAG);
+    out.push('\n');
     out
+}
+
+/// Puts a printer's `start` code (homing, heating) before the samples of a time-based file and
+/// its `end` code after them: the file then runs as a whole job, and the samples keep their
+/// indices (only the lines between the begin and end tags are samples).
+pub fn with_start_end(timebased: &str, start: &str, end: &str) -> String {
+    let mut out = String::with_capacity(timebased.len() + start.len() + end.len() + 2);
+    let (head, body) = match timebased.find(BEGIN_TAG) {
+        Some(i) => timebased.split_at(i),
+        None => ("", timebased),
+    };
+    out.push_str(head);
+    out.push_str(start);
+    if !start.is_empty() && !start.ends_with('\n') {
+        out.push('\n');
+    }
+    out.push_str(body);
+    out.push_str(end);
+    if !end.is_empty() && !end.ends_with('\n') {
+        out.push('\n');
+    }
+    out
+}
+
+/// The first hot-end and bed targets a G-code file sets (`M104`/`M109`, `M140`/`M190` `S`),
+/// read with the firmware's parser; `None` when the file sets none.
+pub fn first_temperatures(gcode: &[u8]) -> (Option<f64>, Option<f64>) {
+    use firmware::gcode::{parse_line, Command, Heater};
+    let (mut hotend, mut bed) = (None, None);
+    for line in gcode.split(|&b| b == b'\n') {
+        if let Ok(firmware::gcode::Line {
+            command:
+                Some(Command::SetTemperature {
+                    heater, s: Some(c), ..
+                }),
+            ..
+        }) = parse_line(line)
+        {
+            match heater {
+                Heater::Hotend if hotend.is_none() => hotend = Some(f64::from(c)),
+                Heater::Bed if bed.is_none() => bed = Some(f64::from(c)),
+                _ => {}
+            }
+            if hotend.is_some() && bed.is_some() {
+                break;
+            }
+        }
+    }
+    (hotend, bed)
+}
+
+/// The sample section of a time-based file: between the begin and end tags when present.
+fn sample_section(text: &[u8]) -> &[u8] {
+    let find = |hay: &[u8], tag: &str| hay.windows(tag.len()).position(|w| w == tag.as_bytes());
+    let Some(b) = find(text, BEGIN_TAG) else {
+        return text;
+    };
+    let body = &text[b..];
+    match find(body, END_TAG) {
+        Some(e) => &body[..e],
+        None => body,
+    }
 }
 
 fn round_to(v: f64, dec: i32) -> f64 {
@@ -209,7 +284,7 @@ pub fn read_timebased(text: &[u8]) -> anyhow::Result<(f64, Vec<Sample>)> {
     let mut first_from: Option<DVec3> = None;
     let mut reader = default_reader();
     reader
-        .read(text, &mut |ev| match ev {
+        .read(sample_section(text), &mut |ev| match ev {
             Event::Move { from, to, .. } => {
                 if first_from.is_none() {
                     first_from = Some(DVec3::new(from[0], from[1], from[2]));

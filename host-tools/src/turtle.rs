@@ -62,7 +62,8 @@ fn finite(name: &str, v: f64) -> Result<f64, TurtleError> {
 impl Turtle {
     /// `init(FilamentDiameter, HeadTemperature, BedTemperature, CrossSection, x0, y0, z0)`:
     /// heading +X, pen down, speed 20 mm/s. Emits the filament diameter and the temperatures
-    /// (bed ≤ 0 °C means unheated: no bed command).
+    /// (bed ≤ 0 °C means unheated: the bed target is 0, so the start code's `M140`/`M190`
+    /// switch it off instead of heating it to the profile's temperature).
     pub fn init(
         filament_diameter_mm: f64,
         head_c: f64,
@@ -87,12 +88,10 @@ impl Turtle {
         model.push(Step::State(StateChange::FilamentDiameter(
             filament_diameter_mm,
         )));
-        if bed_c > 0.0 {
-            model.push(Step::State(StateChange::BedTemp {
-                celsius: finite("bed temperature", bed_c)?,
-                wait: true,
-            }));
-        }
+        model.push(Step::State(StateChange::BedTemp {
+            celsius: finite("bed temperature", bed_c)?.max(0.0),
+            wait: true,
+        }));
         model.push(Step::State(StateChange::HotendTemp {
             celsius: finite("head temperature", head_c)?,
             wait: true,

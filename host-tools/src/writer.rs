@@ -512,6 +512,7 @@ impl<'p> GcodeWriter<'p> {
         let retract = p.retraction.length_mm > 0.0
             && st.pos_f.is_some()
             && st.e_total > 0.0
+            && !st.retracted
             && dist >= p.retraction.min_travel_mm;
         if retract {
             self.retract(buf, st, scale, true);

@@ -482,7 +482,7 @@ fn max_tilt_of_the_default_head() {
 fn collision_against_a_wall() {
     // A 30 mm tall wall at x = 10..12; the head moves towards it 1 mm above the bed.
     let wall = box_mesh(DVec3::new(10.0, -20.0, 0.0), DVec3::new(12.0, 20.0, 30.0));
-    let samples = BaseSamples::new(&wall, 0.5, 20.0);
+    let samples = BaseSamples::new(&wall, 0.5, 20.0).expect("samples");
     let head = HeadModel::default();
     let tips = [DVec3::new(-40.0, 0.0, 1.0), DVec3::new(0.0, 0.0, 1.0)];
     let hit = check_path(&samples, &head, &tips, 0.5).expect("carriage must hit the wall");
@@ -522,7 +522,7 @@ fn pyramid_on_15_degree_slope_stacks_along_the_normal() {
     }
     assert!(job.paths.iter().any(|p| p.kind == PathKind::Infill));
     assert!(
-        check(&base, &job, &params).is_none(),
+        check(&base, &job, &params).expect("check").is_none(),
         "centred pyramid is printable"
     );
     // The same job chosen by a point on the slope picks a slope triangle.
@@ -543,7 +543,7 @@ fn pyramid_on_15_degree_slope_stacks_along_the_normal() {
         },
     )
     .unwrap();
-    assert!(check(&steep, &job, &params).is_some());
+    assert!(check(&steep, &job, &params).expect("check").is_some());
 }
 
 #[test]

@@ -140,6 +140,28 @@ fn same_layer_never_counts_as_below() {
     assert_eq!(r.supported, 0);
 }
 
+/// The printer's start code (homing, heating) and end code (moves to park) around the samples
+/// do not shift or add samples.
+#[test]
+fn timebased_start_and_end_code_keep_the_samples() {
+    use host_tools::timebased::{first_temperatures, with_start_end};
+    let samples = stacked_square(2, 50, 5, 0.4);
+    let bare = write_timebased(&samples, 0.1, "synthetic");
+    let p = host_tools::profile::Profile::ender3();
+    let text = with_start_end(&bare, &p.start_code(215.0, 0.0), &p.end_code(215.0, 0.0));
+    let g28 = text.find("G28").expect("start code homes");
+    let first = text.find("\nG1 X").expect("samples");
+    assert!(g28 < first && text.contains("M109 S215") && text.contains("M190 S0"));
+    assert!(text.trim_end().ends_with("M84"), "end code last");
+    let (_, a) = read_timebased(bare.as_bytes()).unwrap();
+    let (_, b) = read_timebased(text.as_bytes()).unwrap();
+    assert_eq!(a, b);
+    assert_eq!(
+        first_temperatures(b"G28\nM140 S55\nM104 S210\nM109 S215\n"),
+        (Some(210.0), Some(55.0))
+    );
+}
+
 #[test]
 fn timebased_file_round_trip() {
     let samples = stacked_square(3, 200, 5, 0.4);

@@ -164,7 +164,7 @@ mod tests {
         let mut p = Printer::new(MachineConfig::ENDER3);
         let mut fs = FlashStore::open(&dir).unwrap();
         fs.service(&mut p);
-        assert_eq!(p.receive(b"M92 E101\nM500\n", 0), 15);
+        assert_eq!(p.receive(b"M92 E101\nM500\n", 0), 14);
         p.poll(0);
         fs.service(&mut p);
         let mut out = String::new();

@@ -832,12 +832,14 @@ fn parse_text(code: &[u8], mut i: usize) -> Result<Text, ParseError> {
 /// rather than refused, so a long `M117` or `EXCLUDE_OBJECT_DEFINE` line never stops a job.
 fn to_text(raw: &[u8], at: usize) -> Result<Text, ParseError> {
     let cut = raw.len() > TEXT_CAP;
-    let head = raw.get(..TEXT_CAP).unwrap_or(raw);
+    // Cut, then trim again: a cut inside a run of blanks must not leave them at the end (the
+    // text would not read back the same from the emitter; found by fuzzing).
+    let head = trim_end(raw.get(..TEXT_CAP).unwrap_or(raw));
     let s = match core::str::from_utf8(head) {
         Ok(s) => s,
         // A character cut in two at the cap: drop its first bytes.
         Err(e) if cut && e.error_len().is_none() => {
-            core::str::from_utf8(head.get(..e.valid_up_to()).unwrap_or(&[]))
+            core::str::from_utf8(trim_end(head.get(..e.valid_up_to()).unwrap_or(&[])))
                 .map_err(|_| err(ParseErrorKind::BadText, at))?
         }
         Err(e) => return Err(err(ParseErrorKind::BadText, at + e.valid_up_to())),

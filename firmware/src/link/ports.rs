@@ -128,7 +128,8 @@ impl HostPorts {
 
     /// Free output bytes of the port the last line came from (its answer goes there).
     pub fn line_output_free(&self) -> usize {
-        self.port(self.line_port.unwrap_or(PortId::Usb)).output_free()
+        self.port(self.line_port.unwrap_or(PortId::Usb))
+            .output_free()
     }
 
     /// Lines waiting on every port.

@@ -135,6 +135,10 @@ pub struct Collision {
     pub part: &'static str,
 }
 
+/// Most surface samples [`BaseSamples::new`] takes (24 bytes each: 480 MB). A base part that
+/// needs more at the chosen step is refused with a message naming a coarser step.
+pub const MAX_BASE_SAMPLES: u64 = 20_000_000;
+
 /// Surface samples of a mesh in a uniform XY grid.
 pub struct BaseSamples {
     points: Vec<DVec3>,
@@ -149,12 +153,32 @@ pub struct BaseSamples {
 
 impl BaseSamples {
     /// Samples the surface of `mesh` every `sample_mm` (at most) and indexes the samples.
-    pub fn new(mesh: &Mesh, sample_mm: f64, cell_mm: f64) -> BaseSamples {
+    /// Errors when that takes more than [`MAX_BASE_SAMPLES`] samples.
+    pub fn new(mesh: &Mesh, sample_mm: f64, cell_mm: f64) -> anyhow::Result<BaseSamples> {
         let s = sample_mm.max(0.01);
-        let mut points = Vec::new();
-        for [a, b, c] in mesh.triangles() {
+        let divisions = |[a, b, c]: [DVec3; 3]| -> usize {
             let longest = (b - a).length().max((c - b).length()).max((a - c).length());
-            let n = ((longest / s).ceil() as usize).clamp(1, 4000);
+            if longest.is_finite() {
+                ((longest / s).ceil() as usize).clamp(1, 4000)
+            } else {
+                4000
+            }
+        };
+        let total: u64 = mesh
+            .triangles()
+            .map(|t| {
+                let n = divisions(t) as u64;
+                (n + 1) * (n + 2) / 2
+            })
+            .fold(0u64, u64::saturating_add);
+        if total > MAX_BASE_SAMPLES {
+            anyhow::bail!(
+                "the base part needs {total} surface samples at {s} mm (at most {MAX_BASE_SAMPLES}); use a coarser collision step"
+            );
+        }
+        let mut points = Vec::with_capacity(total as usize);
+        for [a, b, c] in mesh.triangles() {
+            let n = divisions([a, b, c]);
             for i in 0..=n {
                 for j in 0..=(n - i) {
                     let u = i as f64 / n as f64;
@@ -194,7 +218,7 @@ impl BaseSamples {
             order[fill[c] as usize] = k as u32;
             fill[c] += 1;
         }
-        BaseSamples {
+        Ok(BaseSamples {
             points,
             cell_mm: cell,
             origin: lo,
@@ -202,7 +226,7 @@ impl BaseSamples {
             ny,
             starts,
             order,
-        }
+        })
     }
 
     /// Number of surface samples.

@@ -8,9 +8,9 @@
 
 use super::collision::{check_path, BaseSamples, Collision, HeadModel};
 use super::fill::{fill_layer, FillParams, PathKind};
-use super::frame::{local_to_world, nearest_face, Frame, Placement};
+use super::frame::{closest_point_on_triangle, local_to_world, nearest_face, Frame, Placement};
 use super::slice::slice_layers;
-use super::stl::{validate, Mesh, MeshReport};
+use super::stl::{validate, Mesh, MeshReport, MAX_COORD_MM};
 use anyhow::bail;
 use glam::{DMat4, DVec3};
 
@@ -40,6 +40,10 @@ pub struct JobParams {
     pub head: HeadModel,
     /// Resolution of the collision check, mm.
     pub collision_step_mm: f64,
+    /// Where the nozzle is when the job starts (after the start code's `G28`), world mm. The
+    /// head rises straight up from here to a safe height, crosses above everything, and
+    /// descends onto the first point; the check covers that approach too.
+    pub start_mm: DVec3,
 }
 
 impl Default for JobParams {
@@ -52,6 +56,7 @@ impl Default for JobParams {
             gap_mm: 0.01,
             head: HeadModel::default(),
             collision_step_mm: 0.5,
+            start_mm: DVec3::ZERO,
         }
     }
 }
@@ -88,14 +93,19 @@ pub struct Job {
     pub open_chains: usize,
     /// Largest face tilt the head can print on (unbounded flat face), degrees.
     pub max_tilt_deg: f64,
+    /// The head's way from the start position to the first path point, first point excluded:
+    /// straight up to the safe height, across above the base and the shape.
+    pub approach: Vec<DVec3>,
 }
 
 impl Job {
-    /// Nozzle positions in print order, travels included (the polyline the head follows).
+    /// Nozzle positions in print order, the approach from the start position and the travels
+    /// included (the polyline the head follows).
     pub fn tip_polyline(&self) -> Vec<DVec3> {
-        self.paths
+        self.approach
             .iter()
-            .flat_map(|p| p.points.iter().copied())
+            .copied()
+            .chain(self.paths.iter().flat_map(|p| p.points.iter().copied()))
             .collect()
     }
 }
@@ -135,13 +145,38 @@ pub fn normalise_shape(shape: &Mesh) -> Mesh {
     }
 }
 
+/// Most layers a job may have.
+pub const MAX_LAYERS: usize = 100_000;
+/// Most toolpath points a job may have (about 1 GB of paths and G-code).
+pub const MAX_POINTS: usize = 20_000_000;
+/// Most walls.
+pub const MAX_WALLS: usize = 100;
+
 /// Plans the job: frame, slicing, fill, transform. Does not check collisions (see [`check`]).
+///
+/// Bounds (errors beyond them): layer height 0.01–50 mm, line width 0.05–50 mm, at most
+/// [`MAX_WALLS`] walls, [`MAX_LAYERS`] layers and [`MAX_POINTS`] toolpath points, offsets
+/// within ±[`MAX_COORD_MM`].
 pub fn plan(base: &Mesh, shape: &Mesh, p: &JobParams) -> anyhow::Result<Job> {
-    if !p.layer_mm.is_finite() || p.layer_mm <= 0.0 {
-        bail!("layer height must be a positive number");
+    if !(p.layer_mm.is_finite() && (0.01..=50.0).contains(&p.layer_mm)) {
+        bail!("layer height {} mm is outside 0.01..=50 mm", p.layer_mm);
     }
-    if !p.fill.line_width_mm.is_finite() || p.fill.line_width_mm <= 0.0 {
-        bail!("line width must be a positive number");
+    let w = p.fill.line_width_mm;
+    if !(w.is_finite() && (0.05..=50.0).contains(&w)) {
+        bail!("line width {w} mm is outside 0.05..=50 mm");
+    }
+    if p.fill.walls > MAX_WALLS || p.fill.solid_layers > MAX_LAYERS {
+        bail!(
+            "{} walls / {} solid layers: at most {MAX_WALLS} / {MAX_LAYERS}",
+            p.fill.walls,
+            p.fill.solid_layers
+        );
+    }
+    if p.placement.offset_mm.abs().max_element() > MAX_COORD_MM
+        || !p.start_mm.is_finite()
+        || p.start_mm.abs().max_element() > MAX_COORD_MM
+    {
+        bail!("offset and start position must lie within ±{MAX_COORD_MM} mm");
     }
     if !(0.0..=100.0).contains(&p.fill.infill_percent) {
         bail!("infill must be between 0 and 100 %");
@@ -152,9 +187,22 @@ pub fn plan(base: &Mesh, shape: &Mesh, p: &JobParams) -> anyhow::Result<Job> {
     let base_report = validate(base);
     let shape_report = validate(shape);
     let face_index = choose_face(base, p.face)?;
-    let frame = Frame::from_face(base, face_index)?;
+    let mut frame = Frame::from_face(base, face_index)?;
+    if let (FaceChoice::At(at), Some([a, b, c])) = (p.face, base.triangle(face_index)) {
+        // `--at` names the spot: the shape stands on the face point nearest to it.
+        frame.origin = closest_point_on_triangle(at, a, b, c);
+    }
     let m = local_to_world(&frame, &p.placement);
     let local = normalise_shape(shape);
+    if let Some((lo, hi)) = local.bbox() {
+        if (hi.z - lo.z) / p.layer_mm > MAX_LAYERS as f64 {
+            bail!(
+                "the shape is {:.1} mm tall: more than {MAX_LAYERS} layers of {} mm",
+                hi.z - lo.z,
+                p.layer_mm
+            );
+        }
+    }
     let sections = slice_layers(&local, p.layer_mm, p.gap_mm);
     let layers = sections.len();
     if layers == 0 {
@@ -165,10 +213,15 @@ pub fn plan(base: &Mesh, shape: &Mesh, p: &JobParams) -> anyhow::Result<Job> {
     }
     let mut paths = Vec::new();
     let mut open_chains = 0;
+    let mut points = 0usize;
     for (k, sec) in sections.iter().enumerate() {
         open_chains += sec.open_chains;
         let z = (k as f64 + 1.0) * p.layer_mm;
         for lp in fill_layer(&sec.loops, &p.fill, k, layers) {
+            points += lp.points.len();
+            if points > MAX_POINTS {
+                bail!("the job has more than {MAX_POINTS} toolpath points (layer {k}); use a larger layer height or line width");
+            }
             paths.push(WorldPath {
                 layer: k,
                 kind: lp.kind,
@@ -180,7 +233,9 @@ pub fn plan(base: &Mesh, shape: &Mesh, p: &JobParams) -> anyhow::Result<Job> {
             });
         }
     }
+    let approach = approach(base, shape_top(&paths), p.start_mm, &paths);
     Ok(Job {
+        approach,
         face_index,
         frame,
         local_to_world: m,
@@ -193,10 +248,44 @@ pub fn plan(base: &Mesh, shape: &Mesh, p: &JobParams) -> anyhow::Result<Job> {
     })
 }
 
-/// Checks the head along the whole toolpath (travels included) against the base part.
-pub fn check(base: &Mesh, job: &Job, p: &JobParams) -> Option<Collision> {
-    let samples = BaseSamples::new(base, p.collision_step_mm, p.head.max_radius_mm());
-    check_path(&samples, &p.head, &job.tip_polyline(), p.collision_step_mm)
+/// Highest toolpath point, world Z.
+fn shape_top(paths: &[WorldPath]) -> f64 {
+    paths
+        .iter()
+        .flat_map(|p| p.points.iter())
+        .fold(f64::NEG_INFINITY, |z, q| z.max(q.z))
+}
+
+/// Clearance of the approach above the base part and the shape, mm.
+pub const APPROACH_CLEARANCE_MM: f64 = 5.0;
+
+/// The head's way from `start` to the first path point (first point excluded): straight up
+/// to [`APPROACH_CLEARANCE_MM`] above the base part and the shape, across, and (by the first
+/// path point itself) straight down.
+fn approach(base: &Mesh, top_z: f64, start: DVec3, paths: &[WorldPath]) -> Vec<DVec3> {
+    let Some(first) = paths.iter().find_map(|p| p.points.first().copied()) else {
+        return Vec::new();
+    };
+    let base_top = base.bbox().map_or(f64::NEG_INFINITY, |(_, hi)| hi.z);
+    let safe_z = base_top.max(top_z).max(start.z) + APPROACH_CLEARANCE_MM;
+    vec![
+        start,
+        DVec3::new(start.x, start.y, safe_z),
+        DVec3::new(first.x, first.y, safe_z),
+    ]
+}
+
+/// Checks the head along the whole toolpath (the approach from the start position and the
+/// travels included) against the base part. Errors when the base part is too large to sample
+/// at the collision step.
+pub fn check(base: &Mesh, job: &Job, p: &JobParams) -> anyhow::Result<Option<Collision>> {
+    let samples = BaseSamples::new(base, p.collision_step_mm, p.head.max_radius_mm())?;
+    Ok(check_path(
+        &samples,
+        &p.head,
+        &job.tip_polyline(),
+        p.collision_step_mm,
+    ))
 }
 
 /// Speeds of the emitted paths, mm/s.
@@ -237,6 +326,13 @@ pub fn to_model(job: &Job, p: &JobParams, speeds: &Speeds) -> crate::model::Mode
         job.frame.z.z
     )));
     let cross = p.fill.line_width_mm * p.layer_mm;
+    // The approach (the start position itself is where the start code left the head).
+    for &to in job.approach.iter().skip(1) {
+        m.push(Step::Travel {
+            to,
+            speed_mm_s: None,
+        });
+    }
     let mut layer = usize::MAX;
     let mut kind: Option<PathKind> = None;
     for path in &job.paths {

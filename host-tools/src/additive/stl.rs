@@ -93,14 +93,28 @@ pub fn winding_normal(a: DVec3, b: DVec3, c: DVec3) -> DVec3 {
 
 /// Reads a binary or ASCII STL file.
 pub fn read_stl(path: &Path) -> anyhow::Result<Mesh> {
-    let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+    let bytes = crate::fileio::read_bounded(path, crate::fileio::Limit::Stl)?;
     read_stl_bytes(&bytes).with_context(|| format!("parsing STL {}", path.display()))
 }
 
-/// Reads a binary or ASCII STL from memory. Non-finite coordinates and empty meshes are errors.
+/// Largest coordinate magnitude of a mesh vertex, mm (10 m: far beyond any printer, and small
+/// enough that every derived toolpath number stays readable and every sampling stays bounded).
+pub const MAX_COORD_MM: f64 = 10_000.0;
+
+/// Reads a binary or ASCII STL from memory. Non-finite coordinates, coordinates beyond
+/// ±[`MAX_COORD_MM`], a binary triangle count the file cannot hold, and empty meshes are errors.
 pub fn read_stl_bytes(bytes: &[u8]) -> anyhow::Result<Mesh> {
     if bytes.len() < 15 {
         bail!("file too short to be an STL ({} bytes)", bytes.len());
+    }
+    if !bytes.starts_with(b"solid") && bytes.len() >= 84 {
+        let n = u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as u64;
+        if 84 + 50 * n > bytes.len() as u64 {
+            bail!(
+                "binary STL header announces {n} triangles but the file has room for {}",
+                (bytes.len() as u64 - 84) / 50
+            );
+        }
     }
     let mut cursor = Cursor::new(bytes);
     let indexed = stl_io::read_stl(&mut cursor).context("not a valid binary or ASCII STL")?;
@@ -113,6 +127,14 @@ pub fn read_stl_bytes(bytes: &[u8]) -> anyhow::Result<Mesh> {
         let p = DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64);
         if !p.is_finite() {
             bail!("vertex with a non-finite coordinate: {:?}", v.0);
+        }
+        if p.abs().max_element() > MAX_COORD_MM {
+            bail!(
+                "vertex ({}, {}, {}) lies beyond ±{MAX_COORD_MM} mm",
+                v[0],
+                v[1],
+                v[2]
+            );
         }
         mesh.vertices.push(p);
     }
@@ -135,7 +157,7 @@ pub fn read_stl_bytes(bytes: &[u8]) -> anyhow::Result<Mesh> {
 pub fn write_stl(path: &Path, mesh: &Mesh) -> anyhow::Result<()> {
     let mut out = Vec::new();
     write_stl_to(&mut out, mesh)?;
-    std::fs::write(path, out).with_context(|| format!("writing {}", path.display()))
+    crate::fileio::write_bytes(path, &out)
 }
 
 /// Writes a binary STL to any writer.

@@ -1,9 +1,12 @@
 //! `host-tools additive`: print a shape onto a face of an existing part (polygon frame).
 
+use super::range::{count, within, LAYER_MM, LINE_WIDTH_MM, SIZE_MM};
 use crate::additive::collision::HeadModel;
 use crate::additive::fill::FillParams;
 use crate::additive::frame::Placement;
-use crate::additive::job::{check, plan, to_model, FaceChoice, JobParams, Speeds};
+use crate::additive::job::{
+    check, plan, to_model, FaceChoice, JobParams, Speeds, MAX_LAYERS, MAX_WALLS,
+};
 use crate::additive::stl::read_stl;
 use crate::profile::Profile;
 use crate::writer::{GcodeWriter, WriteOptions};
@@ -32,37 +35,37 @@ pub struct Args {
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     pub rotate: f64,
     /// Number of walls.
-    #[arg(long, default_value_t = 2)]
+    #[arg(long, default_value_t = 2, value_parser = count(0, MAX_WALLS))]
     pub walls: usize,
     /// Infill density, per cent (0 = hollow like the paper, 100 = solid).
-    #[arg(long, default_value_t = 30.0)]
+    #[arg(long, default_value_t = 30.0, value_parser = within(0.0, 100.0))]
     pub infill: f64,
     /// Solid bottom and top layers.
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, default_value_t = 3, value_parser = count(0, MAX_LAYERS))]
     pub solid_layers: usize,
     /// Layer height along the face normal, mm.
-    #[arg(long, default_value_t = 0.2)]
+    #[arg(long, default_value_t = 0.2, value_parser = within(LAYER_MM.0, LAYER_MM.1))]
     pub layer_height: f64,
     /// Line width, mm.
-    #[arg(long, default_value_t = 0.45)]
+    #[arg(long, default_value_t = 0.45, value_parser = within(LINE_WIDTH_MM.0, LINE_WIDTH_MM.1))]
     pub line_width: f64,
     /// Printer profile (built-in name or TOML path).
     #[arg(long, default_value = "ender3")]
     pub printer: String,
     /// Nozzle tip radius, mm (collision model).
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = 0.5, value_parser = within(0.0, 1000.0))]
     pub tip_radius: f64,
     /// Nozzle cone half angle, degrees.
-    #[arg(long, default_value_t = 45.0)]
+    #[arg(long, default_value_t = 45.0, value_parser = within(0.0, 89.9))]
     pub nozzle_angle: f64,
     /// Free nozzle length below the heater block / shroud, mm.
-    #[arg(long, default_value_t = 8.0)]
+    #[arg(long, default_value_t = 8.0, value_parser = within(0.0, 1000.0))]
     pub nozzle_length: f64,
     /// Radius of the cylinder modelling heater block, shroud and carriage, mm.
-    #[arg(long, default_value_t = 20.0)]
+    #[arg(long, default_value_t = 20.0, value_parser = within(0.0, 1000.0))]
     pub carriage_radius: f64,
     /// Height of that cylinder, mm.
-    #[arg(long, default_value_t = 60.0)]
+    #[arg(long, default_value_t = 60.0, value_parser = within(0.0, 1000.0))]
     pub carriage_height: f64,
     /// Also render the G-code with `preview` (top, side, isometric) to this .svg/.png.
     #[arg(long)]
@@ -81,9 +84,9 @@ fn parse_nums(s: &str, n: usize) -> Result<Vec<f64>, String> {
                 .map_err(|_| format!("bad number `{t}`"))
         })
         .collect::<Result<_, _>>()?;
-    if v.len() != n || v.iter().any(|x| !x.is_finite()) {
+    if v.len() != n || v.iter().any(|x| !(x.is_finite() && x.abs() <= SIZE_MM)) {
         return Err(format!(
-            "expected {n} finite comma-separated numbers, got `{s}`"
+            "expected {n} comma-separated numbers within ±{SIZE_MM} mm, got `{s}`"
         ));
     }
     Ok(v)
@@ -128,13 +131,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             carriage_radius_mm: a.carriage_radius,
             carriage_height_mm: a.carriage_height,
         },
+        start_mm: DVec3::new(profile.bed.x_min_mm, profile.bed.y_min_mm, 0.0),
         ..JobParams::default()
     };
     let job = plan(&base, &shape, &params)?;
-    println!("base:  {}", job.base_report.summary());
-    println!("shape: {}", job.shape_report.summary());
+    crate::fileio::say(format_args!("base:  {}", job.base_report.summary()))?;
+    crate::fileio::say(format_args!("shape: {}", job.shape_report.summary()))?;
     let f = &job.frame;
-    println!(
+    crate::fileio::say(format_args!(
         "face {}: tilt {:.2}°, origin ({:.3}, {:.3}, {:.3}), X' ({:.4}, {:.4}, {:.4}), Y' ({:.4}, {:.4}, {:.4}), Z' ({:.4}, {:.4}, {:.4}){}",
         job.face_index,
         f.tilt_deg(),
@@ -143,18 +147,18 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         f.y.x, f.y.y, f.y.z,
         f.z.x, f.z.y, f.z.z,
         if f.horizontal_fallback { " (horizontal face: Y' = global Y projected)" } else { "" }
-    );
-    println!(
+    ))?;
+    crate::fileio::say(format_args!(
         "head: largest printable face tilt {:.1}° (cone {}°, {} mm below a carriage of radius {} mm)",
         job.max_tilt_deg, a.nozzle_angle, a.nozzle_length, a.carriage_radius
-    );
+    ))?;
     if job.open_chains > 0 {
-        println!(
+        crate::fileio::say(format_args!(
             "warning: {} slice chains could not be closed (open shape mesh) and were dropped",
             job.open_chains
-        );
+        ))?;
     }
-    if let Some(c) = check(&base, &job, &params) {
+    if let Some(c) = check(&base, &job, &params)? {
         anyhow::bail!(
             "refused: the {} hits the base part at ({:.2}, {:.2}, {:.2}) with the nozzle at ({:.2}, {:.2}, {:.2}) (toolpath point {}); the face tilt is {:.1}°, the head can print on up to {:.1}°",
             c.part,
@@ -178,7 +182,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         },
     );
     let summary = super::write_gcode(&writer, &model, &a.output, a.preview.as_deref(), &profile)?;
-    println!(
+    crate::fileio::say(format_args!(
         "collision check passed; wrote {}: {} layers, {} paths, {} strings, {} travels, filament {:.0} mm",
         a.output.display(),
         job.layers,
@@ -186,6 +190,6 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         summary.strings,
         summary.travels,
         summary.filament_mm
-    );
+    ))?;
     Ok(())
 }

@@ -1,13 +1,13 @@
 //! `host-tools compile DESIGN.rhai -o OUT.gcode [--printer PROFILE]`: runs a design script in
-//! the sandbox, checks printability, writes G-code (atomically: a temporary file renamed into
-//! place) and prints a summary with the estimated print time.
+//! the sandbox, checks printability, checks that the G-code reads back with the firmware's
+//! parser, writes it with [`crate::fileio::write_output`] (never replacing a link or a device)
+//! and prints a summary with the estimated print time.
 
 use crate::checks::{self, CheckOptions};
 use crate::motion::{plan_gcode, MotionLimits};
 use crate::profile::Profile;
 use crate::script::{Limits, ScriptRunner};
 use crate::writer::{GcodeWriter, WriteOptions};
-use anyhow::Context;
 use std::path::PathBuf;
 
 /// Arguments of `host-tools compile`.
@@ -30,8 +30,10 @@ pub struct Args {
     /// Leave out the profile's start and end code.
     #[arg(long)]
     pub bare: bool,
-    /// Most script operations allowed (sandbox limit).
-    #[arg(long, default_value_t = 200_000_000)]
+    /// Most script operations allowed (sandbox limit, 1000 to 10^12; the sandbox cannot be
+    /// turned off).
+    #[arg(long, default_value_t = 200_000_000,
+          value_parser = clap::value_parser!(u64).range(1000..=1_000_000_000_000))]
     pub max_operations: u64,
 }
 
@@ -105,21 +107,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     let mut buf = Vec::new();
     let sum = writer.write_into(&model, &mut buf)?;
-    let tmp = args.output.with_extension("gcode.tmp");
-    std::fs::write(&tmp, &buf).with_context(|| format!("writing {}", tmp.display()))?;
-    std::fs::rename(&tmp, &args.output)
-        .with_context(|| format!("renaming {} to {}", tmp.display(), args.output.display()))?;
+    // Read back with the firmware's parser before writing: nothing unreadable reaches a file.
     let totals = plan_gcode(
         &buf,
         MotionLimits::from_profile(&profile),
         &mut |_| {},
         &mut |_, _, _| {},
     )
-    .map_err(|e| anyhow::anyhow!("reading back our own output: {e}"))?;
+    .map_err(|e| {
+        anyhow::anyhow!("the generated G-code would not be readable ({e}); nothing written")
+    })?;
+    crate::fileio::write_bytes(&args.output, &buf)?;
     let bb = model.bbox();
     let grams =
         sum.filament_mm * profile.filament_area_mm2() * profile.filament_density_g_cm3 / 1000.0;
-    println!(
+    crate::fileio::say(format_args!(
         "{}: {} strings ({} thinned), {} travels, {} turns/layers, filament {:.0} mm ({:.1} g), \
          est. {:.1} min, bbox ({:.1}, {:.1}, {:.1})–({:.1}, {:.1}, {:.1}) mm, {} bytes",
         args.output.display(),
@@ -137,6 +139,5 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         bb.max.y,
         bb.max.z,
         sum.bytes
-    );
-    Ok(())
+    ))
 }

@@ -4,7 +4,6 @@ use crate::cure::{check, heat_map_svg, summary, CureParams};
 use crate::motion::{MotionLimits, Trajectory};
 use crate::profile::Profile;
 use crate::timebased::{is_timebased, read_timebased, TimedPath};
-use anyhow::Context;
 use std::io::Write;
 use std::path::PathBuf;
 
@@ -53,8 +52,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if !a.min_dz.is_finite() || a.min_dz < 0.0 {
         anyhow::bail!("--min-dz must be ≥ 0");
     }
-    let input =
-        std::fs::read(&a.input).with_context(|| format!("reading {}", a.input.display()))?;
+    let input = crate::fileio::read_bounded(&a.input, crate::fileio::Limit::Gcode)?;
     let (period_s, samples) = if is_timebased(&input) {
         read_timebased(&input)?
     } else {
@@ -80,8 +78,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         samples.len() as f64 / check_s.max(1e-9) / 1e6
     );
     if let Some(h) = &a.heatmap {
-        std::fs::write(h, heat_map_svg(&samples, &report))
-            .with_context(|| format!("writing {}", h.display()))?;
+        crate::fileio::write_bytes(h, heat_map_svg(&samples, &report).as_bytes())?;
     }
     let text = if a.json {
         serde_json::to_string_pretty(&report)? + "\n"

@@ -1,5 +1,6 @@
 //! `host-tools grow`: differential growth filling a region with one continuous stroke.
 
+use super::range::{count, within, LAYER_MM, LINE_WIDTH_MM, SIZE_MM, SPEED_MM_S};
 use crate::grow::{
     builtin_boundary, grow, read_boundary, to_model, verify_simple, Boundary, GrowParams,
     StackParams,
@@ -19,28 +20,28 @@ pub struct Args {
     #[arg(long)]
     pub boundary: String,
     /// Size of a built-in boundary (diameter or side), mm.
-    #[arg(long, default_value_t = 120.0)]
+    #[arg(long, default_value_t = 120.0, value_parser = within(0.1, SIZE_MM))]
     pub size: f64,
     /// Covered fraction of the area, 0 < d ≤ 1: stroke spacing = line width ÷ density.
     #[arg(long, default_value_t = 0.5)]
     pub density: f64,
     /// Extruded line width, mm (paste printers: about 10).
-    #[arg(long, default_value_t = 0.45)]
+    #[arg(long, default_value_t = 0.45, value_parser = within(LINE_WIDTH_MM.0, LINE_WIDTH_MM.1))]
     pub line_width: f64,
-    /// Layers to stack.
-    #[arg(long, default_value_t = 1)]
+    /// Layers to stack (at most 100 000).
+    #[arg(long, default_value_t = 1, value_parser = count(1, 100_000))]
     pub layers: usize,
     /// Layer height, mm.
-    #[arg(long, default_value_t = 0.2)]
+    #[arg(long, default_value_t = 0.2, value_parser = within(LAYER_MM.0, LAYER_MM.1))]
     pub layer_height: f64,
-    /// Stop growing at this many nodes (also stops when the region is full).
-    #[arg(long, default_value_t = 50_000)]
+    /// Stop growing at this many nodes (also stops when the region is full; at most 5 000 000).
+    #[arg(long, default_value_t = 50_000, value_parser = count(3, 5_000_000))]
     pub nodes: usize,
-    /// Iteration limit.
-    #[arg(long, default_value_t = 20_000)]
+    /// Iteration limit (at most 10 000 000).
+    #[arg(long, default_value_t = 20_000, value_parser = count(1, 10_000_000))]
     pub max_iterations: usize,
     /// Print speed, mm/s (paste, ArchiFAB-like: 16.7 = 1000 mm/min).
-    #[arg(long, default_value_t = 25.0)]
+    #[arg(long, default_value_t = 25.0, value_parser = within(SPEED_MM_S.0, SPEED_MM_S.1))]
     pub speed: f64,
     /// Printer profile: built-in name or TOML path (e.g. host-tools/profiles/paste.toml).
     #[arg(long, default_value = "ender3")]
@@ -62,34 +63,73 @@ pub struct Args {
     pub quiet: bool,
 }
 
+/// Most strings (nodes × layers) one growth job may write.
+pub const MAX_STRINGS: usize = 20_000_000;
+
 /// Runs the subcommand.
 pub fn run(a: Args) -> anyhow::Result<()> {
     if !(a.density > 0.0 && a.density <= 1.0) {
         anyhow::bail!("--density must be in (0, 1], got {}", a.density);
     }
-    for (name, v) in [
-        ("--line-width", a.line_width),
-        ("--layer-height", a.layer_height),
-        ("--speed", a.speed),
-        ("--size", a.size),
-    ] {
-        if !v.is_finite() || v <= 0.0 {
-            anyhow::bail!("{name} must be a positive number, got {v}");
-        }
+    // Every layer repeats the whole stroke: bound the strings written.
+    if a.nodes.saturating_mul(a.layers) > MAX_STRINGS {
+        anyhow::bail!(
+            "--nodes {} × --layers {} is more than {MAX_STRINGS} strings",
+            a.nodes,
+            a.layers
+        );
     }
     let profile = Profile::load(&a.printer)?;
     let polygon = match builtin_boundary(&a.boundary, a.size) {
         Some(p) => p,
         None => {
-            let text = std::fs::read_to_string(&a.boundary).with_context(|| {
-                format!(
-                    "--boundary {}: not circle/square/blob and not a readable file",
-                    a.boundary
-                )
-            })?;
+            let path = std::path::Path::new(&a.boundary);
+            let text = crate::fileio::read_text_bounded(path, crate::fileio::Limit::Drawing)
+                .with_context(|| {
+                    format!(
+                        "--boundary {}: not circle/square/blob and not a readable file",
+                        a.boundary
+                    )
+                })?;
             read_boundary(&text).with_context(|| format!("reading boundary {}", a.boundary))?
         }
     };
+    // Built-in shapes are centred on the origin: their origin goes to the bed centre. File
+    // boundaries may lie anywhere: the centre of their bounding box goes to the bed centre.
+    let (lo, hi) = polygon
+        .iter()
+        .fold((DVec2::INFINITY, DVec2::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(*p), hi.max(*p))
+        });
+    if !(lo.is_finite() && hi.is_finite()) || (hi - lo).max_element() > SIZE_MM {
+        anyhow::bail!("--boundary {}: larger than {SIZE_MM} mm", a.boundary);
+    }
+    let offset = if builtin_boundary(&a.boundary, a.size).is_some() {
+        DVec2::from(profile.bed_center())
+    } else {
+        DVec2::from(profile.bed_center()) - 0.5 * (lo + hi)
+    };
+    let b = &profile.bed;
+    let half_w = 0.5 * a.line_width;
+    if lo.x + offset.x - half_w < b.x_min_mm
+        || hi.x + offset.x + half_w > b.x_max_mm
+        || lo.y + offset.y - half_w < b.y_min_mm
+        || hi.y + offset.y + half_w > b.y_max_mm
+        || a.layers as f64 * a.layer_height > b.z_max_mm
+    {
+        anyhow::bail!(
+            "the growth region ({:.1} × {:.1} mm, {:.1} mm tall) does not fit the bed of printer {} ({:.0}–{:.0} × {:.0}–{:.0} mm, Z up to {:.0} mm); nothing written",
+            hi.x - lo.x,
+            hi.y - lo.y,
+            a.layers as f64 * a.layer_height,
+            profile.name,
+            b.x_min_mm,
+            b.x_max_mm,
+            b.y_min_mm,
+            b.y_max_mm,
+            b.z_max_mm
+        );
+    }
     let boundary = Boundary::new(polygon, 512)?;
     let spacing = a.line_width / a.density;
     let params = GrowParams {
@@ -143,12 +183,6 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
     };
     bar.finish_and_clear();
-    // Built-in shapes are centred on the origin: put them at the bed centre.
-    let offset = if builtin_boundary(&a.boundary, a.size).is_some() {
-        DVec2::from(profile.bed_center())
-    } else {
-        DVec2::ZERO
-    };
     let stack = StackParams {
         layers: a.layers,
         layer_mm: a.layer_height,
@@ -168,18 +202,20 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     );
     let summary = super::write_gcode(&writer, &model, &a.output, a.preview.as_deref(), &profile)?;
     if let Some(svg) = &a.svg {
-        std::fs::write(svg, stroke_svg(&g.nodes, &boundary.polygon, a.line_width))
-            .with_context(|| format!("writing {}", svg.display()))?;
+        crate::fileio::write_bytes(
+            svg,
+            stroke_svg(&g.nodes, &boundary.polygon, a.line_width).as_bytes(),
+        )?;
     }
     let len: f64 = (0..g.nodes.len())
         .map(|i| g.nodes[i].distance(g.nodes[(i + 1) % g.nodes.len()]))
         .sum();
     let area = boundary.area_mm2();
-    println!(
+    crate::fileio::say(format_args!(
         "mean spacing (boundary area / stroke length) {:.3} mm; meaningful once the region is full",
         area / len.max(1e-9)
-    );
-    println!(
+    ))?;
+    crate::fileio::say(format_args!(
         "grew {} nodes in {} iterations, {:.2} s ({:.0} nodes/s; stopped: {}); stroke {:.0} mm per layer, spacing {:.3} mm; verified single closed stroke without self-intersection in {:.3} s",
         g.nodes.len(),
         g.iterations,
@@ -189,8 +225,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         len,
         spacing,
         verify_s
-    );
-    println!(
+    ))?;
+    crate::fileio::say(format_args!(
         "wrote {} ({} layers, {} strings, {} travels, {} retractions, filament {:.0} mm)",
         a.output.display(),
         a.layers,
@@ -198,8 +234,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         summary.travels,
         summary.retractions,
         summary.filament_mm
-    );
-    Ok(())
+    ))
 }
 
 /// An SVG drawing of the stroke inside its boundary.

@@ -6,12 +6,27 @@ pub mod compile;
 pub mod cure_check;
 pub mod grow;
 pub mod preview;
+pub mod range;
 pub mod send;
 pub mod stats;
 pub mod timebased;
 
-/// Write `model` as G-code to `output` with `writer`, then, if asked, render a preview of the
-/// written file to `preview` (the commands that generate jobs share this last step).
+/// Checks that `gcode` reads back with the project's own reader (the firmware's parser): every
+/// number within its range, every line valid. Generated G-code that fails is a bug or an input
+/// beyond the limits; it is refused before anything is written.
+pub(crate) fn check_readable(gcode: &[u8]) -> anyhow::Result<()> {
+    use crate::gcode_read::GcodeReader as _;
+    crate::gcode_read::default_reader()
+        .read(gcode, &mut |_| {})
+        .map_err(|e| {
+            anyhow::anyhow!("the generated G-code would not be readable ({e}); nothing written")
+        })?;
+    Ok(())
+}
+
+/// Write `model` as G-code to `output` with `writer` (checked readable, written with
+/// [`crate::fileio::write_output`]), then, if asked, render a preview of the G-code to
+/// `preview` (the commands that generate jobs share this last step).
 pub(crate) fn write_gcode(
     writer: &crate::writer::GcodeWriter,
     model: &crate::model::Model,
@@ -19,14 +34,13 @@ pub(crate) fn write_gcode(
     preview: Option<&std::path::Path>,
     profile: &crate::profile::Profile,
 ) -> anyhow::Result<crate::writer::WriteSummary> {
-    use anyhow::Context as _;
-    let file =
-        std::fs::File::create(output).with_context(|| format!("creating {}", output.display()))?;
-    let summary = writer.write(model, std::io::BufWriter::new(file))?;
+    let mut buf = Vec::new();
+    let summary = writer.write_into(model, &mut buf)?;
+    check_readable(&buf)?;
+    crate::fileio::write_bytes(output, &buf)?;
     if let Some(pv) = preview {
-        let bytes = std::fs::read(output)?;
         crate::preview::render(
-            &bytes,
+            &buf,
             profile,
             pv,
             &crate::preview::PreviewOptions::default(),

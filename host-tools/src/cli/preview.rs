@@ -34,8 +34,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if !(100..=4000).contains(&args.size) {
         anyhow::bail!("--size must be within 100..=4000 pixels");
     }
-    let data =
-        std::fs::read(&args.file).with_context(|| format!("reading {}", args.file.display()))?;
+    let data = crate::fileio::read_bounded(&args.file, crate::fileio::Limit::Gcode)?;
     let spinner = indicatif::ProgressBar::new_spinner();
     spinner.set_message("drawing");
     spinner.enable_steady_tick(std::time::Duration::from_millis(120));
@@ -51,7 +50,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     spinner.finish_and_clear();
     let s = s.with_context(|| format!("previewing {}", args.file.display()))?;
-    println!(
+    crate::fileio::say(format_args!(
         "{}: {} printing moves, {} travels, colour {:?} {:.3}–{:.3}",
         args.output.display(),
         s.print_moves,
@@ -59,6 +58,5 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.color,
         s.range.0,
         s.range.1
-    );
-    Ok(())
+    ))
 }

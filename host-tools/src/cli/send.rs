@@ -97,8 +97,7 @@ pub struct Args {
 }
 
 fn load_job(path: &Path) -> anyhow::Result<Job> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let text = crate::fileio::read_text_bounded(path, crate::fileio::Limit::Gcode)?;
     Job::from_gcode(&text).with_context(|| format!("reading the job in {}", path.display()))
 }
 

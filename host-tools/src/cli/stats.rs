@@ -3,7 +3,6 @@
 
 use crate::profile::Profile;
 use crate::stats::{hms, stats};
-use anyhow::Context;
 use std::fmt::Write as _;
 use std::io::Write as _;
 use std::path::PathBuf;
@@ -27,9 +26,22 @@ pub struct Args {
 /// Runs the subcommand.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let profile = Profile::load(&args.printer)?;
-    let data =
-        std::fs::read(&args.file).with_context(|| format!("reading {}", args.file.display()))?;
+    let data = crate::fileio::read_bounded(&args.file, crate::fileio::Limit::Gcode)?;
     let s = stats(&data, &profile).map_err(|e| anyhow::anyhow!("{}: {e}", args.file.display()))?;
+    for e in &s.bad_line_errors {
+        eprintln!(
+            "warning: {}: line {}: {} (skipped, as the printer would)",
+            args.file.display(),
+            e.line,
+            e.msg
+        );
+    }
+    if s.bad_lines > s.bad_line_errors.len() as u64 {
+        eprintln!(
+            "warning: {} more bad lines skipped",
+            s.bad_lines - s.bad_line_errors.len() as u64
+        );
+    }
     if args.json {
         return emit(serde_json::to_string_pretty(&s)? + "\n");
     }

@@ -2,8 +2,7 @@
 
 use crate::motion::{MotionLimits, Trajectory};
 use crate::profile::Profile;
-use crate::timebased::{write_timebased, TimedPath};
-use anyhow::Context;
+use crate::timebased::{first_temperatures, with_start_end, write_timebased, TimedPath};
 use std::path::PathBuf;
 
 /// Arguments of `host-tools timebased`.
@@ -28,8 +27,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         anyhow::bail!("--period-ms must be a positive number");
     }
     let profile = Profile::load(&a.printer)?;
-    let input =
-        std::fs::read(&a.input).with_context(|| format!("reading {}", a.input.display()))?;
+    let input = crate::fileio::read_bounded(&a.input, crate::fileio::Limit::Gcode)?;
     let traj = Trajectory::from_gcode(&input, MotionLimits::from_profile(&profile))
         .map_err(|e| anyhow::anyhow!("{}: {e}", a.input.display()))?;
     let period_s = a.period_ms / 1000.0;
@@ -42,10 +40,19 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         );
     }
     let samples = traj.samples(period_s);
-    let text = write_timebased(&samples, period_s, &a.input.display().to_string());
-    std::fs::write(&a.output, &text).with_context(|| format!("writing {}", a.output.display()))?;
+    // The source's heating and homing are not motion: the printer's start and end code go
+    // around the samples, at the source's first temperatures (else the profile's).
+    let (hotend_c, bed_c) = first_temperatures(&input);
+    let hotend_c = hotend_c.unwrap_or(profile.hotend_c);
+    let bed_c = bed_c.unwrap_or(profile.bed_c);
+    let text = with_start_end(
+        &write_timebased(&samples, period_s, &a.input.display().to_string()),
+        &profile.start_code(hotend_c, bed_c),
+        &profile.end_code(hotend_c, bed_c),
+    );
+    crate::fileio::write_bytes(&a.output, text.as_bytes())?;
     let deposited = samples.iter().filter(|s| s.extruding).count();
-    println!(
+    crate::fileio::say(format_args!(
         "{} samples every {} ms over {:.1} s ({} depositing) -> {} ({} bytes)",
         samples.len(),
         a.period_ms,
@@ -53,6 +60,5 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         deposited,
         a.output.display(),
         text.len()
-    );
-    Ok(())
+    ))
 }
