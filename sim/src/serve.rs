@@ -303,11 +303,17 @@ pub fn serve_with(
         out.clear();
         fw.take_output(&mut out);
         pending_out.extend_from_slice(out.as_bytes());
+        // Unsolicited temperature reports (M155 auto-report, which a host such as
+        // host-tools send or OctoPrint turns on and never off) are not answers: they do not
+        // keep an idle session alive.
+        let answers = out.lines().any(|l| !l.trim_start().starts_with("T:"));
         if !pending_out.is_empty() {
             match nix::unistd::write(&master, &pending_out) {
                 Ok(w) => {
                     pending_out.drain(..w);
-                    last_tx = Instant::now();
+                    if answers {
+                        last_tx = Instant::now();
+                    }
                 }
                 Err(nix::errno::Errno::EAGAIN) => {}
                 Err(nix::errno::Errno::EIO) => break,
