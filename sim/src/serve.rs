@@ -303,11 +303,17 @@ pub fn serve_with(
         out.clear();
         fw.take_output(&mut out);
         pending_out.extend_from_slice(out.as_bytes());
+        // Unsolicited temperature reports (M155 auto-report, which a host such as
+        // host-tools send or OctoPrint turns on and never off) are not answers: they do not
+        // keep an idle session alive.
+        let answers = out.lines().any(|l| !l.trim_start().starts_with("T:"));
         if !pending_out.is_empty() {
             match nix::unistd::write(&master, &pending_out) {
                 Ok(w) => {
                     pending_out.drain(..w);
-                    last_tx = Instant::now();
+                    if answers {
+                        last_tx = Instant::now();
+                    }
                 }
                 Err(nix::errno::Errno::EAGAIN) => {}
                 Err(nix::errno::Errno::EIO) => break,
@@ -638,15 +644,23 @@ fn reports(
             r
         })
         .collect();
-    out.extend(host_stops(pauses, rec, fw, &base));
+    out.extend(host_stops(pauses, rec, fw, &base, sc));
     out
 }
 
 /// A standstill of at least this long between two extruding moves of a job, with no firmware
 /// pause in it, is a pause the host made (the paper's host-side method: it stops sending,
-/// parks with ordinary G-code and later returns). Virtual µs; well above the gaps a host's
-/// scheduling makes even at `--speed 20`.
+/// parks with ordinary G-code and later returns) — if the head stood parked the way a host
+/// parks ([`HOST_LIFT_MIN_MM`], [`HOST_PARK_TOL_MM`]). A standstill where a job move ended is a
+/// host too slow for the virtual clock (a loaded machine at `--speed 20`), not a pause.
+/// Virtual µs.
 pub const HOST_STOP_MIN_US: u64 = 5_000_000;
+/// A host pause lifts the head at least this much above the last extrusion (host-tools' host
+/// pause lifts 1 mm; slicers' Z-hops on travel are smaller), mm ...
+pub const HOST_LIFT_MIN_MM: f64 = 0.9;
+/// ... or parks it within this distance of the machine's park corner (the paper's sequence,
+/// which does not lift), mm.
+pub const HOST_PARK_TOL_MM: f64 = 2.0;
 
 /// Pauses the host made by itself (no realtime request, no firmware pause), found in the
 /// executed blocks: the head stood still for [`HOST_STOP_MIN_US`] or more between two
@@ -660,7 +674,22 @@ fn host_stops(
     rec: &Recorder,
     fw: &PrinterExec,
     base: &PauseReport,
+    sc: &Scenario,
 ) -> Vec<PauseReport> {
+    let scale = Scale::from_config(&sc.machine);
+    let park = (
+        f64::from(sc.machine.pause.park_x_mm),
+        f64::from(sc.machine.pause.park_y_mm),
+    );
+    // The host's park pattern, seen where the head stood still: lifted at least
+    // HOST_LIFT_MIN_MM above the last extrusion, or at the machine's park corner. A host that
+    // is merely slow (the firmware starved of lines) leaves the head where a job move ended.
+    let parked = |last: &[i32; 4], still: &[i32; 4]| {
+        let (a, b) = (scale.mm(last), scale.mm(still));
+        b[2] - a[2] >= HOST_LIFT_MIN_MM
+            || ((b[0] - park.0).abs() <= HOST_PARK_TOL_MM
+                && (b[1] - park.1).abs() <= HOST_PARK_TOL_MM)
+    };
     let layers: Vec<(u64, u32)> = fw
         .notes
         .iter()
@@ -690,7 +719,9 @@ fn host_stops(
     let mut out = Vec::new();
     let mut last_ext: Option<&crate::recorder::SegRecord> = None;
     let mut longest_gap = (0u64, 0u64); // (length, start) since the last extruding move
+    let mut still_at = [0i32; 4]; // where the head stood during that standstill
     let mut prev_end: Option<u64> = None;
+    let mut prev_pos = [0i32; 4];
     // Block end positions after the longest standstill since the last extruding move.
     let mut after_gap: Vec<[i32; 4]> = Vec::new();
     for r in &rec.records {
@@ -698,17 +729,22 @@ fn host_stops(
             let gap = r.t_start_us.saturating_sub(pe);
             if last_ext.is_some() && gap > longest_gap.0 {
                 longest_gap = (gap, pe);
+                still_at = prev_pos;
                 after_gap.clear();
             }
         }
         prev_end = Some(r.t_end_us);
+        prev_pos = r.end;
         if !extrudes(r) {
             after_gap.push(r.end);
             continue;
         }
         if let Some(le) = last_ext {
             let (gap, gap_start) = longest_gap;
-            if gap >= HOST_STOP_MIN_US && !fw_stop_in(le.t_end_us, r.t_start_us) {
+            if gap >= HOST_STOP_MIN_US
+                && parked(&le.end, &still_at)
+                && !fw_stop_in(le.t_end_us, r.t_start_us)
+            {
                 let before = layer_at(le.t_start_us);
                 let after = layer_at(r.t_start_us);
                 // The host's return: the closest any position after the standstill (up to the
