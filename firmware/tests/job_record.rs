@@ -47,6 +47,8 @@ fn job() -> (Vec<String>, usize, [f32; 4]) {
 fn a_layer_pause_keeps_the_job_and_a_resume_forgets_it() {
     let cfg = MachineConfig::ENDER3;
     let mut p = Printer::with_policy(cfg, Policy::FIRMWARE);
+    // No heater model here: extrude cold, as M302 P1.
+    p.extrusion_guard_mut().allow_cold = true;
     let mut store = SettingsStore::new(Flash::erased(vec![0; 8192]), 0..8192).unwrap();
     p.load_settings(&mut store);
     let (lines, first_after, end) = job();
@@ -137,6 +139,8 @@ fn a_layer_pause_keeps_the_job_and_a_resume_forgets_it() {
     let flash = store.into_flash();
     let mut copy = SettingsStore::new(Flash::new(flash.bytes().to_vec()), 0..8192).unwrap();
     let mut after = Printer::with_policy(cfg, Policy::FIRMWARE);
+    // No heater model here: extrude cold, as M302 P1.
+    after.extrusion_guard_mut().allow_cold = true;
     after.load_settings(&mut copy);
     let mut boot = String::new();
     after.write_output(&mut boot).unwrap();
@@ -164,6 +168,8 @@ fn a_layer_pause_keeps_the_job_and_a_resume_forgets_it() {
 #[test]
 fn an_unnumbered_stream_keeps_no_record_and_says_so() {
     let mut p = Printer::with_policy(MachineConfig::ENDER3, Policy::FIRMWARE);
+    // No heater model here: extrude cold, as M302 P1.
+    p.extrusion_guard_mut().allow_cold = true;
     let mut store = SettingsStore::new(Flash::erased(vec![0; 8192]), 0..8192).unwrap();
     p.load_settings(&mut store);
     let (lines, _, _) = job();
@@ -214,6 +220,8 @@ fn without_a_store_nothing_is_kept_and_the_resume_does_not_wait() {
     // A driver that never attached a store (no load_settings): the pause and resume behave as
     // before, with no record requested.
     let mut p = Printer::with_policy(MachineConfig::ENDER3, Policy::FIRMWARE);
+    // No heater model here: extrude cold, as M302 P1.
+    p.extrusion_guard_mut().allow_cold = true;
     let (lines, _, _) = job();
     let mut now = 0u64;
     let mut next = 0;
