@@ -80,9 +80,6 @@ fn octoprint_pauses_at_layer_boundaries_shows_heatup_and_cancels() {
 }
 
 #[test]
-#[ignore = "waits for fwhost's no-deadlock rule: after //action:paused the firmware withholds \
-            the ok of the last job line while its queue is full, so OctoPrint stays 'Pausing' \
-            (its SendQueueMarker to 'Paused' sits behind that ok)"]
 fn octoprint_shows_paused_for_its_buttons_terminal_and_layer_pause() {
     let (d, r) = session("op_states");
     check_firmware_side(&d, &r);
