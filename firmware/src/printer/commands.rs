@@ -225,16 +225,7 @@ impl Printer {
     }
 
     pub(super) fn report_temperatures(&mut self) -> bool {
-        let report = crate::link::TempReport {
-            hotend_c: self.thermal.temperature_c(HeaterId::Hotend),
-            hotend_target_c: self.thermal.target_c(HeaterId::Hotend),
-            bed_c: Some((
-                self.thermal.temperature_c(HeaterId::Bed),
-                self.thermal.target_c(HeaterId::Bed),
-            )),
-            hotend_duty: self.thermal.duty(HeaterId::Hotend),
-            bed_duty: self.thermal.duty(HeaterId::Bed),
-        };
+        let report = self.temp_report();
         self.link.respond(Response::Temperatures {
             report,
             with_ok: true,

@@ -75,7 +75,8 @@ impl core::fmt::Display for Duration {
 }
 
 impl Printer {
-    fn temp_report(&self) -> TempReport {
+    /// The temperatures as M105 and the auto-report print them.
+    pub(super) fn temp_report(&self) -> TempReport {
         TempReport {
             hotend_c: self.thermal.temperature_c(HeaterId::Hotend),
             hotend_target_c: self.thermal.target_c(HeaterId::Hotend),
