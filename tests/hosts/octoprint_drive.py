@@ -170,10 +170,17 @@ def main():
         out["connected"] = ok
         if not ok:
             raise RuntimeError(f"not operational: {st}")
-        try:
-            out["plugin"] = o.get("/api/plugin/layerpause")
-        except Exception as e:
-            out["plugin"] = {"error": repr(e)}
+        # OctoPrint turns Operational when its hello is answered; the M115 capability lines
+        # that make the plugin active may be parsed a moment later, so wait for them (bounded).
+        end = time.monotonic() + 15
+        while True:
+            try:
+                out["plugin"] = o.get("/api/plugin/layerpause")
+            except Exception as e:
+                out["plugin"] = {"error": repr(e)}
+            if out["plugin"].get("active") or time.monotonic() > end:
+                break
+            time.sleep(0.2)
 
         # The job: the file's first --layers layers plus its end code.
         text = "\n".join(job_lines(a.file, a.layers)) + "\n"
