@@ -137,7 +137,10 @@ mod tests {
             ("M26 S1234", SdCommand::Seek(1234)),
             ("M27 S2", SdCommand::AutoReport(2)),
             ("M27 C", SdCommand::CurrentFile),
-            ("M32 /a long name.gcode", SdCommand::SelectAndStart(text("/a"))),
+            (
+                "M32 /a long name.gcode",
+                SdCommand::SelectAndStart(text("/a")),
+            ),
         ] {
             assert_eq!(parse(t), Ok(Some(Command::Sd(c.clone()))), "{t}");
             let emitted = format!("{}", Command::Sd(c.clone()));
@@ -154,7 +157,9 @@ mod tests {
 
     #[test]
     fn bad_sd_parameters_are_parse_errors() {
-        for t in ["M23", "M23   ", "M32", "M26", "M26 S-1", "M26 S1.5", "M27 S256", "M21 X1"] {
+        for t in [
+            "M23", "M23   ", "M32", "M26", "M26 S-1", "M26 S1.5", "M27 S256", "M21 X1",
+        ] {
             assert!(parse(t).is_err(), "{t}");
         }
     }

@@ -135,7 +135,10 @@ mod tests {
         long.extend_from_slice(&m117);
         let out = lines(&long);
         assert_eq!(out[0], FileLine::TooLong);
-        assert_eq!(out[1], FileLine::Realtime(Realtime::Pause(PauseMode::Layer)));
+        assert_eq!(
+            out[1],
+            FileLine::Realtime(Realtime::Pause(PauseMode::Layer))
+        );
         assert!(text(&out[2]).starts_with(b"M117 aaa"), "{out:?}");
         assert_eq!(out.len(), 3);
     }

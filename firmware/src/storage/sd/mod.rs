@@ -175,13 +175,10 @@ where
     /// mounted is released first (the card may have been swapped).
     pub fn mount(&mut self) -> Result<(), CardError> {
         self.release();
-        let volume = self
-            .vm
-            .open_raw_volume(VolumeIdx(0))
-            .map_err(|e| match e {
-                Error::DeviceError(_) => CardError::NoCard,
-                e => card_error(e),
-            })?;
+        let volume = self.vm.open_raw_volume(VolumeIdx(0)).map_err(|e| match e {
+            Error::DeviceError(_) => CardError::NoCard,
+            e => card_error(e),
+        })?;
         match self.vm.open_root_dir(volume) {
             Ok(root) => {
                 self.mounted = Some((volume, root));
