@@ -531,3 +531,48 @@ fn a_job_starts_at_a_line_offset() {
         assert_eq!(b.executed.len(), expected, "{how}");
     }
 }
+
+/// A listing longer than the port's output ring (4 KiB) goes out whole, over several service
+/// calls, with its `ok` last.
+#[test]
+fn a_long_listing_is_never_cut() {
+    let files: Vec<(String, Vec<u8>)> = (0..80)
+        .map(|i| {
+            (
+                format!("a rather long file name number {i:03}.gcode"),
+                text(10 + i, i as u32),
+            )
+        })
+        .collect();
+    let refs: Vec<(&str, Vec<u8>)> = files.iter().map(|(n, c)| (n.as_str(), c.clone())).collect();
+    let img = Image::new("long-list", &refs);
+    let mut b = Bench::new(img.card());
+    let out = b.cmd("M20 L");
+    let lines: Vec<&str> = out.lines().collect();
+    let begin = lines
+        .iter()
+        .position(|l| *l == "Begin file list")
+        .expect(&out);
+    let end = lines
+        .iter()
+        .position(|l| *l == "End file list")
+        .expect(&out);
+    assert!(out.len() > 4096, "{}", out.len());
+    for (name, c) in &files {
+        let want = format!(" {} {name}", c.len());
+        assert_eq!(
+            lines[begin..end]
+                .iter()
+                .filter(|l| l.ends_with(&want))
+                .count(),
+            1,
+            "{name}"
+        );
+    }
+    assert_eq!(end - begin - 1, files.len());
+    assert_eq!(lines.last(), Some(&"ok"));
+    assert_eq!(
+        b.p.port(firmware::link::PortId::Usb).stats().output_dropped,
+        0
+    );
+}

@@ -443,14 +443,9 @@ impl Printer {
             self.answer_to(port, Response::Ok);
             return;
         }
-        let room = |p: &Self| {
-            PortId::ALL
-                .into_iter()
-                .filter(|&q| port.is_none_or(|pp| pp == q))
-                .map(|q| p.link.output_free_on(q))
-                .min()
-                .unwrap_or(0)
-        };
+        // A list for every port (M20 in a file) does not wait for room: a port nobody reads
+        // must not stall the card; what does not fit is dropped there (and counted).
+        let room = |p: &Self| port.map_or(usize::MAX / 2, |q| p.link.output_free_on(q));
         if next == 0 {
             if room(self) < LIST_ROOM {
                 self.sd.request = Some(CardRequest::List { port, long, next });
@@ -458,26 +453,20 @@ impl Printer {
             }
             self.answer_to(port, Response::Plain("Begin file list"));
         }
-        // Entries `next..next+batch` go out now (each line at most ≈ 110 bytes).
-        let batch = room(self).saturating_sub(LINK_RESERVE) / (LONG_NAME_CAP + 32);
+        // Entries `next..next+batch` go out now (each line at most ≈ 130 bytes).
+        let batch = (room(self).saturating_sub(LINK_RESERVE) / (LONG_NAME_CAP + 32)).min(8);
         let mut written = 0;
-        let mut lines: heapless::Vec<String<{ LONG_NAME_CAP + 32 }>, 8> = heapless::Vec::new();
         let result = card.for_each_file(|i, e: &CardEntry| {
-            if i >= next && lines.len() < batch.min(8) {
-                let mut t = String::new();
+            if i >= next && written < batch {
+                let mut t: String<{ LONG_NAME_CAP + 32 }> = String::new();
                 let _ = write!(t, "{} {}", e.short, e.size);
-                if long {
-                    if let Some(l) = &e.long {
-                        let _ = write!(t, " {l}");
-                    }
+                if let (true, Some(l)) = (long, &e.long) {
+                    let _ = write!(t, " {l}");
                 }
-                let _ = lines.push(t);
+                self.answer_to(port, Response::Plain(&t));
+                written += 1;
             }
         });
-        for l in &lines {
-            self.answer_to(port, Response::Plain(l));
-            written += 1;
-        }
         match result {
             Ok(total) if next + written < total => {
                 self.sd.request = Some(CardRequest::List {
