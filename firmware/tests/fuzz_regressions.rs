@@ -59,6 +59,19 @@ fn host_stream_lost_line_end_needs_the_hosts_timeout() {
     ]);
 }
 
+/// `host_stream` crash-999f22…: the line end of job line 7 became 0xFD just as the printer
+/// announced `//action:paused`; the host's unnumbered `M602` merged with the broken line, which
+/// failed its checksum and was resent, but an unnumbered line cannot be asked for again: the
+/// printer stayed paused. Correct firmware behaviour (a line that fails its check is never
+/// acted on); the harness's user now presses resume again when the resume has not started
+/// within 5 s, as a user would.
+#[test]
+fn host_stream_resume_lost_in_a_broken_line_is_pressed_again() {
+    run_host_stream(&[
+        0x08, 0x02, 0x02, 0x08, 0xeb, 0x00, 0x06, 0xad, 0xfd, 0x0e, 0x02,
+    ]);
+}
+
 /// Replays every committed fuzz input through its target's checks: the seed corpus
 /// (`firmware/fuzz/seeds/<target>/*`) and the inputs the fuzzers found
 /// (`firmware/fuzz/finds/<target>/*`). CI runs this (deterministic), not the fuzzers.

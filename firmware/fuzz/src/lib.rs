@@ -265,6 +265,9 @@ pub enum Noise {
 /// `busy:` period).
 pub const HOST_TIMEOUT_US: u64 = 10_000_000;
 
+/// How long the [`host_stream`] user waits for the resume to start before pressing again.
+pub const USER_RETRY_US: u64 = 5_000_000;
+
 /// A numbered, checksummed host that keeps one line in flight (as printcore and OctoPrint), over
 /// a wire that corrupts the attempts listed in `noise` and splits the stream into `chunks`.
 /// Pauses (`M601`, numbered like any line) after job line `pause_after`, resumes (`M602`) once
@@ -296,6 +299,8 @@ pub fn host_stream(
     let mut partial = String::new();
     let mut read_upto = 0usize;
     let mut resumed = false;
+    // When the host sent its (unnumbered) M602 and has not yet seen the resume start.
+    let mut resume_sent_us: Option<u64> = None;
     let mut k = 0usize;
     // Virtual time of the last line the printer wrote (the host's timeout counts from it).
     let mut heard_us = 0u64;
@@ -354,6 +359,18 @@ pub fn host_stream(
                 resumed = true;
                 wire.extend_from_slice(b"M602\n");
                 in_flight += 1;
+                resume_sent_us = Some(h.now_us);
+            } else if line.starts_with("//action:resume") {
+                resume_sent_us = None;
+            }
+        }
+        // An unnumbered line the wire corrupts is gone (nothing can ask for it again): the
+        // user, seeing no resume, presses the button again.
+        if let Some(t) = resume_sent_us {
+            if h.now_us - t > USER_RETRY_US {
+                wire.extend_from_slice(b"M602\n");
+                in_flight += 1;
+                resume_sent_us = Some(h.now_us);
             }
         }
         // A line whose line end the wire lost is never answered (the printer cannot know it
