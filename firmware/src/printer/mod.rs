@@ -474,7 +474,7 @@ impl Printer {
             Pause::Run => {
                 if self.has_work() {
                     State::Printing
-                } else if self.lines.after_cancel.is_some() {
+                } else if self.lines.after_cancel.is_some() || self.sd_cancelled() {
                     State::Cancelled
                 } else {
                     State::Idle
