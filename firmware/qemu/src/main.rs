@@ -15,6 +15,7 @@
 #![cfg_attr(target_os = "none", no_std, no_main)]
 #![deny(missing_docs)]
 
+mod board_homing;
 mod checks;
 #[allow(dead_code)]
 mod scenario;

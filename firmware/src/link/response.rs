@@ -112,6 +112,9 @@ pub enum Response<'a> {
     LineError(&'a str, u32),
     /// `echo:<text>`.
     Echo(&'a str),
+    /// `<text>` as is: reports Marlin prints without a prefix (M119's `Reporting endstop
+    /// status`, `x_min: open`).
+    Plain(&'a str),
     /// `echo:Unknown command: "<text>"`.
     UnknownCommand(&'a str),
     /// `busy: processing` (keep-alive during long waits, about every 2 s).
@@ -149,6 +152,7 @@ impl fmt::Display for Response<'_> {
             Response::Error(t) => write!(f, "Error:{t}"),
             Response::LineError(t, n) => write!(f, "Error:{t}, Last Line: {n}"),
             Response::Echo(t) => write!(f, "echo:{t}"),
+            Response::Plain(t) => f.write_str(t),
             Response::UnknownCommand(t) => write!(f, "echo:Unknown command: \"{t}\""),
             Response::Busy => f.write_str("busy: processing"),
             Response::BusyPaused => f.write_str("busy: paused for user"),

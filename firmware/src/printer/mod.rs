@@ -119,6 +119,11 @@ pub struct Printer {
     homing: Option<crate::homing::Homing>,
     /// Endstop switch states as the driver reported them, bit i = axis i pressed.
     endstops: u8,
+    /// The driver still has step events of the executive queued or running (a board whose step
+    /// interrupt runs events ahead; see `homing.rs`): homing waits for them.
+    steps_in_flight: bool,
+    /// Axes homed on their switches (see `homing.rs`).
+    homed: homing::HomedAxes,
     /// Factory settings and a pending M500/M501 (see `settings.rs`).
     settings: settings::SettingsLink,
     reports: report::Reports,
@@ -174,6 +179,8 @@ impl Printer {
             homing_cfg: None,
             homing: None,
             endstops: 0,
+            steps_in_flight: false,
+            homed: homing::HomedAxes::NONE,
             settings: settings::SettingsLink::new(),
             reports: report::Reports::new(),
             job: job::JobLink::new(),
