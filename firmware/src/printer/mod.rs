@@ -21,6 +21,7 @@
 //! `host` (host lines and the rules for them), `commands` (command handlers), `service` (the
 //! service lane), `settings` (M92.. M503), `types` (public types).
 
+mod autotune;
 mod commands;
 mod exec;
 mod guards;
@@ -510,7 +511,9 @@ impl Printer {
     pub fn heater_sample(&mut self, id: HeaterId, measured_c: f32, now_us: u64) -> f32 {
         self.set_now(now_us);
         let had_fault = self.thermal.fault().is_some();
+        let tune = self.thermal.autotune_status(id);
         let duty = self.thermal.update(id, measured_c, now_us);
+        self.report_autotune(id, tune);
         if !had_fault {
             if let Some(f) = self.thermal.fault() {
                 let mut t: String<LINE_LEN> = String::new();
