@@ -168,6 +168,7 @@ mod image {
         // feeds, bump and Z raise). Moves of an axis before it is homed are refused by the step
         // interrupt (Marlin's NO_MOTION_BEFORE_HOMING), G28's own moves excepted.
         printer.borrow_mut().enable_endstops(HomingConfig::ENDER3);
+        announce_reset_cause(printer);
         // Saved settings (M500) replace the factory ones; M500/M501 run in their own task.
         crate::board::flash::start(&spawner, printer);
 
@@ -273,6 +274,15 @@ mod image {
             &spawner,
             watchdog_task(IndependentWatchdog::new(periph.watchdog, WATCHDOG_US)),
         );
+    }
+
+    /// A fault or watchdog reset before this start-up is said on every port (queued until a
+    /// host reads it), as Marlin reports a watchdog reset.
+    fn announce_reset_cause(printer: Shared) {
+        if let Some(cause) = safety::reset_cause() {
+            defmt::warn!("reset cause: {}", cause);
+            printer.borrow_mut().board_notice(cause);
+        }
     }
 
     /// Spawns a task; a task that cannot be spawned (pool exhausted) is logged, not a panic.
@@ -723,24 +733,24 @@ mod image {
 
     /// What a panic or HardFault says on the TFT UART (a Marlin-style kill message).
     const FATAL_LINE: &[u8] =
-        b"\nError:firmware fault: heaters and drivers off, power cut. Reset the board\n";
+        b"\nError:firmware fault: heaters and drivers off, power cut. The board restarts\n";
 
     #[panic_handler]
     fn panic(info: &core::panic::PanicInfo) -> ! {
         // Heaters first, before anything that could fault again.
         safety::all_off();
+        safety::record_fault(safety::Fault::Panic);
         safety::uart_say(FATAL_LINE);
         defmt::error!("panic: {}", defmt::Display2Format(info));
-        cortex_m::asm::udf()
+        safety::reset_or_break()
     }
 
     #[cortex_m_rt::exception]
     unsafe fn HardFault(_frame: &cortex_m_rt::ExceptionFrame) -> ! {
         safety::all_off();
+        safety::record_fault(safety::Fault::HardFault);
         safety::uart_say(FATAL_LINE);
-        loop {
-            cortex_m::asm::bkpt();
-        }
+        safety::reset_or_break()
     }
 }
 
