@@ -112,8 +112,8 @@ pub enum Response<'a> {
     LineError(&'a str, u32),
     /// `echo:<text>`.
     Echo(&'a str),
-    /// `<text>` as is: reports Marlin prints without a prefix (M119's `Reporting endstop
-    /// status`, `x_min: open`).
+    /// `<text>` as it is: Marlin's SD-card messages (`Begin file list`, `File opened: …`,
+    /// `SD printing byte …`, `Done printing file`) carry no `echo:` prefix.
     Plain(&'a str),
     /// `echo:Unknown command: "<text>"`.
     UnknownCommand(&'a str),
