@@ -31,14 +31,14 @@ pub const CAPABILITIES: &[(&str, bool)] = &[
     ("EMERGENCY_PARSER", true),
     ("HOST_ACTION_COMMANDS", true),
     ("PROMPT_SUPPORT", false),
-    ("SDCARD", false),
-    ("AUTOREPORT_SD_STATUS", false),
+    ("SDCARD", true),
+    ("AUTOREPORT_SD_STATUS", true),
     ("THERMAL_PROTECTION", true),
     ("MOTION_MODES", false),
     ("ARCS", true),
     ("BABYSTEPPING", false),
     ("CHAMBER_TEMPERATURE", false),
-    ("EXTENDED_M20", false),
+    ("EXTENDED_M20", true),
     // Firmware-specific: M760 pause parameters, M761 scheduled pause, layer-boundary pause.
     ("PAUSE_AT_LAYER", true),
 ];
