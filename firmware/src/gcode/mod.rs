@@ -46,6 +46,9 @@ pub use report::{ReportCommand, MAX_REPORT_PERIOD_S};
 // Stepper-driver M-codes (M122 M350 M569; M906 is a settings command): parse and emit.
 mod driver;
 pub use driver::DriverCommand;
+// Power-cut resume (M1000, M1000 C): parse and emit.
+mod recovery;
+pub use recovery::RecoveryCommand;
 
 use crate::motion::{Axis, AXES};
 use core::fmt;
@@ -385,6 +388,8 @@ pub enum Command {
     Report(ReportCommand),
     /// Stepper drivers: M569, M350 and M122 (see [`DriverCommand`]).
     Driver(DriverCommand),
+    /// Power-cut resume: M1000, M1000 C (see [`RecoveryCommand`]).
+    Recovery(RecoveryCommand),
     /// Any other G/M code or extended command: its text (comment stripped), for
     /// `echo:Unknown command: "<text>"`.
     Unknown(Text),
@@ -1236,6 +1241,7 @@ fn build_known(code: (u8, u16), w: &Words<'_>) -> Option<Result<Command, ParseEr
             (b'M', n) if settings::is_settings_code(n) => Command::Settings(settings::build(n, w)?),
             (b'M', n) if report::is_report_code(n) => Command::Report(report::build(n, w)?),
             (b'M', n) if driver::is_driver_code(n) => Command::Driver(driver::build(n, w)?),
+            (b'M', n) if recovery::is_recovery_code(n) => Command::Recovery(recovery::build(w)?),
             (b'T', n) => {
                 none()?;
                 match u8::try_from(n) {
