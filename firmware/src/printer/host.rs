@@ -381,6 +381,7 @@ impl Printer {
                         feed_mm_s: m.feed_mm_s,
                     });
                 } else {
+                    self.kept_job_superseded();
                     let _ = self.cmds.push_back(Command::Move(m));
                 }
             }
