@@ -162,7 +162,7 @@ const EXAMPLE_GCODE: &[(&str, usize, u64)] = &[
     ("cup.rhai", 405726, 0x69081f39d31025db),
     ("dish.rhai", 404155, 0xb853354fcc57bfdd),
     ("dish_closures.rhai", 404164, 0xeae2d500ecce16ac),
-    ("fractal_tree.rhai", 33460, 0xd39952f87e0f2753),
+    ("fractal_tree.rhai", 33482, 0x82c7dc75ac0127ce),
     ("globe.rhai", 1512787, 0xb08a2c6ac2863403),
     ("growing_angle.rhai", 52297, 0x8246e151f605d40a),
     ("heart_dish.rhai", 500137, 0x16a5d3c266a9540f),

@@ -381,6 +381,13 @@ fn register_pen(e: &mut Engine) {
     });
     e.register_fn(
         "travel_straight_to",
+        |t: &mut Turtle, x: Dynamic, y: Dynamic, z: Dynamic| -> Res<()> {
+            t.travel_straight_to(DVec3::new(num(&x, "x")?, num(&y, "y")?, num(&z, "z")?))
+                .map_err(err)
+        },
+    );
+    e.register_fn(
+        "travel_straight_to",
         |t: &mut Turtle, p: Dynamic| -> Res<()> {
             t.travel_straight_to(pt(&p, "travel_straight_to")?)
                 .map_err(err)
@@ -579,7 +586,20 @@ pub(super) fn hint(engine: &Engine, signature: &str) -> Option<String> {
     if let Some((_, to)) = RENAMED.iter().find(|(from, _)| *from == name) {
         return Some(format!("`{name}` is called `{to}` here"));
     }
+    if names_of(engine).iter().any(|n| n == name) {
+        return Some(format!(
+            "`{name}` exists but not for these arguments; see docs/design.md for its forms"
+        ));
+    }
     let want = normalise(name);
+    names_of(engine)
+        .into_iter()
+        .find(|n| normalise(n) == want)
+        .map(|n| format!("did you mean `{n}`?"))
+}
+
+/// Names of every registered function, sorted, each once.
+fn names_of(engine: &Engine) -> Vec<String> {
     let mut names: Vec<String> = engine
         .gen_fn_signatures(false)
         .into_iter()
@@ -587,13 +607,5 @@ pub(super) fn hint(engine: &Engine, signature: &str) -> Option<String> {
         .collect();
     names.sort();
     names.dedup();
-    if let Some(n) = names.iter().find(|n| normalise(n) == want && *n != name) {
-        return Some(format!("did you mean `{n}`?"));
-    }
-    if names.iter().any(|n| n == name) {
-        return Some(format!(
-            "`{name}` exists but not for these arguments; see docs/design.md for its forms"
-        ));
-    }
-    None
+    names
 }
