@@ -459,3 +459,66 @@ fn errors_never_point_at_nothing_or_name_closures_anon() {
     let e = run("let t = turtle(0, 0, 0);\nt.forward(3);\n42\n").expect_err("not a model");
     assert_eq!(e.line, 3, "{e}");
 }
+
+// ------------------------------------------------------------------ ported FullControl models
+
+fn example(name: &str) -> (Model, String) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("examples")
+        .join(name);
+    let out = ScriptRunner::new(Profile::ender3())
+        .run_file(&path)
+        .unwrap_or_else(|e| panic!("{name}: {e}"));
+    let g = gcode(&out.model);
+    (out.model, g)
+}
+
+#[test]
+fn ported_fullcontrol_models_keep_their_shape_and_never_collide() {
+    // Ripple vase: one spiral, 125 layers of 101 zig-zag segments, radius 15..~23 mm.
+    let (m, g) = example("fc_ripple_vase.rhai");
+    let ms = moves(&g);
+    assert_eq!(m.string_count(), 125 * 101 - 1);
+    let printed: Vec<&Mv> = ms.iter().filter(|m| m.prints()).collect();
+    let c = glam::DVec2::new(117.5, 117.5);
+    let r: Vec<f64> = printed
+        .iter()
+        .map(|m| (m.to.truncate() - c).length())
+        .collect();
+    let (lo, hi) = r
+        .iter()
+        .fold((f64::MAX, 0.0f64), |(a, b), x| (a.min(*x), b.max(*x)));
+    assert!(lo > 14.9 && hi < 23.1 && hi - lo > 6.0, "{lo}..{hi}");
+    assert!(
+        printed.windows(2).all(|w| w[1].to.z >= w[0].to.z - 1e-6),
+        "z never falls"
+    );
+    assert!(collisions(&ms, None).is_empty());
+    // Non-planar spacer: Z rises and falls inside each ring; two copies, lifted between.
+    let (m, g) = example("fc_nonplanar_spacer.rhai");
+    let ms = moves(&g);
+    let falls = ms
+        .windows(2)
+        .filter(|w| w[0].prints() && w[1].prints() && w[1].to.z < w[0].to.z - 1e-3)
+        .count();
+    assert!(falls > 100, "{falls}");
+    let b = m.bbox();
+    assert!(
+        b.max.x - b.min.x > 29.0 + 2.0 * 10.0,
+        "two copies 29 mm apart: {b:?}"
+    );
+    let hits = collisions(&ms, None);
+    assert!(hits.is_empty(), "{hits:?}");
+    // Star lattice: three identical layers, 0.2 mm apart.
+    let (m, g) = example("fc_star_lattice.rhai");
+    assert_eq!(m.string_count() % 3, 0);
+    let ms = moves(&g);
+    let zs: std::collections::BTreeSet<i64> = ms
+        .iter()
+        .filter(|m| m.prints())
+        .map(|m| (m.to.z * 1000.0).round() as i64)
+        .collect();
+    assert_eq!(zs.into_iter().collect::<Vec<_>>(), [200, 400, 600]);
+    let hits = collisions(&ms, None);
+    assert!(hits.is_empty(), "{hits:?}");
+}
