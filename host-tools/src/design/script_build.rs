@@ -488,7 +488,9 @@ fn register_model_geometry(e: &mut Engine) {
         "reflect_xy",
         |m: Model, p1: Dynamic, p2: Dynamic| -> Res<Model> {
             let (a, b) = (pt(&p1, "mirror point 1")?, pt(&p2, "mirror point 2")?);
-            if !((b - a).truncate().length_squared() > 0.0) {
+            if (b - a).truncate().length_squared().is_nan()
+                || (b - a).truncate().length_squared() <= 0.0
+            {
                 return Err(
                     "reflect_xy: the two points of the mirror line must differ in X or Y".into(),
                 );

@@ -70,9 +70,8 @@ impl HeightMap {
         }
     }
 
-    /// Enters the strings of `model.steps[seen..]` (arcs by their chord's bounding points
-    /// and their centre-side extremes are not needed: arcs are entered as chords of their
-    /// quarter points).
+    /// Enters the strings of `model.steps[seen..]` (arcs as chords within half a millimetre
+    /// of the arc).
     pub fn catch_up(&mut self, model: &Model) {
         for s in model.steps.iter().skip(self.seen) {
             if let Step::String(s) = s {
