@@ -76,7 +76,7 @@ impl Printer {
 
     /// Room for one more host line: the policy's limit on waiting commands (layer marks do not
     /// count) less the pause's reserve, and physical room for a mark plus a command.
-    fn line_room(&self) -> bool {
+    pub(super) fn line_room(&self) -> bool {
         let reserve = self.reserved_lines();
         self.queued_moves() + reserve < self.policy.cmd_limit.clamp(1, CMD_CAPACITY)
             && self.cmds.len() + 2 + reserve <= CMD_CAPACITY
@@ -120,8 +120,9 @@ impl Printer {
                 }
                 self.link.respond(Response::Ok);
             }
-            if self.lines.sync_ok_owed {
-                // M400 is waiting for the motion to end: the next line waits too.
+            if self.lines.sync_ok_owed || self.sd_request_pending() {
+                // M400 is waiting for the motion to end, or an SD command for the card: the
+                // next line waits too.
                 return;
             }
             if let Some(held) = &self.lines.held_line {
@@ -282,7 +283,7 @@ impl Printer {
         self.link.respond(Response::Echo(&t));
     }
 
-    fn handle_line(&mut self, line: &ReceivedLine, manual: bool) {
+    pub(super) fn handle_line(&mut self, line: &ReceivedLine, manual: bool) {
         let parsed = match line.parse() {
             Ok(l) => l,
             Err(e) => {

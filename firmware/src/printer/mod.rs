@@ -47,6 +47,9 @@ mod drivers;
 pub use drivers::{DriverRequest, DRIVER_REQ_CAPACITY};
 // Reports hosts expect (temperatures during heater waits, M155, M113, M73, M31, M27).
 mod report;
+// SD-card printing: the SD M-codes and the card as a job source.
+mod sd;
+pub use sd::{SD_CHUNK, SD_LINES_PER_SERVICE};
 
 pub use service::ServiceMove;
 
@@ -124,6 +127,8 @@ pub struct Printer {
     reports: report::Reports,
     /// Boundaries of the host stream and the paused-job record's requests (see `job.rs`).
     job: job::JobLink,
+    /// The SD card's job and the commands waiting for the card (see `sd.rs`).
+    sd: sd::SdLink,
 }
 
 fn steps(cfg: &MachineConfig, axis: Axis, mm: f32) -> i32 {
@@ -177,6 +182,7 @@ impl Printer {
             settings: settings::SettingsLink::new(),
             reports: report::Reports::new(),
             job: job::JobLink::new(),
+            sd: sd::SdLink::new(),
         };
         p.set_policy(policy);
         p.set_factory_settings();
@@ -426,8 +432,20 @@ impl Printer {
         self.retire_finished();
         match req {
             Realtime::Pause(mode) => self.request_pause(mode),
-            Realtime::Resume => self.request_resume(),
-            Realtime::Cancel => self.request_cancel(),
+            Realtime::Resume => {
+                // M24 starts a selected SD file when there is no pause to resume.
+                if !self.sd_start_on_resume() {
+                    self.request_resume()
+                }
+            }
+            Realtime::Cancel => {
+                let sd = self.sd_cancel();
+                self.request_cancel();
+                if sd {
+                    // The host's stream was not the job: nothing of it is to be discarded.
+                    self.lines.after_cancel = None;
+                }
+            }
             Realtime::EmergencyStop => self.emergency_stop(),
             Realtime::QuickStop => self.quick_stop(),
             Realtime::BreakWait => {
