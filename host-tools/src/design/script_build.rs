@@ -559,7 +559,6 @@ const RENAMED: &[(&str, &str)] = &[
     ("Printer", "set_speed"),
     ("Extruder", "pen_up / pen_down (or extrude_to / travel_to)"),
     ("speed", "set_velocity"),
-    ("goto", "move_to (straight) or travel_to (lifting)"),
     ("setposition", "move_to"),
     ("setpos", "move_to"),
     ("turn", "left / right"),
