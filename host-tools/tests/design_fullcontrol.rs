@@ -522,3 +522,35 @@ fn ported_fullcontrol_models_keep_their_shape_and_never_collide() {
     let hits = collisions(&ms, None);
     assert!(hits.is_empty(), "{hits:?}");
 }
+
+#[test]
+fn a_retraction_change_while_retracted_primes_what_was_pulled() {
+    // Retract 5 mm (the profile's) on the first travel, change to 1 mm while retracted (a
+    // travel follows at once), then another travel: every millimetre pulled is pushed back.
+    let out = run("let t = turtle(50, 50, 0.2);\n\
+                   t.extrude_to(60, 50, 0.2);\n\
+                   t.travel_straight_to(60, 70, 0.2);\n\
+                   t.set_retraction(#{ length: 1, speed: 20, min_travel: 0.5 });\n\
+                   t.travel_straight_to(70, 70, 0.2);\n\
+                   t.extrude_to(80, 70, 0.2);\n\
+                   t.travel_straight_to(80, 90, 0.2);\n\
+                   t.extrude_to(90, 90, 0.2);\nt")
+    .unwrap_or_else(|e| panic!("{e}"));
+    let g = gcode(&out.model);
+    let ms = moves(&g);
+    let e_only: Vec<f64> = ms
+        .iter()
+        .filter(|m| m.from.distance(m.to) < 1e-9 && m.de.abs() > 1e-9)
+        .map(|m| m.de)
+        .collect();
+    assert_eq!(e_only.len(), 6, "{e_only:?}\n{g}");
+    assert!(
+        (e_only[0] + 5.0).abs() < 1e-5 && (e_only[1] - 5.0).abs() < 1e-5,
+        "{e_only:?}"
+    );
+    assert!(
+        (e_only[2] + 1.0).abs() < 1e-5 && (e_only[3] - 1.0).abs() < 1e-5,
+        "{e_only:?}"
+    );
+    assert!(e_only.iter().sum::<f64>().abs() < 1e-5, "{e_only:?}");
+}
