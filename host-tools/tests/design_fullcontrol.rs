@@ -554,3 +554,68 @@ fn a_retraction_change_while_retracted_primes_what_was_pulled() {
     );
     assert!(e_only.iter().sum::<f64>().abs() < 1e-5, "{e_only:?}");
 }
+
+// ------------------------------------------------------------------ the route's invariant
+
+fn seg_dist_xy(p: glam::DVec2, a: glam::DVec2, b: glam::DVec2) -> f64 {
+    let ab = b - a;
+    let t = if ab.length_squared() > 0.0 {
+        ((p - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (p - (a + ab * t)).length()
+}
+
+fn xy_segments_within(a0: DVec3, a1: DVec3, b0: DVec3, b1: DVec3, d: f64) -> bool {
+    // Sampled finely: the segments are short (≤ ~70 mm), 0.05 mm steps.
+    let n = ((a0.truncate().distance(a1.truncate()) / 0.05).ceil() as usize).max(1);
+    (0..=n).any(|k| {
+        let p = a0.lerp(a1, k as f64 / n as f64).truncate();
+        seg_dist_xy(p, b0.truncate(), b1.truncate()) < d
+    })
+}
+
+mod route_props {
+    use super::*;
+    use host_tools::design::model::{Step, Str};
+    use host_tools::design::travel::{HeightMap, TRAVEL_CLEARANCE_MM};
+    use proptest::prelude::*;
+
+    fn p3() -> impl Strategy<Value = DVec3> {
+        (0.0..50.0f64, 0.0..50.0f64, 0.0..10.0f64).prop_map(|(x, y, z)| DVec3::new(x, y, z))
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+        /// The crossing of every route is at least the clearance above every printed string
+        /// that passes within 1 mm (in XY) of the route's way, and above both ends.
+        #[test]
+        fn routes_clear_everything_printed_near_their_way(
+            strings in proptest::collection::vec((p3(), p3()), 0..30),
+            from in p3(),
+            to in p3(),
+        ) {
+            let mut m = Model::new([0.0, 0.0]);
+            for (a, b) in &strings {
+                m.push(Step::String(Str::line(*a, *b, 0.1, 20.0)));
+            }
+            let mut map = HeightMap::new();
+            map.catch_up(&m);
+            let r = map.route(from, to);
+            if from == to {
+                prop_assert!(r.is_empty());
+                return Ok(());
+            }
+            prop_assert_eq!(r.last().copied(), Some(to));
+            let safe = r[0].z;
+            prop_assert!(safe >= from.z.max(to.z) + TRAVEL_CLEARANCE_MM - 1e-9);
+            for (a, b) in &strings {
+                if xy_segments_within(from, to, *a, *b, 1.0) {
+                    prop_assert!(safe >= a.z.max(b.z) + TRAVEL_CLEARANCE_MM - 1e-9,
+                        "string {a}→{b} under the way, crossing at {safe}");
+                }
+            }
+        }
+    }
+}
