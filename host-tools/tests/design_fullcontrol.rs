@@ -282,6 +282,41 @@ fn points_helpers_build_the_expected_path() {
 }
 
 #[test]
+fn true_arcs_from_the_pen_are_g2_g3_and_end_where_asked() {
+    // A quarter circle counter-clockwise about (100, 100) from (110, 100), then a full
+    // clockwise circle rising 0.4 mm.
+    let out = run("let t = turtle(110, 100, 0.2);\n\
+                   t.extrude_arc(point(100, 100, 0), PI / 2);\n\
+                   t.extrude_arc(point(100, 100, 0), -2 * PI, 0.4);\nt")
+    .unwrap_or_else(|e| panic!("{e}"));
+    let g = gcode(&out.model);
+    assert_eq!(g.lines().filter(|l| l.starts_with("G3 ")).count(), 1, "{g}");
+    assert_eq!(g.lines().filter(|l| l.starts_with("G2 ")).count(), 1, "{g}");
+    let ms = moves(&g);
+    let printed: Vec<&Mv> = ms.iter().filter(|m| m.prints()).collect();
+    // The reader splits arcs into chords: all on the circle, the quarter ending at (100, 110).
+    assert!(printed.len() > 10);
+    assert!(printed.iter().all(
+        |m| ((m.to.truncate() - glam::DVec2::new(100.0, 100.0)).length() - 10.0).abs() < 0.01
+    ));
+    assert!(printed
+        .iter()
+        .any(|m| m.to.distance(DVec3::new(100.0, 110.0, 0.2)) < 1e-3));
+    let last = printed.last().map(|m| m.to).unwrap_or_default();
+    assert!(
+        last.distance(DVec3::new(100.0, 110.0, 0.6)) < 1e-3,
+        "{last}"
+    );
+    let len: f64 = printed.iter().map(|m| m.from.distance(m.to)).sum();
+    let want =
+        10.0 * std::f64::consts::FRAC_PI_2 + (400.0 * std::f64::consts::PI.powi(2) + 0.16).sqrt();
+    assert!((len - want).abs() < 0.05, "{len} vs {want}");
+    let e = run("let t = turtle(100, 100, 0.2);\nt.extrude_arc(point(100, 100, 0), 1);\nt")
+        .expect_err("on the centre");
+    assert_eq!(e.line, 2, "{e}");
+}
+
+#[test]
 fn model_copies_reflect_and_subdivide() {
     let out = run(r#"
         let h = helix(#{ cx: 60, cy: 60, radius: 5, turns: 2, per_turn: 20, z0: 0.2 });

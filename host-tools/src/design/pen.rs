@@ -91,6 +91,48 @@ impl Turtle {
         self.goto(p.x, p.y, p.z)
     }
 
+    /// Extrudes a true arc (written as G2/G3) about `centre_xy` through `sweep_rad` radians
+    /// (counter-clockwise when positive, a full circle at ±2π), rising `dz` mm on the way (a
+    /// helical arc). The radius is the pen's distance from the centre.
+    pub fn extrude_arc(
+        &mut self,
+        centre_xy: [f64; 2],
+        sweep_rad: f64,
+        dz: f64,
+    ) -> Result<(), TurtleError> {
+        let c = glam::DVec2::new(
+            finite("centre x", centre_xy[0])?,
+            finite("centre y", centre_xy[1])?,
+        );
+        let (sweep, dz) = (finite("sweep", sweep_rad)?, finite("dz", dz)?);
+        let from = self.state.pos;
+        let r = (from.truncate() - c).length();
+        if r.is_nan() || r <= 1e-6 || sweep == 0.0 || sweep.abs() > std::f64::consts::TAU + 1e-12 {
+            return Err(TurtleError::BadArgument(format!(
+                "arc: the pen must be off the centre and 0 < |sweep| ≤ 2π, got radius {r}, sweep {sweep}"
+            )));
+        }
+        let a = (from.truncate() - c).to_angle() + sweep;
+        let end = if (sweep.abs() - std::f64::consts::TAU).abs() < 1e-12 {
+            from.truncate() // a full circle ends where it started
+        } else {
+            c + glam::DVec2::from_angle(a) * r
+        };
+        let to = end.extend(from.z + dz);
+        self.model.push(Step::String(crate::design::model::Str {
+            start: from,
+            end: to,
+            cross_mm2: self.state.cross_mm2,
+            speed_mm_s: self.state.speed_mm_s,
+            arc: Some(crate::design::model::Arc {
+                center_xy: [c.x, c.y],
+                ccw: sweep > 0.0,
+            }),
+        }));
+        self.state.pos = to;
+        Ok(())
+    }
+
     /// Extrudes through every point in turn, starting from the current position.
     pub fn extrude_path(&mut self, points: &[DVec3]) -> Result<(), TurtleError> {
         for p in points {

@@ -393,6 +393,22 @@ fn register_pen(e: &mut Engine) {
                 .map_err(err)
         },
     );
+    e.register_fn(
+        "extrude_arc",
+        |t: &mut Turtle, c: Dynamic, sweep: Dynamic| -> Res<()> {
+            let c = pt(&c, "centre")?;
+            t.extrude_arc([c.x, c.y], num(&sweep, "sweep")?, 0.0)
+                .map_err(err)
+        },
+    );
+    e.register_fn(
+        "extrude_arc",
+        |t: &mut Turtle, c: Dynamic, sweep: Dynamic, dz: Dynamic| -> Res<()> {
+            let c = pt(&c, "centre")?;
+            t.extrude_arc([c.x, c.y], num(&sweep, "sweep")?, num(&dz, "dz")?)
+                .map_err(err)
+        },
+    );
     e.register_fn("extrude_path", |t: &mut Turtle, a: Array| -> Res<()> {
         t.extrude_path(&path_of(&a, "extrude_path")?).map_err(err)
     });
