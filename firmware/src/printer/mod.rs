@@ -34,6 +34,7 @@ mod types;
 
 pub use guards::{ExtrusionGuard, Refusal};
 use host::{AfterCancel, HostLines};
+pub use host::{PARKED_EXTRA, PARKED_PACE_US};
 use state::Pause;
 
 pub use types::{Command, PausedLines, Policy, Record, Schedule, State, Status, StepperRequest};
@@ -66,6 +67,10 @@ use heapless::{Deque, String};
 
 /// Command queue capacity (commands after parsing; each ≈ 32 B).
 pub const CMD_CAPACITY: usize = 32;
+/// Physical slots of the command queue: [`CMD_CAPACITY`] for the running job plus the parked
+/// intake ([`PARKED_EXTRA`], host.rs: job lines a parked printer takes, paced, so that a
+/// one-line-per-`ok` host that streams on still gets `ok`s for its priority lines).
+pub const CMD_SLOTS: usize = CMD_CAPACITY + PARKED_EXTRA;
 /// Stepper-driver requests kept until the board takes them.
 pub const STEPPER_REQ_CAPACITY: usize = 4;
 /// Execution records kept until the driver takes them.
@@ -84,7 +89,7 @@ pub struct Printer {
     policy: Policy,
     planner: Planner,
     stepgen: StepGen,
-    cmds: Deque<Command, CMD_CAPACITY>,
+    cmds: Deque<Command, CMD_SLOTS>,
     service: Deque<ServiceMove, { service::SERVICE_CAPACITY }>,
     /// The pause machine: every pause, cancel and halt state with its data.
     pause: Pause,
