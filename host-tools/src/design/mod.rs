@@ -8,6 +8,7 @@ pub mod modulate;
 pub mod motion;
 pub mod parts;
 pub mod profile;
+pub mod progress;
 pub mod script;
 pub mod turtle;
 pub mod writer;
