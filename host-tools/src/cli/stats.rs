@@ -89,6 +89,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         writeln!(o, "layer time    {lo:.1} s – {hi:.1} s")?;
     }
     if args.layers {
+        // Layer numbers are the firmware's (what `M761 L<n>` and the layer pause use).
+        writeln!(o, "  start code   {:>8.2} s", s.before_first_layer_s)?;
         for l in &s.layer_times {
             match l.z_mm {
                 Some(z) => writeln!(
