@@ -508,12 +508,12 @@ fn expand(t: &str, value: &mut dyn FnMut(&str) -> Option<String>) -> Result<Stri
     while let Some(i) = rest.find(['{', '}']) {
         out.push_str(&rest[..i]);
         let tail = &rest[i..];
-        if tail.starts_with("{{") {
+        if let Some(r) = tail.strip_prefix("{{") {
             out.push('{');
-            rest = &tail[2..];
-        } else if tail.starts_with("}}") {
+            rest = r;
+        } else if let Some(r) = tail.strip_prefix("}}") {
             out.push('}');
-            rest = &tail[2..];
+            rest = r;
         } else if tail.starts_with('}') {
             return Err("a lone `}` (write `}}` for a literal brace)".into());
         } else {
