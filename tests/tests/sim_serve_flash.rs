@@ -32,6 +32,7 @@ fn session_with(flash: &Path, lines: &[&str], pause_after: Option<usize>) -> Vec
                 exit_after_idle: 0.5,
                 link: None,
                 flash: Some(flash),
+                sd: None,
             },
             move |p| {
                 let _ = tx.send(p.to_path_buf());
