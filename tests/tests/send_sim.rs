@@ -27,7 +27,22 @@ fn profile_dir() -> PathBuf {
         .expect("target dir")
 }
 
-fn bin(package: &str, name: &str) -> PathBuf {
+/// A workspace binary, built with cargo once per test process (the first call) and then taken
+/// from the target directory. Built before any sim starts: the sim ends after 15 s without host
+/// bytes, and a `cargo build` between the sim's start and the sender's (waiting for the build
+/// lock on a loaded machine) once outlasted that and the sender found its pty gone.
+fn bin(package: &'static str, name: &'static str) -> PathBuf {
+    static BUILT: std::sync::Mutex<Vec<(&str, PathBuf)>> = std::sync::Mutex::new(Vec::new());
+    let mut built = BUILT.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some((_, p)) = built.iter().find(|(n, _)| *n == name) {
+        return p.clone();
+    }
+    let p = build(package, name);
+    built.push((name, p.clone()));
+    p
+}
+
+fn build(package: &str, name: &str) -> PathBuf {
     let dir = profile_dir();
     let path = dir.join(name);
     // Always ask cargo (a no-op when up to date), so the test never runs a stale binary.
@@ -55,8 +70,10 @@ struct Sim {
 impl Sim {
     fn start(policy: &str, tag: &str) -> Sim {
         // Build the sender first: the sim ends after some idle seconds without host bytes
-        // while nothing moves (a paused printer counts; a heater wait does not).
+        // while nothing moves (a paused printer counts; a heater wait does not), so nothing
+        // may be built between the sim's start and the sender's.
         bin("host-tools", "host-tools");
+        bin("sim", "sim");
         let record =
             std::env::temp_dir().join(format!("send_sim_{tag}_{}.json", std::process::id()));
         let _ = std::fs::remove_file(&record);
