@@ -199,7 +199,9 @@ impl Printer {
         });
     }
 
-    pub(super) fn sd_request_pending(&self) -> bool {
+    /// Whether a command waits for the card (the board brings a lost card up again first;
+    /// the port's next host line waits too).
+    pub fn sd_request_pending(&self) -> bool {
         self.sd.request.is_some()
     }
 

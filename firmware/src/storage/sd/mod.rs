@@ -204,24 +204,33 @@ where
         self.mounted.map(|(_, r)| r).ok_or(CardError::NoCard)
     }
 
+    /// Every entry of the root directory with its long name, through one `dyn` callback: the
+    /// FAT code's directory walk is compiled once for listing and finding (flash is tight).
+    fn scan(
+        &mut self,
+        f: &mut dyn FnMut(&embedded_sdmmc::DirEntry, Option<&str>),
+    ) -> Result<(), CardError> {
+        let root = self.root()?;
+        let mut storage = [0u8; LONG_NAME_CAP];
+        let mut lfn = LfnBuffer::new(&mut storage);
+        self.vm
+            .iterate_dir_lfn(root, &mut lfn, |e, long| f(e, long))
+            .map_err(card_error)
+    }
+
     /// Call `f` with every file of the root directory, in directory order (index from 0).
     /// Returns how many there are.
     pub fn for_each_file(
         &mut self,
         mut f: impl FnMut(usize, &CardEntry),
     ) -> Result<usize, CardError> {
-        let root = self.root()?;
-        let mut storage = [0u8; LONG_NAME_CAP];
-        let mut lfn = LfnBuffer::new(&mut storage);
         let mut n = 0;
-        self.vm
-            .iterate_dir_lfn(root, &mut lfn, |e, long| {
-                if let Some(entry) = entry_of(e, long) {
-                    f(n, &entry);
-                    n += 1;
-                }
-            })
-            .map_err(card_error)?;
+        self.scan(&mut |e, long| {
+            if let Some(entry) = entry_of(e, long) {
+                f(n, &entry);
+                n += 1;
+            }
+        })?;
         Ok(n)
     }
 
@@ -232,19 +241,14 @@ where
         if name.is_empty() || name.contains('/') {
             return Err(CardError::BadName);
         }
-        let root = self.root()?;
-        let mut storage = [0u8; LONG_NAME_CAP];
-        let mut lfn = LfnBuffer::new(&mut storage);
         let mut found = None;
-        self.vm
-            .iterate_dir_lfn(root, &mut lfn, |e, long| {
-                if found.is_none() {
-                    if let Some(entry) = entry_of(e, long).filter(|c| c.is_named(name)) {
-                        found = Some((entry, e.name.clone()));
-                    }
+        self.scan(&mut |e, long| {
+            if found.is_none() {
+                if let Some(entry) = entry_of(e, long).filter(|c| c.is_named(name)) {
+                    found = Some((entry, e.name.clone()));
                 }
-            })
-            .map_err(card_error)?;
+            }
+        })?;
         found.ok_or(CardError::NotFound)
     }
 
