@@ -43,6 +43,8 @@ mod service;
 // Settings M-codes and the flash store's requests (M500/M501).
 // The paused-job record (power-cut resume).
 mod job;
+// M1000: resume the kept job after a power cut.
+mod recovery;
 mod settings;
 // Stepper drivers: M569/M350/M122 and the board's TMC2209 results.
 mod drivers;
@@ -482,7 +484,7 @@ impl Printer {
             Pause::Run => {
                 if self.has_work() {
                     State::Printing
-                } else if self.lines.after_cancel.is_some() {
+                } else if self.lines.after_cancel.is_some() || self.sd_cancelled() {
                     State::Cancelled
                 } else {
                     State::Idle
