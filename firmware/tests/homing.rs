@@ -271,3 +271,47 @@ fn m119_reports_the_switches_as_marlin() {
         r.out
     );
 }
+
+/// A layer pause asked for while G28 is still homing is kept: the approach stopped by its
+/// switch must not drop the pause's barrier, and the job pauses at its first layer boundary
+/// (power-cut tests found the pause lost: `Pausing` forever, every boundary run through).
+#[test]
+fn a_layer_pause_during_homing_stops_at_the_first_boundary() {
+    let mut w = World {
+        real: [2400, 1600, 800],
+        switch: [Some(0), Some(0), Some(0)],
+    };
+    let mut p = printer();
+    let job = [
+        "G28",
+        "G90",
+        "M83",
+        ";LAYER_CHANGE",
+        ";Z:0.2",
+        "G1 Z0.2 F600",
+        "G1 X10 Y10 E1 F1200",
+        "G1 X50 Y10 E2",
+        ";LAYER_CHANGE",
+        ";Z:0.4",
+        "G1 Z0.4",
+        "G1 X50 Y50 E2",
+        "G1 X10 Y50 E2",
+        ";LAYER_CHANGE",
+        ";Z:0.6",
+        "G1 Z0.6",
+        "G1 X10 Y10 E2",
+        "G1 X50 Y10 E2",
+    ];
+    // M601 half a second in: Z is being raised, X not homed yet.
+    let r = drive(&mut p, &mut w, &job, &[(500_000, "M601\n")], 120_000_000);
+    assert!(!r.out.contains("Error"), "{}", r.out);
+    assert!(r.out.contains("//action:paused"), "{}", r.out);
+    assert!(
+        matches!(p.status().state, State::Paused),
+        "{:?}\n{}",
+        p.status().state,
+        r.out
+    );
+    // Stopped at a boundary after homing, not at the end of the job.
+    assert_ne!(p.status().position[0], 50 * 80, "{}", r.out);
+}

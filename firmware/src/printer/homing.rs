@@ -20,7 +20,7 @@
 use super::{Command, Printer};
 use crate::homing::{Endstops, Homing, HomingConfig, MoveEnd, Next};
 use crate::motion::{Axis, MoveRequest};
-use crate::planner::BlockKind;
+use crate::planner::{Barrier, BlockKind};
 
 impl Printer {
     /// This machine has minimum endstops on X, Y and Z: G28 homes with them (`cfg`: speeds and
@@ -50,11 +50,25 @@ impl Printer {
         {
             let _ = self.stepgen.unload();
             let pos = self.stepgen.position();
-            self.planner.clear(pos);
-            self.planner.exec_done();
+            self.end_approach(pos);
             h.finished(MoveEnd::Triggered);
             self.homing = Some(h);
         }
+    }
+
+    /// The running approach stopped at `pos`: its block is dropped from the planner. The
+    /// planner holds nothing else during G28 (the queue waits behind it), but a layer pause
+    /// asked for meanwhile has set its barrier there: it is kept, so the pause stops at the
+    /// job's first boundary after homing.
+    fn end_approach(&mut self, pos: crate::motion::StepPos) {
+        let barrier = self.planner.barrier();
+        self.planner.clear(pos);
+        match barrier {
+            Barrier::None => {}
+            Barrier::NextMark => self.planner.set_barrier_next_mark(),
+            Barrier::At(id) => self.planner.set_barrier(id),
+        }
+        self.planner.exec_done();
     }
 
     /// Switch states, bit i = axis i pressed.
@@ -83,8 +97,7 @@ impl Printer {
             *p = p.wrapping_sub(u);
         }
         self.stepgen.set_position(pos);
-        self.planner.clear(pos);
-        self.planner.exec_done();
+        self.end_approach(pos);
         h.finished(MoveEnd::Triggered);
         self.homing = Some(h);
     }
