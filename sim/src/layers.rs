@@ -8,7 +8,7 @@ use firmware::layer::{LayerDetector, MoveFacts};
 use firmware::machine::MachineState;
 
 /// For each line, the layer number whose mark is placed before that line (0-based), if any.
-pub fn detect(lines: &[String]) -> Vec<Option<u32>> {
+pub fn detect<S: AsRef<str>>(lines: &[S]) -> Vec<Option<u32>> {
     analyse(lines).into_iter().map(|l| l.mark).collect()
 }
 
@@ -25,11 +25,16 @@ pub struct LineFacts {
 }
 
 /// Run the firmware's machine state and layer detector over the job.
-pub fn analyse(lines: &[String]) -> Vec<LineFacts> {
+pub fn analyse<S: AsRef<str>>(lines: &[S]) -> Vec<LineFacts> {
+    analyse_lines(lines.iter().map(AsRef::as_ref), lines.len())
+}
+
+/// [`analyse`] over `n` lines given one by one.
+pub fn analyse_lines<'a>(lines: impl Iterator<Item = &'a str>, n: usize) -> Vec<LineFacts> {
     let cfg = MachineConfig::ENDER3;
     let mut m = MachineState::new(&cfg);
     let mut d = LayerDetector::new();
-    let mut out = Vec::with_capacity(lines.len());
+    let mut out = Vec::with_capacity(n);
     for text in lines {
         let Ok(line) = parse_line(text.as_bytes()) else {
             out.push(LineFacts::default());

@@ -10,7 +10,7 @@
 
 use crate::engine::{Engine, Stop};
 use crate::hostlink::{Host, LinkConfig, Origin};
-use crate::job::JobInfo;
+use crate::job::{JobInfo, JobLines};
 use crate::metrics::{self, PauseReport, RunFacts};
 use crate::port::{Executive, FirmwareKnobs, RunState};
 use crate::split;
@@ -178,7 +178,7 @@ pub struct Outcome<E: Executive> {
     /// The reference run.
     pub reference: Engine<E>,
     /// The job as the host sent it (split for host-split).
-    pub job: Vec<String>,
+    pub job: JobLines,
     /// Timeline of the run.
     pub timeline: Vec<TimelineEvent>,
     /// The reference run reached the end of the job.
@@ -186,18 +186,23 @@ pub struct Outcome<E: Executive> {
 }
 
 /// Make a job ready for a policy: host-split pre-splits it. Returns the lines to send and,
-/// for each, the line of the original job it came from.
-pub fn prepare_job(policy: Policy, job: &[String], split_mm: f64) -> (Vec<String>, Vec<usize>) {
+/// for each, the line of the original job it came from (`None`: the job is sent as it is, line
+/// for line).
+pub fn prepare_job(
+    policy: Policy,
+    job: &JobLines,
+    split_mm: f64,
+) -> (JobLines, Option<Vec<usize>>) {
     match policy {
         Policy::HostSplit => {
-            let s = split::split_job(job, split_mm);
-            (s.lines, s.source)
+            let s = split::split_job(&job.to_vec(), split_mm);
+            (JobLines::from_lines(&s.lines), Some(s.source))
         }
-        _ => (job.to_vec(), (0..job.len()).collect()),
+        _ => (job.clone(), None),
     }
 }
 
-fn new_engine<F: Factory>(f: &F, sc: &Scenario, job: Vec<String>) -> Engine<F::Exec> {
+fn new_engine<F: Factory>(f: &F, sc: &Scenario, job: JobLines) -> Engine<F::Exec> {
     let fw = f.make(&sc.machine, &sc.knobs());
     let host = Host::new(sc.link.clone(), job);
     Engine::new(fw, host)
@@ -208,11 +213,11 @@ fn new_engine<F: Factory>(f: &F, sc: &Scenario, job: Vec<String>) -> Engine<F::E
 fn line_time<F: Factory>(
     f: &F,
     sc: &Scenario,
-    job: &[String],
+    job: &JobLines,
     lines: std::ops::RangeInclusive<usize>,
     fraction: f64,
 ) -> Option<u64> {
-    let mut e = new_engine(f, sc, job.to_vec());
+    let mut e = new_engine(f, sc, job.clone());
     let mut t0 = None;
     loop {
         match e.advance(sc.max_time_us, true) {
@@ -249,11 +254,22 @@ pub fn run<F: Factory>(
     sc: &Scenario,
     job_lines: &[String],
 ) -> anyhow::Result<Outcome<F::Exec>> {
+    run_job(f, sc, JobLines::from_lines(job_lines))
+}
+
+/// [`run`] of a job already in a [`JobLines`] (`sim run`: one buffer for the file, shared by
+/// both runs).
+pub fn run_job<F: Factory>(
+    f: &F,
+    sc: &Scenario,
+    job_lines: JobLines,
+) -> anyhow::Result<Outcome<F::Exec>> {
     let wall = std::time::Instant::now();
-    let (job, source) = prepare_job(sc.policy, job_lines, sc.split_mm);
+    let (job, source) = prepare_job(sc.policy, &job_lines, sc.split_mm);
+    drop(job_lines);
     // The host's view of the job (layers, states) is only read around a pause.
     let info = if sc.pause.is_some() {
-        JobInfo::parse(&job)
+        JobInfo::parse_job(&job)
     } else {
         JobInfo::default()
     };
@@ -266,7 +282,7 @@ pub fn run<F: Factory>(
         if sc.pause.is_some() {
             job.clone()
         } else {
-            Vec::new()
+            JobLines::default()
         },
     );
     let mut timeline = Vec::new();
@@ -283,8 +299,16 @@ pub fn run<F: Factory>(
         None => None,
         Some(PauseWhen::AtUs(t)) => Some(t),
         Some(PauseWhen::DuringLine { line, fraction }) => {
-            let first = source.iter().position(|&s| s == line);
-            let last = source.iter().rposition(|&s| s == line);
+            let (first, last) = match &source {
+                Some(source) => (
+                    source.iter().position(|&s| s == line),
+                    source.iter().rposition(|&s| s == line),
+                ),
+                None => {
+                    let here = (line < job.len()).then_some(line);
+                    (here, here)
+                }
+            };
             let range = first
                 .zip(last)
                 .map(|(a, b)| a..=b)
