@@ -90,6 +90,10 @@ impl SeqMap {
     /// Forget the lines of sequence numbers below `seq` (kept: the range holding `seq`). Done
     /// in halves, so amortised O(1) per range.
     pub fn forget_before(&mut self, seq: u32) {
+        // A number not handed out yet (a homing block's `u32::MAX`) says nothing.
+        if self.last_next.is_none_or(|next| seq >= next) {
+            return;
+        }
         let i = self.ranges.partition_point(|(s, _)| *s <= seq);
         let drop = i.saturating_sub(1);
         if drop > 0 && drop * 2 >= self.ranges.len() {

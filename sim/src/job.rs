@@ -58,10 +58,12 @@ pub struct LineInfo {
 /// A parsed job.
 #[derive(Clone, Debug, Default)]
 pub struct JobInfo {
-    /// One entry per line of the file.
+    /// One entry per line of the file (empty for [`JobInfo::parse_layers`]).
     pub lines: Vec<LineInfo>,
     /// Index of the line where each layer starts (the marker line), by layer number.
     pub layer_starts: Vec<(u32, usize)>,
+    /// Per line: extrudes (1 byte per line, kept by both parses).
+    extruding: Vec<bool>,
 }
 
 /// Apply one parsed command to the host state; returns (moves, extrudes).
@@ -142,6 +144,51 @@ impl JobInfo {
         Self::parse_lines(job.iter(), job.len())
     }
 
+    /// Only what the pause metrics read — which lines extrude, where layers start — in about
+    /// one byte per line ([`JobInfo::lines`] stays empty, [`JobInfo::state_before`] answers the
+    /// default state): what `sim run` keeps of a long job.
+    pub fn parse_layers(job: &JobLines) -> Self {
+        let mut an = crate::layers::Analyser::new();
+        let mut layer_starts = Vec::new();
+        let mut extruding = Vec::with_capacity(job.len());
+        for (i, text) in job.iter().enumerate() {
+            let f = an.feed(text);
+            if let Some(l) = f.mark {
+                layer_starts.push((l, i));
+            }
+            extruding.push(f.extrudes);
+        }
+        Self {
+            lines: Vec::new(),
+            layer_starts,
+            extruding,
+        }
+    }
+
+    /// Line `i` moves X or Y while E advances by at least one step.
+    pub fn extrudes(&self, i: usize) -> bool {
+        self.extruding.get(i).copied().unwrap_or(false)
+    }
+
+    /// The layer line `i` belongs to (the last layer mark at or before it).
+    pub fn layer_of(&self, i: usize) -> Option<u32> {
+        if i >= self.extruding.len() {
+            return None;
+        }
+        let k = self.layer_starts.partition_point(|(_, at)| *at <= i);
+        k.checked_sub(1).map(|k| self.layer_starts[k].0)
+    }
+
+    /// Number of lines.
+    pub fn len(&self) -> usize {
+        self.extruding.len()
+    }
+
+    /// True for a job without lines.
+    pub fn is_empty(&self) -> bool {
+        self.extruding.is_empty()
+    }
+
     fn parse_lines<'a>(lines: impl Iterator<Item = &'a str> + Clone, n: usize) -> Self {
         let mut st = HostState::default();
         let mut out = Vec::with_capacity(n);
@@ -173,9 +220,11 @@ impl JobInfo {
                 parse_error,
             });
         }
+        let extruding = out.iter().map(|l| l.extrudes).collect();
         Self {
             lines: out,
             layer_starts,
+            extruding,
         }
     }
 

@@ -31,28 +31,55 @@ pub fn analyse<S: AsRef<str>>(lines: &[S]) -> Vec<LineFacts> {
 
 /// [`analyse`] over `n` lines given one by one.
 pub fn analyse_lines<'a>(lines: impl Iterator<Item = &'a str>, n: usize) -> Vec<LineFacts> {
-    let cfg = MachineConfig::ENDER3;
-    let mut m = MachineState::new(&cfg);
-    let mut d = LayerDetector::new();
+    let mut an = Analyser::new();
     let mut out = Vec::with_capacity(n);
-    for text in lines {
+    out.extend(lines.map(|text| an.feed(text)));
+    out
+}
+
+/// [`analyse`] one line at a time (memory flat with job length).
+pub struct Analyser {
+    cfg: MachineConfig,
+    m: MachineState,
+    d: LayerDetector,
+}
+
+impl Default for Analyser {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Analyser {
+    /// At the start of a job.
+    pub fn new() -> Self {
+        let cfg = MachineConfig::ENDER3;
+        Self {
+            m: MachineState::new(&cfg),
+            d: LayerDetector::new(),
+            cfg,
+        }
+    }
+
+    /// The facts of the next line.
+    pub fn feed(&mut self, text: &str) -> LineFacts {
+        let cfg = &self.cfg;
         let Ok(line) = parse_line(text.as_bytes()) else {
-            out.push(LineFacts::default());
-            continue;
+            return LineFacts::default();
         };
-        let before = m.position_steps(&cfg);
+        let before = self.m.position_steps(cfg);
         if let Some(cmd) = &line.command {
             // A command the machine rejects changes nothing (as on the printer).
-            let _ = m.apply(cmd, &cfg);
+            let _ = self.m.apply(cmd, cfg);
         }
-        let facts = MoveFacts::between(&before, &m.position_steps(&cfg), &cfg);
-        out.push(LineFacts {
-            mark: d.feed(&line, facts).map(|mark| mark.layer),
+        let after = self.m.position_steps(cfg);
+        let facts = MoveFacts::between(&before, &after, cfg);
+        LineFacts {
+            mark: self.d.feed(&line, facts).map(|mark| mark.layer),
             extrudes: facts.extrudes,
-            moved: before != m.position_steps(&cfg),
-        });
+            moved: before != after,
+        }
     }
-    out
 }
 
 #[cfg(test)]

@@ -20,4 +20,5 @@ pub mod run;
 pub mod serve;
 pub mod session;
 pub mod split;
+pub mod stream;
 pub mod thermal;

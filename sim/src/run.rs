@@ -11,9 +11,10 @@
 use crate::engine::{Engine, Stop};
 use crate::hostlink::{Host, LinkConfig, Origin};
 use crate::job::{JobInfo, JobLines};
-use crate::metrics::{self, PauseReport, RunFacts};
+use crate::metrics::{self, PauseReport, RunFacts, RunView};
 use crate::port::{Executive, FirmwareKnobs, RunState};
 use crate::split;
+use crate::stream::{self, Compare, LineEnds, Side};
 use firmware::config::MachineConfig;
 
 /// How the printer and host handle a pause (see the crate docs).
@@ -268,13 +269,19 @@ pub fn run_job<F: Factory>(
     let (job, source) = prepare_job(sc.policy, &job_lines, sc.split_mm);
     drop(job_lines);
     // The host's view of the job (layers, states) is only read around a pause.
-    let info = if sc.pause.is_some() {
+    let info = if sc.pause.is_some() && sc.policy == Policy::HostSplit {
+        // Host-split writes its pause and resume sequences from the host state at each line.
         JobInfo::parse_job(&job)
+    } else if sc.pause.is_some() {
+        JobInfo::parse_layers(&job)
     } else {
         JobInfo::default()
     };
     let mut a = new_engine(f, sc, job.clone());
     a.rec.keep_records = sc.keep_records || sc.pause.is_some();
+    // With a pause and no caller asking for the records, compare A and B as they run.
+    let streaming = sc.pause.is_some() && !sc.keep_records;
+    a.rec.stream = streaming;
     // Without a pause the reference is the run itself and is never stepped.
     let mut b = new_engine(
         f,
@@ -285,6 +292,9 @@ pub fn run_job<F: Factory>(
             JobLines::default()
         },
     );
+    b.rec.stream = streaming;
+    let mut cmp = Compare::default();
+    let mut ends = LineEnds::default();
     let mut timeline = Vec::new();
     let mut note = |t_us: u64, what: String| {
         timeline.push(TimelineEvent {
@@ -349,6 +359,28 @@ pub fn run_job<F: Factory>(
     };
 
     let mut facts = RunFacts::default();
+    if streaming {
+        // Up to the request (or, for a scheduled pause, until the pause begins): A and B in
+        // turns, their records compared and let go as they complete.
+        let until = t_req.unwrap_or(sc.max_time_us);
+        loop {
+            let next = (a.now_us + STREAM_CHUNK_US).min(until);
+            let stop = a.advance(next, false);
+            if stop == Stop::Finished && t_req.is_some() {
+                break;
+            }
+            b.advance(next, false);
+            let pausing = matches!(a.fw.status().state, RunState::Pausing | RunState::Paused);
+            if pausing || matches!(stop, Stop::Finished | Stop::Stalled) || next >= until {
+                break;
+            }
+            stream::feed(&mut a, Side::A, false, &mut cmp, &mut ends);
+            stream::feed(&mut b, Side::B, false, &mut cmp, &mut ends);
+            if let Some(fl) = stream::window_floor(&a) {
+                ends.raise_floor(fl);
+            }
+        }
+    }
     if let Some(t) = t_req {
         let stop = a.advance(t, false);
         if let Some(why) = &a.host.aborted {
@@ -422,24 +454,67 @@ pub fn run_job<F: Factory>(
             }
         }
     }
-    let a_done = a.run_to_end(sc.max_time_us);
+    let mut view = RunView::default();
+    let (a_done, b_done) = if streaming {
+        // Keep A's records from the request until it prints again after the resume (the
+        // window the pause figures read), then run A and B to the end in turns.
+        loop {
+            let resumed = first_job_after_service(&a).is_some();
+            if resumed || a.now_us >= sc.max_time_us {
+                break;
+            }
+            let stop = a.advance(a.now_us + STREAM_CHUNK_US, false);
+            if matches!(stop, Stop::Finished | Stop::Stalled) {
+                break;
+            }
+        }
+        view.records = a.rec.records.clone();
+        view.keys = view.records.iter().map(|r| stream::key_of(&a, r)).collect();
+        if let Some(top) = view.keys.iter().flatten().map(|k| k.0).max() {
+            ends.set_ceil(top);
+        }
+        run_in_turns(&mut a, &mut b, sc.max_time_us, &mut cmp, &mut ends)
+    } else {
+        let a_done = a.run_to_end(sc.max_time_us);
+        // Without a pause the reference is the run itself: do not simulate it twice.
+        let b_done = if sc.pause.is_some() {
+            b.run_to_end(sc.max_time_us)
+        } else {
+            a_done
+        };
+        (a_done, b_done)
+    };
     if let Some(why) = &a.host.aborted {
         anyhow::bail!("host link: {why}");
     }
-    // Without a pause the reference is the run itself: do not simulate it twice.
-    let b_done = if sc.pause.is_some() {
-        b.run_to_end(sc.max_time_us)
-    } else {
-        a_done
-    };
+    if !streaming {
+        // Everything kept: compare the whole records.
+        view.records = a.rec.records.clone();
+        view.keys = view.records.iter().map(|r| stream::key_of(&a, r)).collect();
+        if sc.pause.is_some() {
+            stream::feed(&mut a, Side::A, true, &mut cmp, &mut ends);
+            stream::feed(&mut b, Side::B, true, &mut cmp, &mut ends);
+        } else {
+            // The run against itself.
+            let recs = a.rec.records.clone();
+            for r in &recs {
+                let k = stream::key_of(&a, r);
+                cmp.push(Side::A, k);
+                cmp.push(Side::B, k);
+                ends.note(k, r);
+            }
+        }
+    }
+    view.b_line_ends = ends;
+    view.comparison = cmp.finish();
     facts.finished = a_done;
     facts.reference_finished = b_done;
     facts.wall_s = wall.elapsed().as_secs_f64();
 
     let mut report = if sc.pause.is_some() {
-        metrics::compute(sc, &info, &a, &b, &facts)
+        metrics::compute(sc, &info, &a, &b, &facts, &view)
     } else {
-        metrics::compute(sc, &info, &a, &a, &facts)
+        metrics::compute(sc, &info, &a, &a, &facts, &view)
     };
     if sc.measure_segmentation_cost && sc.policy == Policy::Firmware {
         let mut knobs = sc.knobs();
@@ -533,6 +608,53 @@ pub fn unfinished<E: Executive>(sc: &Scenario, o: &Outcome<E>) -> Option<String>
         ));
     }
     None
+}
+
+/// Virtual time A runs before B catches up and their records are compared, µs.
+const STREAM_CHUNK_US: u64 = 2_000_000;
+
+/// Index of A's first job record after its first service record (printing again after the
+/// pause), if any.
+fn first_job_after_service<E: Executive>(a: &Engine<E>) -> Option<usize> {
+    let recs = &a.rec.records;
+    let s = recs.iter().position(|r| stream::key_of(a, r).is_none())?;
+    (s..recs.len()).find(|&i| stream::key_of(a, &recs[i]).is_some())
+}
+
+/// Run A and B to the end in turns (B catching up with A's number of executed blocks after
+/// each chunk of A), comparing their records as they complete. Returns whether each finished.
+fn run_in_turns<E: Executive>(
+    a: &mut Engine<E>,
+    b: &mut Engine<E>,
+    max_us: u64,
+    cmp: &mut Compare,
+    ends: &mut LineEnds,
+) -> (bool, bool) {
+    // None while running; Some(finished) once it finished, stalled or ran out of time.
+    let mut a_end: Option<bool> = None;
+    let mut b_end: Option<bool> = None;
+    let step = |e: &mut Engine<E>| -> Option<bool> {
+        let deadline = (e.now_us + STREAM_CHUNK_US).min(max_us);
+        match e.advance(deadline, false) {
+            Stop::Finished => Some(true),
+            Stop::Stalled => Some(false),
+            _ if e.now_us >= max_us => Some(false),
+            _ => None,
+        }
+    };
+    loop {
+        if a_end.is_none() {
+            a_end = step(a);
+            stream::feed(a, Side::A, a_end.is_some(), cmp, ends);
+        }
+        while b_end.is_none() && (a_end.is_some() || cmp.fed_b <= cmp.fed_a) {
+            b_end = step(b);
+            stream::feed(b, Side::B, b_end.is_some(), cmp, ends);
+        }
+        if let (Some(x), Some(y)) = (a_end, b_end) {
+            return (x, y);
+        }
+    }
 }
 
 /// Step A and B together from the request on; the time of the first step that differs.
