@@ -25,9 +25,14 @@ use crate::engine::Engine;
 use crate::job::JobInfo;
 use crate::port::Executive;
 use crate::recorder::{Scale, SegRecord};
-use crate::run::{PauseWhen, Scenario};
+use crate::run::{Mode, PauseWhen, Scenario};
 use crate::stream::{Comparison, Key, LineEnds};
 use firmware::motion::StepPos;
+
+/// Margin of the first-reachable-boundary judgement beyond the braking distance, mm: the
+/// segment executing at the request (≤ 0.2 mm), the speed estimate (the average over that
+/// block) and the speed-up a `layer` request starts (as `tests/tests/layer_corpus.rs`).
+pub const REACH_MARGIN_MM: f64 = 2.0;
 
 /// What the run loop observed, for [`compute`].
 #[derive(Clone, Debug, Default)]
@@ -77,6 +82,13 @@ pub struct PauseReport {
     pub request_layer: Option<u32>,
     /// Stopped at the first boundary after the request (or at the scheduled layer).
     pub first_boundary_after_request: bool,
+    /// `layer` pauses: stopped at the *first reachable* boundary — the first one not passed
+    /// at the request whose end (the end of its layer's last extruding move) lies farther
+    /// along the path than the braking distance `v²/2a` + [`REACH_MARGIN_MM`] from the
+    /// request (`v`: the speed of the block executing then, `a`: the X axis's acceleration);
+    /// boundaries nearer than that may be passed. Judged from the executed path and the
+    /// job's layers, not from the planner. `None` for `now` pauses and runs without a pause.
+    pub first_reachable_boundary: Option<bool>,
     /// Pause point position, steps (X Y Z E).
     pub pause_point_steps: Option<StepPos>,
     /// Largest per-axis difference between the pause point and the resume start, steps.
@@ -254,6 +266,7 @@ pub fn compute<E: Executive>(
             rep.request_layer = n.checked_sub(1);
             rep.first_boundary_after_request =
                 rep.stopped_at_layer_boundary && rep.stop_layer == rep.request_layer;
+            rep.first_reachable_boundary = Some(rep.first_boundary_after_request);
         }
         _ if facts.t_req_us.is_some() => {
             let k = facts.records_before_req;
@@ -275,13 +288,61 @@ pub fn compute<E: Executive>(
                 };
                 let kprev = prev_done.and_then(layer_of);
                 rep.request_layer = k0.or(kprev);
+                // Requested before the first layer mark (a purge line): its end is the
+                // first boundary.
+                let prelude = first_unfinished.is_some() && k0.is_none();
                 rep.first_boundary_after_request = rep.stopped_at_layer_boundary
                     && match (rep.stop_layer, kprev, k0) {
                         (Some(s), Some(p), Some(k)) => s >= p && s <= k,
                         (Some(s), None, Some(k)) => s <= k,
+                        (None, None, None) if prelude => true,
                         (s, _, None) => s.is_some(),
                         (None, _, _) => kprev.is_none(),
                     };
+                if sc.mode == Mode::Layer {
+                    // Later than the first boundary only past boundaries within braking
+                    // distance: the path from the request to each layer's last extrusion.
+                    let r = &ra[i];
+                    let dt_s = r.t_end_us.saturating_sub(r.t_start_us) as f64 * 1e-6;
+                    let v = if dt_s > 0.0 {
+                        scale.xyz_dist_mm(&r.start, &r.end) / dt_s
+                    } else {
+                        0.0
+                    };
+                    let a = f64::from(sc.machine.axes[0].max_accel_mm_s2);
+                    let brake_mm = v * v / (2.0 * a) + REACH_MARGIN_MM;
+                    let mut layer_end_mm: Vec<(u32, f64)> = Vec::new();
+                    let mut d = 0.0;
+                    let upto = j.map_or(0, |j| j + 1);
+                    for (idx, key) in ka.iter().enumerate().take(upto).skip(i) {
+                        let Some((line, _)) = key else { continue };
+                        let from = if idx + 1 == k {
+                            facts.pos_at_req
+                        } else {
+                            ra[idx].start
+                        };
+                        d += scale.xyz_dist_mm(&from, &ra[idx].end);
+                        if let Some(l) = layer_of(*line).filter(|_| extrudes(*line)) {
+                            layer_end_mm.retain(|(x, _)| *x != l);
+                            layer_end_mm.push((l, d));
+                        }
+                    }
+                    let passed_near = match (rep.stop_layer, k0) {
+                        (Some(s), Some(k)) if s > k => layer_end_mm
+                            .iter()
+                            .filter(|(l, _)| *l >= k && *l < s)
+                            .all(|(_, d)| *d <= brake_mm),
+                        _ => false,
+                    };
+                    let above_lower = match (rep.stop_layer, kprev) {
+                        (Some(s), Some(p)) => s >= p,
+                        _ => true,
+                    };
+                    rep.first_reachable_boundary = Some(
+                        rep.first_boundary_after_request
+                            || (rep.stopped_at_layer_boundary && above_lower && passed_near),
+                    );
+                }
             }
         }
         _ => {}
