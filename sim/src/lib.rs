@@ -17,6 +17,7 @@ pub mod plot;
 pub mod port;
 pub mod recorder;
 pub mod run;
+pub mod sd;
 pub mod serve;
 pub mod session;
 pub mod split;

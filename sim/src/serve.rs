@@ -56,6 +56,10 @@ pub struct ServeArgs {
     /// missing; see `sim::flash`).
     #[arg(long)]
     pub flash: Option<PathBuf>,
+    /// The SD card: a directory (its files are put on a FAT image made at startup) or a card
+    /// image file (MBR + FAT16/32); see `sim::sd` and docs/sd.md.
+    #[arg(long)]
+    pub sd: Option<PathBuf>,
 }
 
 static STOP: AtomicBool = AtomicBool::new(false);
@@ -184,6 +188,12 @@ pub fn serve_with(
         .as_deref()
         .map(crate::flash::FlashStore::open)
         .transpose()?;
+    let mut card = match a.sd.as_deref() {
+        Some(p) if p.is_dir() => Some(crate::sd::ImageDevice::from_dir(p)?),
+        Some(p) => Some(crate::sd::ImageDevice::open(p)?),
+        None => None,
+    }
+    .map(firmware::storage::sd::Card::new);
     if let Some(l) = &a.link {
         check_link_path(l)?;
     }
@@ -234,6 +244,11 @@ pub fn serve_with(
         // read, as at power-up), later passes carry out M500/M501.
         if let Some(f) = flash.as_mut() {
             f.service(&mut fw.printer);
+        }
+        // The SD card: commands waiting for it, and the job's lines while the queue has room.
+        if let Some(c) = card.as_mut() {
+            fw.printer.attach_card();
+            fw.printer.service_card(c, now_us);
         }
         // Host bytes. Flow control: what the firmware does not take stays in `rx_pending`, and
         // the pty is not read again until it is all taken, so the host's writes block in the
@@ -304,9 +319,13 @@ pub fn serve_with(
         fw.take_output(&mut out);
         pending_out.extend_from_slice(out.as_bytes());
         // Unsolicited temperature reports (M155 auto-report, which a host such as
-        // host-tools send or OctoPrint turns on and never off) are not answers: they do not
-        // keep an idle session alive.
-        let answers = out.lines().any(|l| !l.trim_start().starts_with("T:"));
+        // host-tools send or OctoPrint turns on and never off) and `busy:` keep-alives (sent
+        // every M113 period while a host line waits, e.g. behind a full queue while parked)
+        // are not answers: they do not keep an idle session alive.
+        let answers = out.lines().any(|l| {
+            let l = l.trim_start();
+            !l.starts_with("T:") && !l.starts_with("busy:")
+        });
         if !pending_out.is_empty() {
             match nix::unistd::write(&master, &pending_out) {
                 Ok(w) => {

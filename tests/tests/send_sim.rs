@@ -18,33 +18,8 @@ use firmware::machine::MachineState;
 use host_tools::job::{ops, Job};
 use tests::workspace_root;
 
-/// `target/<profile>` of this test binary.
-fn profile_dir() -> PathBuf {
-    let exe = std::env::current_exe().expect("test exe");
-    exe.parent()
-        .and_then(Path::parent)
-        .map(Path::to_path_buf)
-        .expect("target dir")
-}
-
-fn bin(package: &str, name: &str) -> PathBuf {
-    let dir = profile_dir();
-    let path = dir.join(name);
-    // Always ask cargo (a no-op when up to date), so the test never runs a stale binary.
-    {
-        let target = dir.parent().expect("target root");
-        let mut c = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
-        c.args(["build", "-q", "-p", package, "--bin", name])
-            .current_dir(workspace_root())
-            .env("CARGO_TARGET_DIR", target);
-        if dir.file_name().is_some_and(|n| n == "release") {
-            c.arg("--release");
-        }
-        let st = c.status().expect("cargo build");
-        assert!(st.success(), "building {name} failed");
-    }
-    path
-}
+mod hosts_common;
+use hosts_common::bin;
 
 struct Sim {
     child: Child,

@@ -21,6 +21,7 @@
 //! `host` (host lines and the rules for them), `commands` (command handlers), `service` (the
 //! service lane), `settings` (M92.. M503), `types` (public types).
 
+mod autotune;
 mod commands;
 mod exec;
 mod guards;
@@ -34,6 +35,7 @@ mod types;
 
 pub use guards::{ExtrusionGuard, Refusal};
 use host::{AfterCancel, HostLines};
+pub use host::{PARKED_EXTRA, PARKED_PACE_US};
 use state::Pause;
 
 pub use types::{Command, PausedLines, Policy, Record, Schedule, State, Status, StepperRequest};
@@ -41,12 +43,17 @@ mod service;
 // Settings M-codes and the flash store's requests (M500/M501).
 // The paused-job record (power-cut resume).
 mod job;
+// M1000: resume the kept job after a power cut.
+mod recovery;
 mod settings;
 // Stepper drivers: M569/M350/M122 and the board's TMC2209 results.
 mod drivers;
 pub use drivers::{DriverRequest, DRIVER_REQ_CAPACITY};
 // Reports hosts expect (temperatures during heater waits, M155, M113, M73, M31, M27).
 mod report;
+// SD-card printing: the SD M-codes and the card as a job source.
+mod sd;
+pub use sd::{SD_CHUNK, SD_LINES_PER_SERVICE};
 
 pub use service::ServiceMove;
 
@@ -63,6 +70,10 @@ use heapless::{Deque, String};
 
 /// Command queue capacity (commands after parsing; each ≈ 32 B).
 pub const CMD_CAPACITY: usize = 32;
+/// Physical slots of the command queue: [`CMD_CAPACITY`] for the running job plus the parked
+/// intake ([`PARKED_EXTRA`], host.rs: job lines a parked printer takes, paced, so that a
+/// one-line-per-`ok` host that streams on still gets `ok`s for its priority lines).
+pub const CMD_SLOTS: usize = CMD_CAPACITY + PARKED_EXTRA;
 /// Stepper-driver requests kept until the board takes them.
 pub const STEPPER_REQ_CAPACITY: usize = 4;
 /// Execution records kept until the driver takes them.
@@ -81,7 +92,7 @@ pub struct Printer {
     policy: Policy,
     planner: Planner,
     stepgen: StepGen,
-    cmds: Deque<Command, CMD_CAPACITY>,
+    cmds: Deque<Command, CMD_SLOTS>,
     service: Deque<ServiceMove, { service::SERVICE_CAPACITY }>,
     /// The pause machine: every pause, cancel and halt state with its data.
     pause: Pause,
@@ -119,11 +130,18 @@ pub struct Printer {
     homing: Option<crate::homing::Homing>,
     /// Endstop switch states as the driver reported them, bit i = axis i pressed.
     endstops: u8,
+    /// The driver still has step events of the executive queued or running (a board whose step
+    /// interrupt runs events ahead; see `homing.rs`): homing waits for them.
+    steps_in_flight: bool,
+    /// Axes homed on their switches (see `homing.rs`).
+    homed: homing::HomedAxes,
     /// Factory settings and a pending M500/M501 (see `settings.rs`).
     settings: settings::SettingsLink,
     reports: report::Reports,
     /// Boundaries of the host stream and the paused-job record's requests (see `job.rs`).
     job: job::JobLink,
+    /// The SD card's job and the commands waiting for the card (see `sd.rs`).
+    sd: sd::SdLink,
 }
 
 fn steps(cfg: &MachineConfig, axis: Axis, mm: f32) -> i32 {
@@ -174,9 +192,12 @@ impl Printer {
             homing_cfg: None,
             homing: None,
             endstops: 0,
+            steps_in_flight: false,
+            homed: homing::HomedAxes::NONE,
             settings: settings::SettingsLink::new(),
             reports: report::Reports::new(),
             job: job::JobLink::new(),
+            sd: sd::SdLink::new(),
         };
         p.set_policy(policy);
         p.set_factory_settings();
@@ -426,8 +447,20 @@ impl Printer {
         self.retire_finished();
         match req {
             Realtime::Pause(mode) => self.request_pause(mode),
-            Realtime::Resume => self.request_resume(),
-            Realtime::Cancel => self.request_cancel(),
+            Realtime::Resume => {
+                // M24 starts a selected SD file when there is no pause to resume.
+                if !self.sd_start_on_resume() {
+                    self.request_resume()
+                }
+            }
+            Realtime::Cancel => {
+                let sd = self.sd_cancel();
+                self.request_cancel();
+                if sd {
+                    // The host's stream was not the job: nothing of it is to be discarded.
+                    self.lines.after_cancel = None;
+                }
+            }
             Realtime::EmergencyStop => self.emergency_stop(),
             Realtime::QuickStop => self.quick_stop(),
             Realtime::BreakWait => {
@@ -451,7 +484,7 @@ impl Printer {
             Pause::Run => {
                 if self.has_work() {
                     State::Printing
-                } else if self.lines.after_cancel.is_some() {
+                } else if self.lines.after_cancel.is_some() || self.sd_cancelled() {
                     State::Cancelled
                 } else {
                     State::Idle
@@ -503,7 +536,9 @@ impl Printer {
     pub fn heater_sample(&mut self, id: HeaterId, measured_c: f32, now_us: u64) -> f32 {
         self.set_now(now_us);
         let had_fault = self.thermal.fault().is_some();
+        let tune = self.thermal.autotune_status(id);
         let duty = self.thermal.update(id, measured_c, now_us);
+        self.report_autotune(id, tune);
         if !had_fault {
             if let Some(f) = self.thermal.fault() {
                 let mut t: String<LINE_LEN> = String::new();
