@@ -30,8 +30,10 @@ struct Sim {
 impl Sim {
     fn start(policy: &str, tag: &str) -> Sim {
         // Build the sender first: the sim ends after some idle seconds without host bytes
-        // while nothing moves (a paused printer counts; a heater wait does not).
+        // while nothing moves (a paused printer counts; a heater wait does not), so nothing
+        // may be built between the sim's start and the sender's.
         bin("host-tools", "host-tools");
+        bin("sim", "sim");
         let record =
             std::env::temp_dir().join(format!("send_sim_{tag}_{}.json", std::process::id()));
         let _ = std::fs::remove_file(&record);
