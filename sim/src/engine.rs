@@ -7,7 +7,7 @@
 //! request). Nothing here knows about motion planning.
 
 use crate::hostlink::{Host, Origin};
-use crate::port::{Executive, RunState, StepEvent};
+use crate::port::{Executive, Lane, RunState, StepEvent};
 use crate::recorder::Recorder;
 use crate::thermal::Heaters;
 
@@ -85,6 +85,25 @@ impl SeqMap {
         i.checked_sub(1)
             .and_then(|i| self.ranges.get(i))
             .map(|r| r.1)
+    }
+
+    /// Forget the lines of sequence numbers below `seq` (kept: the range holding `seq`). Done
+    /// in halves, so amortised O(1) per range.
+    pub fn forget_before(&mut self, seq: u32) {
+        // A number not handed out yet (a homing block's `u32::MAX`) says nothing.
+        if self.last_next.is_none_or(|next| seq >= next) {
+            return;
+        }
+        let i = self.ranges.partition_point(|(s, _)| *s <= seq);
+        let drop = i.saturating_sub(1);
+        if drop > 0 && drop * 2 >= self.ranges.len() {
+            self.ranges.drain(..drop);
+        }
+    }
+
+    /// Ranges held (for tests of the memory bound).
+    pub fn held(&self) -> usize {
+        self.ranges.len()
     }
 
     /// True once the firmware has reported any sequence number.
@@ -221,6 +240,11 @@ impl<E: Executive> Engine<E> {
                 if let Some(ev) = self.fw.pop_step(self.now_us) {
                     let new_block = self.rec.on_step(&ev);
                     if new_block {
+                        if !self.rec.keep_records && ev.tag.lane == Lane::Job {
+                            // Nothing will ask where an executed block came from: memory
+                            // stays flat with job length.
+                            self.seqs.forget_before(ev.tag.seq);
+                        }
                         self.poll_fw();
                     }
                     if stop_on_step {

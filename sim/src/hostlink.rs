@@ -11,6 +11,7 @@
 //! line, a line the host inserted for its own pause sequence, a realtime request) is kept in
 //! [`Origin`] so the recorder can tell job moves from service moves.
 
+use crate::job::JobLines;
 use std::collections::VecDeque;
 
 /// Wire and protocol settings of the host.
@@ -175,7 +176,7 @@ impl Wire {
 pub struct Host {
     cfg: LinkConfig,
     /// Lines of the job as loaded (comments included; stripping happens when sending).
-    job: Vec<String>,
+    job: JobLines,
     cursor: usize,
     /// Lines the host sends before continuing the job (its own pause/resume sequences).
     inserts: VecDeque<(String, Origin)>,
@@ -187,8 +188,10 @@ pub struct Host {
     stop_lines: Vec<(String, Origin)>,
     stop_hold: bool,
     next_n: i64,
-    /// Every numbered line ever sent, indexed by `n - first_n`, for resends.
+    /// The last numbered lines sent ([`HISTORY_LINES`]), indexed by `n - first_n`, for
+    /// resends.
     numbered: Vec<SentLine>,
+    /// Line number of `numbered[0]`.
     first_n: i64,
     sent_log: Vec<SentLine>,
     resend_from: Option<i64>,
@@ -200,7 +203,7 @@ pub struct Host {
     /// Printer → host.
     pub rx: Wire,
     rx_partial: Vec<u8>,
-    /// Every line received from the printer, in order.
+    /// The last lines received from the printer ([`HISTORY_LINES`]), in order.
     pub received: Vec<Received>,
     /// Count of `ok` lines received.
     pub oks: u64,
@@ -214,17 +217,33 @@ pub struct Host {
     pub aborted: Option<String>,
 }
 
+/// Lines of each log the host keeps (sent, numbered for resends, received): the newest
+/// `HISTORY_LINES` to `2 × HISTORY_LINES`, so memory stays flat with job length (a printer asks
+/// to resend one of the last few lines, never one thousands of lines back).
+pub const HISTORY_LINES: usize = 4096;
+
+/// Drop the oldest entries of a log once it holds twice `HISTORY_LINES` (amortised O(1) per
+/// entry); returns how many were dropped.
+fn trim_log<T>(log: &mut Vec<T>) -> usize {
+    if log.len() < 2 * HISTORY_LINES {
+        return 0;
+    }
+    let drop = log.len() - HISTORY_LINES;
+    log.drain(..drop);
+    drop
+}
+
 /// Consecutive `Resend:` requests for the same line after which the host gives up (OctoPrint
 /// also stops on a resend storm rather than looping forever).
 pub const MAX_RESENDS_OF_ONE_LINE: u32 = 8;
 
 impl Host {
     /// A host about to stream `job` (one entry per line of the file).
-    pub fn new(cfg: LinkConfig, job: Vec<String>) -> Self {
+    pub fn new(cfg: LinkConfig, job: impl Into<JobLines>) -> Self {
         let byte_ns = cfg.byte_ns();
         Self {
             cfg,
-            job,
+            job: job.into(),
             cursor: 0,
             inserts: VecDeque::new(),
             hold: false,
@@ -258,7 +277,7 @@ impl Host {
     }
 
     /// The job lines as loaded.
-    pub fn job(&self) -> &[String] {
+    pub fn job(&self) -> &JobLines {
         &self.job
     }
 
@@ -267,7 +286,7 @@ impl Host {
         self.cursor
     }
 
-    /// Every line written so far, in order.
+    /// The last lines written ([`HISTORY_LINES`]), in order.
     pub fn sent(&self) -> &[SentLine] {
         &self.sent_log
     }
@@ -364,7 +383,7 @@ impl Host {
     fn next_job_line(&self) -> Option<usize> {
         let mut i = self.cursor;
         while i < self.job.len() {
-            let line = &self.job[i];
+            let line = self.job.line(i);
             let text = if self.cfg.strip_comments {
                 strip_comment(line)
             } else {
@@ -397,8 +416,10 @@ impl Host {
         };
         if n.is_some() {
             self.numbered.push(sent.clone());
+            self.first_n += trim_log(&mut self.numbered) as i64;
         }
         self.sent_log.push(sent);
+        trim_log(&mut self.sent_log);
     }
 
     /// Send the next line if the printer has cleared us to (the `ok` flow control).
@@ -434,8 +455,17 @@ impl Host {
                         t_us: now_us,
                         ..line
                     });
+                    trim_log(&mut self.sent_log);
                     self.clear = false;
                     self.awaiting_ok = true;
+                    return;
+                }
+                None if n < self.first_n => {
+                    // Older than the kept history: say so rather than skip lines.
+                    self.aborted = Some(format!(
+                        "the printer asked for line {n}, older than the {HISTORY_LINES} lines kept"
+                    ));
+                    self.resend_from = None;
                     return;
                 }
                 None => self.resend_from = None,
@@ -456,9 +486,9 @@ impl Host {
         }
         if let Some(i) = self.next_job_line() {
             let text = if self.cfg.strip_comments {
-                strip_comment(&self.job[i]).to_string()
+                strip_comment(self.job.line(i)).to_string()
             } else {
-                self.job[i].trim().to_string()
+                self.job.line(i).trim().to_string()
             };
             self.cursor = i + 1;
             self.write_line(&text, Origin::Job(i), numbered, now_us);
@@ -557,6 +587,7 @@ impl Host {
             }
         }
         self.received.push(Received { t_us: now_us, text });
+        trim_log(&mut self.received);
     }
 }
 
@@ -648,6 +679,35 @@ mod tests {
         let n = h.sent().len();
         h.pump(t);
         assert_eq!(h.sent().len(), n, "nothing more is sent after giving up");
+    }
+
+    #[test]
+    fn logs_stay_bounded_on_a_long_job() {
+        let n = 5 * HISTORY_LINES;
+        let job: Vec<String> = (0..n).map(|i| format!("G1 X{}", i % 100)).collect();
+        let mut h = Host::new(LinkConfig::default(), job);
+        h.pump(0);
+        let mut t = 0;
+        for _ in 0..=n {
+            t = answer(&mut h, t, "ok");
+        }
+        assert!(h.done());
+        assert_eq!(h.oks as usize, n + 1);
+        for len in [h.sent().len(), h.received.len(), h.numbered.len()] {
+            assert!((HISTORY_LINES..2 * HISTORY_LINES).contains(&len), "{len}");
+        }
+        // The newest lines are kept, with their numbers: a resend of a recent line works.
+        assert_eq!(h.origin_of(n as i64), Some(Origin::Job(n - 1)));
+        assert_eq!(h.origin_of(1), None);
+        // Resend from the last-but-one line: it and the last go out again.
+        let mut t = answer(&mut h, t, &format!("Resend: {}", n - 1));
+        t = answer(&mut h, t, "ok");
+        answer(&mut h, t, "ok");
+        assert_eq!(h.resends, 2);
+        assert!(h.aborted.is_none());
+        // One older than the history: the host gives up and says why.
+        answer(&mut h, t, "Resend: 2");
+        assert!(h.aborted.as_deref().is_some_and(|a| a.contains("older")));
     }
 
     #[test]

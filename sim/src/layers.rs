@@ -8,7 +8,7 @@ use firmware::layer::{LayerDetector, MoveFacts};
 use firmware::machine::MachineState;
 
 /// For each line, the layer number whose mark is placed before that line (0-based), if any.
-pub fn detect(lines: &[String]) -> Vec<Option<u32>> {
+pub fn detect<S: AsRef<str>>(lines: &[S]) -> Vec<Option<u32>> {
     analyse(lines).into_iter().map(|l| l.mark).collect()
 }
 
@@ -25,29 +25,61 @@ pub struct LineFacts {
 }
 
 /// Run the firmware's machine state and layer detector over the job.
-pub fn analyse(lines: &[String]) -> Vec<LineFacts> {
-    let cfg = MachineConfig::ENDER3;
-    let mut m = MachineState::new(&cfg);
-    let mut d = LayerDetector::new();
-    let mut out = Vec::with_capacity(lines.len());
-    for text in lines {
+pub fn analyse<S: AsRef<str>>(lines: &[S]) -> Vec<LineFacts> {
+    analyse_lines(lines.iter().map(AsRef::as_ref), lines.len())
+}
+
+/// [`analyse`] over `n` lines given one by one.
+pub fn analyse_lines<'a>(lines: impl Iterator<Item = &'a str>, n: usize) -> Vec<LineFacts> {
+    let mut an = Analyser::new();
+    let mut out = Vec::with_capacity(n);
+    out.extend(lines.map(|text| an.feed(text)));
+    out
+}
+
+/// [`analyse`] one line at a time (memory flat with job length).
+pub struct Analyser {
+    cfg: MachineConfig,
+    m: MachineState,
+    d: LayerDetector,
+}
+
+impl Default for Analyser {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Analyser {
+    /// At the start of a job.
+    pub fn new() -> Self {
+        let cfg = MachineConfig::ENDER3;
+        Self {
+            m: MachineState::new(&cfg),
+            d: LayerDetector::new(),
+            cfg,
+        }
+    }
+
+    /// The facts of the next line.
+    pub fn feed(&mut self, text: &str) -> LineFacts {
+        let cfg = &self.cfg;
         let Ok(line) = parse_line(text.as_bytes()) else {
-            out.push(LineFacts::default());
-            continue;
+            return LineFacts::default();
         };
-        let before = m.position_steps(&cfg);
+        let before = self.m.position_steps(cfg);
         if let Some(cmd) = &line.command {
             // A command the machine rejects changes nothing (as on the printer).
-            let _ = m.apply(cmd, &cfg);
+            let _ = self.m.apply(cmd, cfg);
         }
-        let facts = MoveFacts::between(&before, &m.position_steps(&cfg), &cfg);
-        out.push(LineFacts {
-            mark: d.feed(&line, facts).map(|mark| mark.layer),
+        let after = self.m.position_steps(cfg);
+        let facts = MoveFacts::between(&before, &after, cfg);
+        LineFacts {
+            mark: self.d.feed(&line, facts).map(|mark| mark.layer),
             extrudes: facts.extrudes,
-            moved: before != m.position_steps(&cfg),
-        });
+            moved: before != after,
+        }
     }
-    out
 }
 
 #[cfg(test)]

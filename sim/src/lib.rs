@@ -21,4 +21,5 @@ pub mod sd;
 pub mod serve;
 pub mod session;
 pub mod split;
+pub mod stream;
 pub mod thermal;

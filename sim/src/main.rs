@@ -143,8 +143,11 @@ fn main() {
 
 fn cmd_run(a: RunArgs) -> anyhow::Result<()> {
     let text = std::fs::read(&a.file).with_context(|| format!("reading {}", a.file.display()))?;
-    let text = String::from_utf8_lossy(&text);
-    let lines: Vec<String> = text.lines().map(str::to_string).collect();
+    // One buffer for the whole file (no copy when it is valid UTF-8): memory stays flat with
+    // job length (docs/sim.md).
+    let text = String::from_utf8(text)
+        .unwrap_or_else(|e| String::from_utf8_lossy(e.as_bytes()).into_owned());
+    let lines = sim::job::JobLines::from_text(text)?;
     let mut sc = Scenario::new(a.policy, a.mode);
     sc.pause = match (a.pause_at, a.pause_at_layer) {
         (Some(t), _) => {
@@ -178,7 +181,7 @@ fn cmd_run(a: RunArgs) -> anyhow::Result<()> {
         ));
         pb.enable_steady_tick(std::time::Duration::from_millis(200));
     }
-    let out = sim::run::run(&PrinterFactory, &sc, &lines)?;
+    let out = sim::run::run_job(&PrinterFactory, &sc, lines)?;
     pb.finish_and_clear();
     // A job that should have finished and did not is a failure (exit status 1), after the
     // report is printed.

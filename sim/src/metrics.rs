@@ -22,13 +22,17 @@
 //!   (job line, segment); a segment interrupted by the pause and finished after it counts once.
 
 use crate::engine::Engine;
-use crate::hostlink::Origin;
 use crate::job::JobInfo;
-use crate::port::{Executive, Lane};
+use crate::port::Executive;
 use crate::recorder::{Scale, SegRecord};
-use crate::run::{PauseWhen, Scenario};
+use crate::run::{Mode, PauseWhen, Scenario};
+use crate::stream::{Comparison, Key, LineEnds};
 use firmware::motion::StepPos;
-use std::collections::HashMap;
+
+/// Margin of the first-reachable-boundary judgement beyond the braking distance, mm: the
+/// segment executing at the request (≤ 0.2 mm), the speed estimate (the average over that
+/// block) and the speed-up a `layer` request starts (as `tests/tests/layer_corpus.rs`).
+pub const REACH_MARGIN_MM: f64 = 2.0;
 
 /// What the run loop observed, for [`compute`].
 #[derive(Clone, Debug, Default)]
@@ -78,6 +82,13 @@ pub struct PauseReport {
     pub request_layer: Option<u32>,
     /// Stopped at the first boundary after the request (or at the scheduled layer).
     pub first_boundary_after_request: bool,
+    /// `layer` pauses: stopped at the *first reachable* boundary — the first one not passed
+    /// at the request whose end (the end of its layer's last extruding move) lies farther
+    /// along the path than the braking distance `v²/2a` + [`REACH_MARGIN_MM`] from the
+    /// request (`v`: the speed of the block executing then, `a`: the X axis's acceleration);
+    /// boundaries nearer than that may be passed. Judged from the executed path and the
+    /// job's layers, not from the planner. `None` for `now` pauses and runs without a pause.
+    pub first_reachable_boundary: Option<bool>,
     /// Pause point position, steps (X Y Z E).
     pub pause_point_steps: Option<StepPos>,
     /// Largest per-axis difference between the pause point and the resume start, steps.
@@ -114,34 +125,6 @@ pub struct PauseReport {
     pub realtime_factor: f64,
 }
 
-type Key = (usize, u32);
-
-fn key_of<E: Executive>(e: &Engine<E>, r: &SegRecord) -> Option<Key> {
-    if r.tag.lane == Lane::Service {
-        return None;
-    }
-    match e.origin_of_seq(r.tag.seq) {
-        Some(Origin::Job(line)) => Some((line, r.tag.segment)),
-        Some(_) => None,
-        // Unknown numbering: keep it as a job block keyed by its sequence number.
-        None => Some((usize::MAX - r.tag.seq as usize, r.tag.segment)),
-    }
-}
-
-fn job_keys<E: Executive>(e: &Engine<E>) -> Vec<Option<Key>> {
-    e.rec.records.iter().map(|r| key_of(e, r)).collect()
-}
-
-fn collapse(keys: &[Option<Key>]) -> Vec<Key> {
-    let mut out: Vec<Key> = Vec::new();
-    for k in keys.iter().flatten() {
-        if out.last() != Some(k) {
-            out.push(*k);
-        }
-    }
-    out
-}
-
 pub(crate) fn max_abs_diff(a: &StepPos, b: &StepPos) -> i64 {
     a.iter()
         .zip(b.iter())
@@ -150,19 +133,34 @@ pub(crate) fn max_abs_diff(a: &StepPos, b: &StepPos) -> i64 {
         .unwrap_or(0)
 }
 
-/// Compute the report of run `a` against reference `b`.
+/// What of runs A and B the pause figures read: A's records from the request to the resume
+/// (its whole record when records are kept), their keys, where lines end in B, and the
+/// comparison of the executed blocks ([`crate::stream`]).
+#[derive(Clone, Debug, Default)]
+pub struct RunView {
+    /// A's records (from the request on; all of them when the run kept them).
+    pub records: Vec<SegRecord>,
+    /// Their job blocks.
+    pub keys: Vec<Option<Key>>,
+    /// Where job lines end in B (the lines around the pause).
+    pub b_line_ends: LineEnds,
+    /// A's executed job blocks against B's.
+    pub comparison: Comparison,
+}
+
+/// Compute the report of run `a` against reference `b`; `view` holds what was kept of the
+/// records (indices in `facts` count from `view.records[0]`).
 pub fn compute<E: Executive>(
     sc: &Scenario,
     info: &JobInfo,
     a: &Engine<E>,
     b: &Engine<E>,
     facts: &RunFacts,
+    view: &RunView,
 ) -> PauseReport {
     let scale = Scale::from_config(&sc.machine);
-    let ka = job_keys(a);
-    let kb = job_keys(b);
-    let ra = &a.rec.records;
-    let rb = &b.rec.records;
+    let ka = &view.keys;
+    let ra = &view.records;
     let mut rep = PauseReport {
         policy: sc.policy.name().into(),
         mode: sc.mode.name().into(),
@@ -191,47 +189,23 @@ pub fn compute<E: Executive>(
     };
 
     // Lost and duplicated, by (line, segment) multisets.
-    let ca = collapse(&ka);
-    let cb = collapse(&kb);
-    rep.executed_in_order = ca == cb;
-    let mut count: HashMap<Key, i64> = HashMap::new();
-    for k in &cb {
-        *count.entry(*k).or_default() += 1;
-    }
-    for k in &ca {
-        *count.entry(*k).or_default() -= 1;
-    }
-    let mut lost_lines = std::collections::BTreeSet::new();
-    let mut dup_lines = std::collections::BTreeSet::new();
-    for (k, c) in &count {
-        if *c > 0 {
-            rep.lost_segments += *c as usize;
-            lost_lines.insert(k.0);
-        } else if *c < 0 {
-            rep.duplicated_segments += (-*c) as usize;
-            dup_lines.insert(k.0);
-        }
-    }
-    rep.lost_moves = lost_lines.len();
-    rep.duplicated_moves = dup_lines.len();
+    let c = &view.comparison;
+    rep.executed_in_order = c.in_order;
+    rep.lost_segments = c.lost_segments;
+    rep.duplicated_segments = c.duplicated_segments;
+    rep.lost_moves = c.lost_moves;
+    rep.duplicated_moves = c.duplicated_moves;
 
-    // Where each line ends in the reference.
-    let mut b_line_end: HashMap<usize, StepPos> = HashMap::new();
-    for (r, k) in rb.iter().zip(kb.iter()) {
-        if let Some((line, _)) = k {
-            b_line_end.insert(*line, r.end);
-        }
-    }
-    let complete = |line: usize, pos: &StepPos| b_line_end.get(&line).is_none_or(|e| e == pos);
-    let extrudes = |line: usize| info.lines.get(line).is_some_and(|l| l.extrudes);
-    let layer_of = |line: usize| info.lines.get(line).and_then(|l| l.layer);
+    let complete = |line: usize, pos: &StepPos| view.b_line_ends.get(line).is_none_or(|e| e == pos);
+    let extrudes = |line: usize| info.extrudes(line);
+    let layer_of = |line: usize| info.layer_of(line);
     let last_extruding_at_or_before = |line: usize| -> Option<usize> {
-        (0..=line.min(info.lines.len().saturating_sub(1)))
+        (0..=line.min(info.len().saturating_sub(1)))
             .rev()
             .find(|&i| extrudes(i))
     };
     let next_extruding_after =
-        |line: usize| -> Option<usize> { (line + 1..info.lines.len()).find(|&i| extrudes(i)) };
+        |line: usize| -> Option<usize> { (line + 1..info.len()).find(|&i| extrudes(i)) };
 
     // The pause point.
     let from = facts.records_before_req.saturating_sub(1);
@@ -292,6 +266,7 @@ pub fn compute<E: Executive>(
             rep.request_layer = n.checked_sub(1);
             rep.first_boundary_after_request =
                 rep.stopped_at_layer_boundary && rep.stop_layer == rep.request_layer;
+            rep.first_reachable_boundary = Some(rep.first_boundary_after_request);
         }
         _ if facts.t_req_us.is_some() => {
             let k = facts.records_before_req;
@@ -313,13 +288,61 @@ pub fn compute<E: Executive>(
                 };
                 let kprev = prev_done.and_then(layer_of);
                 rep.request_layer = k0.or(kprev);
+                // Requested before the first layer mark (a purge line): its end is the
+                // first boundary.
+                let prelude = first_unfinished.is_some() && k0.is_none();
                 rep.first_boundary_after_request = rep.stopped_at_layer_boundary
                     && match (rep.stop_layer, kprev, k0) {
                         (Some(s), Some(p), Some(k)) => s >= p && s <= k,
                         (Some(s), None, Some(k)) => s <= k,
+                        (None, None, None) if prelude => true,
                         (s, _, None) => s.is_some(),
                         (None, _, _) => kprev.is_none(),
                     };
+                if sc.mode == Mode::Layer {
+                    // Later than the first boundary only past boundaries within braking
+                    // distance: the path from the request to each layer's last extrusion.
+                    let r = &ra[i];
+                    let dt_s = r.t_end_us.saturating_sub(r.t_start_us) as f64 * 1e-6;
+                    let v = if dt_s > 0.0 {
+                        scale.xyz_dist_mm(&r.start, &r.end) / dt_s
+                    } else {
+                        0.0
+                    };
+                    let a = f64::from(sc.machine.axes[0].max_accel_mm_s2);
+                    let brake_mm = v * v / (2.0 * a) + REACH_MARGIN_MM;
+                    let mut layer_end_mm: Vec<(u32, f64)> = Vec::new();
+                    let mut d = 0.0;
+                    let upto = j.map_or(0, |j| j + 1);
+                    for (idx, key) in ka.iter().enumerate().take(upto).skip(i) {
+                        let Some((line, _)) = key else { continue };
+                        let from = if idx + 1 == k {
+                            facts.pos_at_req
+                        } else {
+                            ra[idx].start
+                        };
+                        d += scale.xyz_dist_mm(&from, &ra[idx].end);
+                        if let Some(l) = layer_of(*line).filter(|_| extrudes(*line)) {
+                            layer_end_mm.retain(|(x, _)| *x != l);
+                            layer_end_mm.push((l, d));
+                        }
+                    }
+                    let passed_near = match (rep.stop_layer, k0) {
+                        (Some(s), Some(k)) if s > k => layer_end_mm
+                            .iter()
+                            .filter(|(l, _)| *l >= k && *l < s)
+                            .all(|(_, d)| *d <= brake_mm),
+                        _ => false,
+                    };
+                    let above_lower = match (rep.stop_layer, kprev) {
+                        (Some(s), Some(p)) => s >= p,
+                        _ => true,
+                    };
+                    rep.first_reachable_boundary = Some(
+                        rep.first_boundary_after_request
+                            || (rep.stopped_at_layer_boundary && above_lower && passed_near),
+                    );
+                }
             }
         }
         _ => {}

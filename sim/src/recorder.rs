@@ -52,6 +52,11 @@ pub struct Recorder {
     pub last_step_us: u64,
     /// Keep [`SegRecord`]s (off for pure speed runs).
     pub keep_records: bool,
+    /// Records are consumed as they complete ([`Recorder::take_complete`] removes them):
+    /// `records` then holds only what has not been taken yet (see `crate::stream`).
+    pub stream: bool,
+    /// Records taken so far by [`Recorder::take_complete`].
+    pub taken: usize,
     cur: Option<BlockTag>,
 }
 
@@ -98,6 +103,26 @@ impl Recorder {
             }
         }
         new_block
+    }
+
+    /// The records complete and not taken yet (every one but the last, which may still grow;
+    /// with `all`, the last too): removed from `records` when streaming, else only counted.
+    pub fn take_complete(&mut self, all: bool) -> Vec<SegRecord> {
+        let first = if self.stream { 0 } else { self.taken };
+        let end = if all {
+            self.records.len()
+        } else {
+            self.records.len().saturating_sub(1)
+        };
+        if end <= first {
+            return Vec::new();
+        }
+        self.taken += end - first;
+        if self.stream {
+            self.records.drain(..end).collect()
+        } else {
+            self.records[first..end].to_vec()
+        }
     }
 
     /// Note the executive's status at `t_us`; records a [`StateChange`] when the state changed.

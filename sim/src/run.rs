@@ -10,10 +10,11 @@
 
 use crate::engine::{Engine, Stop};
 use crate::hostlink::{Host, LinkConfig, Origin};
-use crate::job::JobInfo;
-use crate::metrics::{self, PauseReport, RunFacts};
+use crate::job::{JobInfo, JobLines};
+use crate::metrics::{self, PauseReport, RunFacts, RunView};
 use crate::port::{Executive, FirmwareKnobs, RunState};
 use crate::split;
+use crate::stream::{self, Compare, LineEnds, Side};
 use firmware::config::MachineConfig;
 
 /// How the printer and host handle a pause (see the crate docs).
@@ -178,7 +179,7 @@ pub struct Outcome<E: Executive> {
     /// The reference run.
     pub reference: Engine<E>,
     /// The job as the host sent it (split for host-split).
-    pub job: Vec<String>,
+    pub job: JobLines,
     /// Timeline of the run.
     pub timeline: Vec<TimelineEvent>,
     /// The reference run reached the end of the job.
@@ -186,18 +187,23 @@ pub struct Outcome<E: Executive> {
 }
 
 /// Make a job ready for a policy: host-split pre-splits it. Returns the lines to send and,
-/// for each, the line of the original job it came from.
-pub fn prepare_job(policy: Policy, job: &[String], split_mm: f64) -> (Vec<String>, Vec<usize>) {
+/// for each, the line of the original job it came from (`None`: the job is sent as it is, line
+/// for line).
+pub fn prepare_job(
+    policy: Policy,
+    job: &JobLines,
+    split_mm: f64,
+) -> (JobLines, Option<Vec<usize>>) {
     match policy {
         Policy::HostSplit => {
-            let s = split::split_job(job, split_mm);
-            (s.lines, s.source)
+            let s = split::split_job(&job.to_vec(), split_mm);
+            (JobLines::from_lines(&s.lines), Some(s.source))
         }
-        _ => (job.to_vec(), (0..job.len()).collect()),
+        _ => (job.clone(), None),
     }
 }
 
-fn new_engine<F: Factory>(f: &F, sc: &Scenario, job: Vec<String>) -> Engine<F::Exec> {
+fn new_engine<F: Factory>(f: &F, sc: &Scenario, job: JobLines) -> Engine<F::Exec> {
     let fw = f.make(&sc.machine, &sc.knobs());
     let host = Host::new(sc.link.clone(), job);
     Engine::new(fw, host)
@@ -208,11 +214,11 @@ fn new_engine<F: Factory>(f: &F, sc: &Scenario, job: Vec<String>) -> Engine<F::E
 fn line_time<F: Factory>(
     f: &F,
     sc: &Scenario,
-    job: &[String],
+    job: &JobLines,
     lines: std::ops::RangeInclusive<usize>,
     fraction: f64,
 ) -> Option<u64> {
-    let mut e = new_engine(f, sc, job.to_vec());
+    let mut e = new_engine(f, sc, job.clone());
     let mut t0 = None;
     loop {
         match e.advance(sc.max_time_us, true) {
@@ -249,16 +255,33 @@ pub fn run<F: Factory>(
     sc: &Scenario,
     job_lines: &[String],
 ) -> anyhow::Result<Outcome<F::Exec>> {
+    run_job(f, sc, JobLines::from_lines(job_lines))
+}
+
+/// [`run`] of a job already in a [`JobLines`] (`sim run`: one buffer for the file, shared by
+/// both runs).
+pub fn run_job<F: Factory>(
+    f: &F,
+    sc: &Scenario,
+    job_lines: JobLines,
+) -> anyhow::Result<Outcome<F::Exec>> {
     let wall = std::time::Instant::now();
-    let (job, source) = prepare_job(sc.policy, job_lines, sc.split_mm);
+    let (job, source) = prepare_job(sc.policy, &job_lines, sc.split_mm);
+    drop(job_lines);
     // The host's view of the job (layers, states) is only read around a pause.
-    let info = if sc.pause.is_some() {
-        JobInfo::parse(&job)
+    let info = if sc.pause.is_some() && sc.policy == Policy::HostSplit {
+        // Host-split writes its pause and resume sequences from the host state at each line.
+        JobInfo::parse_job(&job)
+    } else if sc.pause.is_some() {
+        JobInfo::parse_layers(&job)
     } else {
         JobInfo::default()
     };
     let mut a = new_engine(f, sc, job.clone());
     a.rec.keep_records = sc.keep_records || sc.pause.is_some();
+    // With a pause and no caller asking for the records, compare A and B as they run.
+    let streaming = sc.pause.is_some() && !sc.keep_records;
+    a.rec.stream = streaming;
     // Without a pause the reference is the run itself and is never stepped.
     let mut b = new_engine(
         f,
@@ -266,9 +289,12 @@ pub fn run<F: Factory>(
         if sc.pause.is_some() {
             job.clone()
         } else {
-            Vec::new()
+            JobLines::default()
         },
     );
+    b.rec.stream = streaming;
+    let mut cmp = Compare::default();
+    let mut ends = LineEnds::default();
     let mut timeline = Vec::new();
     let mut note = |t_us: u64, what: String| {
         timeline.push(TimelineEvent {
@@ -283,8 +309,16 @@ pub fn run<F: Factory>(
         None => None,
         Some(PauseWhen::AtUs(t)) => Some(t),
         Some(PauseWhen::DuringLine { line, fraction }) => {
-            let first = source.iter().position(|&s| s == line);
-            let last = source.iter().rposition(|&s| s == line);
+            let (first, last) = match &source {
+                Some(source) => (
+                    source.iter().position(|&s| s == line),
+                    source.iter().rposition(|&s| s == line),
+                ),
+                None => {
+                    let here = (line < job.len()).then_some(line);
+                    (here, here)
+                }
+            };
             let range = first
                 .zip(last)
                 .map(|(a, b)| a..=b)
@@ -325,6 +359,28 @@ pub fn run<F: Factory>(
     };
 
     let mut facts = RunFacts::default();
+    if streaming {
+        // Up to the request (or, for a scheduled pause, until the pause begins): A and B in
+        // turns, their records compared and let go as they complete.
+        let until = t_req.unwrap_or(sc.max_time_us);
+        loop {
+            let next = (a.now_us + STREAM_CHUNK_US).min(until);
+            let stop = a.advance(next, false);
+            if stop == Stop::Finished && t_req.is_some() {
+                break;
+            }
+            b.advance(next, false);
+            let pausing = matches!(a.fw.status().state, RunState::Pausing | RunState::Paused);
+            if pausing || matches!(stop, Stop::Finished | Stop::Stalled) || next >= until {
+                break;
+            }
+            stream::feed(&mut a, Side::A, false, &mut cmp, &mut ends);
+            stream::feed(&mut b, Side::B, false, &mut cmp, &mut ends);
+            if let Some(fl) = stream::window_floor(&a) {
+                ends.raise_floor(fl);
+            }
+        }
+    }
     if let Some(t) = t_req {
         let stop = a.advance(t, false);
         if let Some(why) = &a.host.aborted {
@@ -398,24 +454,67 @@ pub fn run<F: Factory>(
             }
         }
     }
-    let a_done = a.run_to_end(sc.max_time_us);
+    let mut view = RunView::default();
+    let (a_done, b_done) = if streaming {
+        // Keep A's records from the request until it prints again after the resume (the
+        // window the pause figures read), then run A and B to the end in turns.
+        loop {
+            let resumed = first_job_after_service(&a).is_some();
+            if resumed || a.now_us >= sc.max_time_us {
+                break;
+            }
+            let stop = a.advance(a.now_us + STREAM_CHUNK_US, false);
+            if matches!(stop, Stop::Finished | Stop::Stalled) {
+                break;
+            }
+        }
+        view.records = a.rec.records.clone();
+        view.keys = view.records.iter().map(|r| stream::key_of(&a, r)).collect();
+        if let Some(top) = view.keys.iter().flatten().map(|k| k.0).max() {
+            ends.set_ceil(top);
+        }
+        run_in_turns(&mut a, &mut b, sc.max_time_us, &mut cmp, &mut ends)
+    } else {
+        let a_done = a.run_to_end(sc.max_time_us);
+        // Without a pause the reference is the run itself: do not simulate it twice.
+        let b_done = if sc.pause.is_some() {
+            b.run_to_end(sc.max_time_us)
+        } else {
+            a_done
+        };
+        (a_done, b_done)
+    };
     if let Some(why) = &a.host.aborted {
         anyhow::bail!("host link: {why}");
     }
-    // Without a pause the reference is the run itself: do not simulate it twice.
-    let b_done = if sc.pause.is_some() {
-        b.run_to_end(sc.max_time_us)
-    } else {
-        a_done
-    };
+    if !streaming {
+        // Everything kept: compare the whole records.
+        view.records = a.rec.records.clone();
+        view.keys = view.records.iter().map(|r| stream::key_of(&a, r)).collect();
+        if sc.pause.is_some() {
+            stream::feed(&mut a, Side::A, true, &mut cmp, &mut ends);
+            stream::feed(&mut b, Side::B, true, &mut cmp, &mut ends);
+        } else {
+            // The run against itself.
+            let recs = a.rec.records.clone();
+            for r in &recs {
+                let k = stream::key_of(&a, r);
+                cmp.push(Side::A, k);
+                cmp.push(Side::B, k);
+                ends.note(k, r);
+            }
+        }
+    }
+    view.b_line_ends = ends;
+    view.comparison = cmp.finish();
     facts.finished = a_done;
     facts.reference_finished = b_done;
     facts.wall_s = wall.elapsed().as_secs_f64();
 
     let mut report = if sc.pause.is_some() {
-        metrics::compute(sc, &info, &a, &b, &facts)
+        metrics::compute(sc, &info, &a, &b, &facts, &view)
     } else {
-        metrics::compute(sc, &info, &a, &a, &facts)
+        metrics::compute(sc, &info, &a, &a, &facts, &view)
     };
     if sc.measure_segmentation_cost && sc.policy == Policy::Firmware {
         let mut knobs = sc.knobs();
@@ -509,6 +608,53 @@ pub fn unfinished<E: Executive>(sc: &Scenario, o: &Outcome<E>) -> Option<String>
         ));
     }
     None
+}
+
+/// Virtual time A runs before B catches up and their records are compared, µs.
+const STREAM_CHUNK_US: u64 = 2_000_000;
+
+/// Index of A's first job record after its first service record (printing again after the
+/// pause), if any.
+fn first_job_after_service<E: Executive>(a: &Engine<E>) -> Option<usize> {
+    let recs = &a.rec.records;
+    let s = recs.iter().position(|r| stream::key_of(a, r).is_none())?;
+    (s..recs.len()).find(|&i| stream::key_of(a, &recs[i]).is_some())
+}
+
+/// Run A and B to the end in turns (B catching up with A's number of executed blocks after
+/// each chunk of A), comparing their records as they complete. Returns whether each finished.
+fn run_in_turns<E: Executive>(
+    a: &mut Engine<E>,
+    b: &mut Engine<E>,
+    max_us: u64,
+    cmp: &mut Compare,
+    ends: &mut LineEnds,
+) -> (bool, bool) {
+    // None while running; Some(finished) once it finished, stalled or ran out of time.
+    let mut a_end: Option<bool> = None;
+    let mut b_end: Option<bool> = None;
+    let step = |e: &mut Engine<E>| -> Option<bool> {
+        let deadline = (e.now_us + STREAM_CHUNK_US).min(max_us);
+        match e.advance(deadline, false) {
+            Stop::Finished => Some(true),
+            Stop::Stalled => Some(false),
+            _ if e.now_us >= max_us => Some(false),
+            _ => None,
+        }
+    };
+    loop {
+        if a_end.is_none() {
+            a_end = step(a);
+            stream::feed(a, Side::A, a_end.is_some(), cmp, ends);
+        }
+        while b_end.is_none() && (a_end.is_some() || cmp.fed_b <= cmp.fed_a) {
+            b_end = step(b);
+            stream::feed(b, Side::B, b_end.is_some(), cmp, ends);
+        }
+        if let (Some(x), Some(y)) = (a_end, b_end) {
+            return (x, y);
+        }
+    }
 }
 
 /// Step A and B together from the request on; the time of the first step that differs.

@@ -488,6 +488,14 @@ fn check_requests(name: &str, comments: bool, requests: usize, rng: &mut Rng) ->
             (Some(k), Some(hi)) => k <= hi,
             _ => true,
         };
+        // The sim's own judgement (sim::metrics, from the executed path and the job's layers)
+        // agrees that this is the first reachable boundary.
+        if o.report.first_reachable_boundary != Some(true) {
+            failures.push(format!(
+                "{tag}: the sim reports first_reachable_boundary {:?} (stop layer {:?}, request layer {:?})",
+                o.report.first_reachable_boundary, o.report.stop_layer, o.report.request_layer
+            ));
+        }
         if !(ok_lo && ok_hi) {
             failures.push(format!(
                 "{tag}: stopped at the end of layer {k:?}, allowed {lo:?}..={hi:?} (request in line {req_line}, {:.1} mm/s, brake {brake_mm:.1} mm)",

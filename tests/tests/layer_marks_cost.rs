@@ -44,7 +44,6 @@ fn print_time(job: &[String]) -> (f64, usize) {
 }
 
 #[test]
-#[ignore = "Policy::FIRMWARE still has stop_at_marks on (fails: 0.32 % on spiral_cylinder); with it off this passes, but firmware/tests/pause_prop.rs now_pause_random then overshoots its braking bound by 0.06 mm on one of main's seeds — open, see docs/planner.md"]
 fn helical_examples_print_as_fast_with_their_turn_markers() {
     for name in ["spiral_cylinder.rhai", "twisted_vase.rhai"] {
         let with = compile(name);

@@ -150,6 +150,30 @@ pub fn junction_v2(prev: &[f32; AXES], next: &[f32; AXES], dev_mm: f32, accel_mm
     accel_mm_s2 * dev_mm * sin_half / (1.0 - sin_half)
 }
 
+/// Distance a feed hold may run beyond `v²/2a` (`a`: the acceleration of the block executing at
+/// the request), mm: less than one step of an Ender-3 X/Y axis (1/80 mm).
+pub const HOLD_SLACK_MM: f32 = 0.01;
+
+/// Square of the highest speed at which a block of acceleration `accel_mm_s2` may be entered
+/// from one of acceleration `prev_accel_mm_s2`, so that a feed hold still stops within the
+/// braking distance of the block it starts in.
+///
+/// A hold brakes each block at that block's own acceleration. Entering a block of *lower*
+/// acceleration (a Z move after an X/Y move: 100 vs 500 mm/s² on an Ender-3) at `v` makes a
+/// hold requested at the junction run `v²/2a_new` instead of `v²/2a_prev`; the difference is
+/// kept within [`HOLD_SLACK_MM`]: `v² ≤ 2·slack / (1/a_new − 1/a_prev)` (1.58 mm/s for 500 → 100,
+/// where the junction deviation would allow 4.4). No limit when the acceleration does not drop.
+pub fn hold_entry_v2(prev_accel_mm_s2: f32, accel_mm_s2: f32) -> f32 {
+    // Both accelerations positive (NaN fails every comparison) and dropping.
+    let dropping = accel_mm_s2 > 0.0 && prev_accel_mm_s2 > accel_mm_s2;
+    let d = 1.0 / accel_mm_s2 - 1.0 / prev_accel_mm_s2;
+    if dropping && d > 0.0 {
+        2.0 * HOLD_SLACK_MM / d
+    } else {
+        f32::INFINITY
+    }
+}
+
 /// Highest speed of the pause speed-up for a move: `factor` × the nominal speed, bounded by the
 /// per-axis feed limits and by the extruder's volumetric flow, never below the nominal speed.
 pub fn sped_up_mm_s(kin: &Kin, factor: f32, max_vol_mm3_s: f32, filament_diameter_mm: f32) -> f32 {
@@ -163,4 +187,54 @@ pub fn sped_up_mm_s(kin: &Kin, factor: f32, max_vol_mm3_s: f32, filament_diamete
         v = v.min(max_vol_mm3_s / (area * kin.e_per_mm));
     }
     v.max(kin.nominal_mm_s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::planner::{BlockKind, Planner};
+
+    #[test]
+    fn hold_entry_limits_only_a_drop_in_acceleration() {
+        assert_eq!(hold_entry_v2(500.0, 500.0), f32::INFINITY);
+        assert_eq!(hold_entry_v2(100.0, 500.0), f32::INFINITY);
+        let v2 = hold_entry_v2(500.0, 100.0);
+        assert!((v2 - 2.5).abs() < 1.0e-4, "{v2}");
+        // A hold right at the junction runs exactly the slack beyond v²/2a_prev.
+        let extra = v2 / (2.0 * 100.0) - v2 / (2.0 * 500.0);
+        assert!((extra - HOLD_SLACK_MM).abs() < 1.0e-6, "{extra}");
+    }
+
+    #[test]
+    fn z_move_after_xy_move_is_entered_slowly() {
+        let cfg = MachineConfig::ENDER3;
+        let mut p = Planner::new();
+        let xy = crate::motion::MoveRequest {
+            target: [80, 0, 0, 0],
+            feed_mm_s: 100.0,
+            seq: 1,
+        };
+        let z = crate::motion::MoveRequest {
+            target: [80, 0, 80, 0],
+            feed_mm_s: 10.0,
+            seq: 2,
+        };
+        assert_eq!(p.push_move(&cfg, &xy, BlockKind::Job), Ok(true));
+        assert_eq!(p.push_move(&cfg, &z, BlockKind::Job), Ok(true));
+        let zb = (0..p.len())
+            .filter_map(|k| p.get(k))
+            .find(|b| b.seq == 2)
+            .copied()
+            .expect("z block queued");
+        // Junction deviation alone: 100 · 0.08 · (√½ / (1 − √½)) = 19.3 mm²/s².
+        let jd = junction_v2(
+            &[1.0, 0.0, 0.0, 0.0],
+            &[0.0, 0.0, 1.0, 0.0],
+            cfg.junction_deviation_mm,
+            zb.accel_mm_s2,
+        );
+        assert!(jd > 19.0, "{jd}");
+        assert_eq!(zb.accel_mm_s2, 100.0);
+        assert!(zb.junction_v2 <= 2.5 + 1.0e-4, "{}", zb.junction_v2);
+    }
 }

@@ -24,7 +24,9 @@ mod barrier;
 mod kin;
 mod lookahead;
 
-pub use kin::{fmax, fmin, junction_v2, kinematics, sped_up_mm_s, sqrtf, Kin};
+pub use kin::{
+    fmax, fmin, hold_entry_v2, junction_v2, kinematics, sped_up_mm_s, sqrtf, Kin, HOLD_SLACK_MM,
+};
 
 use crate::config::MachineConfig;
 use crate::motion::{LayerMark, MoveRequest, StepPos, AXES};
@@ -178,6 +180,8 @@ pub struct Planner {
     /// Position at the end of everything queued (pending move included).
     end_pos: StepPos,
     prev_unit: [f32; AXES],
+    /// Acceleration of the last queued move, mm/s² (for [`hold_entry_v2`]).
+    prev_accel_mm_s2: f32,
     prev_nominal_v2: f32,
     have_prev: bool,
     stop_next: bool,
@@ -224,6 +228,7 @@ impl Planner {
             pending: None,
             end_pos: [0; AXES],
             prev_unit: [0.0; AXES],
+            prev_accel_mm_s2: 0.0,
             prev_nominal_v2: 0.0,
             have_prev: false,
             stop_next: false,
@@ -340,7 +345,10 @@ impl Planner {
         };
         let mut junction = if self.have_prev {
             let a = kin.accel_mm_s2;
-            junction_v2(&self.prev_unit, &kin.unit, cfg.junction_deviation_mm, a)
+            fmin(
+                junction_v2(&self.prev_unit, &kin.unit, cfg.junction_deviation_mm, a),
+                hold_entry_v2(self.prev_accel_mm_s2, a),
+            )
         } else {
             0.0
         };
@@ -379,6 +387,7 @@ impl Planner {
         });
         self.end_pos = req.target;
         self.prev_unit = kin.unit;
+        self.prev_accel_mm_s2 = kin.accel_mm_s2;
         self.have_prev = true;
         self.refill();
         Ok(true)

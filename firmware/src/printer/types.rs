@@ -139,9 +139,8 @@ impl Policy {
         pause_at_tail: false,
         max_blocks: RING_CAPACITY,
         cmd_limit: CMD_CAPACITY,
-        // Still on: with marks free, the feed-hold property test (pause_prop now_pause_random,
-        // main's seeds) brakes 0.06 mm beyond v²/2a on one case; open, see docs/planner.md.
-        stop_at_marks: true,
+        // A mark costs nothing (no standstill unless a pause needs one there).
+        stop_at_marks: false,
         paused_lines: PausedLines::Auto,
     };
     /// Conventional firmware: no segmentation, pause at the tail, 16 moves queued in all
