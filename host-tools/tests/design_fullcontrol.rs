@@ -654,3 +654,15 @@ mod route_props {
         }
     }
 }
+
+#[test]
+fn the_additive_start_is_where_the_start_code_leaves_the_head() {
+    // A start code ending with a purge line (and a line this firmware rejects, skipped as the
+    // printer skips it): the approach starts at the purge line's end.
+    let mut p = Profile::ender3();
+    p.gcode.start =
+        "G28\nM420 S1 Z10 Q\nG1 Z0.3 F600\nG1 X5 Y20 F3000\nG1 X5 Y120 E10 F1500\n".into();
+    let s = start_position(&p).unwrap_or_else(|e| panic!("{e}"));
+    assert!(s.distance(DVec3::new(5.0, 120.0, 0.3)) < 1e-5, "{s}");
+    assert!(start_position(&Profile::ender3()).is_ok_and(|s| s.z.abs() < 1e-9));
+}
