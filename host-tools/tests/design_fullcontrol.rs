@@ -238,6 +238,8 @@ fn state_changes_come_out_where_the_script_put_them() {
 fn bad_state_changes_are_script_errors_at_their_line() {
     for (src, want) in [
         ("let t = turtle(0, 0, 0);\nt.fan(150);\nt", "fan"),
+        ("let t = turtle(0, 0, 0);\nlet p = circle_xy(point(0, 0, 0), 1, 0, 2000000);\nt", "segments"),
+        ("let t = turtle(0, 0, 0);\nlet p = subdivide([[0, 0, 0], [1000, 0, 0]], 0.0001);\nt", "subdivide"),
         ("let t = turtle(0, 0, 0);\nt.hotend(900, true);\nt", "hotend"),
         ("let t = turtle(0, 0, 0);\nt.gcode(\"M42\\u0007\");\nt", "ASCII"),
         ("let t = turtle(0, 0, 0);\nt.set_retraction(#{ length: -1 });\nt", "retraction"),
