@@ -10,6 +10,7 @@ pub mod parts;
 pub mod pen;
 pub mod points;
 pub mod profile;
+pub mod progress;
 pub mod script;
 mod script_build;
 pub mod travel;

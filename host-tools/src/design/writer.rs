@@ -13,7 +13,9 @@
 //!   keeping their volume and time (the globe's poles).
 
 use crate::design::model::{Model, StateChange, Step, Str};
-use crate::design::profile::{filament_area_mm2, EMode, Profile, Retraction};
+use crate::design::profile::{
+    filament_area_mm2, EMode, Markers, Profile, Retraction, TemplateValues,
+};
 use glam::DVec3;
 use std::io::Write;
 
@@ -343,16 +345,36 @@ impl<'p> GcodeWriter<'p> {
                 buf.push(b'\n');
             }
         }
+        // Profile-chosen framing (design::profile): Cura's header, start code with its
+        // placeholders, the fan from layer `fan_off_layers`, M73 progress (design::progress).
+        let tv = TemplateValues {
+            hotend_c,
+            bed_c,
+            top_z_mm: (!self.opts.bare).then(|| model.bbox().max.z),
+        };
+        let mut progress_at: Vec<usize> = Vec::new();
+        let progress = p.progress && !self.opts.bare;
         if !self.opts.bare {
-            buf.extend_from_slice(p.start_code(hotend_c, bed_c).as_bytes());
+            if p.markers == Markers::Cura {
+                let layers = steps
+                    .iter()
+                    .filter(|s| matches!(s, Step::Marker { .. }))
+                    .count();
+                buf.extend_from_slice(b";FLAVOR:Marlin\n;LAYER_COUNT:");
+                push_u64(buf, layers as u64);
+                buf.push(b'\n');
+            }
+            buf.extend_from_slice(p.fill(&p.gcode.start, &tv).as_bytes());
             if !buf.ends_with(b"\n") {
                 buf.push(b'\n');
             }
-            if p.fan > 0.0 {
-                buf.extend_from_slice(b"M106 S");
-                push_u64(buf, (p.fan * 255.0).round() as u64);
-                buf.push(b'\n');
+            if p.fan > 0.0 && p.fan_off_layers == 0 {
+                push_fan(buf, p.fan);
             }
+        }
+        let body_start = buf.len();
+        if progress {
+            progress_at.push(body_start);
         }
         buf.extend_from_slice(match p.e_mode {
             EMode::Absolute => b"M82\nG92 E0\n",
@@ -408,12 +430,31 @@ impl<'p> GcodeWriter<'p> {
                 Step::Marker {
                     z_mm, height_mm, ..
                 } => {
-                    buf.extend_from_slice(b";LAYER_CHANGE\n;Z:");
-                    push_fixed(buf, *z_mm, dec);
-                    buf.extend_from_slice(b"\n;HEIGHT:");
-                    push_fixed(buf, *height_mm, dec);
-                    buf.push(b'\n');
+                    match p.markers {
+                        Markers::Prusa => {
+                            buf.extend_from_slice(b";LAYER_CHANGE\n;Z:");
+                            push_fixed(buf, *z_mm, dec);
+                            buf.extend_from_slice(b"\n;HEIGHT:");
+                            push_fixed(buf, *height_mm, dec);
+                            buf.push(b'\n');
+                        }
+                        Markers::Cura => {
+                            buf.extend_from_slice(b";LAYER:");
+                            push_u64(buf, sum.markers as u64);
+                            buf.push(b'\n');
+                        }
+                    }
                     sum.markers += 1;
+                    if progress {
+                        progress_at.push(buf.len());
+                    }
+                    if !self.opts.bare
+                        && p.fan > 0.0
+                        && sum.markers == p.fan_off_layers as usize + 1
+                        && p.fan_off_layers > 0
+                    {
+                        push_fan(buf, p.fan);
+                    }
                 }
                 Step::Type(t) => {
                     buf.extend_from_slice(b";TYPE:");
@@ -444,11 +485,17 @@ impl<'p> GcodeWriter<'p> {
         }
         sum.thinned = emission.consumed_strings - sum.strings;
         sum.filament_mm = st.e_total;
+        if progress {
+            progress_at.push(buf.len());
+        }
         if !self.opts.bare {
-            buf.extend_from_slice(p.end_code(hotend_c, bed_c).as_bytes());
+            buf.extend_from_slice(p.fill(&p.gcode.end, &tv).as_bytes());
             if !buf.ends_with(b"\n") {
                 buf.push(b'\n');
             }
+        }
+        if progress {
+            crate::design::progress::insert_m73(buf, body_start, &progress_at, p)?;
         }
         sum.bytes = buf.len() - start_len;
         Ok(sum)
@@ -594,6 +641,13 @@ impl<'p> GcodeWriter<'p> {
         buf.push(b'\n');
         len
     }
+}
+
+/// `M106 S<duty × 255>`: the part fan on at the profile's duty.
+fn push_fan(buf: &mut Vec<u8>, duty: f64) {
+    buf.extend_from_slice(b"M106 S");
+    push_u64(buf, (duty * 255.0).round() as u64);
+    buf.push(b'\n');
 }
 
 fn write_state(buf: &mut Vec<u8>, st: &mut State, sc: &StateChange, dec: u32) {
