@@ -238,6 +238,8 @@ fn state_changes_come_out_where_the_script_put_them() {
 fn bad_state_changes_are_script_errors_at_their_line() {
     for (src, want) in [
         ("let t = turtle(0, 0, 0);\nt.fan(150);\nt", "fan"),
+        ("let t = turtle(0, 0, 0);\nlet p = circle_xy(point(0, 0, 0), 1, 0, 2000000);\nt", "segments"),
+        ("let t = turtle(0, 0, 0);\nlet p = subdivide([[0, 0, 0], [1000, 0, 0]], 0.0001);\nt", "subdivide"),
         ("let t = turtle(0, 0, 0);\nt.hotend(900, true);\nt", "hotend"),
         ("let t = turtle(0, 0, 0);\nt.gcode(\"M42\\u0007\");\nt", "ASCII"),
         ("let t = turtle(0, 0, 0);\nt.set_retraction(#{ length: -1 });\nt", "retraction"),
@@ -653,4 +655,16 @@ mod route_props {
             }
         }
     }
+}
+
+#[test]
+fn the_additive_start_is_where_the_start_code_leaves_the_head() {
+    // A start code ending with a purge line (and a line this firmware rejects, skipped as the
+    // printer skips it): the approach starts at the purge line's end.
+    let mut p = Profile::ender3();
+    p.gcode.start =
+        "G28\nM420 S1 Z10 Q\nG1 Z0.3 F600\nG1 X5 Y20 F3000\nG1 X5 Y120 E10 F1500\n".into();
+    let s = start_position(&p).unwrap_or_else(|e| panic!("{e}"));
+    assert!(s.distance(DVec3::new(5.0, 120.0, 0.3)) < 1e-5, "{s}");
+    assert!(start_position(&Profile::ender3()).is_ok_and(|s| s.z.abs() < 1e-9));
 }

@@ -13,7 +13,7 @@ use super::slice::slice_layers;
 use super::stl::{validate, Mesh, MeshReport, MAX_COORD_MM};
 use crate::design::profile::Profile;
 use crate::design::travel::HeightMap;
-use crate::job::read::{default_reader, Event, GcodeReader};
+use crate::job::read::{default_reader, BadLines, Event, GcodeReader};
 use anyhow::bail;
 use glam::{DMat4, DVec3};
 
@@ -285,12 +285,15 @@ fn shape_top(paths: &[WorldPath]) -> f64 {
 
 /// Where the profile's start code leaves the nozzle (its last move, read by the project's
 /// G-code reader; after a bare `G28`, the bed's minimum corner at Z 0): the approach starts
-/// there, so the first move out of the start code is the checked one. A start code the reader
-/// rejects is an error.
+/// there, so the first move out of the start code is the checked one. Lines the firmware would
+/// reject are skipped as the printer skips them (vendor start codes carry other firmwares'
+/// commands).
 pub fn start_position(profile: &Profile) -> anyhow::Result<DVec3> {
     let code = profile.start_code(profile.hotend_c, profile.bed_c);
     let mut last = None;
-    default_reader()
+    let mut reader = default_reader();
+    reader.bad_line_policy = BadLines::Skip;
+    reader
         .read(code.as_bytes(), &mut |e| {
             if let Event::Move { to, .. } = e {
                 last = Some(DVec3::new(to[0], to[1], to[2]));

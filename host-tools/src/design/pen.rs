@@ -7,6 +7,24 @@
 //! `travel_to` never drives through printed material (it lifts over it, see
 //! [`crate::design::travel`]); `travel_straight_to` is FullControl's plain travel for when the
 //! designer knows the way is clear.
+//!
+//! ```
+//! use glam::DVec3;
+//! use host_tools::design::points::circle_xy;
+//! use host_tools::design::profile::Profile;
+//! use host_tools::design::turtle::Turtle;
+//! use host_tools::design::writer::{GcodeWriter, WriteOptions};
+//!
+//! let mut t = Turtle::at(DVec3::new(100.0, 100.0, 0.2), 0.08, 20.0);
+//! let ring = circle_xy(DVec3::new(110.0, 100.0, 0.2), 5.0, 0.0, 32, false).expect("circle");
+//! t.polyline(&ring).expect("ring");
+//! t.fan(50.0).expect("fan");
+//! t.extrude_to(DVec3::new(120.0, 100.0, 0.2)).expect("line");
+//! let p = Profile::ender3();
+//! let opts = WriteOptions { bare: true, ..WriteOptions::default() };
+//! let (g, _) = GcodeWriter::new(&p, opts).to_string(&t.into_model()).expect("G-code");
+//! assert!(g.contains("M106 S128"));
+//! ```
 
 use crate::design::model::{StateChange, Step};
 use crate::design::profile::Retraction;
