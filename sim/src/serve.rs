@@ -319,9 +319,13 @@ pub fn serve_with(
         fw.take_output(&mut out);
         pending_out.extend_from_slice(out.as_bytes());
         // Unsolicited temperature reports (M155 auto-report, which a host such as
-        // host-tools send or OctoPrint turns on and never off) are not answers: they do not
-        // keep an idle session alive.
-        let answers = out.lines().any(|l| !l.trim_start().starts_with("T:"));
+        // host-tools send or OctoPrint turns on and never off) and `busy:` keep-alives (sent
+        // every M113 period while a host line waits, e.g. behind a full queue while parked)
+        // are not answers: they do not keep an idle session alive.
+        let answers = out.lines().any(|l| {
+            let l = l.trim_start();
+            !l.starts_with("T:") && !l.starts_with("busy:")
+        });
         if !pending_out.is_empty() {
             match nix::unistd::write(&master, &pending_out) {
                 Ok(w) => {

@@ -183,8 +183,6 @@ fn numbered_job() -> (Vec<String>, Vec<u32>) {
 }
 
 #[test]
-#[ignore = "fails since the round-2 merge (second session's pty not found after the first \
-            session ended while parked); passed 6/6 before it - see docs/settings.md"]
 fn a_paused_job_kept_in_one_session_is_announced_in_the_next() {
     let file = std::env::temp_dir().join(format!("sim-serve-job-{}.bin", std::process::id()));
     let _ = std::fs::remove_file(&file);
@@ -211,6 +209,9 @@ fn a_paused_job_kept_in_one_session_is_announced_in_the_next() {
         "//action:notification Paused job kept: layer {layer} at Z{:.3}, continue from host line {line}",
         0.2 * (layer + 1) as f32
     );
-    assert!(next.contains(&want), "{want}\n{next:?}");
+    assert!(
+        next.iter().any(|l| l.starts_with(&want)),
+        "{want}\n{next:?}"
+    );
     let _ = std::fs::remove_file(&file);
 }

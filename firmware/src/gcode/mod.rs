@@ -49,6 +49,9 @@ pub use driver::DriverCommand;
 // SD-card M-codes (M20 M21 M22 M23 M26 M27 S/C M32): parse and emit.
 mod sd;
 pub use sd::{SdCommand, MAX_SD_REPORT_S};
+// Power-cut resume (M1000, M1000 C): parse and emit.
+mod recovery;
+pub use recovery::RecoveryCommand;
 
 use crate::motion::{Axis, AXES};
 use core::fmt;
@@ -390,6 +393,8 @@ pub enum Command {
     Driver(DriverCommand),
     /// SD card: M20, M21, M22, M23, M26, M27 S/C and M32 (see [`SdCommand`]).
     Sd(SdCommand),
+    /// Power-cut resume: M1000, M1000 C (see [`RecoveryCommand`]).
+    Recovery(RecoveryCommand),
     /// Any other G/M code or extended command: its text (comment stripped), for
     /// `echo:Unknown command: "<text>"`.
     Unknown(Text),
@@ -1249,6 +1254,7 @@ fn build_known(code: (u8, u16), w: &Words<'_>) -> Option<Result<Command, ParseEr
             (b'M', n) if sd::is_sd_code(n, w) => Command::Sd(sd::build(n, w)?),
             (b'M', n) if report::is_report_code(n) => Command::Report(report::build(n, w)?),
             (b'M', n) if driver::is_driver_code(n) => Command::Driver(driver::build(n, w)?),
+            (b'M', n) if recovery::is_recovery_code(n) => Command::Recovery(recovery::build(w)?),
             (b'T', n) => {
                 none()?;
                 match u8::try_from(n) {

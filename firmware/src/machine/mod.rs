@@ -510,6 +510,48 @@ impl MachineState {
     pub fn next_seq(&self) -> u32 {
         self.next_seq
     }
+
+    // Power-cut resume (`crate::printer` recovery): the state saved at a layer boundary and
+    // the state rebuilt from it after power-up, field for field.
+
+    /// The modal state and exact commanded position, for the paused-job record.
+    pub fn modal(&self) -> crate::storage::ModalState {
+        crate::storage::ModalState {
+            relative_xyz: self.relative_xyz,
+            relative_e: self.relative_e,
+            inches: self.inches,
+            retracted: self.retracted,
+            feed_mm_s: self.feed_mm_s,
+            feed_pct: self.feed_pct,
+            flow_pct: self.flow_pct,
+            offset_mm: [self.offset_mm[0], self.offset_mm[1], self.offset_mm[2]],
+            logical_e_mm: self.logical_e_mm,
+            machine_mm: self.pos_mm,
+        }
+    }
+
+    /// The state [`Self::modal`] saved, rebuilt (the next move sequence number starts at 1, as
+    /// at power-on). Refused when the overrides or the position are out of range.
+    pub fn from_modal(
+        m: &crate::storage::ModalState,
+        cfg: &MachineConfig,
+    ) -> Result<Self, MachineError> {
+        let steps = to_steps(&m.machine_mm, cfg)?;
+        Ok(MachineState {
+            relative_xyz: m.relative_xyz,
+            relative_e: m.relative_e,
+            inches: m.inches,
+            feed_mm_s: m.feed_mm_s,
+            feed_pct: check_override(m.feed_pct)?,
+            flow_pct: check_override(m.flow_pct)?,
+            pos_mm: m.machine_mm,
+            offset_mm: [m.offset_mm[0], m.offset_mm[1], m.offset_mm[2], 0.0],
+            logical_e_mm: m.logical_e_mm,
+            retracted: m.retracted,
+            next_seq: 1,
+            steps,
+        })
+    }
 }
 
 fn check_override(pct: f32) -> Result<f32, MachineError> {

@@ -12,8 +12,8 @@
 use super::state::Pause;
 use super::Printer;
 use crate::machine::MachineState;
-use crate::motion::{Axis, PauseMode, AXES};
-use crate::storage::{JobSource, ModalState, PausedJob};
+use crate::motion::{Axis, PauseMode};
+use crate::storage::{JobSource, PausedJob};
 use crate::thermal::HeaterId;
 use heapless::Deque;
 
@@ -49,10 +49,14 @@ pub(super) struct JobLink {
     notes: Deque<BoundaryNote, BOUNDARY_NOTES>,
     pub(super) request: Option<JobRequest>,
     /// A record was asked to be saved (so resuming or cancelling must clear it).
-    saved: bool,
+    pub(super) saved: bool,
     /// A driver with a store has booted the printer (`Printer::load_settings`): records are
     /// kept only then, so a driver without a store never waits for one.
     pub(super) attached: bool,
+    /// The record found at power-up, until M1000 resumes it or it is discarded.
+    pub(super) kept: Option<PausedJob>,
+    /// M1000 is under way (its heater waits and homing are queued).
+    pub(super) recovering: bool,
 }
 
 impl JobLink {
@@ -62,6 +66,8 @@ impl JobLink {
             request: None,
             saved: false,
             attached: false,
+            kept: None,
+            recovering: false,
         }
     }
 }
@@ -84,7 +90,7 @@ impl Printer {
                 let _ = core::fmt::Write::write_fmt(
                     &mut t,
                     format_args!(
-                        "Paused job kept: layer {} at Z{:.3}, continue from {what} {at}",
+                        "Paused job kept: layer {} at Z{:.3}, continue from {what} {at} (M1000 resumes, M1000 C discards)",
                         j.layer,
                         j.boundary_z_um as f32 / 1000.0
                     ),
@@ -93,8 +99,10 @@ impl Printer {
                     crate::link::HostAction::Notification,
                     &t,
                 ));
-                // The next layer pause of a new job replaces it; a cancel forgets it.
+                // M1000 resumes it; M1000 C, a new job's first move, the next layer pause of a
+                // new job or a cancel forgets it.
                 self.job.saved = true;
+                self.job.kept = Some(j);
             }
             Ok(None) => {}
             Err(e) => self.say(format_args!("power-cut resume record unusable: {e}")),
@@ -134,9 +142,6 @@ impl Printer {
         let layer = mark.layer;
         let note = self.job.notes.iter().rev().find(|n| n.layer == layer)?;
         let line = note.line?;
-        let m = &note.modal;
-        let machine = m.machine_mm();
-        let logical = m.logical_mm();
         let spm = |a: Axis| self.cfg.axis(a).steps_per_mm;
         let z_um = note.z_um.unwrap_or_else(|| {
             let z = held.pos[Axis::Z.index()] as f32 / spm(Axis::Z) * 1000.0;
@@ -148,17 +153,7 @@ impl Printer {
             boundary_z_um: z_um,
             boundary_steps: held.pos,
             park_steps: self.stepgen.position(),
-            modal: ModalState {
-                relative_xyz: m.is_relative(),
-                relative_e: m.is_relative_e(),
-                inches: m.is_inches(),
-                retracted: m.is_retracted(),
-                feed_mm_s: m.feed_mm_s(),
-                feed_pct: m.feed_override_pct(),
-                flow_pct: m.flow_override_pct(),
-                offset_mm: [0, 1, 2].map(|i| (machine[i] - logical[i]) as f32),
-                logical_e_mm: logical[AXES - 1],
-            },
+            modal: note.modal.modal(),
             retract_mm: held.retracted_steps as f32 / spm(Axis::E),
             hotend_c: self.thermal.target_c(HeaterId::Hotend),
             bed_c: self.thermal.target_c(HeaterId::Bed),

@@ -187,6 +187,12 @@ impl Printer {
                     }
                     self.push_stepper_request(r);
                 }
+                Command::Recover => {
+                    if !self.motion_idle() || !matches!(self.pause, Pause::Run) {
+                        break;
+                    }
+                    self.recover_now();
+                }
                 Command::SchedulePause(s) => {
                     self.schedule = Some(s);
                     self.say(format_args!("pause scheduled: {:?}", s));

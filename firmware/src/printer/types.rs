@@ -57,6 +57,9 @@ pub enum Command {
     /// M17/M18/M84: a request for the board's stepper drivers, passed on in job order
     /// (a disable waits until the motion before it has run).
     Steppers(StepperRequest),
+    /// M1000's last step (after its heater waits and X/Y homing): wait for motion to end,
+    /// then return to the kept job's boundary as a resume from a park (see `recovery.rs`).
+    Recover,
 }
 
 /// A request for the board's stepper drivers (M17/M18/M84), taken with

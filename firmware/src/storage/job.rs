@@ -11,22 +11,28 @@
 //!        u8 path length │ [u8; JOB_PATH_CAP] path (zero padded) │
 //!        u32 layer │ i32 boundary Z µm │ i32 boundary steps[X Y Z E] │ i32 park steps[X Y Z E] │
 //!        u8 flags (bit 0 relative XYZ, 1 relative E, 2 inches, 3 G10-retracted) │
-//!        f32 feed mm/s │ f32 feed % │ f32 flow % │ f32 G92 offset mm[X Y Z] │ f64 logical E mm │
+//!        f32 feed mm/s │ f32 feed % │ f32 flow % │ f64 G92 offset mm[X Y Z] │ f64 logical E mm │
+//!        f64 commanded machine position mm[X Y Z E] │
 //!        f32 pause retract mm │ f32 hotend target °C │ f32 bed target °C │ u8 fan PWM
 //! ```
+//!
+//! Format 2 added the commanded machine position and widened the offsets to `f64` (the
+//! interpreter's own precision), so a resumed job computes every later step exactly as the
+//! uninterrupted one. A format-1 record (no firmware released with it resumes jobs) is refused
+//! as another version: the job is announced as unusable, never resumed from a guess.
 
 use super::record::{checked_body, Reader, RecordError, Writer};
 use crate::motion::{StepPos, AXES};
 
 /// Version of the job record's layout.
-pub const JOB_FORMAT_VERSION: u16 = 1;
+pub const JOB_FORMAT_VERSION: u16 = 2;
 
 /// Longest SD-card path kept (bytes, UTF-8): a directory and a long file name.
 pub const JOB_PATH_CAP: usize = 96;
 
-/// Bytes of the body of format 1.
+/// Bytes of the body of format 2.
 pub const JOB_BODY_LEN: usize =
-    1 + 4 + 1 + JOB_PATH_CAP + 4 + 4 + 4 * AXES * 2 + 1 + 4 * 3 + 4 * 3 + 8 + 4 * 3 + 1;
+    1 + 4 + 1 + JOB_PATH_CAP + 4 + 4 + 4 * AXES * 2 + 1 + 4 * 3 + 8 * 3 + 8 + 8 * AXES + 4 * 3 + 1;
 
 /// Bytes of a whole job record.
 pub const JOB_RECORD_LEN: usize = 4 + JOB_BODY_LEN + 4;
@@ -68,9 +74,12 @@ pub struct ModalState {
     /// M221 flow override, %.
     pub flow_pct: f32,
     /// G92 offsets X Y Z (machine = logical + offset), mm.
-    pub offset_mm: [f32; 3],
+    pub offset_mm: [f64; 3],
     /// The logical E position (what G92 E and absolute E words refer to), mm.
     pub logical_e_mm: f64,
+    /// The commanded machine position X Y Z (machine coordinates) and E (filament fed, flow
+    /// applied), mm: exact, where the steps are rounded (relative moves add to it).
+    pub machine_mm: [f64; AXES],
 }
 
 /// A job parked at a layer boundary.
@@ -137,13 +146,19 @@ impl PausedJob {
         for v in [m.feed_mm_s, m.feed_pct, m.flow_pct] {
             w.f32(v);
         }
-        m.offset_mm.iter().for_each(|v| w.f32(*v));
-        w.put(&m.logical_e_mm.to_bits().to_le_bytes());
+        for v in m
+            .offset_mm
+            .iter()
+            .chain([m.logical_e_mm].iter())
+            .chain(m.machine_mm.iter())
+        {
+            w.put(&v.to_bits().to_le_bytes());
+        }
         for v in [self.retract_mm, self.hotend_c, self.bed_c] {
             w.f32(v);
         }
         w.u8(self.fan_pwm);
-        let crc = crc32fast::hash(&w.buf[..JOB_RECORD_LEN - 4]);
+        let crc = crate::storage::crc32(&w.buf[..JOB_RECORD_LEN - 4]);
         w.u32(crc);
         w.buf
     }
@@ -182,8 +197,10 @@ impl PausedJob {
         let feed_mm_s = r.f32();
         let feed_pct = r.f32();
         let flow_pct = r.f32();
-        let offset_mm = [r.f32(), r.f32(), r.f32()];
-        let logical_e_mm = f64::from_bits(u64::from_le_bytes(r.take()));
+        let mut f64s = || [0.0; AXES].map(|_: f64| f64::from_bits(u64::from_le_bytes(r.take())));
+        let [ox, oy, oz, logical_e_mm] = f64s();
+        let offset_mm = [ox, oy, oz];
+        let machine_mm = f64s();
         let modal = ModalState {
             relative_xyz: flags & 1 != 0,
             relative_e: flags & 2 != 0,
@@ -194,6 +211,7 @@ impl PausedJob {
             flow_pct,
             offset_mm,
             logical_e_mm,
+            machine_mm,
         };
         let retract_mm = r.f32();
         let hotend_c = r.f32();
@@ -201,8 +219,11 @@ impl PausedJob {
         let fan_pwm = r.u8();
         let finite = [feed_mm_s, feed_pct, flow_pct, retract_mm, hotend_c, bed_c]
             .iter()
-            .chain(offset_mm.iter())
             .all(|v| v.is_finite())
+            && offset_mm
+                .iter()
+                .chain(machine_mm.iter())
+                .all(|v| v.is_finite())
             && logical_e_mm.is_finite();
         if !finite || feed_mm_s <= 0.0 || hotend_c < 0.0 || bed_c < 0.0 || retract_mm < 0.0 {
             return Err(RecordError::OutOfRange("job value"));
@@ -254,6 +275,7 @@ pub(crate) mod tests {
                 flow_pct: 95.0,
                 offset_mm: [0.0, 0.0, -0.1],
                 logical_e_mm: 1234.56789,
+                machine_mm: [100.0, 112.5, 0.2 * f64::from(layer) + 0.2, -13.27],
             },
             retract_mm: 2.0,
             hotend_c: 210.0,

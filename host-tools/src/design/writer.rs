@@ -13,7 +13,9 @@
 //!   keeping their volume and time (the globe's poles).
 
 use crate::design::model::{Model, StateChange, Step, Str};
-use crate::design::profile::{filament_area_mm2, EMode, Markers, Profile, TemplateValues};
+use crate::design::profile::{
+    filament_area_mm2, EMode, Markers, Profile, Retraction, TemplateValues,
+};
 use glam::DVec3;
 use std::io::Write;
 
@@ -282,6 +284,8 @@ struct State {
     f: Option<i64>,
     area: f64,
     retracted: bool,
+    /// Retraction in force (the profile's until a design's `StateChange::Retraction`).
+    retraction: Retraction,
 }
 
 impl<'p> GcodeWriter<'p> {
@@ -385,6 +389,7 @@ impl<'p> GcodeWriter<'p> {
             f: None,
             area: p.filament_area_mm2(),
             retracted: false,
+            retraction: p.retraction,
         };
         // Thinning merges strings on the fly (no second copy of the model).
         let mut emission = Emission::new(steps, model.emission.thin_min_len_mm);
@@ -465,6 +470,14 @@ impl<'p> GcodeWriter<'p> {
                         )
                     {
                         continue; // already in the start code
+                    }
+                    if let StateChange::Retraction(r) = sc {
+                        // Prime with the old length before the new one applies.
+                        if st.retracted {
+                            self.retract(buf, &mut st, scale, false);
+                        }
+                        st.retraction = *r;
+                        continue;
                     }
                     write_state(buf, &mut st, sc, dec);
                 }
@@ -554,11 +567,11 @@ impl<'p> GcodeWriter<'p> {
     ) {
         let p = self.profile;
         let dist = st.pos_f.map(|f| f.distance(to)).unwrap_or(f64::INFINITY);
-        let retract = p.retraction.length_mm > 0.0
+        let retract = st.retraction.length_mm > 0.0
             && st.pos_f.is_some()
             && st.e_total > 0.0
             && !st.retracted
-            && dist >= p.retraction.min_travel_mm;
+            && dist >= st.retraction.min_travel_mm;
         if retract {
             self.retract(buf, st, scale, true);
             sum.retractions += 1;
@@ -572,9 +585,9 @@ impl<'p> GcodeWriter<'p> {
 
     fn retract(&self, buf: &mut Vec<u8>, st: &mut State, scale: f64, pull: bool) {
         let p = self.profile;
-        let r = round_i64(p.retraction.length_mm * scale);
+        let r = round_i64(st.retraction.length_mm * scale);
         buf.extend_from_slice(b"G1");
-        self.push_f(buf, st, p.retraction.speed_mm_s);
+        self.push_f(buf, st, st.retraction.speed_mm_s);
         buf.extend_from_slice(b" E");
         match (p.e_mode, pull) {
             (EMode::Absolute, true) => push_scaled(buf, st.e_written - r, p.decimals),
@@ -661,6 +674,17 @@ fn write_state(buf: &mut Vec<u8>, st: &mut State, sc: &StateChange, dec: u32) {
             buf.extend_from_slice(b"; filament diameter ");
             push_fixed(buf, *d, dec);
         }
+        StateChange::Gcode(text) => {
+            for line in text.lines().map(str::trim).filter(|l| !l.is_empty()) {
+                buf.extend_from_slice(line.as_bytes());
+                buf.push(b'\n');
+            }
+            return;
+        }
+        StateChange::Pause { now } => {
+            buf.extend_from_slice(if *now { b"M601 S1" } else { b"M601" });
+        }
+        StateChange::Retraction(_) => return, // applied by the caller
     }
     buf.push(b'\n');
 }
@@ -729,6 +753,22 @@ pub fn validate(model: &Model) -> Result<(), WriteError> {
                     return bad(i, "non-finite fan duty".into());
                 }
             }
+            Step::State(StateChange::Retraction(r)) => {
+                let ok = |v: f64| v.is_finite() && v >= 0.0;
+                if !(ok(r.length_mm) && ok(r.min_travel_mm) && r.speed_mm_s.is_finite())
+                    || r.speed_mm_s <= 0.0
+                {
+                    return bad(i, format!("retraction {r:?} is invalid"));
+                }
+            }
+            Step::State(StateChange::Gcode(g)) => {
+                if g.chars()
+                    .any(|c| !(c.is_ascii_graphic() || c == ' ' || c == '\n'))
+                {
+                    return bad(i, format!("raw G-code {g:?}: only printable ASCII lines"));
+                }
+            }
+            Step::State(StateChange::Pause { .. }) => {}
             Step::Comment(_) | Step::Type(_) => {}
         }
     }
