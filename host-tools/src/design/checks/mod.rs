@@ -154,7 +154,12 @@ pub fn check(model: &Model, profile: &Profile, o: &CheckOptions) -> CheckReport 
             && p.z >= -1e-9
             && p.z <= b.z_max_mm + 1e-9
     };
-    let mut tree = Grid::new(o.support_radius_mm.max(o.nozzle_radius_mm).max(0.1));
+    let bb = model.bbox();
+    let mut tree = Grid::with_bounds(
+        o.support_radius_mm.max(o.nozzle_radius_mm).max(0.1),
+        bb.min.to_array(),
+        bb.max.to_array(),
+    );
     let mut pos: Option<DVec3> = None;
     let r2 = o.support_radius_mm * o.support_radius_mm;
     for (i, step) in model.steps.iter().enumerate() {
