@@ -25,8 +25,13 @@ fn profile_dir() -> PathBuf {
         .expect("target dir")
 }
 
-/// The `sim` binary, built by cargo (a no-op when up to date).
+/// The `sim` binary, built by cargo once per test run (a no-op when up to date).
 fn sim_bin() -> PathBuf {
+    static BIN: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+    BIN.get_or_init(build_sim).clone()
+}
+
+fn build_sim() -> PathBuf {
     let dir = profile_dir();
     let target = dir.parent().expect("target root");
     let mut c = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
@@ -85,8 +90,9 @@ struct Session {
 
 impl Session {
     fn start(flash: &Path, machine: &Path, trace: &Path) -> Session {
-        let mut child = Command::new(sim_bin())
-            .args(["serve", "--speed", "50"])
+        let bin = sim_bin();
+        let mut child = Command::new(bin)
+            .args(["serve", "--speed", "200"])
             .arg("--flash")
             .arg(flash)
             .arg("--machine")
