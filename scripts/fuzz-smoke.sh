@@ -1,7 +1,10 @@
 #!/usr/bin/env bash
-# Runs each fuzz target of firmware/fuzz briefly (default 20 s each; FUZZ_SECONDS to change,
-# e.g. FUZZ_SECONDS=600 before a release) from the committed seed corpus. Fails on any finding
-# (the crashing input is left in firmware/fuzz/artifacts/<target>/).
+# Runs each fuzz target of firmware/fuzz (default 20 s each; FUZZ_SECONDS to change, e.g.
+# FUZZ_SECONDS=600 before a release) from the committed seeds and finds. Fails on any finding
+# (the crashing input is left in firmware/fuzz/artifacts/<target>/): fix it and commit the input
+# as firmware/fuzz/finds/<target>/<name>, which `cargo test` (CI) replays from then on
+# (firmware/tests/fuzz_regressions.rs). Not part of CI: fuzzing is random exploration and CI is
+# deterministic (docs/testing.md).
 #
 # Builds with nightly and the flags cargo-fuzz passes (coverage instrumentation for libFuzzer,
 # debug assertions, overflow checks; no AddressSanitizer: the firmware library is safe Rust, a
@@ -10,8 +13,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/../firmware/fuzz"
 secs="${FUZZ_SECONDS:-20}"
-# FUZZ_TARGETS to choose (CI leaves out `executive` while its known finding is open, see
-# docs/frontend.md "Fuzzing").
+# FUZZ_TARGETS to choose.
 read -r -a targets <<< "${FUZZ_TARGETS:-parse_stream executive host_stream}"
 if ! rustup toolchain list | grep -q '^nightly'; then
   rustup toolchain install nightly --profile minimal
@@ -26,7 +28,8 @@ cargo +nightly build --release --target "$triple" --bins
 for t in "${targets[@]}"; do
   mkdir -p "corpus/$t" "artifacts/$t"
   seeds=()
-  [ -d "seeds/$t" ] && seeds=("seeds/$t")
+  [ -d "seeds/$t" ] && seeds+=("seeds/$t")
+  [ -d "finds/$t" ] && seeds+=("finds/$t")
   echo "== fuzz $t (${secs} s)"
   "$tdir/$triple/release/$t" -max_total_time="$secs" -timeout=10 -rss_limit_mb=1024 \
     -print_final_stats=1 -artifact_prefix="artifacts/$t/" "corpus/$t" "${seeds[@]}"

@@ -196,6 +196,8 @@ mod image {
         }
         // Saved settings (M500) replace the factory ones; M500/M501 run in their own task.
         crate::board::flash::start(&spawner, printer);
+        // The micro-SD slot: SD printing (M20–M32), in its own task.
+        crate::board::sd::start(&spawner, printer);
 
         let steppers = StepperPins::new(
             pins.step,

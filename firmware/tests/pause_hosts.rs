@@ -535,26 +535,130 @@ fn cancel_between_the_lines_of_a_slow_host_cancels() {
     );
 }
 
-/// The documented limit: printcore streams on into a parked printer and asks for the resume
-/// late. Its next job line waits (answered with `busy: paused for user` keep-alives, so the
-/// host does not time out); a `send_now` would not leave the host now, but the control byte
-/// (or printcore's own pause first) still resumes, and nothing is lost.
+/// printcore streams on into a parked printer (it ignores `//action:paused`) and the user
+/// asks for things *late*, through `send_now`: a status line, a jog, then the resume, a
+/// minute after the pause. The parked intake takes one job line per pace period and answers
+/// its `ok`, so each priority line gets out within the pace; the jog moves the parked head,
+/// not the job; every segment runs once, in order.
 #[test]
-fn a_late_resume_from_a_streaming_host_goes_by_the_control_byte() {
-    let job = job(6, 30);
+fn printcore_streaming_into_a_parked_printer_sends_late_priority_lines() {
+    let job = job(12, 30);
     let base = baseline(&job);
     let mut asked = false;
-    let mut resumed = false;
+    let mut status_at = None;
+    let mut resume_at = None;
     let o = drive(
         Host::new(Kind::Printcore, job.clone()),
-        600_000_000,
+        900_000_000,
+        |h, now, lines| {
+            if !asked && now >= 3_000_000 {
+                h.pri.push_back("M601".into());
+                asked = true;
+            }
+            let Some(t) = h.paused_at_us else { return };
+            if status_at.is_none() && now >= t + 30_000_000 {
+                for l in ["M105", "G91", "G1 Z5 F600", "G90"] {
+                    h.pri.push_back(l.into());
+                }
+                status_at = Some(now);
+            }
+            if resume_at.is_none() && now >= t + 60_000_000 {
+                h.pri.push_back("M602".into());
+                resume_at = Some(now);
+            }
+            if let Some(r) = resume_at {
+                if lines.iter().any(|l| l == "//action:resume") {
+                    // From the request to the firmware: within the pace (≤ 3 s) plus a tick.
+                    assert!(now - r <= 3_001_000, "resume took {} µs", now - r);
+                }
+            }
+        },
+    );
+    let out = &o.host.out;
+    let tail: String = out.lines().rev().take(16).collect::<Vec<_>>().join("\n");
+    assert!(resume_at.is_some(), "never paused:\n{tail}");
+    assert!(
+        out.contains("ok T:"),
+        "M105 not answered while paused:\n{tail}"
+    );
+    let cfg = MachineConfig::ENDER3;
+    let spm = cfg.axes[2].steps_per_mm;
+    let top_mm = o.stop_z as f32 / spm + cfg.pause.lift_z_mm + 5.0;
+    assert!(
+        (o.max_z as f32 / spm - top_mm).abs() < 0.3,
+        "max Z {} mm, expected about {top_mm} mm (the jog)",
+        o.max_z as f32 / spm
+    );
+    assert!(out.contains("//action:resumed"), "{tail}");
+    assert!(o.host.done(), "job not sent to the end:\n{tail}");
+    assert_eq!(o.end_state, State::Idle);
+    assert_eq!(o.stops, 1);
+    assert_eq!(o.executed, base, "every segment once, in order");
+}
+
+/// printcore streams on into a parked printer and asks for the cancel late, with `send_now`:
+/// it gets out, nothing more of the job prints.
+#[test]
+fn printcore_streaming_into_a_parked_printer_cancels_late() {
+    let mut asked = false;
+    let mut cancel_at = None;
+    let o = drive(
+        Host::new(Kind::Printcore, job(12, 30)),
+        900_000_000,
         |h, now, _| {
             if !asked && now >= 3_000_000 {
                 h.pri.push_back("M601".into());
                 asked = true;
             }
             if let Some(t) = h.paused_at_us {
-                if !resumed && now >= t + 6_000_000 {
+                if cancel_at.is_none() && now >= t + 45_000_000 {
+                    h.pri.push_back("M524".into());
+                    cancel_at = Some(now);
+                }
+            }
+        },
+    );
+    let out = &o.host.out;
+    let c = o.host.cancelled_at_us.expect("M524 never got out");
+    assert!(
+        c - cancel_at.unwrap() <= 3_001_000,
+        "cancel took {} µs",
+        c - cancel_at.unwrap()
+    );
+    assert!(
+        o.after_cancel.is_empty(),
+        "job moves after the cancel: {:?}",
+        o.after_cancel
+    );
+    assert!(out.contains("lines of the cancelled job discarded") || out.contains("discarding"));
+    assert_eq!(o.end_state, State::Cancelled);
+}
+
+/// The bound of the parked intake: printcore streams on into a parked printer and nobody asks
+/// for anything for 300 s. The intake takes [`PARKED_EXTRA`] lines (192 s), then the next job
+/// line waits with `busy: paused for user` keep-alives (the host does not time out); a
+/// `send_now` would not leave the host now (docs/frontend.md, "Host rules": no finite buffer
+/// helps a host that streams on for ever), the control byte still resumes, nothing is lost.
+#[test]
+fn a_very_late_resume_from_a_streaming_host_goes_by_the_control_byte() {
+    let job = job(12, 30);
+    let base = baseline(&job);
+    let mut asked = false;
+    let mut resumed = false;
+    let mut busy_after_intake = false;
+    let o = drive(
+        Host::new(Kind::Printcore, job.clone()),
+        900_000_000,
+        |h, now, lines| {
+            if !asked && now >= 3_000_000 {
+                h.pri.push_back("M601".into());
+                asked = true;
+            }
+            if let Some(t) = h.paused_at_us {
+                if now >= t + 200_000_000 && lines.iter().any(|l| l == "busy: paused for user") {
+                    busy_after_intake = true;
+                }
+                if !resumed && now >= t + 300_000_000 {
                     // A raw byte, outside the line protocol (Ctrl-R).
                     h.raw.push(0x12);
                     resumed = true;
@@ -563,8 +667,9 @@ fn a_late_resume_from_a_streaming_host_goes_by_the_control_byte() {
         },
     );
     let out = &o.host.out;
-    assert!(out.contains("busy: paused for user"), "{out}");
+    assert!(busy_after_intake, "no keep-alive once the intake was full");
     assert!(out.contains("//action:resumed"), "{out}");
     assert!(o.host.done());
     assert_eq!(o.executed, base, "every segment once, in order");
+    let _ = firmware::printer::PARKED_EXTRA;
 }

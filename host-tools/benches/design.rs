@@ -5,12 +5,12 @@
 //! Run: `CARGO_TARGET_DIR=... cargo bench -p host-tools --bench design -- --warm-up-time 1 --measurement-time 3`
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use host_tools::gcode_read::{default_reader, GcodeReader};
-use host_tools::modulate::{globe, Bitmap, Globe};
-use host_tools::profile::Profile;
-use host_tools::script::ScriptRunner;
-use host_tools::stats::stats;
-use host_tools::writer::{GcodeWriter, WriteOptions};
+use host_tools::design::modulate::{globe, Bitmap, Globe};
+use host_tools::design::profile::Profile;
+use host_tools::design::script::ScriptRunner;
+use host_tools::design::writer::{GcodeWriter, WriteOptions};
+use host_tools::job::read::{default_reader, GcodeReader};
+use host_tools::job::stats::stats;
 use std::hint::black_box;
 use std::path::PathBuf;
 

@@ -5,11 +5,11 @@
 //! Run: `cargo run --release -p host-tools --example cpu_time [LARGE.gcode]`
 //! (`CPU_TIME_N=<n>` sets the number of globe compiles, default 100).
 
-use host_tools::checks::{check, CheckOptions};
-use host_tools::modulate::{globe, Bitmap, Globe};
-use host_tools::profile::Profile;
-use host_tools::stats::stats;
-use host_tools::writer::{GcodeWriter, WriteOptions};
+use host_tools::design::checks::{check, CheckOptions};
+use host_tools::design::modulate::{globe, Bitmap, Globe};
+use host_tools::design::profile::Profile;
+use host_tools::design::writer::{GcodeWriter, WriteOptions};
+use host_tools::job::stats::stats;
 
 /// User + system CPU seconds of this process (None off Linux).
 fn cpu_s() -> Option<f64> {

@@ -6,7 +6,7 @@ use glam::DVec2;
 use host_tools::additive::offset::offset_loop;
 use host_tools::additive::slice::{signed_area, slice_at};
 use host_tools::additive::stl::{prism_mesh, read_stl_bytes, validate};
-use host_tools::grow::verify_simple;
+use host_tools::paste::grow::verify_simple;
 use proptest::prelude::*;
 
 fn regular(n: usize, r: f64, rot: f64) -> Vec<DVec2> {

@@ -1,10 +1,12 @@
 //! Time-based resampling and the cure check, on synthetic paths whose times are known exactly.
 
 use glam::DVec3;
-use host_tools::cure::{check, heat_map_svg, CureParams};
-use host_tools::motion::{MotionLimits, Trajectory};
-use host_tools::profile::Profile;
-use host_tools::timebased::{is_timebased, read_timebased, write_timebased, Sample, TimedPath};
+use host_tools::design::motion::{MotionLimits, Trajectory};
+use host_tools::design::profile::Profile;
+use host_tools::paste::cure::{check, heat_map_svg, CureParams};
+use host_tools::paste::timebased::{
+    is_timebased, read_timebased, write_timebased, Sample, TimedPath,
+};
 
 /// `layers` layers of a square loop of `per_layer` samples (side 40 mm, so samples are
 /// 160/per_layer mm apart), each layer exactly above the previous, with `wait` still samples
@@ -144,10 +146,10 @@ fn same_layer_never_counts_as_below() {
 /// do not shift or add samples.
 #[test]
 fn timebased_start_and_end_code_keep_the_samples() {
-    use host_tools::timebased::{first_temperatures, with_start_end};
+    use host_tools::paste::timebased::{first_temperatures, with_start_end};
     let samples = stacked_square(2, 50, 5, 0.4);
     let bare = write_timebased(&samples, 0.1, "synthetic");
-    let p = host_tools::profile::Profile::ender3();
+    let p = host_tools::design::profile::Profile::ender3();
     let text = with_start_end(&bare, &p.start_code(215.0, 0.0), &p.end_code(215.0, 0.0));
     let g28 = text.find("G28").expect("start code homes");
     let first = text.find("\nG1 X").expect("samples");

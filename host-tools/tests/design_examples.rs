@@ -1,18 +1,18 @@
 //! Every paper example in `host-tools/examples/` compiles, and its G-code reads back with both
 //! our reader and the firmware's parser; a few examples' printability results are pinned.
 
-use host_tools::checks::{check, CheckOptions, IssueKind};
-use host_tools::profile::Profile;
-use host_tools::script::ScriptRunner;
-use host_tools::stats::stats;
-use host_tools::writer::{GcodeWriter, WriteOptions};
+use host_tools::design::checks::{check, CheckOptions, IssueKind};
+use host_tools::design::profile::Profile;
+use host_tools::design::script::ScriptRunner;
+use host_tools::design::writer::{GcodeWriter, WriteOptions};
+use host_tools::job::stats::stats;
 use std::path::PathBuf;
 
 fn examples_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("examples")
 }
 
-fn compile(name: &str) -> (host_tools::model::Model, String) {
+fn compile(name: &str) -> (host_tools::design::model::Model, String) {
     let p = Profile::ender3();
     let out = ScriptRunner::new(p.clone())
         .run_file(&examples_dir().join(name))
@@ -117,7 +117,7 @@ fn fractal_tree_returns_by_travel() {
     let travels = m
         .steps
         .iter()
-        .filter(|s| matches!(s, host_tools::model::Step::Travel { .. }))
+        .filter(|s| matches!(s, host_tools::design::model::Step::Travel { .. }))
         .count();
     // 3 layers × (2^7 − 1 branches, each popped back except the trunk) + 3 moves between layers
     assert!(travels > 3 * 100, "{travels}");

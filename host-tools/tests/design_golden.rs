@@ -1,10 +1,10 @@
 //! Golden tests: small designs whose exact G-code is checked line by line.
 
 use glam::DVec3;
-use host_tools::model::{Arc, MarkerKind, Model, Step, Str};
-use host_tools::profile::{EMode, Profile};
-use host_tools::turtle::Turtle;
-use host_tools::writer::{GcodeWriter, WriteOptions};
+use host_tools::design::model::{Arc, MarkerKind, Model, Step, Str};
+use host_tools::design::profile::{EMode, Profile};
+use host_tools::design::turtle::Turtle;
+use host_tools::design::writer::{GcodeWriter, WriteOptions};
 
 fn bare(profile: &Profile, m: &Model) -> String {
     let w = GcodeWriter::new(
@@ -88,7 +88,9 @@ G1 X10 E0.416 F1200
 #[test]
 fn arc_and_state_changes() {
     let mut m = Model::new([50.0, 50.0]);
-    m.push(Step::State(host_tools::model::StateChange::Fan(0.5)));
+    m.push(Step::State(host_tools::design::model::StateChange::Fan(
+        0.5,
+    )));
     m.push(Step::Marker {
         kind: MarkerKind::Turn,
         z_mm: 0.3,
@@ -105,10 +107,12 @@ fn arc_and_state_changes() {
             ccw: true,
         }),
     }));
-    m.push(Step::State(host_tools::model::StateChange::HotendTemp {
-        celsius: 210.0,
-        wait: false,
-    }));
+    m.push(Step::State(
+        host_tools::design::model::StateChange::HotendTemp {
+            celsius: 210.0,
+            wait: false,
+        },
+    ));
     let got = bare(&Profile::ender3(), &m);
     // quarter circle r = 10: 15.708 mm in XY, 0.1 mm in Z → 15.70828 mm; E = 1.30629
     let want = "\
@@ -181,7 +185,7 @@ fn examples_keep_their_gcode() {
     let p = Profile::ender3();
     let mut changed = Vec::new();
     for &(name, len, hash) in EXAMPLE_GCODE {
-        let out = host_tools::script::ScriptRunner::new(p.clone())
+        let out = host_tools::design::script::ScriptRunner::new(p.clone())
             .run_file(&dir.join(name))
             .unwrap_or_else(|e| panic!("{name}: {e}"));
         let w = GcodeWriter::new(

@@ -4,12 +4,12 @@
 //! filament written equals Σ cross-section × length ÷ filament area.
 
 use glam::DVec3;
-use host_tools::gcode_read::{default_reader, Event, GcodeReader};
-use host_tools::model::Model;
-use host_tools::parts::Helix;
-use host_tools::profile::Profile;
-use host_tools::turtle::Turtle;
-use host_tools::writer::{GcodeWriter, WriteOptions};
+use host_tools::design::model::Model;
+use host_tools::design::parts::Helix;
+use host_tools::design::profile::Profile;
+use host_tools::design::turtle::Turtle;
+use host_tools::design::writer::{GcodeWriter, WriteOptions};
+use host_tools::job::read::{default_reader, Event, GcodeReader};
 use proptest::prelude::*;
 
 #[derive(Clone, Debug)]

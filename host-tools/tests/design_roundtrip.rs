@@ -8,11 +8,11 @@ use firmware::config::MachineConfig;
 use firmware::gcode::parse_line;
 use firmware::layer::{LayerDetector, MoveFacts};
 use firmware::machine::MachineState;
-use host_tools::gcode_read::{default_reader, Event, GcodeReader, LayerSource};
-use host_tools::modulate::{globe, Bitmap, Globe};
-use host_tools::parts::Helix;
-use host_tools::profile::Profile;
-use host_tools::writer::{GcodeWriter, WriteOptions};
+use host_tools::design::modulate::{globe, Bitmap, Globe};
+use host_tools::design::parts::Helix;
+use host_tools::design::profile::Profile;
+use host_tools::design::writer::{GcodeWriter, WriteOptions};
+use host_tools::job::read::{default_reader, Event, GcodeReader, LayerSource};
 
 fn outputs() -> Vec<(String, String)> {
     let mut v = Vec::new();

@@ -3,13 +3,13 @@
 
 use glam::DVec2;
 use host_tools::additive::slice::point_in_polygon;
-use host_tools::grow::{
+use host_tools::design::motion::{MotionLimits, MoveKind, Trajectory};
+use host_tools::design::profile::Profile;
+use host_tools::design::writer::{GcodeWriter, WriteOptions};
+use host_tools::paste::grow::{
     builtin_boundary, grow, read_boundary, to_model, verify_simple, Boundary, GrowParams,
     StackParams,
 };
-use host_tools::motion::{MotionLimits, MoveKind, Trajectory};
-use host_tools::profile::Profile;
-use host_tools::writer::{GcodeWriter, WriteOptions};
 
 fn stroke_len(nodes: &[DVec2]) -> f64 {
     (0..nodes.len())

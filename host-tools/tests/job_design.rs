@@ -3,10 +3,10 @@
 
 use std::path::PathBuf;
 
+use host_tools::design::profile::Profile;
+use host_tools::design::script::ScriptRunner;
+use host_tools::design::writer::{GcodeWriter, WriteOptions};
 use host_tools::job::Job;
-use host_tools::profile::Profile;
-use host_tools::script::ScriptRunner;
-use host_tools::writer::{GcodeWriter, WriteOptions};
 
 #[test]
 fn compiled_design_becomes_a_job_with_one_layer_per_marker() {

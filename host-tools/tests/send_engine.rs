@@ -9,9 +9,9 @@ use std::io::{Read, Write};
 use std::time::Duration;
 
 use firmware::motion::LayerSource;
+use host_tools::job::sender::protocol::checksum;
+use host_tools::job::sender::{Event, Options, PauseMethod, Request, Session, State};
 use host_tools::job::{Job, Layer};
-use host_tools::sender::protocol::checksum;
-use host_tools::sender::{Event, Options, PauseMethod, Request, Session, State};
 
 /// A scripted printer: answers `ok` to every numbered line with a good checksum and the
 /// expected number, `Resend:` otherwise; M115 with a configurable capability report; realtime
@@ -641,7 +641,7 @@ fn resend_of_a_line_never_sent_resyncs_without_loss() {
 }
 
 /// A printer that keeps asking for a line it acknowledged (it ignores M110) ends the session
-/// with a message after [`host_tools::sender::MAX_RESENDS`] requests instead of looping.
+/// with a message after [`host_tools::job::sender::MAX_RESENDS`] requests instead of looping.
 #[test]
 fn endless_resync_gives_up_with_a_message() {
     struct Stubborn(FakePrinter);

@@ -10,9 +10,9 @@ use std::collections::VecDeque;
 use std::io::{Read, Write};
 use std::time::Duration;
 
+use host_tools::job::sender::protocol::checksum;
+use host_tools::job::sender::{Options, PauseMethod, Session, State};
 use host_tools::job::Job;
-use host_tools::sender::protocol::checksum;
-use host_tools::sender::{Options, PauseMethod, Session, State};
 use proptest::prelude::*;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -122,7 +122,7 @@ impl Chaos {
             Fault::LostLine => return,
             Fault::Corrupt => return self.refuse("checksum mismatch"),
             // A reset in the first lines of a session is taken for lost acknowledgements
-            // (`host_tools::sender::ACK_DOUBT`): the test resets the counter later.
+            // (`host_tools::job::sender::ACK_DOUBT`): the test resets the counter later.
             Fault::CounterReset if self.expected > 6 => self.expected = 1,
             Fault::CounterJump => self.expected += 3,
             Fault::Chatter => {

@@ -3,9 +3,9 @@
 use std::io::{Read, Write};
 use std::time::Duration;
 
+use host_tools::job::sender::protocol::Response;
+use host_tools::job::sender::{Options, Session, State};
 use host_tools::job::Job;
-use host_tools::sender::protocol::Response;
-use host_tools::sender::{Options, Session, State};
 use proptest::prelude::*;
 
 struct Noise {

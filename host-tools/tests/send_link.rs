@@ -11,8 +11,8 @@ use std::io::{Read, Write};
 use std::time::Duration;
 
 use firmware::link::{HostLink, Response};
+use host_tools::job::sender::{Options, PauseMethod, Session, State};
 use host_tools::job::Job;
-use host_tools::sender::{Options, PauseMethod, Session, State};
 use proptest::prelude::*;
 
 #[derive(Clone, Copy, Debug, PartialEq)]

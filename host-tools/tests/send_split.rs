@@ -2,7 +2,7 @@
 
 use host_tools::job::gcode::parse;
 use host_tools::job::modal::{Modal, E, X, Y, Z};
-use host_tools::sender::fallback::{
+use host_tools::job::sender::fallback::{
     pause_sequence, resume_sequence, rewrite_move, sped_up_feed_mm_min, split_move, HostPause,
 };
 use proptest::prelude::*;

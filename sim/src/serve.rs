@@ -64,6 +64,10 @@ pub struct ServeArgs {
     /// `sim::powercut`).
     #[arg(long)]
     pub trace: Option<PathBuf>,
+    /// The SD card: a directory (its files are put on a FAT image made at startup) or a card
+    /// image file (MBR + FAT16/32); see `sim::sd` and docs/sd.md.
+    #[arg(long)]
+    pub sd: Option<PathBuf>,
 }
 
 static STOP: AtomicBool = AtomicBool::new(false);
@@ -192,6 +196,12 @@ pub fn serve_with(
         .as_deref()
         .map(crate::flash::FlashStore::open)
         .transpose()?;
+    let mut card = match a.sd.as_deref() {
+        Some(p) if p.is_dir() => Some(crate::sd::ImageDevice::from_dir(p)?),
+        Some(p) => Some(crate::sd::ImageDevice::open(p)?),
+        None => None,
+    }
+    .map(firmware::storage::sd::Card::new);
     if let Some(l) = &a.link {
         check_link_path(l)?;
     }
@@ -257,6 +267,11 @@ pub fn serve_with(
         // read, as at power-up), later passes carry out M500/M501.
         if let Some(f) = flash.as_mut() {
             f.service(&mut fw.printer);
+        }
+        // The SD card: commands waiting for it, and the job's lines while the queue has room.
+        if let Some(c) = card.as_mut() {
+            fw.printer.attach_card();
+            fw.printer.service_card(c, now_us);
         }
         // Host bytes. Flow control: what the firmware does not take stays in `rx_pending`, and
         // the pty is not read again until it is all taken, so the host's writes block in the

@@ -137,7 +137,6 @@ def main():
     ap.add_argument("--pause-layer", type=int, default=3)
     ap.add_argument("--wait", type=float, default=20.0)
     ap.add_argument("--no-emergency", action="store_true")
-    ap.add_argument("--settle", type=float, default=2.0)
     a = ap.parse_args()
 
     t0 = time.monotonic()
@@ -216,6 +215,19 @@ def main():
             "last": temps[-3:],
         }
 
+        def printing_on(secs):
+            """True once the plugin's state is `printing` and OctoPrint's file position has
+            moved on by a few lines since this call; bounded."""
+            end = time.monotonic() + secs
+            start = None
+            while time.monotonic() < end:
+                pos = (o.get("/api/job").get("progress") or {}).get("filepos") or 0
+                start = pos if start is None else start
+                if o.get("/api/plugin/layerpause").get("state") == "printing" and pos > start + 500:
+                    return True
+                time.sleep(0.1)
+            return False
+
         def pause_resume(name, pause, resume, wait_layer=None):
             sc = {}
             t = time.monotonic()
@@ -236,8 +248,9 @@ def main():
             st, ok = o.wait_state(lambda s: s == "Printing", a.wait)
             sc["resumed"] = ok
             sc["state_after_resume"] = st
-            # Let the firmware unpark and print on before the next scenario (real seconds).
-            time.sleep(a.settle)
+            # Before the next scenario: the firmware is back at the job (the plugin saw
+            # //action:resumed) and OctoPrint streams again (bounded wait for that condition).
+            sc["printing_on"] = printing_on(a.wait)
             out["scenarios"][name] = sc
             return sc
 
@@ -260,9 +273,16 @@ def main():
                 )
 
             sc = pause_resume("layer", at_layer, job_cmd("resume"))
+            # M27 through the plugin: wait (bounded) for its answer to update the layer.
+            before = o.get("/api/plugin/layerpause").get("layer")
             o.post("/api/plugin/layerpause", {"command": "refresh"})
-            time.sleep(1)
-            sc["plugin_after"] = o.get("/api/plugin/layerpause")
+            end = time.monotonic() + a.wait
+            while True:
+                sc["plugin_after"] = o.get("/api/plugin/layerpause")
+                layer = sc["plugin_after"].get("layer")
+                if (layer is not None and layer != before) or time.monotonic() > end:
+                    break
+                time.sleep(0.1)
 
         # cancel
         sc = {}

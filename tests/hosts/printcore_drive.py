@@ -5,16 +5,18 @@ streaming (`startprint`), and pause, resume and cancel through its normal send p
 (`send_now`, which queues a line behind the stream's next `ok`).
 
 Scenarios, in one session (each wait bounded):
-  pause   after the stream has passed line --pause-line: send_now("M601"); at the firmware's
-          `//action:paused`, printcore's pause() (stops its stream), send_now("M602"), wait for
-          `//action:resumed`, printcore's resume().
-  pause_byte  the same at --pause2-line, resuming with the firmware's realtime byte 0x12.
-  send_now_while_streaming  (--stuck-line) send_now("M602") without pause(): recorded whether
-          it gets out (it cannot once the firmware's queue is full behind the barrier).
+  pause   after the stream has passed line --pause-line: send_now("M601") while printcore
+          streams; at the firmware's `//action:paused` (printcore ignores it and streams on),
+          send_now M105 (answered?), a jog (G91, G1 Z2, G90), then send_now("M602"); wait for
+          `//action:resumed`.
+  layer   the same with send_now("M761 L<--pause-layer>") at --layer-request-line.
+  host_pause  printcore's own pause() at --host-pause-line (stops its stream; the firmware
+          runs what it holds), then its resume().
   cancel  after the stream has passed line --cancel-line: send_now("M524"), then
           printcore's own cancelprint() once the firmware says `//action:cancel` (or after
           --wait seconds).
-  end     send_now("M400") and wait for its `ok` (every move the firmware accepted has run).
+  end     send_now M400 and M118 drive-end; wait for the echo (every move the firmware
+          accepted has run).
 
 Prints one JSON object: the events with wall-clock seconds, and what each scenario saw.
 Needs only printcore (Printrun from PyPI, no GUI dependencies) and pyserial.
@@ -39,8 +41,9 @@ def main():
     ap.add_argument("--file", required=True)
     ap.add_argument("--layers", type=int, default=3)
     ap.add_argument("--pause-line", type=int, default=150)
-    ap.add_argument("--pause2-line", type=int, default=0)
-    ap.add_argument("--stuck-line", type=int, default=0)
+    ap.add_argument("--layer-request-line", type=int, default=0)
+    ap.add_argument("--pause-layer", type=int, default=2)
+    ap.add_argument("--host-pause-line", type=int, default=0)
     ap.add_argument("--cancel-line", type=int, default=0)
     ap.add_argument("--wait", type=float, default=20.0)
     ap.add_argument("--timeout", type=float, default=240.0)
@@ -105,61 +108,82 @@ def main():
             time.sleep(0.01)
         return p.queueindex
 
-    def pause_and_resume(name, resume_how):
-        """M601 through send_now while printcore streams; at //action:paused, printcore's own
-        pause() (stops its stream: with ok flow control every ok would invite one more job
-        line, so a send_now queued behind the stream can never get out while the firmware's
-        queue is full behind the barrier); then the resume goes out at once, and printcore's
-        resume() restarts its stream (its restore lines G90/G1 X Y/G1 Z/G92 E/F come after the
-        job lines the firmware already holds, at the position those end at)."""
-        sc = {}
+    def marker(tag, secs):
+        """send_now an M400 and an M118 <tag>; wait (bounded) for the echo of the tag: every
+        move the firmware accepted before has run (the M118 is taken after the M400's ok)."""
+        wait_for.mark = len(received)
+        p.send_now("M400")
+        p.send_now("M118 " + tag)
+        return wait_for(lambda l: tag in l and not l.startswith("M118"), secs) is not None
+
+    def firmware_pause(name, request):
+        """A firmware pause through printcore's normal send path while it keeps streaming
+        (it ignores //action:paused): `request` (M601, or M761 L<n> for a pause at layer n)
+        with send_now; once paused, a status line (M105) and a jog (G91, G1 Z2, G90) with
+        send_now, then send_now("M602"). Every send_now goes out with one of the `ok`s the
+        firmware's parked intake gives printcore's job lines."""
+        sc = {"request": request}
         qi = wait_queue(sc_line[name])
-        ev(name + "_pause_request", queueindex=qi)
+        ev(name + "_request", queueindex=qi)
         sc["request_queueindex"] = qi
         wait_for.mark = len(received)
-        p.send_now("M601")
+        p.send_now(request)
         paused = wait_for(lambda l: l.startswith("//action:paused"), a.wait)
         sc["paused"] = bool(paused)
         ev(name + ("_paused" if paused else "_pause_timeout"), queueindex=p.queueindex)
         if paused:
-            p.pause()
+            sc["printcore_streaming"] = bool(p.printing)
+            t = time.monotonic()
             wait_for.mark = len(received)
-            if resume_how == "send_now":
-                p.send_now("M602")
-            else:
-                p.printer.write(bytes([0x12]))  # the firmware's realtime resume byte
-            resumed = wait_for(lambda l: l.startswith("//action:resumed"), a.wait)
-            sc["resumed"] = bool(resumed)
-            ev(name + ("_resumed" if resumed else "_resume_timeout"))
-            p.resume()
-        out["scenarios"][name] = sc
-
-    sc_line = {"pause": a.pause_line, "pause_byte": a.pause2_line}
-    pause_and_resume("pause", "send_now")
-    if a.pause2_line > 0:
-        pause_and_resume("pause_byte", "byte")
-
-    # What the old path does: send_now("M602") while printcore still streams (no p.pause()).
-    if a.stuck_line > 0:
-        sc = {}
-        wait_queue(a.stuck_line)
-        wait_for.mark = len(received)
-        p.send_now("M601")
-        paused = wait_for(lambda l: l.startswith("//action:paused"), a.wait)
-        sc["paused"] = bool(paused)
-        if paused:
+            p.send_now("M105")
+            temp = wait_for(lambda l: l.startswith("ok T:"), a.wait)
+            sc["m105_answered"] = bool(temp)
+            sc["m105_s"] = round(time.monotonic() - t, 3)
+            for l in ("G91", "G1 Z2 F600", "G90"):
+                p.send_now(l)
+            t = time.monotonic()
             wait_for.mark = len(received)
             p.send_now("M602")
             resumed = wait_for(lambda l: l.startswith("//action:resumed"), a.wait)
-            sc["resumed_by_send_now_while_streaming"] = bool(resumed)
+            sc["resumed"] = bool(resumed)
+            sc["resume_s"] = round(time.monotonic() - t, 3)
+            ev(name + ("_resumed" if resumed else "_resume_timeout"))
             if not resumed:
-                p.pause()
-                p.printer.write(bytes([0x12]))
-                sc["resumed_after_pause"] = bool(
-                    wait_for(lambda l: l.startswith("//action:resumed"), a.wait)
-                )
-                p.resume()
-        out["scenarios"]["send_now_while_streaming"] = sc
+                p.printer.write(bytes([0x12]))  # do not leave the sim paused
+        out["scenarios"][name] = sc
+
+    def host_pause(name):
+        """printcore's own pause() (Pronterface's Pause button): it stops streaming; the
+        firmware runs what it holds and stands still (a host pause, mid-layer, no park); then
+        printcore's resume() (its restore lines, then the stream)."""
+        sc = {}
+        qi = wait_queue(sc_line[name])
+        sc["request_queueindex"] = qi
+        p.pause()
+        sc["paused"] = bool(p.paused and not p.printing)
+        stopped_at = p.queueindex
+        sc["drained"] = marker("hostpause-drained", a.wait)
+        sc["stream_stopped"] = p.queueindex == stopped_at
+        ev(name + "_drained", queueindex=p.queueindex)
+        p.resume()
+        sc["resumed"] = bool(p.printing)
+        end_wait = time.monotonic() + a.wait
+        while p.printing and p.queueindex <= stopped_at + 5 and time.monotonic() < end_wait:
+            time.sleep(0.01)
+        sc["streaming_again"] = p.queueindex > stopped_at + 5 or not p.printing
+        ev(name + "_resumed", queueindex=p.queueindex)
+        out["scenarios"][name] = sc
+
+    sc_line = {
+        "pause": a.pause_line,
+        "layer": a.layer_request_line,
+        "host_pause": a.host_pause_line,
+    }
+    firmware_pause("pause", "M601")
+    if a.layer_request_line > 0:
+        firmware_pause("layer", "M761 L%d" % a.pause_layer)
+    if a.host_pause_line > 0:
+        host_pause("host_pause")
 
     # cancel
     if a.cancel_line > 0:
@@ -181,10 +205,8 @@ def main():
         ev("stream_done", printing=p.printing, queueindex=p.queueindex)
         out["scenarios"]["stream"] = {"completed": not p.printing}
 
-    # Every move the firmware accepted has run once M400 is answered.
-    wait_for.mark = len(received)
-    p.send_now("M400")
-    done = wait_for(lambda l: l.startswith("ok"), max(a.wait, 60.0))
+    # Every move the firmware accepted has run once the M118 after an M400 is echoed.
+    done = marker("drive-end", max(a.wait, 60.0))
     ev("m400_ok" if done else "m400_timeout")
     out["scenarios"]["end"] = {"m400_ok": bool(done)}
     out["errors"] = [l for _, l in received if l.startswith("Error")]

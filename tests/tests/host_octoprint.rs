@@ -87,5 +87,7 @@ fn octoprint_shows_paused_for_its_buttons_terminal_and_layer_pause() {
         let sc = &d["scenarios"][name];
         assert_eq!(sc["paused"], true, "{name}: {sc}");
         assert_eq!(sc["resumed"], true, "{name}: {sc}");
+        // Back at the job and streaming before the next scenario (bounded wait in the driver).
+        assert_eq!(sc["printing_on"], true, "{name}: {sc}");
     }
 }

@@ -1,12 +1,13 @@
 //! Printrun's printcore (the engine of Pronterface and pronsole, from PyPI) against `sim serve`:
 //! it streams PrusaSlicer's fixture with its own `startprint`, and pauses, resumes and cancels
-//! through its normal send path (`send_now`), driven by `tests/hosts/printcore_drive.py`: M601
-//! while streaming; at `//action:paused` printcore's own `pause()` (stops its stream), then
-//! M602 (or the realtime byte 0x12) and printcore's `resume()`; M524 and `cancelprint()`.
-//! (`send_now("M602")` while printcore still streams cannot get out once the firmware's queue
-//! is full behind the barrier: every `ok` would invite one more job line. docs/hosts.md.)
-//! Judged by the sim's record (layers from the extrusion heights, moves from the executed
-//! steps), not by the driver. Needs `bash scripts/setup-hosts.sh`. One session ≈ 15 s.
+//! through its normal send path (`send_now`, a priority queue sent after the stream's next
+//! `ok`) while it keeps streaming, driven by `tests/hosts/printcore_drive.py`: M601, then M105
+//! and a jog while paused, then M602; a pause at layer N (`M761 L<n>`); printcore's own
+//! `pause()`/`resume()`; M524. printcore ignores `//action:paused` and streams on: the
+//! firmware's parked intake (docs/frontend.md, "Host rules") gives its job lines `ok`s, paced,
+//! and each `ok` lets its priority lines out. Judged by the sim's record (layers from the
+//! extrusion heights, moves from the executed steps), not by the driver or the firmware's
+//! layer detector. Needs `bash scripts/setup-hosts.sh`. One session ≈ 20 s.
 
 mod hosts_common;
 
@@ -14,8 +15,8 @@ use hosts_common::{host_python, run_bounded, Sim};
 use std::process::Command;
 use std::time::Duration;
 
-/// One session: pause with M601 in the first layer and resume with M602, pause again in the
-/// second layer and resume with the realtime byte, cancel with M524 in the third layer, M400.
+/// One session: M601 in the first layer (M105, a jog, M602 while paused), `M761 L2` sent in
+/// the first layer, printcore's own pause in the third layer, M524 in the fourth, M400.
 /// Returns the driver's report and the sim's record.
 fn session(tag: &str) -> (serde_json::Value, serde_json::Value) {
     let py = host_python("printrun");
@@ -28,15 +29,19 @@ fn session(tag: &str) -> (serde_json::Value, serde_json::Value) {
         "--file",
         "tests/fixtures/slicer/prusaslicer.gcode",
         "--layers",
-        "4",
+        "5",
         "--pause-line",
         "150",
-        "--pause2-line",
-        "500",
+        "--layer-request-line",
+        "250",
+        "--pause-layer",
+        "2",
+        "--host-pause-line",
+        "800",
         "--cancel-line",
         "1000",
         "--wait",
-        "10",
+        "20",
     ]);
     let (ok, out, err) = run_bounded(cmd, Duration::from_secs(180));
     let record = sim.finish();
@@ -46,33 +51,68 @@ fn session(tag: &str) -> (serde_json::Value, serde_json::Value) {
     (report, record)
 }
 
+/// Z of the extrusions of each layer of the fixture, from its own `;Z:` lines (the slicer's
+/// statement, not the firmware's detector), in mm.
+fn slicer_layer_z() -> Vec<f64> {
+    let text = std::fs::read_to_string(
+        tests::workspace_root().join("tests/fixtures/slicer/prusaslicer.gcode"),
+    )
+    .expect("fixture");
+    text.lines()
+        .filter_map(|l| l.strip_prefix(";Z:"))
+        .filter_map(|z| z.trim().parse().ok())
+        .collect()
+}
+
 #[test]
-fn printcore_pauses_at_the_first_layer_boundary_resumes_and_cancels() {
+fn printcore_pauses_resumes_and_cancels_through_send_now_while_streaming() {
     let (d, r) = session("pc");
     let sc = &d["scenarios"];
-    for name in ["pause", "pause_byte"] {
-        assert_eq!(sc[name]["paused"], true, "{name}: {d}");
-        assert_eq!(sc[name]["resumed"], true, "{name}: {d}");
+    for name in ["pause", "layer"] {
+        let s = &sc[name];
+        assert_eq!(s["paused"], true, "{name}: {d}");
+        // printcore kept streaming: the send_now lines got out through the parked intake.
+        assert_eq!(s["printcore_streaming"], true, "{name}: {d}");
+        assert_eq!(s["m105_answered"], true, "{name}: {d}");
+        assert_eq!(s["resumed"], true, "{name}: {d}");
+    }
+    let h = &sc["host_pause"];
+    for k in [
+        "paused",
+        "drained",
+        "stream_stopped",
+        "resumed",
+        "streaming_again",
+    ] {
+        assert_eq!(h[k], true, "host_pause {k}: {d}");
     }
     assert_eq!(sc["cancel"]["action_cancel"], true, "{d}");
     assert_eq!(sc["end"]["m400_ok"], true, "{d}");
     assert_eq!(d["errors"].as_array().map(Vec::len), Some(0), "{d}");
     let pauses = r["pauses"].as_array().expect("pauses");
-    assert_eq!(pauses.len(), 2, "{r}");
-    for p in pauses {
-        assert_eq!(p["mode"], "layer", "{p}");
+    let fw: Vec<_> = pauses.iter().filter(|p| p["mode"] == "layer").collect();
+    assert_eq!(fw.len(), 2, "the M601 and the M761 pause: {r}");
+    for p in &fw {
         // From the extrusion heights: the last extrusion before the stop is of the request's
         // layer, the first after it (after the resume) of the next.
         assert_eq!(p["first_boundary_after_request"], true, "{p}");
         assert!(p["parked_s"].is_number(), "never parked: {p}");
-        // printcore's restore lines come after the job lines the firmware holds: the head
-        // returns exactly to the pause point.
+        // The jog ran on the service lane: the head returns exactly to the pause point.
         assert_eq!(p["resume_position_error_steps"], 0, "{p}");
     }
+    // The pause at layer 2 stopped where the slicer's layer 2 begins: at its height (the
+    // comment-free stream's boundary is the first extrusion of the layer, after its Z move).
+    let z = slicer_layer_z();
+    let stop_z_mm = fw[1]["pause_point_steps"][2].as_f64().expect("stop Z") / 400.0;
+    assert!(
+        (stop_z_mm - z[2]).abs() < 0.003,
+        "M761 L2 stopped at Z {stop_z_mm} mm, layer 2 is at {} mm",
+        z[2]
+    );
     let s = &r["session"];
     assert_eq!(s["lost_moves"], 0, "{s}");
     assert_eq!(s["duplicated_moves"], 0, "{s}");
     assert_eq!(s["cancelled"], true, "{s}");
     assert_eq!(s["finished"], false, "a cancelled job is not finished: {s}");
-    assert!(s["layers_extruded"].as_u64().is_some_and(|l| l >= 3), "{s}");
+    assert!(s["layers_extruded"].as_u64().is_some_and(|l| l >= 4), "{s}");
 }

@@ -6,9 +6,9 @@
 //! (`;FLAVOR:Marlin`) put first, which names a marker family that then never comes, so the
 //! firmware's height rule stays off and the job queues no mark (see `firmware::layer`).
 
-use host_tools::profile::Profile;
-use host_tools::script::ScriptRunner;
-use host_tools::writer::{GcodeWriter, WriteOptions};
+use host_tools::design::profile::Profile;
+use host_tools::design::script::ScriptRunner;
+use host_tools::design::writer::{GcodeWriter, WriteOptions};
 use sim::exec::PrinterFactory;
 use sim::run::{self, Mode, Policy, Scenario};
 

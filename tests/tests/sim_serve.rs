@@ -67,6 +67,7 @@ fn a_host_prints_pauses_and_resumes_over_the_pseudo_terminal() {
                 flash: None,
                 machine: None,
                 trace: None,
+                sd: None,
             },
             move |p| {
                 let _ = tx.send(p.to_path_buf());

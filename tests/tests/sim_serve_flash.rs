@@ -34,6 +34,7 @@ fn session_with(flash: &Path, lines: &[&str], pause_after: Option<usize>) -> Vec
                 flash: Some(flash),
                 machine: None,
                 trace: None,
+                sd: None,
             },
             move |p| {
                 let _ = tx.send(p.to_path_buf());

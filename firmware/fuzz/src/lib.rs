@@ -11,7 +11,9 @@
 //!   is resumed), and the printer comes to rest within a bounded virtual time.
 
 use firmware::config::MachineConfig;
-use firmware::link::PortId;
+use firmware::gcode::parse_line;
+use firmware::link::{HostLink, PortId, Response, LINE_CAP, LINE_QUEUE};
+use firmware::machine::{Action, Interpreter};
 use firmware::motion::{Axis, PauseMode, Realtime, StepPos};
 use firmware::planner::BlockKind;
 use firmware::printer::{Printer, Record, State};
@@ -258,6 +260,14 @@ pub enum Noise {
     Drop(usize),
 }
 
+/// Silence after which the [`host_stream`] host sends an `M105` (OctoPrint's communication
+/// timeout is 30 s; shorter here to keep fuzz runs fast, still far above the firmware's 2 s
+/// `busy:` period).
+pub const HOST_TIMEOUT_US: u64 = 10_000_000;
+
+/// How long the [`host_stream`] user waits for the resume to start before pressing again.
+pub const USER_RETRY_US: u64 = 5_000_000;
+
 /// A numbered, checksummed host that keeps one line in flight (as printcore and OctoPrint), over
 /// a wire that corrupts the attempts listed in `noise` and splits the stream into `chunks`.
 /// Pauses (`M601`, numbered like any line) after job line `pause_after`, resumes (`M602`) once
@@ -269,6 +279,8 @@ pub fn host_stream(
     chunks: &[usize],
 ) -> Vec<StepPos> {
     let mut h = Harness::new();
+    // No heater model here: extrude cold, as M302 P1 would, so the job's moves execute.
+    h.p.extrusion_guard_mut().allow_cold = true;
     let mut lines: Vec<String> = Vec::new();
     for (i, l) in job.iter().enumerate() {
         lines.push(l.clone());
@@ -287,7 +299,11 @@ pub fn host_stream(
     let mut partial = String::new();
     let mut read_upto = 0usize;
     let mut resumed = false;
+    // When the host sent its (unnumbered) M602 and has not yet seen the resume start.
+    let mut resume_sent_us: Option<u64> = None;
     let mut k = 0usize;
+    // Virtual time of the last line the printer wrote (the host's timeout counts from it).
+    let mut heard_us = 0u64;
     let limit = 3600 * 1_000_000u64;
     while h.now_us < limit {
         if in_flight == 0 && next <= lines.len() {
@@ -332,6 +348,7 @@ pub fn host_stream(
         while let Some(i) = partial.find('\n') {
             let line: String = partial.drain(..=i).collect();
             let line = line.trim_end();
+            heard_us = h.now_us;
             if line.starts_with("ok") {
                 in_flight = in_flight.saturating_sub(1);
             } else if let Some(r) = line.strip_prefix("Resend: ") {
@@ -342,7 +359,29 @@ pub fn host_stream(
                 resumed = true;
                 wire.extend_from_slice(b"M602\n");
                 in_flight += 1;
+                resume_sent_us = Some(h.now_us);
+            } else if line.starts_with("//action:resume") {
+                resume_sent_us = None;
             }
+        }
+        // An unnumbered line the wire corrupts is gone (nothing can ask for it again): the
+        // user, seeing no resume, presses the button again.
+        if let Some(t) = resume_sent_us {
+            if h.now_us - t > USER_RETRY_US {
+                wire.extend_from_slice(b"M602\n");
+                in_flight += 1;
+                resume_sent_us = Some(h.now_us);
+            }
+        }
+        // A line whose line end the wire lost is never answered (the printer cannot know it
+        // ended; Marlin waits the same way). OctoPrint's answer to silence while printing
+        // (`_handle_timeout`, after its communication timeout, 30 s by default) is an `M105`
+        // to trigger a response: it completes the broken line, which then fails its checksum
+        // and is resent. printcore has no such timeout and would wait for ever. The firmware
+        // sends `busy:` every 2 s while it holds a line, so only real silence times out.
+        if in_flight > 0 && wire.is_empty() && h.now_us - heard_us > HOST_TIMEOUT_US {
+            wire.extend_from_slice(b"M105\n");
+            heard_us = h.now_us;
         }
         if next > lines.len() && in_flight == 0 && wire.is_empty() && h.p.next_step_ns().is_none() {
             let st = h.p.status().state;
@@ -353,8 +392,14 @@ pub fn host_stream(
     }
     assert!(
         h.now_us < limit,
-        "host stream did not finish: {:?}",
-        h.p.status().state
+        "host stream did not finish: {:?}, next line {next} of {}, {in_flight} in flight, \
+         {} bytes on the wire; output tail: {:?}",
+        h.p.status().state,
+        lines.len(),
+        wire.len(),
+        h.out[0]
+            .get(h.out[0].len().saturating_sub(600)..)
+            .unwrap_or("")
     );
     h.executed
 }
@@ -493,6 +538,75 @@ pub fn run_host_stream(data: &[u8]) {
         job.push(format!("G1 X{x} Y{y} E{:.2} F9000", 0.5 * (i + 1) as f32));
     }
     let clean = host_stream(&job, pause_at, &[], &[64]);
+    // Every G1 of the job is a move that executes (the Z moves included).
+    assert!(
+        clean.len() > n,
+        "clean run executed {} moves of {}",
+        clean.len(),
+        n + 2
+    );
     let noisy = host_stream(&job, pause_at, &noise, &chunks);
     assert_eq!(noisy, clean, "noise changed the executed moves");
+}
+
+/// The `parse_stream` target: arbitrary bytes through the whole front end (host link → parser →
+/// emitter round trip → machine state and layer detection). The first byte picks the chunk
+/// size. Panics when an invariant breaks: at most `LINE_QUEUE` lines waiting, no line over
+/// `LINE_CAP`, emitted commands parse back to themselves, a refused line leaves the interpreter
+/// unchanged, an arc ends exactly at the commanded position, output is ASCII.
+pub fn run_parse_stream(data: &[u8]) {
+    use std::fmt::Write;
+    let cfg = MachineConfig::ENDER3;
+    let mut link = HostLink::new();
+    let mut it = Interpreter::new(&cfg);
+    let chunk = usize::from(data.first().copied().unwrap_or(1)).max(1);
+    for piece in data.chunks(chunk) {
+        let _ = link.receive(piece);
+        assert!(link.lines_waiting() <= LINE_QUEUE);
+        while link.take_realtime().is_some() {}
+        while let Some(line) = link.pop_line() {
+            assert!(line.text().len() <= LINE_CAP);
+            if let Ok(parsed) = parse_line(line.text()) {
+                if let Some(cmd) = &parsed.command {
+                    // Emit and parse again: the same command.
+                    let mut s = String::new();
+                    write!(s, "{cmd}").unwrap();
+                    let again = parse_line(s.as_bytes()).map(|l| l.command);
+                    assert_eq!(again, Ok(Some(cmd.clone())), "{s:?}");
+                }
+                let saved = it;
+                match it.line(&parsed, &cfg) {
+                    Err(_) => assert_eq!(it, saved),
+                    Ok(step) => {
+                        if let Action::Arc(arc) = step.action {
+                            let end = arc.last().map(|r| r.target);
+                            assert_eq!(end, Some(it.machine.position_steps(&cfg)));
+                        }
+                    }
+                }
+            }
+            link.respond(Response::Ok);
+        }
+        let mut out = String::new();
+        link.write_output(&mut out).unwrap();
+        assert!(out.is_ascii());
+    }
+    // Every line of the raw input parses or errors cleanly too (file path of host tools).
+    for l in data.split(|&b| b == b'\n') {
+        let _ = parse_line(l);
+    }
+}
+
+/// The fuzz targets, by name (`fuzz_targets/<name>.rs`, `seeds/<name>/`, `finds/<name>/`).
+pub const TARGETS: [&str; 3] = ["parse_stream", "executive", "host_stream"];
+
+/// Run one input through the named target's checks (the regression test replays the committed
+/// inputs with this).
+pub fn run_target(target: &str, data: &[u8]) {
+    match target {
+        "parse_stream" => run_parse_stream(data),
+        "executive" => run_executive(data),
+        "host_stream" => run_host_stream(data),
+        other => panic!("unknown fuzz target {other}"),
+    }
 }

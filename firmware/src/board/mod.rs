@@ -10,7 +10,8 @@
 //! * [`heaters`] — thermistor sampling, software PWM, hot-end fan;
 //! * [`safety`] — heaters, drivers and their power off from any context (panic, HardFault),
 //!   and the last words on the TFT UART;
-//! * [`tmc`] — the TMC2209 UART lines.
+//! * [`tmc`] — the TMC2209 UART lines;
+//! * [`sd`] — the micro-SD slot on SDIO, for SD printing.
 
 pub mod clock;
 pub mod flash;
@@ -18,5 +19,7 @@ pub use firmware::drivers;
 pub mod heaters;
 pub mod pins;
 pub mod safety;
+// The micro-SD slot (SDIO) for SD printing.
+pub mod sd;
 pub mod stepper;
 pub mod tmc;

@@ -49,6 +49,9 @@ pub use driver::DriverCommand;
 // Power-cut resume (M1000, M1000 C): parse and emit.
 mod recovery;
 pub use recovery::RecoveryCommand;
+// SD-card M-codes (M20 M21 M22 M23 M26 M27 S/C M32): parse and emit.
+mod sd;
+pub use sd::{SdCommand, MAX_SD_REPORT_S};
 
 use crate::motion::{Axis, AXES};
 use core::fmt;
@@ -390,6 +393,8 @@ pub enum Command {
     Driver(DriverCommand),
     /// Power-cut resume: M1000, M1000 C (see [`RecoveryCommand`]).
     Recovery(RecoveryCommand),
+    /// SD card: M20, M21, M22, M23, M26, M27 S/C and M32 (see [`SdCommand`]).
+    Sd(SdCommand),
     /// Any other G/M code or extended command: its text (comment stripped), for
     /// `echo:Unknown command: "<text>"`.
     Unknown(Text),
@@ -797,6 +802,13 @@ fn parse_classic<'a>(
     let code_end = i;
     let cmd_code = (letter, num as u16);
     if !sub {
+        if let (b'M', n) = cmd_code {
+            if sd::is_name_code(n) {
+                let (code, semi) = split_comment(line);
+                let text = parse_text(code, code_end)?;
+                return Ok((Command::Sd(sd::build_name(n, text, code_end)?), semi));
+            }
+        }
         if let (b'M', 117 | 118) = cmd_code {
             let (code, semi) = split_comment(line);
             let text = parse_text(code, code_end)?;
@@ -1239,6 +1251,7 @@ fn build_known(code: (u8, u16), w: &Words<'_>) -> Option<Result<Command, ParseEr
                 Command::ReportEndstops
             }
             (b'M', n) if settings::is_settings_code(n) => Command::Settings(settings::build(n, w)?),
+            (b'M', n) if sd::is_sd_code(n, w) => Command::Sd(sd::build(n, w)?),
             (b'M', n) if report::is_report_code(n) => Command::Report(report::build(n, w)?),
             (b'M', n) if driver::is_driver_code(n) => Command::Driver(driver::build(n, w)?),
             (b'M', n) if recovery::is_recovery_code(n) => Command::Recovery(recovery::build(w)?),

@@ -43,7 +43,7 @@ pub(super) fn build(n: u16, w: &Words<'_>) -> Result<ReportCommand, ParseError> 
             ReportCommand::PrintTime
         }
         _ => {
-            // Marlin's M27 S<s> (SD status auto-report) and C (file name) need an SD card.
+            // M27 S<s> (SD status auto-report) and C (file name) are SD commands (gcode/sd.rs).
             w.check(b"", b"")?;
             ReportCommand::JobStatus
         }
@@ -99,7 +99,7 @@ mod tests {
             "M155 S-1",
             "M155 S1.5",
             "M113 X1",
-            "M27 S5",
+            "M27 X5",
             "M31 P1",
         ] {
             assert!(parse(text).is_err(), "{text}");

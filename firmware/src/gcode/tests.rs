@@ -117,8 +117,8 @@ fn unknown_commands() {
         Command::Unknown(Text::try_from("M862.3 P \"MK3S\"").unwrap())
     );
     assert_eq!(
-        cmd("M23 my_file.gco"),
-        Command::Unknown(Text::try_from("M23 my_file.gco").unwrap())
+        cmd("M928 my_file.gco"),
+        Command::Unknown(Text::try_from("M928 my_file.gco").unwrap())
     );
     assert_eq!(
         cmd("EXCLUDE_OBJECT_START NAME=part_1"),

@@ -98,9 +98,12 @@
 //! ```
 
 mod assemble;
+// Lines read from a file (the SD card), by the same assembler rules.
+mod file;
 mod ports;
 mod response;
 
+pub use file::{FileLine, FileLines};
 pub use ports::{HostPorts, PortId, PORTS};
 
 pub use response::{
@@ -193,6 +196,11 @@ pub struct ReceivedLine {
 }
 
 impl ReceivedLine {
+    /// A line without a line number (a line read from a file).
+    pub(super) fn unnumbered(text: Vec<u8, LINE_CAP>) -> Self {
+        Self { text, number: None }
+    }
+
     /// The command text (line number and checksum stripped, surrounding spaces trimmed).
     pub fn text(&self) -> &[u8] {
         &self.text

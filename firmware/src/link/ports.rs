@@ -50,6 +50,9 @@ pub struct HostPorts {
     request_port: Option<PortId>,
     /// The port `pop_line` tries first, so one busy port cannot starve the other.
     next: usize,
+    /// The line being handled was read from a file (the SD card): see
+    /// [`HostPorts::answer_file`].
+    file: bool,
 }
 
 impl HostPorts {
@@ -60,6 +63,7 @@ impl HostPorts {
             line_port: None,
             request_port: None,
             next: 0,
+            file: false,
         }
     }
 
@@ -114,6 +118,7 @@ impl HostPorts {
                 self.next = (i + 1) % PORTS;
                 self.line_port = Some(p);
                 self.request_port = None;
+                self.file = false;
                 return Some(l);
             }
         }
@@ -124,6 +129,25 @@ impl HostPorts {
     /// handled): for a line the executive kept waiting for room and takes up now.
     pub fn answer_line_port(&mut self) {
         self.request_port = None;
+        self.file = false;
+    }
+
+    /// The lines handled from now on (until the next host line) come from a file on the SD
+    /// card, as in Marlin: their `ok` goes nowhere, anything else they say goes to every
+    /// port. Answers to realtime requests still go to the port that sent them.
+    pub fn answer_file(&mut self) {
+        self.request_port = None;
+        self.file = true;
+    }
+
+    /// Answer port `p` (a deferred answer: the card's file list goes to the port that asked).
+    pub fn respond_on(&mut self, p: PortId, r: Response<'_>) -> bool {
+        self.port_mut(p).respond(r)
+    }
+
+    /// Free output bytes of port `p`.
+    pub fn output_free_on(&self, p: PortId) -> usize {
+        self.port(p).output_free()
     }
 
     /// Free output bytes of the port the last line came from (its answer goes there).
@@ -144,6 +168,18 @@ impl HostPorts {
 
     /// Answer the port that asked (see the type documentation).
     pub fn respond(&mut self, r: Response<'_>) -> bool {
+        if self.file && self.request_port.is_none() {
+            match r {
+                Response::Ok => {}
+                // M105 in a file: the report without the `ok` a host would count.
+                Response::Temperatures { report, .. } => self.notify(Response::Temperatures {
+                    report,
+                    with_ok: false,
+                }),
+                r => self.notify(r),
+            }
+            return true;
+        }
         let p = self.reply_port();
         self.port_mut(p).respond(r)
     }

@@ -31,14 +31,14 @@ pub const CAPABILITIES: &[(&str, bool)] = &[
     ("EMERGENCY_PARSER", true),
     ("HOST_ACTION_COMMANDS", true),
     ("PROMPT_SUPPORT", false),
-    ("SDCARD", false),
-    ("AUTOREPORT_SD_STATUS", false),
+    ("SDCARD", true),
+    ("AUTOREPORT_SD_STATUS", true),
     ("THERMAL_PROTECTION", true),
     ("MOTION_MODES", false),
     ("ARCS", true),
     ("BABYSTEPPING", false),
     ("CHAMBER_TEMPERATURE", false),
-    ("EXTENDED_M20", false),
+    ("EXTENDED_M20", true),
     // Firmware-specific: M760 pause parameters, M761 scheduled pause, layer-boundary pause.
     ("PAUSE_AT_LAYER", true),
 ];
@@ -112,6 +112,9 @@ pub enum Response<'a> {
     LineError(&'a str, u32),
     /// `echo:<text>`.
     Echo(&'a str),
+    /// `<text>` as it is: Marlin's SD-card messages (`Begin file list`, `File opened: …`,
+    /// `SD printing byte …`, `Done printing file`) carry no `echo:` prefix.
+    Plain(&'a str),
     /// `echo:Unknown command: "<text>"`.
     UnknownCommand(&'a str),
     /// `busy: processing` (keep-alive during long waits, about every 2 s).
@@ -149,6 +152,7 @@ impl fmt::Display for Response<'_> {
             Response::Error(t) => write!(f, "Error:{t}"),
             Response::LineError(t, n) => write!(f, "Error:{t}, Last Line: {n}"),
             Response::Echo(t) => write!(f, "echo:{t}"),
+            Response::Plain(t) => f.write_str(t),
             Response::UnknownCommand(t) => write!(f, "echo:Unknown command: \"{t}\""),
             Response::Busy => f.write_str("busy: processing"),
             Response::BusyPaused => f.write_str("busy: paused for user"),

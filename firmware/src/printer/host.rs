@@ -10,9 +10,21 @@ use crate::link::{ReceivedLine, Response};
 
 use crate::machine::Action;
 use crate::printer::service::ServiceMove;
-use crate::printer::CMD_CAPACITY;
+use crate::printer::{CMD_CAPACITY, CMD_SLOTS};
 use core::fmt::Write as _;
 use heapless::String;
+
+/// Job lines a parked printer takes beyond the running queue limit ([`CMD_CAPACITY`]), one
+/// per pace period, so that a host that keeps streaming one numbered line per `ok` into a
+/// parked printer (printcore: it ignores `//action:paused`) keeps getting `ok`s, and with each
+/// `ok` its priority queue (`send_now`: M602, M524, M105, jogs) gets out. Bounded, as any
+/// buffer: see docs/frontend.md, "Host rules", for why no firmware can do this for ever.
+pub const PARKED_EXTRA: usize = 96;
+
+/// Pace of the parked intake: a job line that has waited this long while parked is taken
+/// (and its `ok` sent); the period grows by this much for every 32 lines taken, so the
+/// intake lasts 32 × (1 + 2 + 3) s = 192 s of pause with `ok`s at most 3 s apart.
+pub const PARKED_PACE_US: u64 = 1_000_000;
 
 /// After a cancel, the host may still stream the rest of the job (printcore ignores
 /// `//action:cancel`; lines were in flight): those lines are discarded (answered `ok`, never
@@ -46,6 +58,8 @@ pub(super) struct HostLines {
     pub(super) sync_ok_owed: bool,
     /// When the last `busy:` keep-alive went out, µs.
     pub(super) last_busy_us: u64,
+    /// When `held_line` started to wait, µs (the parked intake's pace counts from it).
+    pub(super) held_since_us: u64,
 }
 
 impl Printer {
@@ -76,10 +90,33 @@ impl Printer {
 
     /// Room for one more host line: the policy's limit on waiting commands (layer marks do not
     /// count) less the pause's reserve, and physical room for a mark plus a command.
-    fn line_room(&self) -> bool {
+    pub(super) fn line_room(&self) -> bool {
         let reserve = self.reserved_lines();
         self.queued_moves() + reserve < self.policy.cmd_limit.clamp(1, CMD_CAPACITY)
             && self.cmds.len() + 2 + reserve <= CMD_CAPACITY
+    }
+
+    /// Commands queued beyond the running limit (lines the parked intake took).
+    fn parked_excess(&self) -> usize {
+        self.queued_moves()
+            .saturating_sub(self.policy.cmd_limit.clamp(1, CMD_CAPACITY))
+    }
+
+    /// Whether the job line waiting in `held_line` is due for the parked intake: parked, room
+    /// in the extra slots, and it has waited the pace ([`PARKED_PACE_US`], longer as the
+    /// extra slots fill). Then it is taken and answered `ok`, and the host's next line (its
+    /// priority line, or its next job line, which waits the next pace) follows.
+    fn parked_intake_due(&self) -> bool {
+        let pace_us = PARKED_PACE_US * (1 + (self.parked_excess() / 32) as u64);
+        matches!(self.pause, Pause::Parked { .. })
+            && self.cmds.len() + 2 <= CMD_SLOTS
+            && self.now_us.saturating_sub(self.lines.held_since_us) >= pace_us
+    }
+
+    /// Whether a host line waiting for room should get `busy:` keep-alives: while a pause
+    /// holds the queue, and while the lines the parked intake took drain after the resume.
+    fn host_kept_waiting(&self) -> bool {
+        !matches!(self.pause, Pause::Run) || self.parked_excess() > 0
     }
 
     /// Whether a host line taken now is a manual command (while parked, see [`PausedLines`]).
@@ -116,23 +153,28 @@ impl Printer {
             if self.arc.is_some() {
                 self.push_arc();
                 if self.arc.is_some() {
+                    if self.host_kept_waiting() {
+                        self.keep_alive();
+                    }
                     return;
                 }
                 self.link.respond(Response::Ok);
             }
-            if self.lines.sync_ok_owed {
-                // M400 is waiting for the motion to end: the next line waits too.
+            if self.lines.sync_ok_owed || self.sd_request_pending() {
+                // M400 is waiting for the motion to end, or an SD command for the card: the
+                // next line waits too.
                 return;
             }
+            let from_held = self.lines.held_line.is_some();
             if let Some(held) = &self.lines.held_line {
                 // Known to need room: wait for it without parsing again.
                 let fits = if self.is_manual(held) {
                     !self.service.is_full()
                 } else {
-                    self.line_room()
+                    self.line_room() || self.parked_intake_due()
                 };
                 if !fits {
-                    if !matches!(self.pause, Pause::Run) {
+                    if self.host_kept_waiting() {
                         self.keep_alive();
                     }
                     return;
@@ -157,7 +199,7 @@ impl Printer {
             let fits = if manual {
                 !self.service.is_full()
             } else {
-                self.line_room()
+                self.line_room() || (from_held && self.parked_intake_due())
             };
             if !fits {
                 if answered_without_room(&line) {
@@ -165,7 +207,8 @@ impl Printer {
                     continue;
                 }
                 self.lines.held_line = Some(line);
-                if !matches!(self.pause, Pause::Run) {
+                self.lines.held_since_us = self.now_us;
+                if self.host_kept_waiting() {
                     // A pause holds the queue: keep the host from timing out.
                     self.keep_alive();
                 }
@@ -282,7 +325,7 @@ impl Printer {
         self.link.respond(Response::Echo(&t));
     }
 
-    fn handle_line(&mut self, line: &ReceivedLine, manual: bool) {
+    pub(super) fn handle_line(&mut self, line: &ReceivedLine, manual: bool) {
         let parsed = match line.parse() {
             Ok(l) => l,
             Err(e) => {

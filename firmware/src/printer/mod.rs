@@ -34,6 +34,7 @@ mod types;
 
 pub use guards::{ExtrusionGuard, Refusal};
 use host::{AfterCancel, HostLines};
+pub use host::{PARKED_EXTRA, PARKED_PACE_US};
 use state::Pause;
 
 pub use types::{Command, PausedLines, Policy, Record, Schedule, State, Status, StepperRequest};
@@ -49,6 +50,9 @@ mod drivers;
 pub use drivers::{DriverRequest, DRIVER_REQ_CAPACITY};
 // Reports hosts expect (temperatures during heater waits, M155, M113, M73, M31, M27).
 mod report;
+// SD-card printing: the SD M-codes and the card as a job source.
+mod sd;
+pub use sd::{SD_CHUNK, SD_LINES_PER_SERVICE};
 
 pub use service::ServiceMove;
 
@@ -65,6 +69,10 @@ use heapless::{Deque, String};
 
 /// Command queue capacity (commands after parsing; each ≈ 32 B).
 pub const CMD_CAPACITY: usize = 32;
+/// Physical slots of the command queue: [`CMD_CAPACITY`] for the running job plus the parked
+/// intake ([`PARKED_EXTRA`], host.rs: job lines a parked printer takes, paced, so that a
+/// one-line-per-`ok` host that streams on still gets `ok`s for its priority lines).
+pub const CMD_SLOTS: usize = CMD_CAPACITY + PARKED_EXTRA;
 /// Stepper-driver requests kept until the board takes them.
 pub const STEPPER_REQ_CAPACITY: usize = 4;
 /// Execution records kept until the driver takes them.
@@ -83,7 +91,7 @@ pub struct Printer {
     policy: Policy,
     planner: Planner,
     stepgen: StepGen,
-    cmds: Deque<Command, CMD_CAPACITY>,
+    cmds: Deque<Command, CMD_SLOTS>,
     service: Deque<ServiceMove, { service::SERVICE_CAPACITY }>,
     /// The pause machine: every pause, cancel and halt state with its data.
     pause: Pause,
@@ -126,6 +134,8 @@ pub struct Printer {
     reports: report::Reports,
     /// Boundaries of the host stream and the paused-job record's requests (see `job.rs`).
     job: job::JobLink,
+    /// The SD card's job and the commands waiting for the card (see `sd.rs`).
+    sd: sd::SdLink,
 }
 
 fn steps(cfg: &MachineConfig, axis: Axis, mm: f32) -> i32 {
@@ -179,6 +189,7 @@ impl Printer {
             settings: settings::SettingsLink::new(),
             reports: report::Reports::new(),
             job: job::JobLink::new(),
+            sd: sd::SdLink::new(),
         };
         p.set_policy(policy);
         p.set_factory_settings();
@@ -428,8 +439,20 @@ impl Printer {
         self.retire_finished();
         match req {
             Realtime::Pause(mode) => self.request_pause(mode),
-            Realtime::Resume => self.request_resume(),
-            Realtime::Cancel => self.request_cancel(),
+            Realtime::Resume => {
+                // M24 starts a selected SD file when there is no pause to resume.
+                if !self.sd_start_on_resume() {
+                    self.request_resume()
+                }
+            }
+            Realtime::Cancel => {
+                let sd = self.sd_cancel();
+                self.request_cancel();
+                if sd {
+                    // The host's stream was not the job: nothing of it is to be discarded.
+                    self.lines.after_cancel = None;
+                }
+            }
             Realtime::EmergencyStop => self.emergency_stop(),
             Realtime::QuickStop => self.quick_stop(),
             Realtime::BreakWait => {

@@ -167,7 +167,9 @@ impl Printer {
                 self.say(format_args!("Print time: {}", Duration(s)));
             }
             ReportCommand::JobStatus => {
-                self.say(format_args!("Not SD printing"));
+                if !self.sd_status() {
+                    self.say(format_args!("Not SD printing"));
+                }
                 let state = match self.state() {
                     State::Idle => "idle",
                     State::Printing => "printing",

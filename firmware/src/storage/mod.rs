@@ -11,6 +11,8 @@
 mod flash;
 mod job;
 mod record;
+// SD-card printing: the FAT job source (embedded-sdmmc).
+pub mod sd;
 mod store;
 
 pub use flash::{block_on, Blocking, Cut, FlashOp, ModelError, NorFlashModel};

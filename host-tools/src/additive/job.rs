@@ -311,8 +311,8 @@ impl Default for Speeds {
 
 /// The job as a design-compiler model (strings of cross-section `line width × layer height`),
 /// ready for the shared G-code writer. Layer markers carry the height along the face normal.
-pub fn to_model(job: &Job, p: &JobParams, speeds: &Speeds) -> crate::model::Model {
-    use crate::model::{MarkerKind, Model, Step, Str};
+pub fn to_model(job: &Job, p: &JobParams, speeds: &Speeds) -> crate::design::model::Model {
+    use crate::design::model::{MarkerKind, Model, Step, Str};
     let mut m = Model::new([job.frame.origin.x, job.frame.origin.y]);
     m.push(Step::Comment(format!(
         "additive job on base face {} (tilt {:.2} deg), frame origin {:.3},{:.3},{:.3} normal {:.4},{:.4},{:.4}",

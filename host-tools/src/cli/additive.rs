@@ -8,8 +8,8 @@ use crate::additive::job::{
     check, plan, to_model, FaceChoice, JobParams, Speeds, MAX_LAYERS, MAX_WALLS,
 };
 use crate::additive::stl::read_stl;
-use crate::profile::Profile;
-use crate::writer::{GcodeWriter, WriteOptions};
+use crate::design::profile::Profile;
+use crate::design::writer::{GcodeWriter, WriteOptions};
 use glam::{DVec2, DVec3};
 use std::path::PathBuf;
 

@@ -3,11 +3,11 @@
 //! parser, writes it with [`crate::fileio::write_output`] (never replacing a link or a device)
 //! and prints a summary with the estimated print time.
 
-use crate::checks::{self, CheckOptions};
-use crate::motion::{plan_gcode, MotionLimits};
-use crate::profile::Profile;
-use crate::script::{Limits, ScriptRunner};
-use crate::writer::{GcodeWriter, WriteOptions};
+use crate::design::checks::{self, CheckOptions};
+use crate::design::motion::{plan_gcode, MotionLimits};
+use crate::design::profile::Profile;
+use crate::design::script::{Limits, ScriptRunner};
+use crate::design::writer::{GcodeWriter, WriteOptions};
 use std::path::PathBuf;
 
 /// Arguments of `host-tools compile`.

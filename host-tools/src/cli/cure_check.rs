@@ -1,9 +1,9 @@
 //! `host-tools cure-check`: flag spots laid on material that has not cured long enough.
 
-use crate::cure::{check, heat_map_svg, summary, CureParams};
-use crate::motion::{MotionLimits, Trajectory};
-use crate::profile::Profile;
-use crate::timebased::{is_timebased, read_timebased, TimedPath};
+use crate::design::motion::{MotionLimits, Trajectory};
+use crate::design::profile::Profile;
+use crate::paste::cure::{check, heat_map_svg, summary, CureParams};
+use crate::paste::timebased::{is_timebased, read_timebased, TimedPath};
 use std::io::Write;
 use std::path::PathBuf;
 

@@ -1,12 +1,12 @@
 //! `host-tools grow`: differential growth filling a region with one continuous stroke.
 
 use super::range::{count, within, LAYER_MM, LINE_WIDTH_MM, SIZE_MM, SPEED_MM_S};
-use crate::grow::{
+use crate::design::profile::Profile;
+use crate::design::writer::{GcodeWriter, WriteOptions};
+use crate::paste::grow::{
     builtin_boundary, grow, read_boundary, to_model, verify_simple, Boundary, GrowParams,
     StackParams,
 };
-use crate::profile::Profile;
-use crate::writer::{GcodeWriter, WriteOptions};
 use anyhow::Context;
 use glam::DVec2;
 use std::path::PathBuf;

@@ -15,8 +15,8 @@ pub mod timebased;
 /// number within its range, every line valid. Generated G-code that fails is a bug or an input
 /// beyond the limits; it is refused before anything is written.
 pub(crate) fn check_readable(gcode: &[u8]) -> anyhow::Result<()> {
-    use crate::gcode_read::GcodeReader as _;
-    crate::gcode_read::default_reader()
+    use crate::job::read::GcodeReader as _;
+    crate::job::read::default_reader()
         .read(gcode, &mut |_| {})
         .map_err(|e| {
             anyhow::anyhow!("the generated G-code would not be readable ({e}); nothing written")
@@ -28,22 +28,22 @@ pub(crate) fn check_readable(gcode: &[u8]) -> anyhow::Result<()> {
 /// [`crate::fileio::write_output`]), then, if asked, render a preview of the G-code to
 /// `preview` (the commands that generate jobs share this last step).
 pub(crate) fn write_gcode(
-    writer: &crate::writer::GcodeWriter,
-    model: &crate::model::Model,
+    writer: &crate::design::writer::GcodeWriter,
+    model: &crate::design::model::Model,
     output: &std::path::Path,
     preview: Option<&std::path::Path>,
-    profile: &crate::profile::Profile,
-) -> anyhow::Result<crate::writer::WriteSummary> {
+    profile: &crate::design::profile::Profile,
+) -> anyhow::Result<crate::design::writer::WriteSummary> {
     let mut buf = Vec::new();
     let summary = writer.write_into(model, &mut buf)?;
     check_readable(&buf)?;
     crate::fileio::write_bytes(output, &buf)?;
     if let Some(pv) = preview {
-        crate::preview::render(
+        crate::job::preview::render(
             &buf,
             profile,
             pv,
-            &crate::preview::PreviewOptions::default(),
+            &crate::job::preview::PreviewOptions::default(),
         )?;
     }
     Ok(summary)

@@ -1,8 +1,8 @@
 //! `host-tools preview FILE.gcode -o OUT.svg|OUT.png`: top, side and isometric views coloured
 //! by speed or cross-section, with the bed outline.
 
-use crate::preview::{render, ColorBy, PreviewOptions};
-use crate::profile::Profile;
+use crate::design::profile::Profile;
+use crate::job::preview::{render, ColorBy, PreviewOptions};
 use anyhow::Context;
 use std::path::PathBuf;
 

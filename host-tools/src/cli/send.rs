@@ -13,10 +13,10 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
 
+use crate::job::sender::fallback::HostPause;
+use crate::job::sender::tui::{fmt_duration, Snapshot, Tui, UiAction};
+use crate::job::sender::{Event, Options, PauseMethod, Request, Session, State};
 use crate::job::{ops, Job};
-use crate::sender::fallback::HostPause;
-use crate::sender::tui::{fmt_duration, Snapshot, Tui, UiAction};
-use crate::sender::{Event, Options, PauseMethod, Request, Session, State};
 
 /// Pause method choice on the command line.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]

@@ -1,8 +1,8 @@
 //! `host-tools stats FILE.gcode [--json] [--printer PROFILE]`: layers (or turns), moves,
 //! acceleration-aware print time, filament, bounding box and time per layer.
 
-use crate::profile::Profile;
-use crate::stats::{hms, stats};
+use crate::design::profile::Profile;
+use crate::job::stats::{hms, stats};
 use std::fmt::Write as _;
 use std::io::Write as _;
 use std::path::PathBuf;

@@ -1,8 +1,8 @@
 //! `host-tools timebased`: resample a toolpath at a fixed period (time-based G-code).
 
-use crate::motion::{MotionLimits, Trajectory};
-use crate::profile::Profile;
-use crate::timebased::{first_temperatures, with_start_end, write_timebased, TimedPath};
+use crate::design::motion::{MotionLimits, Trajectory};
+use crate::design::profile::Profile;
+use crate::paste::timebased::{first_temperatures, with_start_end, write_timebased, TimedPath};
 use std::path::PathBuf;
 
 /// Arguments of `host-tools timebased`.

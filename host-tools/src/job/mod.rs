@@ -1,4 +1,6 @@
-//! The job model of SPEC §1: start code (heating, homing), main code as a list of layers (each a
+//! G-code jobs: reading them with the firmware's parser ([`read`]), their statistics
+//! ([`stats`]), the preview ([`preview`]) and the interactive sender ([`sender`]); and the job
+//! model of SPEC §1: start code (heating, homing), main code as a list of layers (each a
 //! list of commands) and end code (cooling, park). Built from any slicer's G-code with the
 //! firmware's own parser and layer detector ([`gcode`]), and from our compiled designs (their
 //! writer emits layer/turn markers the same detector reads). Operations that edit the rest of a
@@ -7,6 +9,10 @@
 pub mod gcode;
 pub mod modal;
 pub mod ops;
+pub mod preview;
+pub mod read;
+pub mod sender;
+pub mod stats;
 
 use firmware::motion::LayerSource;
 use modal::Modal;

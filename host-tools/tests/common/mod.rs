@@ -6,7 +6,7 @@ use std::collections::VecDeque;
 use std::io::{Read, Write};
 use std::time::Duration;
 
-use host_tools::sender::Session;
+use host_tools::job::sender::Session;
 
 /// Append written bytes to `inbuf` and return the lines they complete (without the `\n`); a
 /// partial line stays in `inbuf` for the next write.

@@ -9,11 +9,11 @@
 //! - Arc strings become `G2`/`G3` (with `Z` for helical arcs).
 //! - Markers become `;LAYER_CHANGE`, `;Z:`, `;HEIGHT:` — once per helix turn for layer-free
 //!   prints, so a layer pause stops at a turn boundary. `;TYPE:` for feature types.
-//! - Emission thinning ([`crate::model::EmissionHints`]) merges short consecutive strings,
+//! - Emission thinning ([`crate::design::model::EmissionHints`]) merges short consecutive strings,
 //!   keeping their volume and time (the globe's poles).
 
-use crate::model::{Model, StateChange, Step, Str};
-use crate::profile::{filament_area_mm2, EMode, Profile};
+use crate::design::model::{Model, StateChange, Step, Str};
+use crate::design::profile::{filament_area_mm2, EMode, Profile};
 use glam::DVec3;
 use std::io::Write;
 

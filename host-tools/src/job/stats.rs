@@ -1,5 +1,5 @@
 //! Statistics of a G-code job: layers (or turns), moves, an acceleration-aware print time
-//! (the [`crate::motion`] model with the profile's limits), filament length/volume/mass,
+//! (the [`crate::design::motion`] model with the profile's limits), filament length/volume/mass,
 //! bounding box of the printed material and time per layer.
 //!
 //! Layers are the firmware's ([`firmware::layer::LayerDetector`] through the reader): the
@@ -8,9 +8,9 @@
 //! any, a layer whenever Z has risen before an extruding move — the same boundaries the
 //! printer's layer pause stops at.
 
-use crate::gcode_read::{default_reader, BadLines, ReadError};
-use crate::motion::{plan_gcode_with, MotionLimits, MoveKind, Segment};
-use crate::profile::Profile;
+use crate::design::motion::{plan_gcode_with, MotionLimits, MoveKind, Segment};
+use crate::design::profile::Profile;
+use crate::job::read::{default_reader, BadLines, ReadError};
 use serde::Serialize;
 
 /// Bounding box in JSON form.
@@ -248,7 +248,7 @@ mod tests {
         assert_eq!(s.bbox_mm.max[0], 40.0);
         assert!((s.filament_mm - 4.0).abs() < 1e-9);
         // The strict reader the writers use still refuses.
-        let strict = crate::motion::plan_gcode(
+        let strict = crate::design::motion::plan_gcode(
             g,
             MotionLimits::from_profile(&Profile::ender3()),
             &mut |_| {},

@@ -11,7 +11,7 @@
 //! as the height difference alone exceeds the best distance found: the first layer below is
 //! usually all it reads. Queries run in parallel (rayon).
 
-use crate::timebased::Sample;
+use crate::paste::timebased::Sample;
 use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 

@@ -9,9 +9,9 @@
 //! The globe ([`globe`]): a 300 × 150 equirectangular map on a sphere made from a helix of
 //! 150 turns × 300 strings, one pixel per string, thinned near the poles at emission.
 
-use crate::deform::{helix_to_sphere, DeformError};
-use crate::model::{MarkerKind, Model, Step};
-use crate::parts::Helix;
+use crate::design::deform::{helix_to_sphere, DeformError};
+use crate::design::model::{MarkerKind, Model, Step};
+use crate::design::parts::Helix;
 
 /// Default contrast (speed ratio) of the paper.
 pub const DEFAULT_CONTRAST: f64 = 1.3;
@@ -27,7 +27,7 @@ pub struct Bitmap {
 }
 
 /// The binarised world map shipped in `host-tools/assets/` (see its README for the source).
-pub const WORLD_MAP_PNG: &[u8] = include_bytes!("../assets/world_300x150.png");
+pub const WORLD_MAP_PNG: &[u8] = include_bytes!("../../assets/world_300x150.png");
 
 /// Modulation errors.
 #[derive(Debug, thiserror::Error)]
@@ -312,8 +312,17 @@ mod tests {
     #[test]
     fn cylinder_floor_does_not_shear_the_picture() {
         let per_turn = 40;
-        let m = crate::parts::cylinder([100.0, 100.0], 0.2, 10.0, 4.2, 0.4, per_turn, 0.2, 20.0)
-            .expect("cylinder");
+        let m = crate::design::parts::cylinder(
+            [100.0, 100.0],
+            0.2,
+            10.0,
+            4.2,
+            0.4,
+            per_turn,
+            0.2,
+            20.0,
+        )
+        .expect("cylinder");
         let floor = m
             .steps
             .iter()

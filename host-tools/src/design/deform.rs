@@ -14,7 +14,7 @@
 //! `fc` and `fv` receive the value and the *original* coordinates of the string's midpoint.
 //! Built-ins: [`cup_to_dish`], [`helix_to_sphere`], [`heart_dish`], [`twisted_vase`].
 
-use crate::model::{Model, Step, Str};
+use crate::design::model::{Model, Step, Str};
 use glam::DVec3;
 use std::f64::consts::PI;
 
@@ -519,11 +519,11 @@ mod tests {
 
     #[test]
     fn direct_sphere_matches_the_general_deformation() {
-        let mut h = crate::parts::Helix {
+        let mut h = crate::design::parts::Helix {
             turns: 20.0,
             per_turn: 37,
             radius_mm: 12.0,
-            ..crate::parts::Helix::default()
+            ..crate::design::parts::Helix::default()
         };
         h.center_xy = [100.0, 80.0];
         let m = h.build().expect("helix");
@@ -557,7 +557,7 @@ mod tests {
         assert!(helix_to_sphere(m.clone(), 0.0, height, 0.0, None).is_err());
         assert!(helix_to_sphere(m, r, f64::NAN, 0.0, None).is_err());
     }
-    use crate::parts::Helix;
+    use crate::design::parts::Helix;
 
     #[test]
     fn cup_to_dish_maps_points() {

@@ -2,7 +2,7 @@
 //! sample's index *is* its time (`t = index × period`).
 //!
 //! Resampling uses the acceleration-aware motion model of `stats`
-//! ([`crate::motion::Trajectory`], ht-design's), reached through the small [`TimedPath`]
+//! ([`crate::design::motion::Trajectory`], ht-design's), reached through the small [`TimedPath`]
 //! trait, so another model can be slotted in without touching the resampler or the cure check.
 //!
 //! # Output format
@@ -29,8 +29,8 @@
 //! ordinary G-code that any firmware runs at the right pace, and `cure-check` reads it back
 //! sample by sample (with the same reader as `stats`).
 
-use crate::gcode_read::{default_reader, Event, GcodeReader};
-use crate::motion::{MoveKind, Trajectory};
+use crate::design::motion::{MoveKind, Trajectory};
+use crate::job::read::{default_reader, Event, GcodeReader};
 use glam::DVec3;
 use std::fmt::Write as _;
 

@@ -112,8 +112,8 @@ pub struct Profile {
     pub gcode: GcodeTemplates,
 }
 
-const ENDER3_TOML: &str = include_str!("../profiles/ender3.toml");
-const SKR2_TOML: &str = include_str!("../profiles/skr2.toml");
+const ENDER3_TOML: &str = include_str!("../../profiles/ender3.toml");
+const SKR2_TOML: &str = include_str!("../../profiles/skr2.toml");
 
 /// Names of the built-in profiles.
 pub const BUILTIN: &[&str] = &["ender3", "skr2"];

@@ -701,8 +701,8 @@ pub struct StackParams {
 /// Stacks a closed stroke into layers as one continuous extrusion: layer 0 flat at one layer
 /// height, every later layer a spiral ramp rising one layer height over the loop (vase mode),
 /// so extrusion never stops, not even between layers. One travel reaches the start.
-pub fn to_model(nodes: &[DVec2], offset: DVec2, s: &StackParams) -> crate::model::Model {
-    use crate::model::{MarkerKind, Model, Step, Str};
+pub fn to_model(nodes: &[DVec2], offset: DVec2, s: &StackParams) -> crate::design::model::Model {
+    use crate::design::model::{MarkerKind, Model, Step, Str};
     let mut m = Model::new([offset.x, offset.y]);
     let n = nodes.len();
     if n < 2 || s.layers == 0 {

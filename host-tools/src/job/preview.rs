@@ -4,8 +4,8 @@
 //! extension. Drawn with `plotters` (SVG and bitmap back ends); the few labels use a built-in
 //! 3 × 5 pixel font, so no system font is needed.
 
-use crate::gcode_read::{default_reader, Event, GcodeReader, ReadError};
-use crate::profile::Profile;
+use crate::design::profile::Profile;
+use crate::job::read::{default_reader, Event, GcodeReader, ReadError};
 use plotters::prelude::*;
 use std::path::Path;
 

@@ -15,8 +15,8 @@
 //! Use: [`Planner::push`] moves and [`Planner::finish`], collecting segments in a closure; or
 //! [`Trajectory::from_gcode`] for the whole list in memory.
 
-use crate::gcode_read::{default_reader, Event, GcodeReader, LayerSource, Pos4, ReadError};
-use crate::profile::Profile;
+use crate::design::profile::Profile;
+use crate::job::read::{default_reader, Event, GcodeReader, LayerSource, Pos4, ReadError};
 use std::collections::VecDeque;
 
 /// Blocks planned together.
@@ -465,7 +465,7 @@ pub fn plan_gcode(
 
 /// [`plan_gcode`] with a given reader (e.g. one that skips rejected lines).
 pub fn plan_gcode_with(
-    reader: &mut crate::gcode_read::FirmwareReader,
+    reader: &mut crate::job::read::FirmwareReader,
     input: &[u8],
     limits: MotionLimits,
     out: &mut dyn FnMut(Segment),

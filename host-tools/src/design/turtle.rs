@@ -5,7 +5,7 @@
 //! back to the saved point, so a fractal tree returns to its branch points without extruding
 //! (the paper's stringing problem).
 
-use crate::model::{MarkerKind, Model, StateChange, Step, Str};
+use crate::design::model::{MarkerKind, Model, StateChange, Step, Str};
 use glam::DVec3;
 
 /// Deepest `push` nesting allowed (a runaway recursive script fails cleanly instead of

@@ -8,13 +8,13 @@
 //! See `docs/design.md` for the full list of functions; `host-tools/examples/*.rhai` use all
 //! of them.
 
-use crate::checks::{self, CheckOptions};
-use crate::deform::{self, DeformError};
-use crate::model::{MarkerKind, Model, Step, Str};
-use crate::modulate::{self, Bitmap};
-use crate::parts::{self, Helix};
-use crate::profile::Profile;
-use crate::turtle::Turtle;
+use crate::design::checks::{self, CheckOptions};
+use crate::design::deform::{self, DeformError};
+use crate::design::model::{MarkerKind, Model, Step, Str};
+use crate::design::modulate::{self, Bitmap};
+use crate::design::parts::{self, Helix};
+use crate::design::profile::Profile;
+use crate::design::turtle::Turtle;
 use glam::DVec3;
 use rhai::packages::{Package, StandardPackage};
 use rhai::{Array, Dynamic, Engine, EvalAltResult, FnPtr, Map, NativeCallContext, Position, Scope};

@@ -11,15 +11,15 @@
 //! - **travel crosses printed material** at or above the nozzle's height;
 //! - **flow above the profile's maximum** (cross-section × speed).
 //!
-//! Printed material is indexed in a uniform grid ([`crate::checks::grid`]): points sampled
+//! Printed material is indexed in a uniform grid ([`crate::design::checks::grid`]): points sampled
 //! along the strings in cubic cells of the support radius, with the highest point per XY
 //! column for the travel check; every query touches a fixed handful of cells, so the checks
 //! cost about as much as writing the G-code.
 
 mod grid;
 
-use crate::model::{Model, Step};
-use crate::profile::Profile;
+use crate::design::model::{Model, Step};
+use crate::design::profile::Profile;
 use glam::DVec3;
 use grid::Grid;
 
@@ -357,8 +357,8 @@ fn travel_check(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::deform;
-    use crate::parts::Helix;
+    use crate::design::deform;
+    use crate::design::parts::Helix;
 
     fn helix(radius_growth: f64) -> Model {
         let h = Helix {
@@ -395,7 +395,7 @@ mod tests {
     #[test]
     fn air_outside_and_flow() {
         let mut m = Model::new([0.0, 0.0]);
-        use crate::model::Str;
+        use crate::design::model::Str;
         m.push(Step::String(Str::line(
             DVec3::new(10.0, 10.0, 0.2),
             DVec3::new(20.0, 10.0, 0.2),
@@ -425,7 +425,7 @@ mod tests {
 
     #[test]
     fn travel_over_print_is_flagged() {
-        use crate::model::Str;
+        use crate::design::model::Str;
         let mut m = Model::new([0.0, 0.0]);
         m.push(Step::String(Str::line(
             DVec3::new(10.0, 10.0, 0.2),
@@ -446,7 +446,7 @@ mod tests {
     }
 
     fn line(m: &mut Model, a: [f64; 3], b: [f64; 3]) {
-        m.push(Step::String(crate::model::Str::line(
+        m.push(Step::String(crate::design::model::Str::line(
             a.into(),
             b.into(),
             0.2,

@@ -2,7 +2,7 @@
 //! (a disc bottom followed by a helix). Each returns a [`Model`] whose axis is the part's
 //! centre, with a turn marker at the start of every helix turn.
 
-use crate::model::{Arc, MarkerKind, Model, Step, Str};
+use crate::design::model::{Arc, MarkerKind, Model, Step, Str};
 use glam::DVec3;
 use std::f64::consts::TAU;
 

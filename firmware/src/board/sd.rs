@@ -1,0 +1,158 @@
+//! The SKR 2's micro-SD slot as the card of SD printing: embassy-stm32's SDMMC driver (the
+//! STM32F4's SDIO, 4-bit bus) behind embedded-sdmmc's [`BlockDevice`] trait, so the
+//! library's FAT job source ([`firmware::storage::sd::Card`]) and the executive's SD commands
+//! (`printer/sd.rs`) run on it unchanged. **Not tried on hardware.**
+//!
+//! Pins (Marlin `pins_BTT_SKR_V2_0_common.h`, `SD_CONNECTION_IS(ONBOARD)`: `SDIO_SUPPORT`,
+//! `SDIO_D0_PIN PC8`, `SDIO_D1_PIN PC9`, `SDIO_D2_PIN PC10`, `SDIO_D3_PIN PC11`,
+//! `SDIO_CK_PIN PC12`, `SDIO_CMD_PIN PD2`; the on-board slot has no card-detect pin). DMA2
+//! stream 3 (channel 4) serves SDIO (RM0090 table 43).
+//!
+//! The card is brought up (`acquire`: CMD0, CMD8, ACMD41 …) by [`sd_task`] with `.await`, so a
+//! slow or absent card never stalls the other tasks; after that, block reads for the FAT code
+//! run to completion with `embassy_futures::block_on` (embedded-sdmmc's trait is blocking): a
+//! 512-byte block at the 24 MHz bus takes well under a millisecond, and the step interrupt
+//! runs from its own queue meanwhile. A read error marks the card lost; the next M21 (or any
+//! SD command that needs the card) brings it up again.
+
+use core::cell::{Cell, RefCell};
+use embassy_executor::Spawner;
+use embassy_stm32::sdmmc::sd::{Addressable, Card as SdCard, CmdBlock, DataBlock, StorageDevice};
+use embassy_stm32::sdmmc::{self, Sdmmc};
+use embassy_stm32::time::Hertz;
+use embassy_stm32::{bind_interrupts, dma, peripherals};
+use embassy_time::Timer;
+use embedded_sdmmc::{Block, BlockCount, BlockDevice, BlockIdx};
+use firmware::printer::Printer;
+use firmware::storage::sd::Card;
+use static_cell::StaticCell;
+
+bind_interrupts!(struct Irqs {
+    SDIO => sdmmc::InterruptHandler<peripherals::SDIO>;
+    DMA2_STREAM3 => dma::InterruptHandler<peripherals::DMA2_CH3>;
+});
+
+/// SDIO bus clock once the card is up (the F4's SDIO runs up to 48 MHz / 2 in this mode).
+const BUS_HZ: u32 = 24_000_000;
+/// How often the card task serves the executive, ms.
+const POLL_MS: u64 = 2;
+
+type Device = StorageDevice<'static, 'static, SdCard>;
+
+/// The SDIO card, shared by the FAT code (blocking reads) and the card task (bring-up).
+pub struct SdioCard {
+    dev: &'static RefCell<Device>,
+    up: &'static Cell<bool>,
+}
+
+/// Why a block could not be read.
+#[derive(Clone, Copy, Debug)]
+pub enum SdioError {
+    /// The card is not up (absent, or lost after an error).
+    NotUp,
+    /// The driver is in use (a re-entrant call; never expected).
+    Busy,
+    /// The SDMMC driver failed (logged with defmt).
+    Card,
+}
+
+impl BlockDevice for SdioCard {
+    type Error = SdioError;
+
+    fn read(&self, blocks: &mut [Block], start: BlockIdx) -> Result<(), Self::Error> {
+        if !self.up.get() {
+            return Err(SdioError::NotUp);
+        }
+        let mut dev = self.dev.try_borrow_mut().map_err(|_| SdioError::Busy)?;
+        let mut data = DataBlock::new();
+        for (i, b) in blocks.iter_mut().enumerate() {
+            let idx = start.0.saturating_add(i as u32);
+            if let Err(e) = embassy_futures::block_on(dev.read_block(idx, &mut data)) {
+                defmt::warn!("SD block {=u32} not read: {}", idx, e);
+                self.up.set(false);
+                return Err(SdioError::Card);
+            }
+            b.contents.copy_from_slice(&data[..]);
+        }
+        Ok(())
+    }
+
+    fn write(&self, _blocks: &[Block], _start: BlockIdx) -> Result<(), Self::Error> {
+        // The firmware only reads the card (no M28/M928).
+        Err(SdioError::NotUp)
+    }
+
+    fn num_blocks(&self) -> Result<BlockCount, Self::Error> {
+        if !self.up.get() {
+            return Err(SdioError::NotUp);
+        }
+        let dev = self.dev.try_borrow().map_err(|_| SdioError::Busy)?;
+        Ok(BlockCount(
+            u32::try_from(dev.card().size() / 512).unwrap_or(u32::MAX),
+        ))
+    }
+}
+
+/// Take the SDIO peripheral, its pins and DMA stream, tell the executive it has a card slot,
+/// and start the card task.
+pub fn start(spawner: &Spawner, printer: &'static RefCell<Printer>) {
+    static SDMMC: StaticCell<Sdmmc<'static>> = StaticCell::new();
+    static DEV: StaticCell<RefCell<Device>> = StaticCell::new();
+    static UP: StaticCell<Cell<bool>> = StaticCell::new();
+    // SAFETY: SDIO, DMA2 stream 3 and PC8–PC12, PD2 are used nowhere else in this image
+    // (`pins::split` does not take them: see docs/board.md), so these are their only instances.
+    let sdmmc = unsafe {
+        Sdmmc::new_4bit(
+            peripherals::SDIO::steal(),
+            peripherals::DMA2_CH3::steal(),
+            Irqs,
+            peripherals::PC12::steal(),
+            peripherals::PD2::steal(),
+            peripherals::PC8::steal(),
+            peripherals::PC9::steal(),
+            peripherals::PC10::steal(),
+            peripherals::PC11::steal(),
+            sdmmc::Config::default(),
+        )
+    };
+    let sdmmc = SDMMC.init(sdmmc);
+    let dev = DEV.init(RefCell::new(StorageDevice::new_uninit_sd_card(sdmmc)));
+    let up = UP.init(Cell::new(false));
+    printer.borrow_mut().attach_card();
+    match sd_task(printer, dev, up) {
+        Ok(t) => spawner.spawn(t),
+        Err(_) => defmt::error!("SD card task could not be spawned"),
+    }
+}
+
+/// Bring the card up when the executive needs it (at power-up, M21, a command after a lost
+/// card), then serve the executive's card requests and the job's lines.
+#[embassy_executor::task]
+async fn sd_task(
+    printer: &'static RefCell<Printer>,
+    dev: &'static RefCell<Device>,
+    up: &'static Cell<bool>,
+) {
+    let mut card = Card::new(SdioCard { dev, up });
+    let mut cmd = CmdBlock::new();
+    loop {
+        Timer::after_millis(POLL_MS).await;
+        if !up.get() && printer.borrow().sd_request_pending() {
+            // Awaited, not blocked on: the other tasks run while the card answers (or not).
+            match bring_up(dev, &mut cmd).await {
+                Ok(()) => up.set(true),
+                Err(e) => defmt::warn!("SD card not up: {}", e),
+            }
+        }
+        let now_us = crate::board::clock::now_ns() / 1000;
+        printer.borrow_mut().service_card(&mut card, now_us);
+    }
+}
+
+/// Bring the card up (CMD0, CMD8, ACMD41, … at 400 kHz, then the bus at [`BUS_HZ`]).
+// The borrow spans the await: only the card task touches `dev` (the FAT code reads blocks
+// inside `service_card`, in the same task, never during a bring-up).
+#[allow(clippy::await_holding_refcell_ref)]
+async fn bring_up(dev: &RefCell<Device>, cmd: &mut CmdBlock) -> Result<(), sdmmc::Error> {
+    dev.borrow_mut().reacquire(cmd, Hertz(BUS_HZ)).await
+}

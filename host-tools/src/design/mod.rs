@@ -1,0 +1,13 @@
+//! The design compiler: a design is a model of strings (polylines with width, height, speed and
+//! state changes) built by generators, checked, and written out as G-code.
+
+pub mod checks;
+pub mod deform;
+pub mod model;
+pub mod modulate;
+pub mod motion;
+pub mod parts;
+pub mod profile;
+pub mod script;
+pub mod turtle;
+pub mod writer;

@@ -1,0 +1,6 @@
+//! Paste (clay, food, cementitious) printing: simulated growth, time-based jobs and the cure
+//! check of a job's layer times.
+
+pub mod cure;
+pub mod grow;
+pub mod timebased;

@@ -1,0 +1,230 @@
+//! `sim serve --sd DIR`: a host lists the card, selects a sliced file by its long name, starts
+//! it (M24), asks for a layer pause (M25) while it prints, resumes (M24) and sees `Done
+//! printing file`. The session's record (recorded from the executed steps, independent of the
+//! firmware's layer detector) must show the stop at the first layer boundary after the
+//! request, nothing lost or duplicated, the resume exact; and the stop position must be one
+//! where the file itself has a layer marker (found here by reading the file with a tracker of
+//! its own).
+
+use firmware::config::MachineConfig;
+use sim::run::Policy;
+use sim::serve::{serve_with, ServeArgs};
+use std::io::{Read, Write};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+const FIXTURE: &str = "prusa-zhop.gcode";
+
+struct Host {
+    dev: std::fs::File,
+    lines: mpsc::Receiver<String>,
+    seen: Vec<String>,
+}
+
+impl Host {
+    fn write(&mut self, text: &str) {
+        self.dev
+            .write_all(format!("{text}\n").as_bytes())
+            .expect("write to the pty");
+    }
+
+    /// Read lines until one satisfies `pred`; returns it.
+    fn until(&mut self, what: &str, secs: u64, pred: impl Fn(&str) -> bool) -> String {
+        let end = Instant::now() + Duration::from_secs(secs);
+        loop {
+            let left = end.saturating_duration_since(Instant::now());
+            match self.lines.recv_timeout(left) {
+                Ok(l) => {
+                    self.seen.push(l.clone());
+                    if pred(&l) {
+                        return l;
+                    }
+                }
+                Err(_) => panic!("timed out waiting for {what}; saw {:?}", self.seen),
+            }
+        }
+    }
+
+    fn ok(&mut self) {
+        self.until("ok", 30, |l| l.starts_with("ok"));
+    }
+}
+
+/// The head's XYZ (mm, machine = logical here: the file sets no XYZ offset) at every
+/// `;LAYER_CHANGE` of a PrusaSlicer file: a small tracker of its own (G90/G91, G0/G1, G28).
+fn marker_positions(gcode: &str) -> Vec<[f64; 3]> {
+    let mut pos = [0.0f64; 3];
+    let mut relative = false;
+    let mut out = Vec::new();
+    for raw in gcode.lines() {
+        if raw.trim_start().starts_with(";LAYER_CHANGE") {
+            out.push(pos);
+        }
+        let code = raw.split(';').next().unwrap_or("").trim();
+        let mut words = code.split_whitespace();
+        let Some(cmd) = words.next() else { continue };
+        let params: Vec<(char, f64)> = words
+            .filter_map(|w| {
+                let c = w.chars().next()?.to_ascii_uppercase();
+                Some((c, w[1..].parse().ok()?))
+            })
+            .collect();
+        match cmd {
+            "G90" => relative = false,
+            "G91" => relative = true,
+            "G28" => {
+                let named: Vec<usize> = params.iter().filter_map(|(c, _)| "XYZ".find(*c)).collect();
+                for (i, p) in pos.iter_mut().enumerate() {
+                    if named.is_empty() || named.contains(&i) {
+                        *p = 0.0;
+                    }
+                }
+            }
+            "G0" | "G1" => {
+                for (c, v) in params {
+                    if let Some(i) = "XYZ".find(c) {
+                        pos[i] = if relative { pos[i] + v } else { v };
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    out
+}
+
+#[test]
+fn a_host_prints_a_sliced_file_from_the_card_with_a_layer_pause() {
+    let src = format!("{}/fixtures/corpus/{FIXTURE}", env!("CARGO_MANIFEST_DIR"));
+    let gcode = std::fs::read_to_string(&src).expect("fixture");
+    let dir = std::env::temp_dir().join(format!("sim-serve-sd-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join(FIXTURE), &gcode).unwrap();
+
+    let (tx, rx) = mpsc::channel();
+    let sd = dir.clone();
+    let server = std::thread::spawn(move || {
+        serve_with(
+            ServeArgs {
+                speed: 50.0,
+                record: None,
+                policy: Policy::Firmware,
+                exit_after_idle: 1.0,
+                link: None,
+                flash: None,
+                sd: Some(sd),
+                machine: None,
+                trace: None,
+            },
+            move |p| {
+                let _ = tx.send(p.to_path_buf());
+            },
+        )
+    });
+    let path = rx
+        .recv_timeout(Duration::from_secs(20))
+        .expect("sim serve printed no device path");
+    let dev = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .open(&path)
+        .expect("open the pty");
+    let mut reader = dev.try_clone().expect("clone the pty handle");
+    let (ltx, lrx) = mpsc::channel();
+    std::thread::spawn(move || {
+        let mut buf = [0u8; 1024];
+        let mut line = Vec::new();
+        while let Ok(n) = reader.read(&mut buf) {
+            if n == 0 {
+                break;
+            }
+            for &b in &buf[..n] {
+                if b == b'\n' {
+                    let _ = ltx.send(String::from_utf8_lossy(&line).trim().to_string());
+                    line.clear();
+                } else {
+                    line.push(b);
+                }
+            }
+        }
+    });
+    let mut host = Host {
+        dev,
+        lines: lrx,
+        seen: Vec::new(),
+    };
+
+    host.write("M115");
+    host.until("Cap:SDCARD:1", 30, |l| l == "Cap:SDCARD:1");
+    host.ok();
+    host.write("M20 L");
+    host.until("the file in the list", 30, |l| {
+        l.ends_with(&format!(" {} {FIXTURE}", gcode.len()))
+    });
+    host.until("End file list", 30, |l| l == "End file list");
+    host.ok();
+    host.write(&format!("M23 {FIXTURE}"));
+    let opened = host.until("File opened", 30, |l| l.starts_with("File opened: "));
+    assert!(
+        opened.ends_with(&format!("Size: {}", gcode.len())),
+        "{opened}"
+    );
+    host.until("File selected", 30, |l| l == "File selected");
+    host.ok();
+    host.write("M27 S1");
+    host.ok();
+    host.write("M24");
+    host.ok();
+    // Ask for the layer pause once a third of the file has been read.
+    loop {
+        let l = host.until("SD progress", 120, |l| l.starts_with("SD printing byte "));
+        let (a, b) = l["SD printing byte ".len()..].split_once('/').unwrap();
+        let (a, b): (u64, u64) = (a.parse().unwrap(), b.parse().unwrap());
+        assert_eq!(b, gcode.len() as u64);
+        if a > b / 3 {
+            break;
+        }
+    }
+    host.write("M25");
+    host.until("//action:paused", 120, |l| l.contains("//action:paused"));
+    host.write("M27");
+    host.until("M27 while paused", 30, |l| {
+        l.starts_with("SD printing byte ")
+    });
+    host.write("M24");
+    host.until("Done printing file", 300, |l| l == "Done printing file");
+    drop(host);
+
+    let record = server
+        .join()
+        .expect("server thread")
+        .expect("serve session");
+    let _ = std::fs::remove_dir_all(&dir);
+    let s = &record.session;
+    assert!(s.finished && !s.cancelled, "{s:#?}");
+    assert_eq!(s.lost_moves + s.duplicated_moves, 0, "{s:#?}");
+    assert_eq!(s.layers_extruded, 10, "{s:#?}");
+    let reports = record.pauses;
+    assert_eq!(reports.len(), 1, "{reports:#?}");
+    let r = &reports[0];
+    assert_eq!(r.mode, "layer");
+    assert!(r.stopped_at_layer_boundary, "{r:#?}");
+    assert!(r.first_boundary_after_request, "{r:#?}");
+    assert_eq!(r.resume_position_error_steps, Some(0), "{r:#?}");
+    assert_eq!(r.lost_moves + r.duplicated_moves, 0, "{r:#?}");
+    // The stop is where the file has a layer marker (to the step).
+    let stop = r.pause_point_steps.expect("pause point");
+    let cfg = MachineConfig::ENDER3;
+    let markers = marker_positions(&gcode);
+    assert_eq!(markers.len(), 10);
+    let at_marker = markers.iter().position(|m| {
+        (0..3).all(|i| {
+            let want = (m[i] * f64::from(cfg.axes[i].steps_per_mm)).round() as i64;
+            (i64::from(stop[i]) - want).abs() <= 1
+        })
+    });
+    assert!(
+        at_marker.is_some_and(|k| k > 0),
+        "stop {stop:?} is at no layer marker of the file: {markers:?}"
+    );
+}
