@@ -8,6 +8,8 @@ rustup target list --installed | grep -q thumbv7em-none-eabihf || rustup target 
 need=()
 command -v qemu-system-arm >/dev/null || need+=(qemu-system-arm)
 command -v arm-none-eabi-objcopy >/dev/null || need+=(binutils-arm-none-eabi)
+# Headless browser for the 3D preview's screenshot test (host-tools/tests/preview_html.rs).
+command -v chromium >/dev/null || need+=(chromium)
 if [ ${#need[@]} -gt 0 ]; then
   echo "setup: installing ${need[*]}"
   if [ "$(id -u)" = 0 ]; then SUDO=""; else SUDO="sudo"; fi

@@ -4,10 +4,11 @@
 //! instantiates them with embassy-stm32's `Output`/`Input`.
 
 pub mod adc;
+pub mod homing_watch;
 pub mod tmc2209;
 
 use crate::motion::{PauseMode, Realtime, AXES};
-use embedded_hal::digital::{InputPin, OutputPin};
+use embedded_hal::digital::OutputPin;
 
 /// STEP/DIR/EN outputs of the four stepper drivers (STEP/DIR mode, EN active low).
 pub struct StepperPins<P: OutputPin> {
@@ -135,6 +136,19 @@ impl<P: OutputPin> StepExecutor<P> {
         }
     }
 
+    /// Follow the executive's homed axes: `homed` = `Printer::homed_axes`, `fresh` =
+    /// `Printer::take_homed` (axes set to their minimum, `home_steps`, since last asked: their
+    /// position here is set to it). An axis no longer homed (drivers off) is refused again
+    /// until the next G28.
+    pub fn set_homed(&mut self, homed: u8, fresh: u8, home_steps: [i32; 3]) {
+        for (i, home) in home_steps.into_iter().enumerate() {
+            if fresh & (1 << i) != 0 {
+                self.pos[i] = home;
+            }
+        }
+        self.homed = homed & 0b111;
+    }
+
     /// Executes one event: the axes in `axis_mask` step in the directions of `dir_mask`
     /// (bit set = positive), X/Y/Z only if homed and inside the limits. Returns the axes that
     /// stepped.
@@ -144,7 +158,7 @@ impl<P: OutputPin> StepExecutor<P> {
         dir_mask: u8,
         dir_setup_ns: u32,
         pulse_ns: u32,
-        mut delay_ns: impl FnMut(u32),
+        delay_ns: impl FnMut(u32),
     ) -> u8 {
         let mut mask = axis_mask & 0x0F;
         for axis in 0..3 {
@@ -164,6 +178,32 @@ impl<P: OutputPin> StepExecutor<P> {
                 self.refused = self.refused.saturating_add(1);
             }
         }
+        self.pulse(mask, dir_mask, dir_setup_ns, pulse_ns, delay_ns)
+    }
+
+    /// Executes one event of a homing move: like [`StepExecutor::fire`] but allowed on axes
+    /// not homed yet and outside the limits (the raise of Z and the approaches start from an
+    /// unknown position; the endstop watch ends them).
+    pub fn fire_homing(
+        &mut self,
+        axis_mask: u8,
+        dir_mask: u8,
+        dir_setup_ns: u32,
+        pulse_ns: u32,
+        delay_ns: impl FnMut(u32),
+    ) -> u8 {
+        self.pulse(axis_mask & 0x0F, dir_mask, dir_setup_ns, pulse_ns, delay_ns)
+    }
+
+    #[inline(always)]
+    fn pulse(
+        &mut self,
+        mask: u8,
+        dir_mask: u8,
+        dir_setup_ns: u32,
+        pulse_ns: u32,
+        mut delay_ns: impl FnMut(u32),
+    ) -> u8 {
         if mask == 0 {
             return 0;
         }
@@ -184,37 +224,6 @@ impl<P: OutputPin> StepExecutor<P> {
         delay_ns(pulse_ns);
         self.pins.step_low();
         mask
-    }
-}
-
-/// The X, Y and Z endstop inputs.
-pub struct Endstops<I: InputPin> {
-    pins: [I; 3],
-    /// Bit i set: the switch of axis i reads high when triggered (Marlin's
-    /// `*_MIN_ENDSTOP_INVERTING false` with the pull-up: a normally-closed switch to ground).
-    high_when_triggered: u8,
-}
-
-impl<I: InputPin> Endstops<I> {
-    /// Wraps the inputs.
-    pub fn new(pins: [I; 3], high_when_triggered: u8) -> Self {
-        Endstops {
-            pins,
-            high_when_triggered,
-        }
-    }
-
-    /// True when the endstop of `axis` (0 = X, 1 = Y, 2 = Z) is triggered. A read error
-    /// counts as triggered (stop rather than crash into the frame); an axis without an
-    /// endstop (E) is never triggered.
-    pub fn triggered(&mut self, axis: usize) -> bool {
-        let Some(pin) = self.pins.get_mut(axis) else {
-            return false;
-        };
-        match pin.is_high() {
-            Ok(high) => high == (self.high_when_triggered & (1 << axis) != 0),
-            Err(_) => true,
-        }
     }
 }
 
@@ -318,127 +327,6 @@ impl IdleTimeout {
             return false;
         }
         self.timeout_us != 0 && now_us.saturating_sub(self.last_activity_us) >= self.timeout_us
-    }
-}
-
-/// Speeds and distances of a homing sequence for one axis.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct HomingConfig {
-    /// First approach, steps/s.
-    pub fast_steps_s: u32,
-    /// Second, slower bump, steps/s.
-    pub slow_steps_s: u32,
-    /// Back-off after the first touch, steps.
-    pub backoff_steps: u32,
-    /// Longest travel before giving up, steps (1.5 × the axis length).
-    pub max_steps: u32,
-}
-
-/// Why homing stopped.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum HomingError {
-    /// The switch never triggered within the axis length.
-    NotFound,
-    /// The switch stayed triggered after backing off (stuck switch, wrong polarity).
-    StuckTriggered,
-}
-
-/// What the homing state machine wants next.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum HomingStep {
-    /// One step, towards the endstop (`toward = true`) or away, then wait `period_us`.
-    Step {
-        /// Towards the endstop (negative direction for min endstops).
-        toward: bool,
-        /// Wait before the next call, µs.
-        period_us: u32,
-    },
-    /// Homed: the axis sits at its endstop.
-    Done,
-    /// Failed.
-    Failed(HomingError),
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum HomingPhase {
-    Seek,
-    Backoff,
-    Bump,
-    Done,
-}
-
-/// G28 for one axis, as Marlin does it: approach fast until the switch triggers, back off,
-/// approach again slowly (the second, slower bump sets the position precisely).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Homing {
-    cfg: HomingConfig,
-    phase: HomingPhase,
-    steps: u32,
-}
-
-impl Homing {
-    /// Starts homing with `cfg`.
-    pub fn new(cfg: HomingConfig) -> Self {
-        Homing {
-            cfg,
-            phase: HomingPhase::Seek,
-            steps: 0,
-        }
-    }
-
-    fn period(steps_s: u32) -> u32 {
-        1_000_000 / steps_s.max(1)
-    }
-
-    /// Feeds the endstop state; returns the next action.
-    pub fn next(&mut self, triggered: bool) -> HomingStep {
-        match self.phase {
-            HomingPhase::Seek => {
-                if triggered {
-                    self.phase = HomingPhase::Backoff;
-                    self.steps = 0;
-                    return self.next(triggered);
-                }
-                if self.steps >= self.cfg.max_steps {
-                    return HomingStep::Failed(HomingError::NotFound);
-                }
-                self.steps += 1;
-                HomingStep::Step {
-                    toward: true,
-                    period_us: Self::period(self.cfg.fast_steps_s),
-                }
-            }
-            HomingPhase::Backoff => {
-                if self.steps >= self.cfg.backoff_steps {
-                    if triggered {
-                        return HomingStep::Failed(HomingError::StuckTriggered);
-                    }
-                    self.phase = HomingPhase::Bump;
-                    self.steps = 0;
-                    return self.next(triggered);
-                }
-                self.steps += 1;
-                HomingStep::Step {
-                    toward: false,
-                    period_us: Self::period(self.cfg.slow_steps_s),
-                }
-            }
-            HomingPhase::Bump => {
-                if triggered {
-                    self.phase = HomingPhase::Done;
-                    return HomingStep::Done;
-                }
-                if self.steps >= self.cfg.backoff_steps.saturating_mul(2) {
-                    return HomingStep::Failed(HomingError::NotFound);
-                }
-                self.steps += 1;
-                HomingStep::Step {
-                    toward: true,
-                    period_us: Self::period(self.cfg.slow_steps_s),
-                }
-            }
-            HomingPhase::Done => HomingStep::Done,
-        }
     }
 }
 

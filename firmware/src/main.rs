@@ -2,8 +2,9 @@
 //! (`firmware::printer::Printer`).
 //!
 //! * `motion` (every 1 ms): `Printer::poll`, step events into the step interrupt's queue
-//!   (`board::stepper`, TIM5 compare at the highest priority), G28 homing on the endstops, the
-//!   pause button, the stepper idle timeout, halt handling, host-link output to both ports;
+//!   (`board::stepper`, TIM5 compare at the highest priority), the endstops for G28 (homing
+//!   runs through the planner: `firmware::homing`) and M119, the pause button, the stepper
+//!   idle timeout, halt handling, host-link output to both ports;
 //! * `heaters` (every 1 ms): 10 Hz software PWM of the heaters; every 100 ms the thermistors
 //!   are sampled and fed to the executive's thermal control;
 //! * `usb` / `cdc`: USB CDC-ACM on the board's USB port; `uart`: the TFT header (USART1,
@@ -48,19 +49,18 @@ mod image {
     use embassy_usb::class::cdc_acm::{CdcAcmClass, State as CdcState};
     use embassy_usb::UsbDevice;
     use firmware::config::MachineConfig;
+    use firmware::homing::{HomingConfig, PinEndstops};
     use firmware::link::PortId;
     use firmware::motion::{Axis, Realtime};
-    use firmware::planner::BlockKind;
-    use firmware::printer::{Command, DriverRequest, Printer, State, StepperRequest};
+    use firmware::printer::{DriverRequest, Printer, State, StepperRequest};
     use firmware::stepgen::StepEvent;
     use firmware::thermal::HeaterId;
     use heapless::spsc::Producer;
     use static_cell::StaticCell;
 
     use crate::board::drivers::adc::{AdcChannels, Oversampler};
-    use crate::board::drivers::{
-        Endstops, Homing, HomingConfig, HomingStep, IdleTimeout, PauseButton, StepperPins,
-    };
+    use crate::board::drivers::homing_watch::EventFlags;
+    use crate::board::drivers::{IdleTimeout, PauseButton, StepperPins};
     use crate::board::heaters::{self, Fans, SoftPwm, PWM_SLOTS};
     use crate::board::stepper::{self, PinEvent, LOOKAHEAD_NS};
     use crate::board::{clock, pins, safety, tmc};
@@ -107,22 +107,6 @@ mod image {
     static PRINTER: StaticCell<RefCell<Printer>> = StaticCell::new();
     static USB_OUT: Pipe<CriticalSectionRawMutex, OUT_PIPE> = Pipe::new();
     static UART_OUT: Pipe<CriticalSectionRawMutex, OUT_PIPE> = Pipe::new();
-
-    /// Step events run this much later (or earlier, if negative) than the executive stamped
-    /// them (ns). The executive's clock is the board's clock; only its motion timeline is
-    /// shifted, after a G28, so that what follows the planned homing move starts when the
-    /// physical homing ends. Back to 0 whenever motion comes to rest (the next block then
-    /// starts from the current time).
-    static MOTION_OFFSET_NS: critical_section::Mutex<core::cell::Cell<i64>> =
-        critical_section::Mutex::new(core::cell::Cell::new(0));
-
-    fn motion_offset_ns() -> i64 {
-        critical_section::with(|cs| MOTION_OFFSET_NS.borrow(cs).get())
-    }
-
-    fn set_motion_offset_ns(v: i64) {
-        critical_section::with(|cs| MOTION_OFFSET_NS.borrow(cs).set(v));
-    }
 
     /// The executive's clock, ns (the board's TIM5 time base).
     fn printer_now_ns() -> u64 {
@@ -180,20 +164,11 @@ mod image {
 
         let cfg = MachineConfig::ENDER3;
         let printer = PRINTER.init(RefCell::new(Printer::new(cfg)));
-        // Until G28, the executive believes the head is at the far end of every axis, so that
-        // G28 always plans a real move towards the endstops (which the board replaces by the
-        // physical homing sequence). Moves before homing are refused by the step interrupt.
-        {
-            let target = [
-                steps(&cfg, Axis::X, cfg.axis(Axis::X).max_mm),
-                steps(&cfg, Axis::Y, cfg.axis(Axis::Y).max_mm),
-                steps(&cfg, Axis::Z, cfg.axis(Axis::Z).max_mm),
-                0,
-            ];
-            let _ = printer
-                .borrow_mut()
-                .push_command(Command::SetPosition(target), 0);
-        }
+        // G28 homes through the planner on the X/Y/Z minimum switches (Marlin's Ender-3 homing
+        // feeds, bump and Z raise). Moves of an axis before it is homed are refused by the step
+        // interrupt (Marlin's NO_MOTION_BEFORE_HOMING), G28's own moves excepted.
+        printer.borrow_mut().enable_endstops(HomingConfig::ENDER3);
+        announce_reset_cause(printer);
         // Saved settings (M500) replace the factory ones; M500/M501 run in their own task.
         crate::board::flash::start(&spawner, printer);
         // The micro-SD slot: SD printing (M20–M32), in its own task.
@@ -205,8 +180,16 @@ mod image {
             pins.enable,
             cfg.dir_high_positive_mask(),
         );
-        let endstops = Endstops::new(pins.endstops, cfg.endstop_hit_high_mask());
+        let [x_min, y_min, z_min] = pins.endstops;
+        let endstops = PinEndstops {
+            x: x_min,
+            y: y_min,
+            z: z_min,
+            // Ender-3 switches on pulled-up inputs read high when pressed.
+            pressed_high: cfg.endstop_hit_high_mask(),
+        };
         let producer = stepper::init(steppers, endstops);
+        stepper::with(|s| s.exec.limits = limits_steps(&cfg));
 
         // USB CDC-ACM.
         static EP_OUT: StaticCell<[u8; 256]> = StaticCell::new();
@@ -293,6 +276,15 @@ mod image {
             &spawner,
             watchdog_task(IndependentWatchdog::new(periph.watchdog, WATCHDOG_US)),
         );
+    }
+
+    /// A fault or watchdog reset before this start-up is said on every port (queued until a
+    /// host reads it), as Marlin reports a watchdog reset.
+    fn announce_reset_cause(printer: Shared) {
+        if let Some(cause) = safety::reset_cause() {
+            defmt::warn!("reset cause: {}", cause);
+            printer.borrow_mut().board_notice(cause);
+        }
     }
 
     /// Spawns a task; a task that cannot be spawned (pool exhausted) is logged, not a panic.
@@ -391,52 +383,38 @@ mod image {
         }
     }
 
-    /// Queues the executive's step events up to [`LOOKAHEAD_NS`] ahead. `held` is an event
-    /// kept back across a homing sequence (queued first, on the new timeline). Returns the end
-    /// time (ns, executive time) and the moving axes of a homing block when one was met: its
-    /// events are dropped and the caller runs the physical homing sequence for those axes
-    /// instead (an axis the executive already believes at its minimum does not move in the
-    /// block and is not re-homed).
+    /// Queues the executive's step events up to [`LOOKAHEAD_NS`] ahead, each with its homing
+    /// flags (a homing move, the switch that ends it). `held` is an event taken from the
+    /// executive that did not fit in the queue (queued first next time).
     fn feed_steps(
         p: &mut Printer,
         producer: &mut Producer<'static, PinEvent>,
-        held: &mut Option<StepEvent>,
-    ) -> Option<(u64, u8)> {
+        held: &mut Option<(StepEvent, EventFlags)>,
+    ) {
         let now = printer_now_ns();
-        let offset = motion_offset_ns();
-        let board_ns = |t_ns: u64| t_ns.saturating_add_signed(offset);
-        let to_pin = |ev: &StepEvent| PinEvent {
-            t_ticks: board_ns(ev.t_ns) / clock::NS_PER_TICK,
+        let to_pin = |ev: &StepEvent, flags: EventFlags| PinEvent {
+            t_ticks: ev.t_ns / clock::NS_PER_TICK,
             axis_mask: ev.axis_mask,
             dir_mask: ev.dir_mask,
+            flags,
         };
         let mut queued = false;
-        let mut homing_end = None;
-        if let Some(ev) = held.take() {
-            if producer.enqueue(to_pin(&ev)).is_err() {
-                *held = Some(ev);
-                return None;
+        if let Some((ev, flags)) = held.take() {
+            if producer.enqueue(to_pin(&ev, flags)).is_err() {
+                *held = Some((ev, flags));
+                return;
             }
             queued = true;
         }
         while producer.ready() {
             let Some(t) = p.next_step_ns() else { break };
-            if board_ns(t) > now + LOOKAHEAD_NS && homing_end.is_none() {
+            if t > now + LOOKAHEAD_NS {
                 break;
             }
             let Some(ev) = p.next_step() else { break };
-            if ev.kind == BlockKind::Homing {
-                let mask = homing_end.map_or(0, |(_, m)| m);
-                homing_end = Some((ev.t_ns, mask | (ev.axis_mask & 0b111)));
-                continue;
-            }
-            if homing_end.is_some() {
-                // First event after the homing block: it runs after the physical homing.
-                *held = Some(ev);
-                break;
-            }
-            if producer.enqueue(to_pin(&ev)).is_err() {
-                *held = Some(ev);
+            let flags = EventFlags::of(p, &ev);
+            if producer.enqueue(to_pin(&ev, flags)).is_err() {
+                *held = Some((ev, flags));
                 break;
             }
             queued = true;
@@ -444,108 +422,46 @@ mod image {
         if queued {
             stepper::with(|s| s.exec.pins.set_enabled(true));
             stepper::kick();
-        } else if offset != 0
-            && held.is_none()
-            && homing_end.is_none()
-            && p.next_step_ns().is_none()
-            && !stepper::with(|s| s.running).unwrap_or(false)
-        {
-            // Motion is at rest: the next block starts from the current time.
-            set_motion_offset_ns(0);
-        }
-        homing_end
-    }
-
-    /// Marlin's Ender-3 homing: 50 mm/s X/Y, 4 mm/s Z, the second bump at half (X/Y) or a
-    /// quarter (Z) speed after backing off 5 mm (X/Y) or 2 mm (Z).
-    fn homing_config(cfg: &MachineConfig, axis: Axis) -> HomingConfig {
-        let spm = cfg.axis(axis).steps_per_mm;
-        let len = cfg.axis(axis).max_mm - cfg.axis(axis).min_mm;
-        let (fast, div, bump) = match axis {
-            Axis::Z => (4.0, 4.0, 2.0),
-            _ => (50.0, 2.0, 5.0),
-        };
-        HomingConfig {
-            fast_steps_s: (fast * spm) as u32,
-            slow_steps_s: (fast / div * spm) as u32,
-            backoff_steps: (bump * spm) as u32,
-            max_steps: (1.5 * len * spm) as u32,
         }
     }
 
-    /// G28: waits for queued steps to finish, then homes the axes in `mask` (X, Y, then Z) on
-    /// their endstops, and shifts the executive's motion timeline so that what follows its
-    /// homing move starts now. The executive's clock keeps running meanwhile (the heaters and
-    /// their protection are sampled as usual).
-    async fn home_all(printer: Shared, homing_end_ns: u64, mask: u8) {
-        // Let the interrupt drain everything before the homing block.
-        while stepper::with(|s| s.running).unwrap_or(false) {
-            Timer::after_micros(500).await;
-        }
-        let cfg = *printer.borrow().config();
-        stepper::with(|s| s.exec.pins.set_enabled(true));
-        let mut ok = true;
-        for axis in [Axis::X, Axis::Y, Axis::Z] {
-            let i = axis.index();
-            if mask & (1 << i) == 0 {
-                continue;
-            }
-            let mut h = Homing::new(homing_config(&cfg, axis));
-            loop {
-                let hit = stepper::with(|s| s.endstops.triggered(i)).unwrap_or(true);
-                match h.next(hit) {
-                    HomingStep::Step { toward, period_us } => {
-                        stepper::with(|s| {
-                            // Min endstops: towards the switch is the negative direction.
-                            let dir = if toward { 0 } else { 1 << i };
-                            if s.exec.pins.set_dirs(1 << i, dir) {
-                                cortex_m::asm::delay(stepper::cycles(stepper::DIR_SETUP_NS));
-                            }
-                            s.exec.pins.step_high(1 << i);
-                            cortex_m::asm::delay(stepper::cycles(stepper::PULSE_NS));
-                            s.exec.pins.step_low();
-                        });
-                        beat(LOOP_MOTION);
-                        Timer::after_micros(u64::from(period_us)).await;
-                    }
-                    HomingStep::Done => break,
-                    HomingStep::Failed(e) => {
-                        defmt::error!("homing {} failed: {}", i, defmt::Debug2Format(&e));
-                        ok = false;
-                        break;
-                    }
-                }
-            }
-            if !ok {
-                break;
-            }
-        }
-        let limits = [Axis::X, Axis::Y, Axis::Z].map(|a| {
+    /// Software limits of X, Y, Z in steps, and their home (minimum) positions.
+    fn limits_steps(cfg: &MachineConfig) -> [(i32, i32); 3] {
+        [Axis::X, Axis::Y, Axis::Z].map(|a| {
             (
-                steps(&cfg, a, cfg.axis(a).min_mm),
-                steps(&cfg, a, cfg.axis(a).max_mm),
+                steps(cfg, a, cfg.axis(a).min_mm),
+                steps(cfg, a, cfg.axis(a).max_mm),
             )
-        });
-        stepper::with(|s| {
-            for (i, (min, _)) in limits.iter().enumerate() {
-                if mask & (1 << i) != 0 {
-                    s.exec.pos[i] = *min;
-                    s.exec.homed |= 1 << i;
-                }
+        })
+    }
+
+    /// G28 on the board, before `Printer::poll` each tick: an approach the step interrupt
+    /// stopped at its switch goes to the executive with what was never stepped (the held event
+    /// included); the executive learns whether events are still in flight (homing decides on
+    /// a move's end only after its last step) and the switches' states (M119).
+    fn homing_before_poll(p: &mut Printer, held: &mut Option<(StepEvent, EventFlags)>) {
+        if let Some(mut trip) = stepper::take_trip() {
+            if let Some((ev, _)) = held.take() {
+                trip.add(ev.axis_mask, ev.dir_mask);
             }
-            s.exec.limits = limits;
-            if !ok {
-                s.exec.homed = 0;
-            }
-        });
-        // What the executive planned after its homing move starts now.
-        let shift = i128::from(clock::now_ns()) - i128::from(homing_end_ns);
-        set_motion_offset_ns(shift.clamp(i128::from(i64::MIN), i128::from(i64::MAX)) as i64);
-        let mut p = printer.borrow_mut();
-        if !ok {
-            p.request(Realtime::EmergencyStop, printer_now_us());
+            defmt::info!("endstop {} hit", trip.axis.index());
+            p.endstop_trip(trip.axis, trip.undone);
         }
-        flush_output(&mut p);
+        let in_flight = stepper::with(|s| {
+            p.sample_endstops(&mut s.endstops);
+            s.in_flight()
+        })
+        .unwrap_or(false);
+        p.set_steps_in_flight(in_flight || held.is_some());
+    }
+
+    /// After `Printer::poll`, before new events are queued: the step interrupt follows the
+    /// executive's homed axes (an axis homed in this poll is at its minimum).
+    fn homing_after_poll(p: &mut Printer) {
+        let fresh = p.take_homed();
+        let homed = p.homed_axes();
+        let home = limits_steps(p.config()).map(|(min, _)| min);
+        stepper::with(|s| s.exec.set_homed(homed, fresh, home));
     }
 
     #[embassy_executor::task]
@@ -562,12 +478,11 @@ mod image {
         let mut pending_disable: Option<u8> = None;
         let mut halted = false;
         let mut blink: u32 = 0;
-        let mut held: Option<StepEvent> = None;
+        let mut held: Option<(StepEvent, EventFlags)> = None;
         loop {
             ticker.next().await;
             beat(LOOP_MOTION);
             let now_us = printer_now_us();
-            let mut homing = None;
             {
                 let mut p = printer.borrow_mut();
                 let state = p.state();
@@ -576,7 +491,9 @@ mod image {
                     defmt::info!("pause button: {}", defmt::Debug2Format(&req));
                     p.request(req, now_us);
                 }
+                homing_before_poll(&mut p, &mut held);
                 p.poll(now_us);
+                homing_after_poll(&mut p);
                 if p.state() == State::Halted {
                     if !halted {
                         halted = true;
@@ -588,7 +505,7 @@ mod image {
                         stepper::kick();
                     }
                 } else {
-                    homing = feed_steps(&mut p, &mut producer, &mut held);
+                    feed_steps(&mut p, &mut producer, &mut held);
                 }
                 let running = stepper::with(|s| s.running).unwrap_or(false);
                 // M17/M18/M84 from the executive, in job order. A disable waits until the
@@ -638,13 +555,9 @@ mod image {
             let quiet = {
                 let mut p = printer.borrow_mut();
                 p.state() == State::Idle && p.next_step_ns().is_none()
-            } && !stepper::with(|s| s.running).unwrap_or(false)
-                && homing.is_none();
+            } && !stepper::with(|s| s.running).unwrap_or(false);
             if quiet && !halted {
                 service_drivers(printer, &mut drivers);
-            }
-            if let Some((end_ns, mask)) = homing {
-                home_all(printer, end_ns, mask).await;
             }
             blink = blink.wrapping_add(1);
             let period = if halted { 100 } else { 500 };
@@ -822,24 +735,24 @@ mod image {
 
     /// What a panic or HardFault says on the TFT UART (a Marlin-style kill message).
     const FATAL_LINE: &[u8] =
-        b"\nError:firmware fault: heaters and drivers off, power cut. Reset the board\n";
+        b"\nError:firmware fault: heaters and drivers off, power cut. The board restarts\n";
 
     #[panic_handler]
     fn panic(info: &core::panic::PanicInfo) -> ! {
         // Heaters first, before anything that could fault again.
         safety::all_off();
+        safety::record_fault(safety::Fault::Panic);
         safety::uart_say(FATAL_LINE);
         defmt::error!("panic: {}", defmt::Display2Format(info));
-        cortex_m::asm::udf()
+        safety::reset_or_break()
     }
 
     #[cortex_m_rt::exception]
     unsafe fn HardFault(_frame: &cortex_m_rt::ExceptionFrame) -> ! {
         safety::all_off();
+        safety::record_fault(safety::Fault::HardFault);
         safety::uart_say(FATAL_LINE);
-        loop {
-            cortex_m::asm::bkpt();
-        }
+        safety::reset_or_break()
     }
 }
 

@@ -293,7 +293,9 @@ impl StepGen {
     }
 
     /// Put back a held block (after the pause's service moves returned to its position).
-    pub fn restore(&mut self, e: ExecBlock) {
+    pub fn restore(&mut self, mut e: ExecBlock) {
+        // Keep the slice inside the stop (the per-event path relies on it).
+        e.slice_end = e.slice_end.min(e.stop_at);
         self.exec = Some(e);
     }
 
@@ -439,10 +441,12 @@ impl StepGen {
     #[inline(always)]
     pub fn peek_time_ns(&mut self) -> Option<u64> {
         let e = self.exec.as_mut()?;
-        if e.done >= e.stop_at {
-            return None;
-        }
+        // `slice_end <= stop_at` always (a slice never runs past the stop, and every change
+        // of `stop_at` restarts the slice at `done`): inside a slice, one compare suffices.
         if e.done >= e.slice_end {
+            if e.done >= e.stop_at {
+                return None;
+            }
             Self::prepare_slice(e, self.t_last_ns);
         }
         let mut t = self.t_last_ns + e.slice_dt_ns;
@@ -482,10 +486,12 @@ impl StepGen {
     #[inline(always)]
     pub fn next_event(&mut self) -> Option<StepEvent> {
         let e = self.exec.as_mut()?;
-        if e.done >= e.stop_at {
-            return None;
-        }
+        // `slice_end <= stop_at` always (a slice never runs past the stop, and every change
+        // of `stop_at` restarts the slice at `done`): inside a slice, one compare suffices.
         if e.done >= e.slice_end {
+            if e.done >= e.stop_at {
+                return None;
+            }
             Self::prepare_slice(e, self.t_last_ns);
         }
         let mut t = self.t_last_ns + e.slice_dt_ns;

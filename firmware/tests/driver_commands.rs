@@ -118,3 +118,22 @@ fn a_driver_that_does_not_answer_is_an_error_line() {
         "{out}"
     );
 }
+
+/// The board's start-up notice after a fault or watchdog reset reaches every port (the USB
+/// host too, which could not be told at the moment of the fault).
+#[test]
+fn a_reset_cause_is_said_on_every_port() {
+    use firmware::link::PortId;
+    let mut p = printer();
+    p.board_notice("Watchdog Reset: a loop stopped");
+    for port in [PortId::Usb, PortId::Tft] {
+        let mut buf = [0u8; 256];
+        let n = p.read_output_on(port, &mut buf);
+        let text = String::from_utf8_lossy(&buf[..n]);
+        assert!(
+            text.lines()
+                .any(|l| l == "echo:Watchdog Reset: a loop stopped"),
+            "{port:?}: {text}"
+        );
+    }
+}

@@ -5,9 +5,10 @@ use core::cell::Cell;
 use core::convert::Infallible;
 use embedded_hal::digital::{ErrorType, InputPin, OutputPin};
 use firmware::drivers::{
-    Endstops, IdleTimeout, PauseButton, StepperPins, BUTTON_DEBOUNCE_US, BUTTON_LONG_US,
+    IdleTimeout, PauseButton, StepperPins, BUTTON_DEBOUNCE_US, BUTTON_LONG_US,
 };
-use firmware::motion::{PauseMode, Realtime};
+use firmware::homing::{Endstops, PinEndstops};
+use firmware::motion::{Axis, PauseMode, Realtime};
 
 /// An output pin recording its level as one bit of a shared word.
 struct MockOut<'a> {
@@ -101,30 +102,28 @@ fn stepper_pins_enable_dir_step() {
 #[test]
 fn endstops_polarity_and_read_errors() {
     let (x, y, z) = (Cell::new(false), Cell::new(true), Cell::new(false));
-    let mut e = Endstops::new(
-        [
-            MockIn {
-                level: &x,
-                fail: false,
-            },
-            MockIn {
-                level: &y,
-                fail: false,
-            },
-            MockIn {
-                level: &z,
-                fail: true,
-            },
-        ],
-        0b011,
-    );
-    assert!(!e.triggered(0), "X reads low, triggers high");
-    assert!(e.triggered(1), "Y reads high");
-    assert!(e.triggered(2), "a read error counts as triggered");
-    assert!(!e.triggered(3), "E has no endstop");
-    assert!(!e.triggered(99));
+    let mut e = PinEndstops {
+        x: MockIn {
+            level: &x,
+            fail: false,
+        },
+        y: MockIn {
+            level: &y,
+            fail: false,
+        },
+        z: MockIn {
+            level: &z,
+            fail: true,
+        },
+        // X and Y read high when pressed, Z low.
+        pressed_high: 0b011,
+    };
+    assert!(!e.triggered(Axis::X), "X reads low, triggers high");
+    assert!(e.triggered(Axis::Y), "Y reads high");
+    assert!(e.triggered(Axis::Z), "a read error counts as triggered");
+    assert!(!e.triggered(Axis::E), "E has no endstop");
     x.set(true);
-    assert!(e.triggered(0));
+    assert!(e.triggered(Axis::X));
 }
 
 #[test]

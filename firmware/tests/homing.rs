@@ -3,6 +3,16 @@
 //! each minimum switch, pressed at and below a known true position.
 mod support;
 
+/// The board's G28 (step interrupt running events 2 ms ahead, endstop watch, homed axes): the
+/// same source the emulated-core test runs (`scripts/qemu-test.sh`).
+#[path = "../qemu/src/board_homing.rs"]
+mod board_homing;
+
+#[test]
+fn g28_with_the_board_step_queue_running_ahead() {
+    assert_eq!(board_homing::run(), Ok(3));
+}
+
 use firmware::config::MachineConfig;
 use firmware::homing::HomingConfig;
 use firmware::motion::Axis;
@@ -243,12 +253,21 @@ fn m119_reports_the_switches_as_marlin() {
     };
     let mut p = printer();
     let r = drive(&mut p, &mut w, &["M119"], &[], 1_000_000);
-    for l in [
-        "Reporting endstop status",
-        "x_min: TRIGGERED",
-        "y_min: open",
-        "z_min: TRIGGERED",
-    ] {
-        assert!(r.out.contains(l), "{l}: {}", r.out);
-    }
+    // Exactly Marlin's lines (`Endstops::report_states()`: SERIAL_ECHOLNPGM, no `echo:`).
+    let lines: Vec<&str> = r.out.lines().collect();
+    let at = lines
+        .iter()
+        .position(|l| *l == "Reporting endstop status")
+        .unwrap_or_else(|| panic!("{}", r.out));
+    assert_eq!(
+        lines[at..at + 4],
+        [
+            "Reporting endstop status",
+            "x_min: TRIGGERED",
+            "y_min: open",
+            "z_min: TRIGGERED"
+        ],
+        "{}",
+        r.out
+    );
 }

@@ -137,7 +137,7 @@ proptest! {
         cross in 0.05f64..0.5,
         relative in any::<bool>(),
     ) {
-        let p = Profile::builtin(if relative { "skr2" } else { "ender3" }).expect("p");
+        let p = if relative { Profile::builtin("skr2").expect("p") } else { Profile::ender3() };
         let m = Helix { radius_mm: radius, pitch_mm: pitch, turns, per_turn, cross_mm2: cross,
                         ..Helix::default() }.build().expect("helix");
         let (g, filament) = written(&p, &m);

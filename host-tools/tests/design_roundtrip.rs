@@ -39,8 +39,11 @@ fn outputs() -> Vec<(String, String)> {
         &Bitmap::world_map().expect("map"),
     )
     .expect("globe");
-    for name in ["ender3", "skr2"] {
-        let p = Profile::builtin(name).expect("profile");
+    for name in ["reference", "skr2"] {
+        let p = match name {
+            "skr2" => Profile::builtin(name).expect("profile"),
+            _ => Profile::ender3(),
+        };
         let w = GcodeWriter::new(&p, WriteOptions::default());
         for (what, m) in [("helix", &helix), ("arcs", &arcs), ("globe", &g)] {
             let (text, _) = w.to_string(m).expect("write");
@@ -72,8 +75,11 @@ fn printing_moves_land_on_the_model_points() {
     .build()
     .expect("helix");
     let want: Vec<_> = helix.strings().map(|s| s.end).collect();
-    for name in ["ender3", "skr2"] {
-        let p = Profile::builtin(name).expect("profile");
+    for name in ["reference", "skr2"] {
+        let p = match name {
+            "skr2" => Profile::builtin(name).expect("profile"),
+            _ => Profile::ender3(),
+        };
         let (g, _) = GcodeWriter::new(&p, WriteOptions::default())
             .to_string(&helix)
             .expect("write");

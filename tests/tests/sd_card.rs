@@ -333,7 +333,11 @@ fn m_codes_answer_as_marlin_and_a_job_runs_to_done() {
     b.run_until("a status report", 3, |b| {
         b.out.contains("SD printing byte ")
     });
-    assert!(b.cmd("M27").contains("SD printing byte "));
+    let status = b.cmd("M27");
+    assert!(
+        status.contains("SD printing byte ") && status.contains(" progress "),
+        "{status}"
+    );
     // SD lines are never answered `ok`: only the host's M27 above was.
     b.run_until("Done printing file", 600, |b| {
         b.out.contains("Done printing file")
@@ -457,5 +461,73 @@ fn random_sd_command_lines_are_each_answered_once() {
             b.p.state(),
             &history[history.len().saturating_sub(8)..]
         );
+    }
+}
+
+/// M524 while printing from the card: the job ends, the printer reports `Cancelled` (as after a
+/// host job's cancel), the host's next unnumbered lines are taken (not discarded as the rest
+/// of a cancelled stream: the stream was not the job), and while a layer pause holds a full
+/// queue M20 is still answered.
+#[test]
+fn cancel_and_list_while_paused() {
+    let img = Image::new("cancel", &[("A.GCO", job(400, false, true))]);
+    let mut b = Bench::new(img.card());
+    b.cmd("M23 A.GCO");
+    b.pending.extend_from_slice(b"M24\n");
+    b.run_until("queue full", 20, |b| b.p.status().commands >= 8);
+    b.pending.extend_from_slice(b"M25\n");
+    b.run_until("paused", 120, |b| b.p.state() == State::Paused);
+    let list = b.cmd("M20");
+    assert!(
+        list.contains("End file list") && list.contains("A.GCO"),
+        "{list}"
+    );
+    assert!(b.p.sd_printing());
+    b.cmd("M524");
+    b.run_until("cancelled", 60, |b| b.p.state() == State::Cancelled);
+    assert!(!b.p.sd_printing());
+    let before = b.executed.len();
+    let out = b.cmd("G1 X30 F3000");
+    assert!(!out.contains("discarding"), "{out}");
+    b.run_until("the host's move ran", 20, |b| b.executed.len() > before);
+    b.run_until("idle", 20, |b| b.p.state() == State::Idle);
+}
+
+/// A job started at a line's byte offset (M26 S<offset> + M24, and `start_sd_job` as the
+/// power-cut resume uses it) runs exactly the moves from that line on.
+#[test]
+fn a_job_starts_at_a_line_offset() {
+    let j = job(60, true, true);
+    let text = String::from_utf8(j.clone()).unwrap();
+    // The offset of the 31st G1 line and the moves from there.
+    let starts: Vec<usize> = std::iter::once(0)
+        .chain(text.match_indices('\n').map(|(i, _)| i + 1))
+        .filter(|&i| i < text.len())
+        .collect();
+    let g1: Vec<usize> = starts
+        .iter()
+        .copied()
+        .filter(|&i| text[i..].starts_with("G1"))
+        .collect();
+    let from = g1[30];
+    let expected = g1.len() - 30;
+    for how in ["M26", "start_sd_job"] {
+        let img = Image::new(&format!("offset-{how}"), &[("A.GCO", j.clone())]);
+        let mut b = Bench::new(img.card());
+        // The modal state a resume restores first (here: the file's header).
+        b.cmd("G90");
+        b.cmd("M83");
+        b.cmd("M302 P1");
+        if how == "M26" {
+            b.cmd("M23 A.GCO");
+            assert!(b.cmd(&format!("M26 S{from}")).lines().any(|l| l == "ok"));
+            b.pending.extend_from_slice(b"M24\n");
+        } else {
+            b.p.start_sd_job("A.GCO", from as u32);
+        }
+        b.run_until("Done printing file", 600, |b| {
+            b.out.contains("Done printing file")
+        });
+        assert_eq!(b.executed.len(), expected, "{how}");
     }
 }

@@ -18,33 +18,8 @@ use firmware::machine::MachineState;
 use host_tools::job::{ops, Job};
 use tests::workspace_root;
 
-/// `target/<profile>` of this test binary.
-fn profile_dir() -> PathBuf {
-    let exe = std::env::current_exe().expect("test exe");
-    exe.parent()
-        .and_then(Path::parent)
-        .map(Path::to_path_buf)
-        .expect("target dir")
-}
-
-fn bin(package: &str, name: &str) -> PathBuf {
-    let dir = profile_dir();
-    let path = dir.join(name);
-    // Always ask cargo (a no-op when up to date), so the test never runs a stale binary.
-    {
-        let target = dir.parent().expect("target root");
-        let mut c = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
-        c.args(["build", "-q", "-p", package, "--bin", name])
-            .current_dir(workspace_root())
-            .env("CARGO_TARGET_DIR", target);
-        if dir.file_name().is_some_and(|n| n == "release") {
-            c.arg("--release");
-        }
-        let st = c.status().expect("cargo build");
-        assert!(st.success(), "building {name} failed");
-    }
-    path
-}
+mod hosts_common;
+use hosts_common::bin;
 
 struct Sim {
     child: Child,
@@ -55,8 +30,10 @@ struct Sim {
 impl Sim {
     fn start(policy: &str, tag: &str) -> Sim {
         // Build the sender first: the sim ends after some idle seconds without host bytes
-        // while nothing moves (a paused printer counts; a heater wait does not).
+        // while nothing moves (a paused printer counts; a heater wait does not), so nothing
+        // may be built between the sim's start and the sender's.
         bin("host-tools", "host-tools");
+        bin("sim", "sim");
         let record =
             std::env::temp_dir().join(format!("send_sim_{tag}_{}.json", std::process::id()));
         let _ = std::fs::remove_file(&record);

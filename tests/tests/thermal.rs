@@ -438,3 +438,46 @@ mod properties {
         }
     }
 }
+
+/// M303 through the executive, as a host sends it (the guide in docs/board.md): the tune runs
+/// on the heater model fed at 10 Hz as the board does, and its end is reported as Marlin does
+/// (`PID Autotune finished! …`, then `#define DEFAULT_Kp …` lines); `U1` applies the gains.
+#[test]
+fn m303_on_the_link_reports_and_applies_the_gains() {
+    use firmware::config::MachineConfig;
+    use firmware::printer::Printer;
+    let mut p = Printer::new(MachineConfig::ENDER3);
+    let mut hotend = HeaterModel::new(HeaterParams::ENDER3_HOTEND);
+    let before = p.thermal().pid(HeaterId::Hotend);
+    assert_eq!(p.receive(b"M303 E0 S200 C5 U1\n", 0), 19);
+    let mut out = String::new();
+    let mut now = 0u64;
+    while now < 1_800_000_000 && !out.contains("PID Autotune") {
+        p.poll(now);
+        let d = p.heater_sample(HeaterId::Hotend, hotend.temperature_c(), now);
+        hotend.step(d, SAMPLE_US as f32 * 1e-6);
+        let _ = p.write_output(&mut out);
+        now += SAMPLE_US;
+    }
+    let lines: Vec<&str> = out.lines().collect();
+    let at = lines
+        .iter()
+        .position(|l| l.starts_with("PID Autotune finished!"))
+        .unwrap_or_else(|| panic!("no result after {} s: {out}", now / 1_000_000));
+    let gains = p.thermal().pid(HeaterId::Hotend).expect("PID heater");
+    assert_ne!(Some(gains), before, "U1 applies the result");
+    assert_eq!(
+        lines[at + 1..at + 4],
+        [
+            format!("#define DEFAULT_Kp {:.2}", gains.kp),
+            format!("#define DEFAULT_Ki {:.2}", gains.ki),
+            format!("#define DEFAULT_Kd {:.2}", gains.kd),
+        ],
+        "{out}"
+    );
+    assert_eq!(
+        p.thermal().target_c(HeaterId::Hotend),
+        0.0,
+        "heater off after"
+    );
+}

@@ -5,12 +5,14 @@
 
 use core::cell::Cell;
 use core::convert::Infallible;
-use drivers::{
-    Endstops, Homing, HomingConfig, HomingError, HomingStep, IdleTimeout, PauseButton, StepperPins,
-};
+use crate::board_homing;
+use drivers::homing_watch::{EndstopWatch, EventFlags};
+use drivers::{IdleTimeout, PauseButton, StepperPins};
 use embedded_hal::digital::{ErrorType, InputPin, OutputPin};
 use firmware::drivers;
 use firmware::drivers::tmc2209;
+use firmware::homing::{Endstops, PinEndstops};
+use firmware::motion::Axis;
 use firmware::motion::{PauseMode, Realtime};
 
 /// An output that records its level in a shared bit field.
@@ -144,16 +146,17 @@ pub fn run() -> Result<u32, CheckFailed> {
 
     // Endstops: polarity per axis.
     let flag = Cell::new(true);
-    let mut e = Endstops::new(
-        [
-            FlagInput { flag: &flag },
-            FlagInput { flag: &flag },
-            FlagInput { flag: &flag },
-        ],
-        0b011,
-    );
-    check(e.triggered(0) && !e.triggered(2), "endstop polarity")?;
-    check(!e.triggered(3), "E has no endstop")?;
+    let mut e = PinEndstops {
+        x: FlagInput { flag: &flag },
+        y: FlagInput { flag: &flag },
+        z: FlagInput { flag: &flag },
+        pressed_high: 0b011,
+    };
+    check(
+        e.triggered(Axis::X) && !e.triggered(Axis::Z),
+        "endstop polarity",
+    )?;
+    check(!e.triggered(Axis::E), "E has no endstop")?;
     n += 1;
 
     // Pause button: bounces are ignored, a short press pauses at the layer, a long press
@@ -225,61 +228,8 @@ pub fn run() -> Result<u32, CheckFailed> {
     check(idle.update(false, 120_000_000), "off after 120 s idle")?;
     n += 1;
 
-    // Homing: an axis 1000 steps from a switch that closes at position <= 0.
-    let cfg = HomingConfig {
-        fast_steps_s: 4000,
-        slow_steps_s: 2000,
-        backoff_steps: 400,
-        max_steps: 28_200,
-    };
-    let mut pos: i32 = 1000;
-    let mut h = Homing::new(cfg);
-    let mut moves = 0u32;
-    let mut slow = 0u32;
-    loop {
-        match h.next(pos <= 0) {
-            HomingStep::Step { toward, period_us } => {
-                pos += if toward { -1 } else { 1 };
-                moves += 1;
-                if period_us == 500 {
-                    slow += 1;
-                }
-                check(moves < 100_000, "homing terminates")?;
-            }
-            HomingStep::Done => break,
-            HomingStep::Failed(_) => return Err(CheckFailed("homing failed")),
-        }
-    }
-    check(pos == 0, "homed exactly at the switch")?;
-    check(
-        moves == 1000 + 400 + 400,
-        "fast approach, back-off, slow bump",
-    )?;
-    check(slow == 800, "back-off and bump at the slow speed")?;
-    let mut h = Homing::new(cfg);
-    let mut r = HomingStep::Done;
-    for _ in 0..100_000 {
-        r = h.next(true);
-        if matches!(r, HomingStep::Failed(_)) {
-            break;
-        }
-    }
-    check(
-        r == HomingStep::Failed(HomingError::StuckTriggered),
-        "stuck switch detected",
-    )?;
-    let mut h = Homing::new(cfg);
-    for _ in 0..100_000 {
-        r = h.next(false);
-        if matches!(r, HomingStep::Failed(_)) {
-            break;
-        }
-    }
-    check(
-        r == HomingStep::Failed(HomingError::NotFound),
-        "missing switch detected",
-    )?;
-    n += 1;
+    // G28 through the planner with the board's step interrupt model (board_homing.rs).
+    n += board_homing::run().map_err(|board_homing::Failed(what)| CheckFailed(what))?;
     n += tmc()?;
     Ok(n)
 }
@@ -400,6 +350,7 @@ struct Ev {
     t_ticks: u64,
     axis_mask: u8,
     dir_mask: u8,
+    flags: EventFlags,
 }
 
 /// The step interrupt's work per event without the busy-wait delays: the queue pop (as in
@@ -418,6 +369,14 @@ pub fn isr_cost(events: u32, mut mark: impl FnMut(bool)) -> u32 {
     let mut exec = drivers::StepExecutor::new(pins);
     exec.homed = 0b111;
     exec.pins.set_enabled(true);
+    let mut watch = EndstopWatch::new();
+    let open = Cell::new(false);
+    let mut endstops = PinEndstops {
+        x: FlagInput { flag: &open },
+        y: FlagInput { flag: &open },
+        z: FlagInput { flag: &open },
+        pressed_high: 0b111,
+    };
     let mut queue: heapless::spsc::Queue<Ev, 256> = heapless::spsc::Queue::new();
     let (mut producer, mut consumer) = queue.split();
     let mut stepped = 0u32;
@@ -429,6 +388,7 @@ pub fn isr_cost(events: u32, mut mark: impl FnMut(bool)) -> u32 {
                 t_ticks: u64::from(i),
                 axis_mask: 0b0011 | (((i & 1) as u8) << 3),
                 dir_mask: dir,
+                flags: EventFlags(0),
             });
             i += 1;
         }
@@ -439,7 +399,14 @@ pub fn isr_cost(events: u32, mut mark: impl FnMut(bool)) -> u32 {
                 break;
             }
             let _ = consumer.dequeue();
-            let m = exec.fire(ev.axis_mask, ev.dir_mask, 650, 1000, |_| {});
+            if !watch.admit(ev.flags, ev.axis_mask, ev.dir_mask, &mut endstops) {
+                continue;
+            }
+            let m = if ev.flags.homing() {
+                exec.fire_homing(ev.axis_mask, ev.dir_mask, 650, 1000, |_| {})
+            } else {
+                exec.fire(ev.axis_mask, ev.dir_mask, 650, 1000, |_| {})
+            };
             stepped += u32::from(m != 0);
         }
         mark(false);

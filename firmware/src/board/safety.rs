@@ -1,9 +1,79 @@
 //! The last line of defence: heaters off, stepper drivers disabled and their power switched
 //! off, by raw register writes that work from any context (panic, HardFault) without the HAL's
-//! drivers, and a last line on the TFT UART. Best effort: USB cannot be served once the
-//! executor has stopped, so a host on USB sees the link go silent (docs/board.md).
+//! drivers, and a last line on the TFT UART. USB cannot be served once the executor has
+//! stopped, so the fault is also recorded in RAM that survives a reset ([`record_fault`]); the
+//! board then resets (at once, or by the watchdog) and the next start-up says what happened on
+//! every port, USB included ([`reset_cause`]), as Marlin reports a watchdog reset.
 
+use core::mem::MaybeUninit;
+use core::ptr::{addr_of, addr_of_mut};
 use embassy_stm32::pac;
+
+/// What stopped the firmware before a reset.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Fault {
+    /// A Rust panic.
+    Panic = 1,
+    /// A HardFault exception.
+    HardFault = 2,
+}
+
+const FAULT_MAGIC: u32 = 0x4C50_4654;
+
+/// The fault record: magic and kind. In `.uninit` (cortex-m-rt: not zeroed at start-up), so it
+/// survives a reset; read and cleared once at start-up.
+#[link_section = ".uninit.layerpause_fault"]
+static mut FAULT_RECORD: MaybeUninit<[u32; 2]> = MaybeUninit::uninit();
+
+/// Records `kind` for the next start-up (the first record wins: a panic ends in a HardFault).
+pub fn record_fault(kind: Fault) {
+    // SAFETY: plain volatile word accesses to a static only this module touches, from a
+    // handler that never returns.
+    unsafe {
+        let rec = addr_of_mut!(FAULT_RECORD).cast::<[u32; 2]>();
+        if core::ptr::read_volatile(rec)[0] != FAULT_MAGIC {
+            core::ptr::write_volatile(rec, [FAULT_MAGIC, kind as u32]);
+        }
+    }
+}
+
+/// Why the last reset happened, if it was not a plain power-up or reset button: a recorded
+/// fault, or the independent watchdog (RCC_CSR IWDGRSTF). Clears both, so each start-up reports
+/// its own cause once.
+pub fn reset_cause() -> Option<&'static str> {
+    // SAFETY: as in `record_fault`; read before anything else writes it in this run.
+    let rec = unsafe {
+        let rec = addr_of!(FAULT_RECORD).cast::<[u32; 2]>();
+        let v = core::ptr::read_volatile(rec);
+        core::ptr::write_volatile(addr_of_mut!(FAULT_RECORD).cast::<[u32; 2]>(), [0, 0]);
+        v
+    };
+    let watchdog = pac::RCC.csr().read().wdgrstf();
+    pac::RCC.csr().modify(|w| w.set_rmvf(true));
+    match rec {
+        [FAULT_MAGIC, 1] => {
+            Some("firmware fault (panic) before this reset: heaters and drivers were switched off")
+        }
+        [FAULT_MAGIC, 2] => Some(
+            "firmware fault (HardFault) before this reset: heaters and drivers were switched off",
+        ),
+        _ if watchdog => Some(
+            "Watchdog Reset: a loop stopped, heaters and drivers were switched off by the reset",
+        ),
+        _ => None,
+    }
+}
+
+/// After a fault: reset the MCU (heaters and drivers come up off; the next start-up reports
+/// the fault on every port), unless a debugger is attached (then it stops at a breakpoint).
+pub fn reset_or_break() -> ! {
+    if cortex_m::peripheral::DCB::is_debugger_attached() {
+        loop {
+            cortex_m::asm::bkpt();
+        }
+    }
+    cortex_m::peripheral::SCB::sys_reset()
+}
 
 /// Heater MOSFET gates low (HE0 PB3, BED PD7), stepper drivers disabled (EN high: X PE3, Y PD6,
 /// Z PD1, E0 PC7) and SAFE_POWER (PC13) low, which cuts the supply of the drivers and of most
@@ -36,5 +106,10 @@ pub fn uart_say(text: &[u8]) {
             }
         }
         u.dr().write(|w| w.set_dr(u16::from(b)));
+    }
+    // Let the last byte leave the shift register (a reset follows).
+    let mut spins = 0u32;
+    while !u.sr().read().tc() && spins < 100_000 {
+        spins += 1;
     }
 }

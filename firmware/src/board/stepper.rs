@@ -10,7 +10,10 @@
 //!
 //! The interrupt also keeps the position in steps and enforces the software limits of the
 //! configured volume once the axes are homed; before homing it refuses X/Y/Z steps (no motion
-//! before homing, as Marlin's `NO_MOTION_BEFORE_HOMING`).
+//! before homing, as Marlin's `NO_MOTION_BEFORE_HOMING`), except those of G28's homing moves.
+//! During a homing approach it reads the approach's endstop before each of its events and
+//! stops at the switch (`firmware::drivers::homing_watch`): the events left are dropped and
+//! counted, and the motion loop hands the count to the executive ([`take_trip`]).
 
 use core::cell::RefCell;
 use critical_section::Mutex;
@@ -20,7 +23,12 @@ use embassy_stm32::pac;
 use heapless::spsc::{Consumer, Producer, Queue};
 
 use super::clock;
-use super::drivers::{Endstops, StepExecutor, StepperPins};
+use super::drivers::homing_watch::{EndstopWatch, EventFlags, Trip};
+use super::drivers::{StepExecutor, StepperPins};
+use firmware::homing::PinEndstops;
+
+/// The X, Y, Z minimum endstops (PC1, PC3, PC0, pulled up).
+pub type BoardEndstops = PinEndstops<Input<'static>, Input<'static>, Input<'static>>;
 
 /// Events buffered ahead of the interrupt (each 16 B). At 100 k events/s this is 2.5 ms.
 pub const QUEUE_LEN: usize = 256;
@@ -45,14 +53,18 @@ pub struct PinEvent {
     pub axis_mask: u8,
     /// Directions (bit set = positive).
     pub dir_mask: u8,
+    /// Homing move, and the switch that ends it.
+    pub flags: EventFlags,
 }
 
 /// The interrupt's state.
 pub struct StepIsr {
     /// Pins, position, limits (the portable part, `drivers::StepExecutor`).
     pub exec: StepExecutor<Output<'static>>,
-    /// The endstops (read by homing; polled here only for reports).
-    pub endstops: Endstops<Input<'static>>,
+    /// The endstops: watched during homing approaches, sampled by the motion loop for M119.
+    pub endstops: BoardEndstops,
+    /// The approach's switch, watched before each of its events.
+    pub watch: EndstopWatch,
     consumer: Consumer<'static, PinEvent>,
     /// Drop every queued event (halt / quick stop).
     pub flush: bool,
@@ -67,13 +79,14 @@ pub static ISR: Mutex<RefCell<Option<StepIsr>>> = Mutex::new(RefCell::new(None))
 /// Sets up the queue and the interrupt; returns the producer side for the motion loop.
 pub fn init(
     pins: StepperPins<Output<'static>>,
-    endstops: Endstops<Input<'static>>,
+    endstops: BoardEndstops,
 ) -> Producer<'static, PinEvent> {
     let (producer, consumer) = QUEUE.init(Queue::new()).split();
     critical_section::with(|cs| {
         ISR.borrow(cs).replace(Some(StepIsr {
             exec: StepExecutor::new(pins),
             endstops,
+            watch: EndstopWatch::new(),
             consumer,
             flush: false,
             running: false,
@@ -121,14 +134,55 @@ impl StepIsr {
                 continue;
             }
             let _ = self.consumer.dequeue();
-            self.exec
-                .fire(ev.axis_mask, ev.dir_mask, DIR_SETUP_NS, PULSE_NS, |ns| {
-                    cortex_m::asm::delay(cycles(ns))
-                });
+            if !self
+                .watch
+                .admit(ev.flags, ev.axis_mask, ev.dir_mask, &mut self.endstops)
+            {
+                // Stopped at the switch: drop (and count) the rest of the approach at once.
+                self.drop_queued();
+                continue;
+            }
+            let delay = |ns| cortex_m::asm::delay(cycles(ns));
+            if ev.flags.homing() {
+                self.exec
+                    .fire_homing(ev.axis_mask, ev.dir_mask, DIR_SETUP_NS, PULSE_NS, delay);
+            } else {
+                self.exec
+                    .fire(ev.axis_mask, ev.dir_mask, DIR_SETUP_NS, PULSE_NS, delay);
+            }
         }
         // Many events due at once (catching up): come back right away.
         interrupt::TIM5.pend();
     }
+}
+
+impl StepIsr {
+    /// Drops every queued event into the pending trip's count.
+    fn drop_queued(&mut self) {
+        while let Some(ev) = self.consumer.dequeue() {
+            let _ = self
+                .watch
+                .admit(ev.flags, ev.axis_mask, ev.dir_mask, &mut self.endstops);
+        }
+    }
+
+    /// Events are still queued or running.
+    pub fn in_flight(&self) -> bool {
+        self.running || self.consumer.ready() || self.watch.tripped()
+    }
+}
+
+/// The pending endstop trip, if an approach stopped at its switch, with every event still
+/// queued counted in it (the queue is then empty).
+pub fn take_trip() -> Option<Trip> {
+    with(|s| {
+        if !s.watch.tripped() {
+            return None;
+        }
+        s.drop_queued();
+        s.watch.take()
+    })
+    .flatten()
 }
 
 #[embassy_stm32::interrupt]

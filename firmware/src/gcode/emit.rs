@@ -249,8 +249,8 @@ pub fn write_command<W: Write>(w: &mut W, c: &Command) -> fmt::Result {
         Command::Settings(c) => super::settings::write(w, c),
         Command::Report(c) => super::report::write(w, c),
         Command::Driver(c) => super::driver::write(w, c),
-        Command::Recovery(c) => super::recovery::write(w, c),
         Command::Sd(c) => super::sd::write(w, c),
+        Command::Recovery(c) => super::recovery::write(w, c),
         Command::Tool(t) => write!(w, "T{t}"),
         Command::PrintStatsInfo {
             current_layer,

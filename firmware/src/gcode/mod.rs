@@ -46,12 +46,12 @@ pub use report::{ReportCommand, MAX_REPORT_PERIOD_S};
 // Stepper-driver M-codes (M122 M350 M569; M906 is a settings command): parse and emit.
 mod driver;
 pub use driver::DriverCommand;
-// Power-cut resume (M1000, M1000 C): parse and emit.
-mod recovery;
-pub use recovery::RecoveryCommand;
 // SD-card M-codes (M20 M21 M22 M23 M26 M27 S/C M32): parse and emit.
 mod sd;
 pub use sd::{SdCommand, MAX_SD_REPORT_S};
+// Power-cut resume (M1000, M1000 C): parse and emit.
+mod recovery;
+pub use recovery::RecoveryCommand;
 
 use crate::motion::{Axis, AXES};
 use core::fmt;
@@ -391,10 +391,10 @@ pub enum Command {
     Report(ReportCommand),
     /// Stepper drivers: M569, M350 and M122 (see [`DriverCommand`]).
     Driver(DriverCommand),
-    /// Power-cut resume: M1000, M1000 C (see [`RecoveryCommand`]).
-    Recovery(RecoveryCommand),
     /// SD card: M20, M21, M22, M23, M26, M27 S/C and M32 (see [`SdCommand`]).
     Sd(SdCommand),
+    /// Power-cut resume: M1000, M1000 C (see [`RecoveryCommand`]).
+    Recovery(RecoveryCommand),
     /// Any other G/M code or extended command: its text (comment stripped), for
     /// `echo:Unknown command: "<text>"`.
     Unknown(Text),

@@ -51,9 +51,10 @@ pub struct PinEndstops<X, Y, Z> {
     pub y: Y,
     /// Z minimum switch.
     pub z: Z,
-    /// The level a pressed switch reads: `true` = high (Marlin's Ender-3 example
-    /// configurations: `X_MIN_ENDSTOP_HIT_STATE HIGH`).
-    pub pressed_high: bool,
+    /// Bit i (X, Y, Z) set: that switch reads high when pressed (Marlin's Ender-3 example
+    /// configurations: `X_MIN_ENDSTOP_HIT_STATE HIGH`, with `ENDSTOPPULLUPS`;
+    /// `MachineConfig::endstop_hit_high_mask`).
+    pub pressed_high: u8,
 }
 
 impl<X: InputPin, Y: InputPin, Z: InputPin> Endstops for PinEndstops<X, Y, Z> {
@@ -64,8 +65,9 @@ impl<X: InputPin, Y: InputPin, Z: InputPin> Endstops for PinEndstops<X, Y, Z> {
             Axis::Z => self.z.is_high().ok(),
             Axis::E => return false,
         };
+        let pressed_high = self.pressed_high & (1 << axis.index()) != 0;
         // An unreadable pin counts as pressed: homing then stops instead of driving on.
-        level.is_none_or(|high| high == self.pressed_high)
+        level.is_none_or(|high| high == pressed_high)
     }
 }
 

@@ -217,7 +217,7 @@ fn pins_and_the_m119_report() {
         x: Pin(Some(true)),
         y: Pin(Some(false)),
         z: Pin(Some(false)),
-        pressed_high: true,
+        pressed_high: 0b111,
     };
     assert_eq!(
         m119_lines(&mut e),
@@ -228,7 +228,7 @@ fn pins_and_the_m119_report() {
             "z_min: open"
         ]
     );
-    e.pressed_high = false;
+    e.pressed_high = 0;
     assert_eq!(
         m119_lines(&mut e)[1..],
         ["x_min: open", "y_min: TRIGGERED", "z_min: TRIGGERED"]

@@ -12,6 +12,14 @@ use crate::link::Response;
 use crate::motion::{Axis, AXES};
 use core::fmt::Write;
 
+impl Printer {
+    /// A board notice on every port as an `echo:` line: why the last reset happened (a
+    /// firmware fault or the watchdog; Marlin prints `echo: Watchdog Reset` at start-up).
+    pub fn board_notice(&mut self, text: &str) {
+        self.link.notify(Response::Echo(text));
+    }
+}
+
 /// Requests queued for the board (oldest dropped when full: each one re-reads the config).
 pub const DRIVER_REQ_CAPACITY: usize = 4;
 

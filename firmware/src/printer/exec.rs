@@ -11,7 +11,10 @@ use crate::thermal::HeaterId;
 
 impl Printer {
     /// Time of the next step event, ns (loads the next block when the current one is done).
-    #[inline]
+    /// Always inlined, with [`Printer::next_step`]: the per-event path is a few compares and
+    /// additions (the block loading is out of line), and whether the compiler inlines it must
+    /// not depend on how many callers the binary has (the emulated-core budget, issue 16).
+    #[inline(always)]
     pub fn next_step_ns(&mut self) -> Option<u64> {
         // The common case, an event of the loaded block, without the loop.
         if let Some(t) = self.stepgen.peek_time_ns() {
@@ -44,7 +47,7 @@ impl Printer {
 
     /// Take the next step event (the one [`Printer::next_step_ns`] announced). The driver
     /// calls this when its clock reaches the event's time.
-    #[inline]
+    #[inline(always)]
     pub fn next_step(&mut self) -> Option<StepEvent> {
         self.next_step_ns()?;
         let ev = self.stepgen.next_event();

@@ -452,6 +452,9 @@ pub(super) fn answered_without_room(line: &ReceivedLine) -> bool {
             | G::SetLineNumber(_)
             | G::Tool(0)
             | G::Unknown(_) => true,
+            // SD commands queue nothing (M24 is realtime); a listing while parked with a
+            // full queue must not wait for the resume.
+            G::Sd(_) => true,
             G::PauseParams(p) => p.is_empty(),
             _ => false,
         },

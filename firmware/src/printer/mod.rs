@@ -21,6 +21,7 @@
 //! `host` (host lines and the rules for them), `commands` (command handlers), `service` (the
 //! service lane), `settings` (M92.. M503), `types` (public types).
 
+mod autotune;
 mod commands;
 mod exec;
 mod guards;
@@ -129,6 +130,11 @@ pub struct Printer {
     homing: Option<crate::homing::Homing>,
     /// Endstop switch states as the driver reported them, bit i = axis i pressed.
     endstops: u8,
+    /// The driver still has step events of the executive queued or running (a board whose step
+    /// interrupt runs events ahead; see `homing.rs`): homing waits for them.
+    steps_in_flight: bool,
+    /// Axes homed on their switches (see `homing.rs`).
+    homed: homing::HomedAxes,
     /// Factory settings and a pending M500/M501 (see `settings.rs`).
     settings: settings::SettingsLink,
     reports: report::Reports,
@@ -186,6 +192,8 @@ impl Printer {
             homing_cfg: None,
             homing: None,
             endstops: 0,
+            steps_in_flight: false,
+            homed: homing::HomedAxes::NONE,
             settings: settings::SettingsLink::new(),
             reports: report::Reports::new(),
             job: job::JobLink::new(),
@@ -476,7 +484,7 @@ impl Printer {
             Pause::Run => {
                 if self.has_work() {
                     State::Printing
-                } else if self.lines.after_cancel.is_some() {
+                } else if self.lines.after_cancel.is_some() || self.sd_cancelled() {
                     State::Cancelled
                 } else {
                     State::Idle
@@ -528,7 +536,9 @@ impl Printer {
     pub fn heater_sample(&mut self, id: HeaterId, measured_c: f32, now_us: u64) -> f32 {
         self.set_now(now_us);
         let had_fault = self.thermal.fault().is_some();
+        let tune = self.thermal.autotune_status(id);
         let duty = self.thermal.update(id, measured_c, now_us);
+        self.report_autotune(id, tune);
         if !had_fault {
             if let Some(f) = self.thermal.fault() {
                 let mut t: String<LINE_LEN> = String::new();

@@ -179,7 +179,13 @@ impl Printer {
                     State::Cancelled => "cancelled",
                     State::Halted => "halted",
                 };
-                match (self.layer, self.reports.progress_percent) {
+                // M73's percent, else the card job's bytes read.
+                let progress = self.reports.progress_percent.or_else(|| {
+                    self.sd_progress()
+                        .filter(|(_, b)| *b > 0)
+                        .map(|(a, b)| (u64::from(a) * 100 / u64::from(b)) as u8)
+                });
+                match (self.layer, progress) {
                     (Some(l), Some(p)) => {
                         self.say(format_args!("layer {l} state {state} progress {p}%"))
                     }

@@ -88,6 +88,8 @@ pub(super) struct SdLink {
     attached: bool,
     /// The card's volume is open, as far as the executive knows.
     mounted: bool,
+    /// M22 released the card (the user may take it out): nothing mounts it but M21.
+    released: bool,
     request: Option<CardRequest>,
     job: SdJob,
     lines: FileLines,
@@ -100,6 +102,10 @@ pub(super) struct SdLink {
     chunk_at: u32,
     /// Offset of the file line being handled (inside `handle_line`).
     line_origin: Option<u32>,
+    /// The card's job was cancelled and nothing has moved since: the printer reports
+    /// `Cancelled` as after a host job's cancel (the host's own lines are not discarded: the
+    /// host's stream was not the job).
+    cancelled: bool,
     /// `M27 S<s>` period, µs (0 = off), and the next report time.
     auto_report_us: u64,
     next_report_us: u64,
@@ -110,6 +116,7 @@ impl SdLink {
         Self {
             attached: false,
             mounted: false,
+            released: false,
             request: None,
             job: SdJob::None,
             lines: FileLines::new(),
@@ -119,6 +126,7 @@ impl SdLink {
             chunk_pos: 0,
             chunk_at: 0,
             line_origin: None,
+            cancelled: false,
             auto_report_us: 0,
             next_report_us: 0,
         }
@@ -197,6 +205,11 @@ impl Printer {
             start: true,
             offset,
         });
+    }
+
+    /// See [`SdLink::cancelled`].
+    pub(super) fn sd_cancelled(&self) -> bool {
+        self.sd.cancelled
     }
 
     /// Whether a command waits for the card (the board brings a lost card up again first;
@@ -310,6 +323,7 @@ impl Printer {
         };
         self.sd.next_report_us = self.now_us.saturating_add(self.sd.auto_report_us);
         self.lines.after_cancel = None;
+        self.sd.cancelled = false;
         let mut t: String<LINE_LEN> = String::new();
         let _ = write!(t, "SD printing {} from byte {at}", file.name);
         self.link
@@ -324,6 +338,7 @@ impl Printer {
         }
         self.sd.job = SdJob::None;
         self.sd.seek(0);
+        self.sd.cancelled = true;
         self.link.notify(Response::Action(
             HostAction::Notification,
             "SD print cancelled",
@@ -342,6 +357,10 @@ impl Printer {
         self.sd.attached = true;
         if self.is_halted() {
             return;
+        }
+        if self.sd.cancelled && matches!(self.pause, super::state::Pause::Run) && self.has_work() {
+            // Something new runs (the cancel's own stop and park are not `Run`).
+            self.sd.cancelled = false;
         }
         self.card_request(card);
         self.feed_card_lines(card);
@@ -374,6 +393,7 @@ impl Printer {
         match req {
             CardRequest::Mount { port } => {
                 self.sd_drop_job(card);
+                self.sd.released = false;
                 match card.mount() {
                     Ok(()) => {
                         self.sd.mounted = true;
@@ -392,6 +412,7 @@ impl Printer {
                 self.sd_drop_job(card);
                 card.release();
                 self.sd.mounted = false;
+                self.sd.released = true;
                 self.answer_to(port, Response::Echo("SD card released"));
                 self.answer_to(port, Response::Ok);
             }
@@ -500,6 +521,11 @@ impl Printer {
             return;
         }
         self.sd.job = SdJob::None;
+        if !self.sd.mounted && !self.sd.released {
+            // Not mounted yet (a power-cut resume right after power-up, a card inserted
+            // since): try once.
+            self.sd.mounted = card.mount().is_ok();
+        }
         let opened = if self.sd.mounted {
             card.open(name)
         } else {

@@ -158,7 +158,7 @@ impl PausedJob {
             w.f32(v);
         }
         w.u8(self.fan_pwm);
-        let crc = crc32fast::hash(&w.buf[..JOB_RECORD_LEN - 4]);
+        let crc = crate::storage::crc32(&w.buf[..JOB_RECORD_LEN - 4]);
         w.u32(crc);
         w.buf
     }

@@ -60,3 +60,11 @@ pub const SKR2_AREA: FlashArea = FlashArea {
 /// The flash model the sim uses for `--flash FILE`: the SKR 2's area geometry (two 128 KiB
 /// sectors, 16-byte program words as embassy-stm32 writes the F4's flash).
 pub type Skr2FlashModel<B> = NorFlashModel<B, 16, { 128 * 1024 }>;
+
+/// CRC-32 (IEEE 802.3, reflected, as zlib and crc32fast) of `bytes`, table-less: the stored
+/// records (settings, paused job) are small, and a table costs flash (see `Cargo.toml`).
+pub fn crc32(bytes: &[u8]) -> u32 {
+    const CRC32: crc::Crc<u32, crc::NoTable> =
+        crc::Crc::<u32, crc::NoTable>::new(&crc::CRC_32_ISO_HDLC);
+    CRC32.checksum(bytes)
+}

@@ -327,7 +327,7 @@ impl Settings {
             .iter()
             .enumerate()
             .fold(0, |b, (i, on)| b | u8::from(*on) << i));
-        let crc = crc32fast::hash(&w.buf[..RECORD_LEN - 4]);
+        let crc = crate::storage::crc32(&w.buf[..RECORD_LEN - 4]);
         w.u32(crc);
         w.buf
     }
@@ -426,7 +426,7 @@ pub(crate) fn checked_body(
     }
     let (framed, crc) = bytes.split_at(n - 4);
     let stored = u32::from_le_bytes([crc[0], crc[1], crc[2], crc[3]]);
-    if crc32fast::hash(framed) != stored {
+    if crate::storage::crc32(framed) != stored {
         return Err(RecordError::BadCrc);
     }
     let v = u16::from_le_bytes([framed[0], framed[1]]);
@@ -566,7 +566,7 @@ mod tests {
         v1.extend_from_slice(&1u16.to_le_bytes());
         v1.extend_from_slice(&(BODY_LEN_V1 as u16).to_le_bytes());
         v1.extend_from_slice(&v2[4..4 + BODY_LEN_V1]);
-        let crc = crc32fast::hash(&v1);
+        let crc = crate::storage::crc32(&v1);
         v1.extend_from_slice(&crc.to_le_bytes());
         let got = Settings::decode(&v1).unwrap();
         let mut want = s;
@@ -587,7 +587,7 @@ mod tests {
     fn another_version_is_refused_even_with_a_good_crc() {
         let mut b = factory().encode();
         b[0] = 0;
-        let crc = crc32fast::hash(&b[..RECORD_LEN - 4]);
+        let crc = crate::storage::crc32(&b[..RECORD_LEN - 4]);
         b[RECORD_LEN - 4..].copy_from_slice(&crc.to_le_bytes());
         assert_eq!(Settings::decode(&b), Err(RecordError::Version(0)));
     }

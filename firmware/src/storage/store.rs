@@ -275,7 +275,7 @@ mod tests {
         let mut st = small_store(vec![0xFF; 3 * 1024]);
         let mut old = factory().encode();
         old[0] = 0; // format 0
-        let crc = crc32fast::hash(&old[..old.len() - 4]);
+        let crc = crate::storage::crc32(&old[..old.len() - 4]);
         let n = old.len();
         old[n - 4..].copy_from_slice(&crc.to_le_bytes());
         st.store(SETTINGS_KEY, &old).unwrap();

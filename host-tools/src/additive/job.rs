@@ -11,6 +11,9 @@ use super::fill::{fill_layer, FillParams, PathKind};
 use super::frame::{closest_point_on_triangle, local_to_world, nearest_face, Frame, Placement};
 use super::slice::slice_layers;
 use super::stl::{validate, Mesh, MeshReport, MAX_COORD_MM};
+use crate::design::profile::Profile;
+use crate::design::travel::HeightMap;
+use crate::job::read::{default_reader, Event, GcodeReader};
 use anyhow::bail;
 use glam::{DMat4, DVec3};
 
@@ -102,11 +105,35 @@ impl Job {
     /// Nozzle positions in print order, the approach from the start position and the travels
     /// included (the polyline the head follows).
     pub fn tip_polyline(&self) -> Vec<DVec3> {
-        self.approach
-            .iter()
-            .copied()
-            .chain(self.paths.iter().flat_map(|p| p.points.iter().copied()))
-            .collect()
+        let mut out = self.approach.clone();
+        for (travel, path) in self.travels().into_iter().zip(&self.paths) {
+            out.extend(travel);
+            out.extend(path.points.iter().copied());
+        }
+        out
+    }
+
+    /// The travel before each path (the first path's is empty: the approach brings the head
+    /// there): up above what the job printed so far under the way, across, down onto the
+    /// path's first point ([`HeightMap::route`]), never straight through fresh walls.
+    pub fn travels(&self) -> Vec<Vec<DVec3>> {
+        let mut map = HeightMap::new();
+        let mut at: Option<DVec3> = None;
+        let mut out = Vec::with_capacity(self.paths.len());
+        for path in &self.paths {
+            let route = match (at, path.points.first()) {
+                (Some(from), Some(first)) => map.route(from, *first),
+                _ => Vec::new(),
+            };
+            out.push(route);
+            for w in path.points.windows(2) {
+                map.add_segment(w[0], w[1]);
+            }
+            if let Some(last) = path.points.last() {
+                at = Some(*last);
+            }
+        }
+        out
     }
 }
 
@@ -256,6 +283,23 @@ fn shape_top(paths: &[WorldPath]) -> f64 {
         .fold(f64::NEG_INFINITY, |z, q| z.max(q.z))
 }
 
+/// Where the profile's start code leaves the nozzle (its last move, read by the project's
+/// G-code reader; after a bare `G28`, the bed's minimum corner at Z 0): the approach starts
+/// there, so the first move out of the start code is the checked one. A start code the reader
+/// rejects is an error.
+pub fn start_position(profile: &Profile) -> anyhow::Result<DVec3> {
+    let code = profile.start_code(profile.hotend_c, profile.bed_c);
+    let mut last = None;
+    default_reader()
+        .read(code.as_bytes(), &mut |e| {
+            if let Event::Move { to, .. } = e {
+                last = Some(DVec3::new(to[0], to[1], to[2]));
+            }
+        })
+        .map_err(|e| anyhow::anyhow!("printer profile {}: start code: {e}", profile.name))?;
+    Ok(last.unwrap_or(DVec3::new(profile.bed.x_min_mm, profile.bed.y_min_mm, 0.0)))
+}
+
 /// Clearance of the approach above the base part and the shape, mm.
 pub const APPROACH_CLEARANCE_MM: f64 = 5.0;
 
@@ -335,7 +379,7 @@ pub fn to_model(job: &Job, p: &JobParams, speeds: &Speeds) -> crate::design::mod
     }
     let mut layer = usize::MAX;
     let mut kind: Option<PathKind> = None;
-    for path in &job.paths {
+    for (travel, path) in job.travels().into_iter().zip(&job.paths) {
         if path.layer != layer {
             layer = path.layer;
             kind = None;
@@ -363,6 +407,12 @@ pub fn to_model(job: &Job, p: &JobParams, speeds: &Speeds) -> crate::design::mod
         } else {
             speeds.wall_mm_s
         };
+        for to in travel {
+            m.push(Step::Travel {
+                to,
+                speed_mm_s: None,
+            });
+        }
         if let Some(first) = path.points.first() {
             m.push(Step::Travel {
                 to: *first,

@@ -5,7 +5,7 @@ use crate::additive::collision::HeadModel;
 use crate::additive::fill::FillParams;
 use crate::additive::frame::Placement;
 use crate::additive::job::{
-    check, plan, to_model, FaceChoice, JobParams, Speeds, MAX_LAYERS, MAX_WALLS,
+    check, plan, start_position, to_model, FaceChoice, JobParams, Speeds, MAX_LAYERS, MAX_WALLS,
 };
 use crate::additive::stl::read_stl;
 use crate::design::profile::Profile;
@@ -131,7 +131,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             carriage_radius_mm: a.carriage_radius,
             carriage_height_mm: a.carriage_height,
         },
-        start_mm: DVec3::new(profile.bed.x_min_mm, profile.bed.y_min_mm, 0.0),
+        start_mm: start_position(&profile)?,
         ..JobParams::default()
     };
     let job = plan(&base, &shape, &params)?;

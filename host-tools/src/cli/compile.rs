@@ -18,8 +18,9 @@ pub struct Args {
     /// Output G-code file.
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Printer profile: a built-in name (ender3, skr2) or a TOML file.
-    #[arg(long, default_value = "ender3")]
+    /// Printer profile: a built-in name (`--profile help` lists them: ender3,
+    /// mk3s, voron24-350, ...) or a TOML file.
+    #[arg(long, alias = "profile", default_value = "ender3")]
     pub printer: String,
     /// Skip the printability checks.
     #[arg(long)]
@@ -39,6 +40,9 @@ pub struct Args {
 
 /// Runs the subcommand.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if super::list_profiles_if_asked(&args.printer)? {
+        return Ok(());
+    }
     let profile = Profile::load(&args.printer)?;
     let spinner = indicatif::ProgressBar::new_spinner();
     spinner.set_message(format!("running {}", args.design.display()));

@@ -48,3 +48,16 @@ pub(crate) fn write_gcode(
     }
     Ok(summary)
 }
+
+/// `--profile help` (or `list`): prints the built-in printer profiles and returns true, so the
+/// command stops there with success.
+pub(crate) fn list_profiles_if_asked(name: &str) -> anyhow::Result<bool> {
+    if !matches!(name, "help" | "list") {
+        return Ok(false);
+    }
+    crate::fileio::say(format_args!(
+        "printer profiles (built in; a TOML file's path works too, see docs/profiles.md):\n{}",
+        crate::design::profile::listing().trim_end()
+    ))?;
+    Ok(true)
+}

@@ -15,8 +15,9 @@ pub struct Args {
     /// Print JSON (fields: layers, moves, print_time_s, filament_mm, bbox_mm, ...).
     #[arg(long)]
     pub json: bool,
-    /// Printer profile whose limits time the moves: built-in name or TOML file.
-    #[arg(long, default_value = "ender3")]
+    /// Printer profile whose limits time the moves: built-in name or TOML file
+    /// (`--profile help` lists them).
+    #[arg(long, alias = "profile", default_value = "ender3")]
     pub printer: String,
     /// List the time of every layer (text output).
     #[arg(long)]
@@ -25,6 +26,9 @@ pub struct Args {
 
 /// Runs the subcommand.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if super::list_profiles_if_asked(&args.printer)? {
+        return Ok(());
+    }
     let profile = Profile::load(&args.printer)?;
     let data = crate::fileio::read_bounded(&args.file, crate::fileio::Limit::Gcode)?;
     let s = stats(&data, &profile).map_err(|e| anyhow::anyhow!("{}: {e}", args.file.display()))?;
@@ -85,6 +89,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         writeln!(o, "layer time    {lo:.1} s – {hi:.1} s")?;
     }
     if args.layers {
+        // Layer numbers are the firmware's (what `M761 L<n>` and the layer pause use).
+        writeln!(o, "  start code   {:>8.2} s", s.before_first_layer_s)?;
         for l in &s.layer_times {
             match l.z_mm {
                 Some(z) => writeln!(

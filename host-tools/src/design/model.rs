@@ -118,6 +118,17 @@ pub enum StateChange {
     Fan(f64),
     /// Filament diameter used for E from here on, mm (the turtle's `init` argument).
     FilamentDiameter(f64),
+    /// Retraction used by the travels from here on (replaces the profile's).
+    Retraction(crate::design::profile::Retraction),
+    /// Raw G-code lines written as they are (checked for line breaks and non-ASCII when
+    /// written).
+    Gcode(String),
+    /// A pause mark for the firmware: `M601` (stop at the next layer boundary) or, with
+    /// `now`, `M601 S1` (stop here).
+    Pause {
+        /// Pause at once instead of at the layer boundary.
+        now: bool,
+    },
 }
 
 /// Kind of a progress marker.
@@ -346,6 +357,35 @@ impl Model {
         self
     }
 
+    /// Mirrors every point in XY about the line through `a` and `b` (Z kept; arcs change
+    /// direction). The caller checks `a != b` in XY.
+    pub fn reflect_xy(mut self, a: DVec3, b: DVec3) -> Model {
+        let dir = (b - a).truncate().normalize_or_zero();
+        let r = |p: DVec3| {
+            let v = (p - a).truncate();
+            let q = a.truncate() + dir * (2.0 * v.dot(dir)) - v;
+            DVec3::new(q.x, q.y, p.z)
+        };
+        for s in &mut self.steps {
+            match s {
+                Step::String(st) => {
+                    st.start = r(st.start);
+                    st.end = r(st.end);
+                    if let Some(arc) = &mut st.arc {
+                        let c = r(DVec3::new(arc.center_xy[0], arc.center_xy[1], 0.0));
+                        arc.center_xy = [c.x, c.y];
+                        arc.ccw = !arc.ccw;
+                    }
+                }
+                Step::Travel { to, .. } => *to = r(*to),
+                _ => {}
+            }
+        }
+        let ax = r(DVec3::new(self.axis_xy[0], self.axis_xy[1], 0.0));
+        self.axis_xy = [ax.x, ax.y];
+        self
+    }
+
     /// Maps every string's cross-section and speed (keeps geometry).
     pub fn map_strings(mut self, mut f: impl FnMut(usize, &mut Str)) -> Model {
         let mut i = 0;
@@ -418,6 +458,49 @@ impl Model {
             out.push(p);
         }
         Ok(Model::assemble(out))
+    }
+
+    /// Splits every straight string longer than `max_len_mm` into equal strings no longer
+    /// than it (same cross-section and speed), so later deformations bend it smoothly. Arcs
+    /// are kept. Errors when the result would exceed [`crate::design::parts::MAX_PART_STRINGS`].
+    pub fn subdivide(mut self, max_len_mm: f64) -> Result<Model, String> {
+        if !(max_len_mm.is_finite() && max_len_mm > 0.0) {
+            return Err(format!(
+                "subdivide: max length must be > 0, got {max_len_mm}"
+            ));
+        }
+        let limit = crate::design::parts::MAX_PART_STRINGS as f64;
+        let total: f64 = self
+            .strings()
+            .filter(|s| s.arc.is_none())
+            .map(|s| (s.len_mm() / max_len_mm).ceil().max(1.0))
+            .sum();
+        if total > limit {
+            return Err(format!(
+                "subdivide: {total:.0} strings at max length {max_len_mm} mm (limit {limit:.0})"
+            ));
+        }
+        let mut out = Vec::with_capacity(total as usize + self.steps.len());
+        for step in self.steps.drain(..) {
+            match step {
+                Step::String(s) if s.arc.is_none() && s.len_mm() > max_len_mm => {
+                    let n = (s.len_mm() / max_len_mm).ceil() as usize;
+                    let mut prev = s.start;
+                    for k in 1..=n {
+                        let p = if k == n {
+                            s.end
+                        } else {
+                            s.start.lerp(s.end, k as f64 / n as f64)
+                        };
+                        out.push(Step::String(Str::line(prev, p, s.cross_mm2, s.speed_mm_s)));
+                        prev = p;
+                    }
+                }
+                other => out.push(other),
+            }
+        }
+        self.steps = out;
+        Ok(self)
     }
 
     /// Sets the emission thinning length (see [`EmissionHints::thin_min_len_mm`]).

@@ -453,7 +453,8 @@ fn trapezoid(b: &Block, v0: f64, v1: f64, t0: f64) -> Segment {
 }
 
 /// Drives a planner from G-code: reads `input` with the default reader and calls `out` with
-/// every segment, `layer` with every layer start (index, height if known, time).
+/// every segment, `layer` with every layer start (the firmware's layer number, height if known,
+/// time). Segments carry the count of layer starts before them ([`Segment::layer`]).
 pub fn plan_gcode(
     input: &[u8],
     limits: MotionLimits,
@@ -495,10 +496,15 @@ pub fn plan_gcode_with(
                 out,
             );
         }
-        Event::Layer { z_mm, source, .. } => {
+        Event::Layer {
+            z_mm,
+            source,
+            number,
+            ..
+        } => {
             cur_layer += 1;
             explicit_layers |= source != LayerSource::ZRise;
-            layer(cur_layer, z_mm, planner.time_s());
+            layer(number, z_mm, planner.time_s());
         }
         Event::Dwell(s) => {
             dwell_s += s;

@@ -19,6 +19,7 @@ pub enum EMode {
 
 /// Printable area, mm.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Bed {
     /// Lowest X, mm.
     pub x_min_mm: f64,
@@ -34,6 +35,7 @@ pub struct Bed {
 
 /// Retraction on travels.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Retraction {
     /// Filament pulled back, mm (0 disables retraction).
     pub length_mm: f64,
@@ -45,6 +47,7 @@ pub struct Retraction {
 
 /// Motion limits (Marlin's M203/M201/M204/M205 J), used by the time estimate and checks.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Limits {
     /// Highest X/Y feed, mm/s.
     pub max_feed_xy_mm_s: f64,
@@ -72,8 +75,11 @@ pub struct Limits {
     pub max_volumetric_mm3_s: f64,
 }
 
-/// Start and end code templates; `{hotend_c}`, `{bed_c}` are replaced.
+/// Start and end code templates. Placeholders (see [`PLACEHOLDERS`]) are written `{name}`;
+/// `{{` and `}}` stand for literal braces. An unknown placeholder is an error when the profile
+/// is loaded, naming it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct GcodeTemplates {
     /// Written before the design.
     pub start: String,
@@ -81,11 +87,64 @@ pub struct GcodeTemplates {
     pub end: String,
 }
 
-/// A printer profile.
+/// The firmware family the profile's start/end code is written for (what the printer runs;
+/// the writer's moves are the same for all).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Firmware {
+    /// Marlin 1.x/2.x (Creality, Anycubic stock boards).
+    #[default]
+    Marlin,
+    /// Prusa's Marlin fork (MK3S) or Prusa-Firmware-Buddy (MK4): `M862.x` checks, `G80`/`G29` mesh.
+    Prusa,
+    /// Klipper with `PRINT_START`/`PRINT_END` macros (Voron).
+    Klipper,
+    /// This project's firmware (the SKR 2 build).
+    Layerpause,
+}
+
+impl Firmware {
+    /// Lower-case name as written in profiles.
+    pub fn name(self) -> &'static str {
+        match self {
+            Firmware::Marlin => "marlin",
+            Firmware::Prusa => "prusa",
+            Firmware::Klipper => "klipper",
+            Firmware::Layerpause => "layerpause",
+        }
+    }
+}
+
+/// How layers are marked in the G-code, as the slicer the printer's owners use would mark them.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Markers {
+    /// PrusaSlicer: `;LAYER_CHANGE`, `;Z:<mm>`, `;HEIGHT:<mm>` before each layer's Z move.
+    #[default]
+    Prusa,
+    /// Cura: `;FLAVOR:Marlin` and `;LAYER_COUNT:<n>` before the start code, `;LAYER:<n>`
+    /// (from 0) before each layer.
+    Cura,
+}
+
+/// A printer profile. Unknown keys are errors (`deny_unknown_fields`), naming the key.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Profile {
     /// Profile name.
     pub name: String,
+    /// One line for `host-tools profiles`: the printer and what the profile is for.
+    #[serde(default)]
+    pub description: String,
+    /// Where the values come from (vendor slicer profile files, with sections).
+    #[serde(default)]
+    pub source: String,
+    /// Firmware family the start/end code is written for.
+    #[serde(default)]
+    pub firmware: Firmware,
+    /// Nozzle diameter, mm (the `{nozzle_mm}` placeholder; designs choose their own widths).
+    #[serde(default = "default_nozzle_mm")]
+    pub nozzle_diameter_mm: f64,
     /// Filament diameter, mm.
     pub filament_diameter_mm: f64,
     /// Filament density, g/cm³ (for mass).
@@ -96,6 +155,17 @@ pub struct Profile {
     pub bed_c: f64,
     /// Default part-fan duty, 0..=1.
     pub fan: f64,
+    /// Layers printed with the part fan off before it comes on (slicers' "disable fan for the
+    /// first N layers"; 0 = on from the start code).
+    #[serde(default)]
+    pub fan_off_layers: u32,
+    /// Layer marker style.
+    #[serde(default)]
+    pub markers: Markers,
+    /// Write `M73 P<percent> R<minutes left>` at every layer (PrusaSlicer; the printer's
+    /// display shows progress and time left).
+    #[serde(default)]
+    pub progress: bool,
     /// Absolute or relative E.
     pub e_mode: EMode,
     /// Travel speed, mm/s.
@@ -112,43 +182,122 @@ pub struct Profile {
     pub gcode: GcodeTemplates,
 }
 
-const ENDER3_TOML: &str = include_str!("../../profiles/ender3.toml");
-const SKR2_TOML: &str = include_str!("../../profiles/skr2.toml");
+fn default_nozzle_mm() -> f64 {
+    0.4
+}
 
-/// Names of the built-in profiles.
-pub const BUILTIN: &[&str] = &["ender3", "skr2"];
+/// Placeholders of start/end code, with what they become.
+pub const PLACEHOLDERS: &[(&str, &str)] = &[
+    (
+        "hotend_c",
+        "hotend temperature, °C (the design's, else the profile's)",
+    ),
+    (
+        "bed_c",
+        "bed temperature, °C (the design's, else the profile's)",
+    ),
+    ("nozzle_mm", "nozzle diameter, mm"),
+    ("bed_x_min", "lowest X of the bed, mm"),
+    ("bed_x_max", "highest X of the bed, mm"),
+    ("bed_y_min", "lowest Y of the bed, mm"),
+    ("bed_y_max", "highest Y of the bed, mm"),
+    ("z_max", "highest Z, mm"),
+    (
+        "lift_z",
+        "top of the print + 2 mm, at most z_max (end code: clear the part)",
+    ),
+    (
+        "park_z",
+        "top of the print + 50 mm, at most z_max (end code: present the part)",
+    ),
+    ("travel_f", "travel feed, mm/min"),
+];
+
+/// Values the placeholders take in one write.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TemplateValues {
+    /// Hotend temperature, °C.
+    pub hotend_c: f64,
+    /// Bed temperature, °C.
+    pub bed_c: f64,
+    /// Highest Z the print reaches, mm (`None`: unknown, the lifts go to `z_max`).
+    pub top_z_mm: Option<f64>,
+}
+
+/// The built-in profiles: name and TOML text (`host-tools/profiles/<name>.toml`).
+const BUILTIN_TOML: &[(&str, &str)] = &[
+    ("ender3", include_str!("../../profiles/ender3.toml")),
+    ("ender3v2", include_str!("../../profiles/ender3v2.toml")),
+    ("ender3s1", include_str!("../../profiles/ender3s1.toml")),
+    ("cr10", include_str!("../../profiles/cr10.toml")),
+    ("i3mega", include_str!("../../profiles/i3mega.toml")),
+    ("mk3s", include_str!("../../profiles/mk3s.toml")),
+    ("mk4", include_str!("../../profiles/mk4.toml")),
+    (
+        "voron24-350",
+        include_str!("../../profiles/voron24-350.toml"),
+    ),
+    ("skr2", include_str!("../../profiles/skr2.toml")),
+    ("paste", include_str!("../../profiles/paste.toml")),
+    ("eazao-zero", include_str!("../../profiles/eazao-zero.toml")),
+];
+
+/// The reference profile behind [`Profile::ender3`].
+const REFERENCE_TOML: &str = include_str!("../../profiles/reference.toml");
+
+/// Names of the built-in profiles, in listing order.
+pub const BUILTIN: &[&str] = &[
+    "ender3",
+    "ender3v2",
+    "ender3s1",
+    "cr10",
+    "i3mega",
+    "mk3s",
+    "mk4",
+    "voron24-350",
+    "skr2",
+    "paste",
+    "eazao-zero",
+];
 
 impl Profile {
-    /// Parses a profile from TOML text and validates it.
+    /// Parses a profile from TOML text and validates it. Unknown keys and unknown
+    /// placeholders in the start/end code are errors that name them.
     pub fn from_toml(text: &str) -> anyhow::Result<Profile> {
         let p: Profile = toml::from_str(text)?;
         p.validate()?;
         Ok(p)
     }
 
-    /// A built-in profile by name (`ender3`, `skr2`).
+    /// A built-in profile by name (see [`BUILTIN`]).
     pub fn builtin(name: &str) -> Option<Profile> {
-        let text = match name {
-            "ender3" => ENDER3_TOML,
-            "skr2" => SKR2_TOML,
-            _ => return None,
-        };
+        let text = BUILTIN_TOML.iter().find(|(n, _)| *n == name)?.1;
         Profile::from_toml(text).ok()
     }
 
-    /// The Ender-3 profile (the default).
+    /// The library's reference profile (`profiles/reference.toml`): Ender-3-class mechanics,
+    /// a minimal start code without purge line, PrusaSlicer-style markers — what the golden
+    /// and property tests pin. Not the vendor-sourced `ender3` named profile
+    /// (`Profile::builtin("ender3")`, Cura-style, with the purge line).
     pub fn ender3() -> Profile {
-        match Profile::from_toml(ENDER3_TOML) {
+        match Profile::from_toml(REFERENCE_TOML) {
             Ok(p) => p,
             // The file is compiled in and covered by tests; this arm is unreachable in practice.
-            Err(e) => panic!("built-in ender3 profile is invalid: {e}"),
+            Err(e) => panic!("built-in reference profile is invalid: {e}"),
         }
     }
 
-    /// A built-in name or a path to a TOML file.
+    /// A built-in name or a path to a TOML file. `help` and `list` are not profiles: the
+    /// error lists the built-in ones (`--profile help`).
     pub fn load(name_or_path: &str) -> anyhow::Result<Profile> {
         if let Some(p) = Profile::builtin(name_or_path) {
             return Ok(p);
+        }
+        if matches!(name_or_path, "help" | "list" | "?") {
+            anyhow::bail!(
+                "printer profiles (built in; or give a TOML file's path):\n{}",
+                listing()
+            );
         }
         let path = Path::new(name_or_path);
         let text =
@@ -231,6 +380,18 @@ impl Profile {
         if self.decimals == 0 || self.decimals > 6 {
             anyhow::bail!("profile {}: decimals must be 1..=6", self.name);
         }
+        if !(self.nozzle_diameter_mm.is_finite() && self.nozzle_diameter_mm > 0.0) {
+            anyhow::bail!("profile {}: nozzle_diameter_mm must be > 0", self.name);
+        }
+        for (part, t) in [
+            ("gcode.start", &self.gcode.start),
+            ("gcode.end", &self.gcode.end),
+        ] {
+            expand(t, &mut |n| {
+                PLACEHOLDERS.iter().any(|(k, _)| *k == n).then(String::new)
+            })
+            .map_err(|e| anyhow::anyhow!("profile {}: {part}: {e}", self.name))?;
+        }
         Ok(())
     }
 
@@ -247,15 +408,91 @@ impl Profile {
         ]
     }
 
-    /// Start code with the temperatures filled in.
+    /// Start code with the temperatures filled in (`{lift_z}`/`{park_z}` go to `z_max`).
     pub fn start_code(&self, hotend_c: f64, bed_c: f64) -> String {
-        fill(&self.gcode.start, hotend_c, bed_c)
+        self.fill(
+            &self.gcode.start,
+            &TemplateValues {
+                hotend_c,
+                bed_c,
+                top_z_mm: None,
+            },
+        )
     }
 
-    /// End code with the temperatures filled in.
+    /// End code with the temperatures filled in (`{lift_z}`/`{park_z}` go to `z_max`; see
+    /// [`Profile::fill`] for a known top).
     pub fn end_code(&self, hotend_c: f64, bed_c: f64) -> String {
-        fill(&self.gcode.end, hotend_c, bed_c)
+        self.fill(
+            &self.gcode.end,
+            &TemplateValues {
+                hotend_c,
+                bed_c,
+                top_z_mm: None,
+            },
+        )
     }
+
+    /// A template with its placeholders filled in. Templates were checked when the profile
+    /// was loaded; an unknown placeholder in a hand-built profile is left as written.
+    pub fn fill(&self, template: &str, v: &TemplateValues) -> String {
+        let b = &self.bed;
+        let zmax = b.z_max_mm;
+        let lift = |dz: f64| match v.top_z_mm {
+            Some(top) if top.is_finite() && zmax > 0.0 => (top + dz).min(zmax),
+            Some(top) if top.is_finite() => top + dz,
+            _ => zmax,
+        };
+        let num = |x: f64| {
+            let r = (x * 1000.0).round() / 1000.0;
+            format!("{r}")
+        };
+        let value = |name: &str| -> Option<String> {
+            Some(match name {
+                "hotend_c" => format!("{}", v.hotend_c.round() as i64),
+                "bed_c" => format!("{}", v.bed_c.round() as i64),
+                "nozzle_mm" => num(self.nozzle_diameter_mm),
+                "bed_x_min" => num(b.x_min_mm),
+                "bed_x_max" => num(b.x_max_mm),
+                "bed_y_min" => num(b.y_min_mm),
+                "bed_y_max" => num(b.y_max_mm),
+                "z_max" => num(zmax),
+                "lift_z" => num(lift(2.0)),
+                "park_z" => num(lift(50.0)),
+                "travel_f" => format!("{}", (self.travel_speed_mm_s * 60.0).round() as i64),
+                _ => return None,
+            })
+        };
+        match expand(template, &mut |n| value(n)) {
+            Ok(s) => s,
+            Err(_) => template.to_string(),
+        }
+    }
+}
+
+/// The built-in profiles, one line each: name, firmware, bed, nozzle, description.
+pub fn listing() -> String {
+    let mut out = String::new();
+    for name in BUILTIN {
+        if let Some(p) = Profile::builtin(name) {
+            let b = &p.bed;
+            out.push_str(&format!(
+                "  {:<13} {:<10} {:>4.0}×{:<4.0}×{:>4.0} mm  nozzle {:.2}  {}  {}\n",
+                p.name,
+                p.firmware.name(),
+                b.x_max_mm - b.x_min_mm,
+                b.y_max_mm - b.y_min_mm,
+                b.z_max_mm,
+                p.nozzle_diameter_mm,
+                match p.markers {
+                    Markers::Prusa => "prusa-markers",
+                    Markers::Cura => "cura-markers ",
+                },
+                p.description
+            ));
+        }
+    }
+    out
 }
 
 /// Area of a filament of diameter `d_mm`, mm².
@@ -263,30 +500,149 @@ pub fn filament_area_mm2(d_mm: f64) -> f64 {
     std::f64::consts::PI * 0.25 * d_mm * d_mm
 }
 
-fn fill(t: &str, hotend_c: f64, bed_c: f64) -> String {
-    t.replace("{hotend_c}", &format!("{}", hotend_c.round() as i64))
-        .replace("{bed_c}", &format!("{}", bed_c.round() as i64))
+/// Expands `{name}` placeholders with `value`; `{{`/`}}` are literal braces. Errors name an
+/// unknown placeholder or an unclosed brace.
+fn expand(t: &str, value: &mut dyn FnMut(&str) -> Option<String>) -> Result<String, String> {
+    let mut out = String::with_capacity(t.len() + 16);
+    let mut rest = t;
+    while let Some(i) = rest.find(['{', '}']) {
+        out.push_str(&rest[..i]);
+        let tail = &rest[i..];
+        if let Some(r) = tail.strip_prefix("{{") {
+            out.push('{');
+            rest = r;
+        } else if let Some(r) = tail.strip_prefix("}}") {
+            out.push('}');
+            rest = r;
+        } else if tail.starts_with('}') {
+            return Err("a lone `}` (write `}}` for a literal brace)".into());
+        } else {
+            let Some(end) = tail.find('}') else {
+                return Err(format!(
+                    "unclosed placeholder `{}` (write `{{{{` for a literal brace)",
+                    tail.lines().next().unwrap_or(tail)
+                ));
+            };
+            let name = &tail[1..end];
+            match value(name) {
+                Some(v) => out.push_str(&v),
+                None => {
+                    return Err(format!(
+                        "unknown placeholder `{{{name}}}` (known: {})",
+                        PLACEHOLDERS
+                            .iter()
+                            .map(|(n, _)| *n)
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    ))
+                }
+            }
+            rest = &tail[end + 1..];
+        }
+    }
+    out.push_str(rest);
+    Ok(out)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
+    fn text(name: &str) -> &'static str {
+        BUILTIN_TOML
+            .iter()
+            .find(|(n, _)| *n == name)
+            .map(|(_, t)| *t)
+            .unwrap_or("")
+    }
+
     #[test]
     fn builtins_parse_and_differ() {
+        assert_eq!(BUILTIN.len(), BUILTIN_TOML.len());
+        for name in BUILTIN {
+            let p = Profile::builtin(name).unwrap_or_else(|| panic!("{name} does not load"));
+            assert_eq!(&p.name, name);
+            assert!(!p.description.is_empty() && !p.source.is_empty(), "{name}");
+        }
         let e = Profile::builtin("ender3").expect("ender3");
         let s = Profile::builtin("skr2").expect("skr2");
         assert_eq!(e.e_mode, EMode::Absolute);
         assert_eq!(s.e_mode, EMode::Relative);
+        assert_eq!(e.markers, Markers::Cura);
+        assert!(Profile::builtin("mk3s").expect("mk3s").progress);
         assert!(e.start_code(200.0, 60.0).contains("M109 S200"));
         assert!(Profile::builtin("nope").is_none());
     }
 
     #[test]
     fn invalid_profile_is_rejected() {
-        let bad = ENDER3_TOML.replace("filament_diameter_mm = 1.75", "filament_diameter_mm = -1");
+        let bad =
+            text("ender3").replace("filament_diameter_mm = 1.75", "filament_diameter_mm = -1");
         assert!(Profile::from_toml(&bad).is_err());
         assert!(Profile::from_toml("name = 3").is_err());
         assert!(Profile::load("/nonexistent/profile.toml").is_err());
+    }
+
+    /// An unknown key is an error naming the key, at the top level and in a table.
+    #[test]
+    fn unknown_keys_are_named() {
+        let t = text("ender3").replace("decimals = 3", "decimals = 3\nnozle_diameter_mm = 0.4");
+        let e = format!("{:#}", Profile::from_toml(&t).expect_err("unknown key"));
+        assert!(e.contains("nozle_diameter_mm"), "{e}");
+        let t = text("ender3").replace("x_min_mm = 0.0", "x_min_mm = 0.0\nx_size_mm = 3.0");
+        let e = format!("{:#}", Profile::from_toml(&t).expect_err("unknown key"));
+        assert!(e.contains("x_size_mm"), "{e}");
+    }
+
+    /// An unknown placeholder is an error naming it; `{{`/`}}` are literal braces.
+    #[test]
+    fn unknown_placeholders_are_named() {
+        let t = text("ender3").replace("M105\nM190", "M105 {bed_temp}\nM190");
+        let e = format!(
+            "{:#}",
+            Profile::from_toml(&t).expect_err("unknown placeholder")
+        );
+        assert!(e.contains("{bed_temp}") && e.contains("gcode.start"), "{e}");
+        let t = text("ender3").replace("M84 X Y E", "M84 X Y E {oops");
+        let e = format!("{:#}", Profile::from_toml(&t).expect_err("unclosed"));
+        assert!(e.contains("gcode.end") && e.contains("unclosed"), "{e}");
+        let t = text("ender3").replace("M84 X Y E", "M84 X Y E ; {{literal}}");
+        let p = Profile::from_toml(&t).expect("escaped braces");
+        assert!(p.end_code(200.0, 60.0).contains("; {literal}"));
+    }
+
+    #[test]
+    fn placeholders_fill() {
+        let p = Profile::builtin("mk3s").expect("mk3s");
+        let v = TemplateValues {
+            hotend_c: 214.6,
+            bed_c: 59.5,
+            top_z_mm: Some(20.0),
+        };
+        let end = p.fill(&p.gcode.end, &v);
+        assert!(end.contains("G1 Z22 F720"), "{end}");
+        assert!(end.contains("G1 Z70 F720"), "{end}");
+        let tall = TemplateValues {
+            top_z_mm: Some(200.0),
+            ..v
+        };
+        assert!(p.fill(&p.gcode.end, &tall).contains("G1 Z210 F720"));
+        let start = p.fill(&p.gcode.start, &v);
+        assert!(
+            start.contains("M109 S215") && start.contains("M190 S60"),
+            "{start}"
+        );
+        assert!(start.contains("M862.1 P0.4"), "{start}");
+    }
+
+    #[test]
+    fn help_lists_every_builtin() {
+        let e = format!(
+            "{:#}",
+            Profile::load("help").expect_err("help is a listing")
+        );
+        for name in BUILTIN {
+            assert!(e.contains(name), "{name} missing from:\n{e}");
+        }
     }
 }

@@ -21,7 +21,7 @@ use rhai::{Array, Dynamic, Engine, EvalAltResult, FnPtr, Map, NativeCallContext,
 use std::path::{Component, Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
-type Res<T> = Result<T, Box<EvalAltResult>>;
+pub(super) type Res<T> = Result<T, Box<EvalAltResult>>;
 
 /// Limits of the sandbox.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -70,7 +70,7 @@ pub struct ScriptOutput {
     pub warnings: Vec<String>,
 }
 
-fn num(d: &Dynamic, what: &str) -> Res<f64> {
+pub(super) fn num(d: &Dynamic, what: &str) -> Res<f64> {
     if let Ok(f) = d.as_float() {
         Ok(f)
     } else if let Ok(i) = d.as_int() {
@@ -80,7 +80,7 @@ fn num(d: &Dynamic, what: &str) -> Res<f64> {
     }
 }
 
-fn count(d: &Dynamic, what: &str) -> Res<usize> {
+pub(super) fn count(d: &Dynamic, what: &str) -> Res<usize> {
     let v = num(d, what)?;
     if v.is_finite() && v >= 0.0 && v.fract() == 0.0 && v <= 1e9 {
         Ok(v as usize)
@@ -90,14 +90,18 @@ fn count(d: &Dynamic, what: &str) -> Res<usize> {
 }
 
 /// Reads options from a map with defaults, rejecting unknown keys.
-struct Opts<'a> {
+pub(super) struct Opts<'a> {
     map: &'a Map,
     what: &'static str,
     known: &'static [&'static str],
 }
 
 impl<'a> Opts<'a> {
-    fn new(map: &'a Map, what: &'static str, known: &'static [&'static str]) -> Res<Self> {
+    pub(super) fn new(
+        map: &'a Map,
+        what: &'static str,
+        known: &'static [&'static str],
+    ) -> Res<Self> {
         for k in map.keys() {
             if !known.contains(&k.as_str()) {
                 return Err(
@@ -107,20 +111,24 @@ impl<'a> Opts<'a> {
         }
         Ok(Opts { map, what, known })
     }
-    fn f(&self, key: &str, default: f64) -> Res<f64> {
+    pub(super) fn f(&self, key: &str, default: f64) -> Res<f64> {
         debug_assert!(self.known.contains(&key));
         match self.map.get(key) {
             Some(d) => num(d, &format!("{}.{key}", self.what)),
             None => Ok(default),
         }
     }
-    fn n(&self, key: &str, default: usize) -> Res<usize> {
+    pub(super) fn n(&self, key: &str, default: usize) -> Res<usize> {
         match self.map.get(key) {
             Some(d) => count(d, &format!("{}.{key}", self.what)),
             None => Ok(default),
         }
     }
-    fn b(&self, key: &str, default: bool) -> Res<bool> {
+    pub(super) fn get(&self, key: &str) -> Option<&Dynamic> {
+        debug_assert!(self.known.contains(&key));
+        self.map.get(key)
+    }
+    pub(super) fn b(&self, key: &str, default: bool) -> Res<bool> {
         match self.map.get(key) {
             Some(d) => d
                 .as_bool()
@@ -130,7 +138,7 @@ impl<'a> Opts<'a> {
     }
 }
 
-fn vec3_of(d: &Dynamic, what: &str) -> Res<DVec3> {
+pub(super) fn vec3_of(d: &Dynamic, what: &str) -> Res<DVec3> {
     let arr = d
         .clone()
         .into_array()
@@ -145,7 +153,7 @@ fn vec3_of(d: &Dynamic, what: &str) -> Res<DVec3> {
     ))
 }
 
-fn err<E: std::fmt::Display>(e: E) -> Box<EvalAltResult> {
+pub(super) fn err<E: std::fmt::Display>(e: E) -> Box<EvalAltResult> {
     e.to_string().into()
 }
 
@@ -230,9 +238,13 @@ impl ScriptRunner {
         );
         scope.push_constant("FILAMENT_D", self.profile.filament_diameter_mm);
         scope.push_constant("PI", std::f64::consts::PI);
-        let result: Dynamic = engine
-            .eval_ast_with_scope(&mut scope, &ast)
-            .map_err(|e| at(describe(&e), innermost_position(&e)))?;
+        let result: Dynamic = engine.eval_ast_with_scope(&mut scope, &ast).map_err(|e| {
+            let mut msg = describe(&e);
+            if let Some(h) = not_found(&e).and_then(|sig| super::script_build::hint(&engine, sig)) {
+                msg = format!("{msg} ({h})");
+            }
+            at(msg, innermost_position(&e))
+        })?;
         let model = if result.is::<Model>() {
             result.cast::<Model>()
         } else if result.is::<Turtle>() {
@@ -243,7 +255,7 @@ impl ScriptRunner {
                     "the script must end with a Model or a Turtle (its last expression), got {}",
                     result.type_name()
                 ),
-                Position::NONE,
+                last_line(src),
             ));
         };
         let warnings = shared
@@ -285,6 +297,7 @@ impl ScriptRunner {
         register_model(&mut e, shared.clone());
         register_model_ops(&mut e, shared, self.profile.clone());
         register_parts(&mut e);
+        super::script_build::register(&mut e);
         let dir = dir.to_path_buf();
         e.register_type_with_name::<Bitmap>("Bitmap");
         e.register_fn("world_map", || Bitmap::world_map().map_err(err));
@@ -324,6 +337,40 @@ fn describe(e: &EvalAltResult) -> String {
                 None => s,
             }
         }
+    }
+}
+
+/// The signature of a function that was not found, innermost first.
+fn not_found(e: &EvalAltResult) -> Option<&str> {
+    match e {
+        EvalAltResult::ErrorFunctionNotFound(sig, _) => Some(sig),
+        EvalAltResult::ErrorInFunctionCall(_, _, inner, _) => not_found(inner),
+        _ => None,
+    }
+}
+
+/// Where the script's last expression is: its last line that holds code.
+fn last_line(src: &str) -> Position {
+    let line = src
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| {
+            let t = l.trim();
+            !t.is_empty() && !t.starts_with("//")
+        })
+        .map(|(i, _)| i + 1)
+        .last()
+        .unwrap_or(1);
+    Position::new(line.min(u16::MAX as usize) as u16, 1)
+}
+
+/// How an error names a script function: closures have generated names (`anon$…`) that
+/// mean nothing to the designer.
+fn fn_label(f: &FnPtr) -> &str {
+    if f.fn_name().starts_with("anon$") {
+        "the closure"
+    } else {
+        f.fn_name()
     }
 }
 
@@ -437,15 +484,15 @@ fn register_turtle(e: &mut Engine) {
 fn call_vec3(ctx: &NativeCallContext, f: &FnPtr, p: DVec3) -> Result<DVec3, DeformError> {
     let r: Dynamic = f
         .call_within_context(ctx, (p.x, p.y, p.z))
-        .map_err(|e| DeformError::Callback(format!("{}: {}", f.fn_name(), describe(&e))))?;
-    vec3_of(&r, f.fn_name()).map_err(|e| DeformError::Callback(describe(&e)))
+        .map_err(|e| DeformError::Callback(format!("{}: {}", fn_label(f), describe(&e))))?;
+    vec3_of(&r, fn_label(f)).map_err(|e| DeformError::Callback(describe(&e)))
 }
 
 fn call_value(ctx: &NativeCallContext, f: &FnPtr, v: f64, p: DVec3) -> Result<f64, DeformError> {
     let r: Dynamic = f
         .call_within_context(ctx, (v, p.x, p.y, p.z))
-        .map_err(|e| DeformError::Callback(format!("{}: {}", f.fn_name(), describe(&e))))?;
-    num(&r, f.fn_name()).map_err(|e| DeformError::Callback(describe(&e)))
+        .map_err(|e| DeformError::Callback(format!("{}: {}", fn_label(f), describe(&e))))?;
+    num(&r, fn_label(f)).map_err(|e| DeformError::Callback(describe(&e)))
 }
 
 fn deform_script(
@@ -642,7 +689,7 @@ const HELIX_KEYS: &[&str] = &[
     "cx", "cy", "z0", "radius", "pitch", "turns", "per_turn", "cross", "speed", "arcs", "start",
 ];
 
-fn arr3(p: DVec3) -> Dynamic {
+pub(super) fn arr3(p: DVec3) -> Dynamic {
     Dynamic::from_array(vec![
         Dynamic::from_float(p.x),
         Dynamic::from_float(p.y),
@@ -711,7 +758,7 @@ fn register_model_ops(e: &mut Engine, shared: Arc<Mutex<Shared>>, profile: Profi
                     d.as_bool().map_err(|t| {
                         format!(
                             "partition: {} must return true or false, got {t}",
-                            pred.fn_name()
+                            fn_label(&pred)
                         )
                         .into()
                     })
@@ -768,11 +815,11 @@ fn register_model_ops(e: &mut Engine, shared: Arc<Mutex<Shared>>, profile: Profi
                     f.call_within_context(&ctx, (i as i64, s.cross_mm2, s.speed_mm_s));
                 let pair = r.and_then(|d| {
                     let a = d.into_array().map_err(|t| {
-                        format!("{}: expected [cross, speed], got {t}", f.fn_name())
+                        format!("{}: expected [cross, speed], got {t}", fn_label(&f))
                     })?;
                     match a.as_slice() {
                         [c, v] => Ok((num(c, "cross")?, num(v, "speed")?)),
-                        _ => Err(format!("{}: expected [cross, speed]", f.fn_name()).into()),
+                        _ => Err(format!("{}: expected [cross, speed]", fn_label(&f)).into()),
                     }
                 });
                 match pair {
@@ -816,10 +863,10 @@ fn register_model_ops(e: &mut Engine, shared: Arc<Mutex<Shared>>, profile: Profi
                     }
                     let a = d
                         .into_array()
-                        .map_err(|t| format!("{}: expected [x, y] or (), got {t}", f.fn_name()))?;
+                        .map_err(|t| format!("{}: expected [x, y] or (), got {t}", fn_label(&f)))?;
                     match a.as_slice() {
                         [x, y] => Ok(Some((count(x, "x")?, count(y, "y")?))),
-                        _ => Err(format!("{}: expected [x, y] or ()", f.fn_name()).into()),
+                        _ => Err(format!("{}: expected [x, y] or ()", fn_label(&f)).into()),
                     }
                 });
                 match px {

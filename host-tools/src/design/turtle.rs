@@ -6,6 +6,7 @@
 //! (the paper's stringing problem).
 
 use crate::design::model::{MarkerKind, Model, StateChange, Step, Str};
+use crate::design::travel::HeightMap;
 use glam::DVec3;
 
 /// Deepest `push` nesting allowed (a runaway recursive script fails cleanly instead of
@@ -44,12 +45,14 @@ pub enum TurtleError {
 /// The turtle and the model it draws.
 #[derive(Clone, Debug)]
 pub struct Turtle {
-    state: TurtleState,
+    pub(crate) state: TurtleState,
     stack: Vec<TurtleState>,
-    model: Model,
+    pub(crate) model: Model,
+    /// What has been printed so far, for travels that lift over it (filled lazily).
+    pub(crate) heights: HeightMap,
 }
 
-fn finite(name: &str, v: f64) -> Result<f64, TurtleError> {
+pub(crate) fn finite(name: &str, v: f64) -> Result<f64, TurtleError> {
     if v.is_finite() {
         Ok(v)
     } else {
@@ -110,6 +113,7 @@ impl Turtle {
             },
             stack: Vec::new(),
             model,
+            heights: HeightMap::new(),
         })
     }
 
@@ -125,6 +129,7 @@ impl Turtle {
             },
             stack: Vec::new(),
             model: Model::new([pos.x, pos.y]),
+            heights: HeightMap::new(),
         }
     }
 
@@ -137,7 +142,7 @@ impl Turtle {
         Ok(())
     }
 
-    fn go(&mut self, to: DVec3) {
+    pub(crate) fn go(&mut self, to: DVec3) {
         let from = self.state.pos;
         if self.state.pen_down {
             self.model.push(Step::String(Str::line(
@@ -257,17 +262,26 @@ impl Turtle {
         Ok(())
     }
 
-    /// Restores the last saved state, travelling (not extruding) back to its position.
+    /// Restores the last saved state, travelling (not extruding) back to its position: up
+    /// above what was printed on the way, across, and down ([`HeightMap::route`]), never
+    /// straight back along the branch just printed.
     pub fn pop(&mut self) -> Result<(), TurtleError> {
         let s = self.stack.pop().ok_or(TurtleError::EmptyStack)?;
-        if s.pos != self.state.pos {
+        self.travel_safely(s.pos);
+        self.state = s;
+        Ok(())
+    }
+
+    /// Travels to `to` over everything printed so far (see [`HeightMap::route`]).
+    pub fn travel_safely(&mut self, to: DVec3) {
+        self.heights.catch_up(&self.model);
+        for p in self.heights.route(self.state.pos, to) {
             self.model.push(Step::Travel {
-                to: s.pos,
+                to: p,
                 speed_mm_s: None,
             });
         }
-        self.state = s;
-        Ok(())
+        self.state.pos = to;
     }
 
     /// The current state.

@@ -13,7 +13,9 @@
 //!   keeping their volume and time (the globe's poles).
 
 use crate::design::model::{Model, StateChange, Step, Str};
-use crate::design::profile::{filament_area_mm2, EMode, Profile};
+use crate::design::profile::{
+    filament_area_mm2, EMode, Markers, Profile, Retraction, TemplateValues,
+};
 use glam::DVec3;
 use std::io::Write;
 
@@ -282,6 +284,8 @@ struct State {
     f: Option<i64>,
     area: f64,
     retracted: bool,
+    /// Retraction in force (the profile's until a design's `StateChange::Retraction`).
+    retraction: Retraction,
 }
 
 impl<'p> GcodeWriter<'p> {
@@ -341,16 +345,36 @@ impl<'p> GcodeWriter<'p> {
                 buf.push(b'\n');
             }
         }
+        // Profile-chosen framing (design::profile): Cura's header, start code with its
+        // placeholders, the fan from layer `fan_off_layers`, M73 progress (design::progress).
+        let tv = TemplateValues {
+            hotend_c,
+            bed_c,
+            top_z_mm: (!self.opts.bare).then(|| model.bbox().max.z),
+        };
+        let mut progress_at: Vec<usize> = Vec::new();
+        let progress = p.progress && !self.opts.bare;
         if !self.opts.bare {
-            buf.extend_from_slice(p.start_code(hotend_c, bed_c).as_bytes());
+            if p.markers == Markers::Cura {
+                let layers = steps
+                    .iter()
+                    .filter(|s| matches!(s, Step::Marker { .. }))
+                    .count();
+                buf.extend_from_slice(b";FLAVOR:Marlin\n;LAYER_COUNT:");
+                push_u64(buf, layers as u64);
+                buf.push(b'\n');
+            }
+            buf.extend_from_slice(p.fill(&p.gcode.start, &tv).as_bytes());
             if !buf.ends_with(b"\n") {
                 buf.push(b'\n');
             }
-            if p.fan > 0.0 {
-                buf.extend_from_slice(b"M106 S");
-                push_u64(buf, (p.fan * 255.0).round() as u64);
-                buf.push(b'\n');
+            if p.fan > 0.0 && p.fan_off_layers == 0 {
+                push_fan(buf, p.fan);
             }
+        }
+        let body_start = buf.len();
+        if progress {
+            progress_at.push(body_start);
         }
         buf.extend_from_slice(match p.e_mode {
             EMode::Absolute => b"M82\nG92 E0\n",
@@ -365,6 +389,7 @@ impl<'p> GcodeWriter<'p> {
             f: None,
             area: p.filament_area_mm2(),
             retracted: false,
+            retraction: p.retraction,
         };
         // Thinning merges strings on the fly (no second copy of the model).
         let mut emission = Emission::new(steps, model.emission.thin_min_len_mm);
@@ -405,12 +430,31 @@ impl<'p> GcodeWriter<'p> {
                 Step::Marker {
                     z_mm, height_mm, ..
                 } => {
-                    buf.extend_from_slice(b";LAYER_CHANGE\n;Z:");
-                    push_fixed(buf, *z_mm, dec);
-                    buf.extend_from_slice(b"\n;HEIGHT:");
-                    push_fixed(buf, *height_mm, dec);
-                    buf.push(b'\n');
+                    match p.markers {
+                        Markers::Prusa => {
+                            buf.extend_from_slice(b";LAYER_CHANGE\n;Z:");
+                            push_fixed(buf, *z_mm, dec);
+                            buf.extend_from_slice(b"\n;HEIGHT:");
+                            push_fixed(buf, *height_mm, dec);
+                            buf.push(b'\n');
+                        }
+                        Markers::Cura => {
+                            buf.extend_from_slice(b";LAYER:");
+                            push_u64(buf, sum.markers as u64);
+                            buf.push(b'\n');
+                        }
+                    }
                     sum.markers += 1;
+                    if progress {
+                        progress_at.push(buf.len());
+                    }
+                    if !self.opts.bare
+                        && p.fan > 0.0
+                        && sum.markers == p.fan_off_layers as usize + 1
+                        && p.fan_off_layers > 0
+                    {
+                        push_fan(buf, p.fan);
+                    }
                 }
                 Step::Type(t) => {
                     buf.extend_from_slice(b";TYPE:");
@@ -427,17 +471,31 @@ impl<'p> GcodeWriter<'p> {
                     {
                         continue; // already in the start code
                     }
+                    if let StateChange::Retraction(r) = sc {
+                        // Prime with the old length before the new one applies.
+                        if st.retracted {
+                            self.retract(buf, &mut st, scale, false);
+                        }
+                        st.retraction = *r;
+                        continue;
+                    }
                     write_state(buf, &mut st, sc, dec);
                 }
             }
         }
         sum.thinned = emission.consumed_strings - sum.strings;
         sum.filament_mm = st.e_total;
+        if progress {
+            progress_at.push(buf.len());
+        }
         if !self.opts.bare {
-            buf.extend_from_slice(p.end_code(hotend_c, bed_c).as_bytes());
+            buf.extend_from_slice(p.fill(&p.gcode.end, &tv).as_bytes());
             if !buf.ends_with(b"\n") {
                 buf.push(b'\n');
             }
+        }
+        if progress {
+            crate::design::progress::insert_m73(buf, body_start, &progress_at, p)?;
         }
         sum.bytes = buf.len() - start_len;
         Ok(sum)
@@ -509,11 +567,11 @@ impl<'p> GcodeWriter<'p> {
     ) {
         let p = self.profile;
         let dist = st.pos_f.map(|f| f.distance(to)).unwrap_or(f64::INFINITY);
-        let retract = p.retraction.length_mm > 0.0
+        let retract = st.retraction.length_mm > 0.0
             && st.pos_f.is_some()
             && st.e_total > 0.0
             && !st.retracted
-            && dist >= p.retraction.min_travel_mm;
+            && dist >= st.retraction.min_travel_mm;
         if retract {
             self.retract(buf, st, scale, true);
             sum.retractions += 1;
@@ -527,9 +585,9 @@ impl<'p> GcodeWriter<'p> {
 
     fn retract(&self, buf: &mut Vec<u8>, st: &mut State, scale: f64, pull: bool) {
         let p = self.profile;
-        let r = round_i64(p.retraction.length_mm * scale);
+        let r = round_i64(st.retraction.length_mm * scale);
         buf.extend_from_slice(b"G1");
-        self.push_f(buf, st, p.retraction.speed_mm_s);
+        self.push_f(buf, st, st.retraction.speed_mm_s);
         buf.extend_from_slice(b" E");
         match (p.e_mode, pull) {
             (EMode::Absolute, true) => push_scaled(buf, st.e_written - r, p.decimals),
@@ -585,6 +643,13 @@ impl<'p> GcodeWriter<'p> {
     }
 }
 
+/// `M106 S<duty × 255>`: the part fan on at the profile's duty.
+fn push_fan(buf: &mut Vec<u8>, duty: f64) {
+    buf.extend_from_slice(b"M106 S");
+    push_u64(buf, (duty * 255.0).round() as u64);
+    buf.push(b'\n');
+}
+
 fn write_state(buf: &mut Vec<u8>, st: &mut State, sc: &StateChange, dec: u32) {
     match sc {
         StateChange::HotendTemp { celsius, wait } => {
@@ -609,6 +674,17 @@ fn write_state(buf: &mut Vec<u8>, st: &mut State, sc: &StateChange, dec: u32) {
             buf.extend_from_slice(b"; filament diameter ");
             push_fixed(buf, *d, dec);
         }
+        StateChange::Gcode(text) => {
+            for line in text.lines().map(str::trim).filter(|l| !l.is_empty()) {
+                buf.extend_from_slice(line.as_bytes());
+                buf.push(b'\n');
+            }
+            return;
+        }
+        StateChange::Pause { now } => {
+            buf.extend_from_slice(if *now { b"M601 S1" } else { b"M601" });
+        }
+        StateChange::Retraction(_) => return, // applied by the caller
     }
     buf.push(b'\n');
 }
@@ -677,6 +753,22 @@ pub fn validate(model: &Model) -> Result<(), WriteError> {
                     return bad(i, "non-finite fan duty".into());
                 }
             }
+            Step::State(StateChange::Retraction(r)) => {
+                let ok = |v: f64| v.is_finite() && v >= 0.0;
+                if !(ok(r.length_mm) && ok(r.min_travel_mm) && r.speed_mm_s.is_finite())
+                    || r.speed_mm_s <= 0.0
+                {
+                    return bad(i, format!("retraction {r:?} is invalid"));
+                }
+            }
+            Step::State(StateChange::Gcode(g)) => {
+                if g.chars()
+                    .any(|c| !(c.is_ascii_graphic() || c == ' ' || c == '\n'))
+                {
+                    return bad(i, format!("raw G-code {g:?}: only printable ASCII lines"));
+                }
+            }
+            Step::State(StateChange::Pause { .. }) => {}
             Step::Comment(_) | Step::Type(_) => {}
         }
     }

@@ -10,6 +10,7 @@ pub mod gcode;
 pub mod modal;
 pub mod ops;
 pub mod preview;
+pub mod preview_html;
 pub mod read;
 pub mod sender;
 pub mod stats;

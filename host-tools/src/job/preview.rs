@@ -2,7 +2,8 @@
 //! coloured by commanded speed or by cross-section (ΔE × filament area ÷ length), travels in
 //! light grey, the bed outline, a colour scale with its range — SVG or PNG by the output's
 //! extension. Drawn with `plotters` (SVG and bitmap back ends); the few labels use a built-in
-//! 3 × 5 pixel font, so no system font is needed.
+//! 3 × 5 pixel font, so no system font is needed. An `.html` output is the turnable 3D page of
+//! [`crate::job::preview_html`] instead.
 
 use crate::design::profile::Profile;
 use crate::job::read::{default_reader, Event, GcodeReader, ReadError};
@@ -406,12 +407,27 @@ pub fn render(
     out: &Path,
     o: &PreviewOptions,
 ) -> anyhow::Result<PreviewSummary> {
-    let segs = read_segments(input, profile, o.color_by).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let size = (3 * o.view_px, o.view_px);
     let ext = out
         .extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase())
         .unwrap_or_default();
+    if matches!(ext.as_str(), "html" | "htm") {
+        // The turnable 3D page (job::preview_html); colour and travels are chosen in it.
+        let title = out
+            .file_stem()
+            .map(|f| f.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let (page, s) = crate::job::preview_html::html(input, profile, &title)
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
+        crate::fileio::write_bytes(out, page.as_bytes())?;
+        return Ok(PreviewSummary {
+            print_moves: s.print_moves,
+            travels: s.travels,
+            range: (0.0, s.time_s),
+        });
+    }
+    let segs = read_segments(input, profile, o.color_by).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let size = (3 * o.view_px, o.view_px);
     // Drawn in memory, then written with the safe output writer (never half a picture, never
     // a device or link replaced by a regular file).
     let (bytes, summary) = match ext.as_str() {
@@ -436,7 +452,10 @@ pub fn render(
                 .map_err(|e| anyhow::anyhow!("encoding PNG: {e}"))?;
             (png.into_inner(), s)
         }
-        _ => anyhow::bail!("{}: the output must end in .svg or .png", out.display()),
+        _ => anyhow::bail!(
+            "{}: the output must end in .svg, .png or .html",
+            out.display()
+        ),
     };
     crate::fileio::write_bytes(out, &bytes)?;
     Ok(summary)

@@ -45,6 +45,9 @@ pub enum Event {
         z_mm: Option<f64>,
         /// What produced the mark (slicer comment, command, our turn marker, or a Z rise).
         source: LayerSource,
+        /// The firmware's number of the layer ([`firmware::motion::LayerMark::layer`]): the
+        /// slicer's own (Cura's `;LAYER:n`, `M73 L`), else counted from 0 in file order.
+        number: u32,
     },
     /// Dwell (G4), seconds.
     Dwell(f64),
@@ -442,6 +445,7 @@ impl FirmwareReader {
             line: line_no,
             z_mm: mark.z_um.map(|z| f64::from(z) / 1000.0),
             source: mark.source,
+            number: mark.layer,
         });
     }
 
@@ -614,7 +618,9 @@ mod tests {
             .iter()
             .enumerate()
             .filter_map(|(i, e)| match e {
-                Event::Layer { line, z_mm, source } => Some((i, *line, *z_mm, *source)),
+                Event::Layer {
+                    line, z_mm, source, ..
+                } => Some((i, *line, *z_mm, *source)),
                 _ => None,
             })
             .collect();

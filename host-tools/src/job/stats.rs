@@ -25,7 +25,8 @@ pub struct BBoxMm {
 /// Time spent in one layer.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct LayerTime {
-    /// Layer index (1 = first layer; 0 = before the first marker).
+    /// The firmware's layer number — what `M761 L<n>` and the printer's layer pause call this
+    /// layer: Cura's `;LAYER:n` as written, else counted from 0 in file order.
     pub layer: u32,
     /// Height of the layer when known, mm.
     pub z_mm: Option<f64>,
@@ -66,7 +67,9 @@ pub struct Stats {
     pub lines: u64,
     /// Bytes read.
     pub bytes: u64,
-    /// Time per layer.
+    /// Time before the first layer mark (start code moves), s.
+    pub before_first_layer_s: f64,
+    /// Time per layer, in file order.
     pub layer_times: Vec<LayerTime>,
     /// Lines the firmware would reject: skipped (the printer answers `Error:` and does
     /// nothing), counted here.
@@ -89,7 +92,6 @@ pub fn stats(input: &[u8], profile: &Profile) -> Result<Stats, ReadError> {
     let mut bb_all = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
     // Time per layer by markers (index = marker layer).
     let mut marker_time: Vec<f64> = vec![0.0];
-    let mut marker_z: Vec<Option<f64>> = vec![None];
     // Plain comparisons: `f64::min`/`max` handle NaN (never present here) at a cost that
     // showed in profiles of large files.
     let grow = |bb: &mut ([f64; 3], [f64; 3]), p: &[f64; 4]| {
@@ -122,36 +124,25 @@ pub fn stats(input: &[u8], profile: &Profile) -> Result<Stats, ReadError> {
         let li = s.layer as usize;
         if li >= marker_time.len() {
             marker_time.resize(li + 1, 0.0);
-            marker_z.resize(li + 1, None);
         }
         marker_time[li] += d;
     };
-    let mut zs: Vec<(u32, f64)> = Vec::new();
-    let mut layer_sink = |layer: u32, z: Option<f64>, _t: f64| {
-        if let Some(z) = z {
-            zs.push((layer, z));
-        }
-    };
+    // The firmware's number and height of each mark, in order (mark k starts segment layer k+1).
+    let mut marks: Vec<(u32, Option<f64>)> = Vec::new();
+    let mut layer_sink = |number: u32, z: Option<f64>, _t: f64| marks.push((number, z));
     let mut reader = default_reader();
     reader.bad_line_policy = BadLines::Skip;
     let totals = plan_gcode_with(&mut reader, input, limits, &mut seg_sink, &mut layer_sink)?;
-    let marks = totals.layer_marks as usize;
-    if marker_time.len() <= marks {
-        marker_time.resize(marks + 1, 0.0);
-        marker_z.resize(marks + 1, None);
+    let n = marks.len();
+    if marker_time.len() <= n {
+        marker_time.resize(n + 1, 0.0);
     }
-    for (l, z) in zs {
-        if let Some(slot) = marker_z.get_mut(l as usize) {
-            *slot = Some(z);
-        }
-    }
-    let layer_times = marker_time
+    let before_first_layer_s = marker_time.first().copied().unwrap_or(0.0);
+    let layer_times = marks
         .iter()
-        .zip(&marker_z)
-        .enumerate()
-        .filter(|(i, (t, _))| *i > 0 || **t > 0.0)
-        .map(|(i, (t, z))| LayerTime {
-            layer: i as u32,
+        .zip(marker_time.iter().skip(1))
+        .map(|((number, z), t)| LayerTime {
+            layer: *number,
             z_mm: *z,
             time_s: *t,
         })
@@ -191,6 +182,7 @@ pub fn stats(input: &[u8], profile: &Profile) -> Result<Stats, ReadError> {
         travel_path_mm: travel_path,
         lines: totals.lines,
         bytes: input.len() as u64,
+        before_first_layer_s,
         layer_times,
         bad_lines: totals.bad_lines,
         bad_line_errors: reader.bad_lines,
@@ -223,8 +215,25 @@ mod tests {
         );
         assert_eq!(s.layer_times.len(), 2);
         assert_eq!(s.layer_times[1].z_mm, Some(0.4));
+        // The firmware's numbers: PrusaSlicer markers counted from 0.
+        assert_eq!(s.layer_times[0].layer, 0);
+        assert_eq!(s.layer_times[1].layer, 1);
         let sum: f64 = s.layer_times.iter().map(|l| l.time_s).sum();
-        assert!((sum - s.print_time_s).abs() < 1e-9);
+        assert!((sum + s.before_first_layer_s - s.print_time_s).abs() < 1e-9);
+    }
+
+    /// Cura's `;LAYER:n` numbers the layers as written (here from 0 after a purge line that
+    /// the `;FLAVOR` header keeps from being a layer).
+    #[test]
+    fn cura_numbers_are_the_firmwares() {
+        let g =
+            b";FLAVOR:Marlin\n;LAYER_COUNT:2\nG92 E0\nG1 Z0.3 F600\nG1 X0 Y100 E5 F1500\nG92 E0\n\
+                  ;LAYER:0\nG0 X10 Y10 Z0.2\nG1 X20 E1\n;LAYER:1\nG0 Z0.4\nG1 X10 E2\n";
+        let s = stats(g, &Profile::ender3()).expect("stats");
+        assert_eq!(s.layers, 2);
+        let nums: Vec<u32> = s.layer_times.iter().map(|l| l.layer).collect();
+        assert_eq!(nums, [0, 1]);
+        assert!(s.before_first_layer_s > 0.0);
     }
 
     #[test]

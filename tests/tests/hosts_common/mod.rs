@@ -19,21 +19,27 @@ fn profile_dir() -> PathBuf {
         .expect("target dir")
 }
 
-/// A workspace binary, built with cargo first (a no-op when up to date).
-pub fn bin(package: &str, name: &str) -> PathBuf {
+/// A workspace binary (`sim` or `host-tools`), built with cargo first.
+///
+/// Both binaries are built in one cargo run, once per test process, before any of them is
+/// started: a later `cargo build -p <one package>` may rebuild shared crates with another
+/// feature set (tens of seconds), and a `sim serve` already started would see an idle host
+/// and end meanwhile.
+pub fn bin(_package: &str, name: &str) -> PathBuf {
+    static BUILT: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
     let dir = profile_dir();
-    let target = dir.parent().expect("target root");
-    let mut c = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
-    c.args(["build", "-q", "-p", package, "--bin", name])
-        .current_dir(workspace_root())
-        .env("CARGO_TARGET_DIR", target);
-    if dir.file_name().is_some_and(|n| n == "release") {
-        c.arg("--release");
-    }
-    assert!(
-        c.status().expect("cargo build").success(),
-        "building {name}"
-    );
+    let built = BUILT.get_or_init(|| {
+        let target = dir.parent().expect("target root");
+        let mut c = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
+        c.args(["build", "-q", "-p", "sim", "-p", "host-tools", "--bins"])
+            .current_dir(workspace_root())
+            .env("CARGO_TARGET_DIR", target);
+        if dir.file_name().is_some_and(|n| n == "release") {
+            c.arg("--release");
+        }
+        c.status().is_ok_and(|s| s.success())
+    });
+    assert!(*built, "building the workspace binaries failed");
     dir.join(name)
 }
 
