@@ -190,6 +190,9 @@ fn steps_per_mm_change_only_when_idle_and_keep_the_head_where_it_is() {
 fn m503_sent_back_gives_the_same_settings() {
     let mut b = Bench::new();
     for line in [
+        // M350 scales steps/mm: M503 must print it before M92 for the paste-back to hold.
+        "M350 X32 E8",
+        "M569 S0 Y E",
         "M92 X81.5 Y79.875 Z401 E95.25",
         "M203 X300 Y250 Z12 E40",
         "M201 X1500 Y1400 Z150 E4000",
@@ -218,6 +221,8 @@ fn m503_sent_back_gives_the_same_settings() {
         no_error(&fresh.send(g));
     }
     assert!(sent >= 7, "{report}");
+    assert_eq!(want.microsteps, [32, 16, 16, 8]);
+    assert_eq!(want.stealthchop, [true, false, true, false]);
     assert_eq!(fresh.settings(), want, "{report}");
 }
 
@@ -227,6 +232,8 @@ fn m500_saves_and_a_new_boot_loads_m501_and_m502() {
     let factory = b.settings();
     no_error(&b.send("M92 E97"));
     no_error(&b.send("M203 X250"));
+    no_error(&b.send("M350 Z4"));
+    no_error(&b.send("M569 S0 X"));
     let out = b.send("M500");
     assert!(out.contains("Settings Stored"), "{out}");
     let saved = b.settings();

@@ -15,6 +15,7 @@ pub mod metrics;
 pub mod patterns;
 pub mod plot;
 pub mod port;
+pub mod powercut;
 pub mod recorder;
 pub mod run;
 pub mod sd;

@@ -56,6 +56,14 @@ pub struct ServeArgs {
     /// missing; see `sim::flash`).
     #[arg(long)]
     pub flash: Option<PathBuf>,
+    /// The machine outlives the session: minimum endstops (G28 homes through them) and the
+    /// head's true position kept in this file for the next start (see `sim::powercut`).
+    #[arg(long)]
+    pub machine: Option<PathBuf>,
+    /// Append every executed job move, as the sim saw its steps, to this file (see
+    /// `sim::powercut`).
+    #[arg(long)]
+    pub trace: Option<PathBuf>,
     /// The SD card: a directory (its files are put on a FAT image made at startup) or a card
     /// image file (MBR + FAT16/32); see `sim::sd` and docs/sd.md.
     #[arg(long)]
@@ -218,6 +226,21 @@ pub fn serve_with(
     let mut fw: PrinterExec = PrinterFactory.make(&sc.machine, &sc.knobs());
     fw.keep_executed = true;
     let mut rec = Recorder::new();
+    // Power-cut checks: the head where the last session left it, endstops, the move trace.
+    let mut body = match a.machine.as_deref() {
+        Some(p) => {
+            let (b, pos) = crate::powercut::MachineBody::open(p)?;
+            fw = fw.with_endstops([pos[0], pos[1], pos[2]]);
+            rec.pos = pos;
+            Some(b)
+        }
+        None => None,
+    };
+    let mut trace = a
+        .trace
+        .as_deref()
+        .map(crate::powercut::MoveTrace::open)
+        .transpose()?;
     let mut heaters = Heaters::ender3();
     let mut sniff = Sniffer::default();
     let mut pauses: Vec<PauseTrack> = Vec::new();
@@ -314,6 +337,16 @@ pub fn serve_with(
                 st,
                 RunState::Printing | RunState::Pausing | RunState::Resuming
             );
+        if idle {
+            // Nothing moves: the head's position and the finished moves are kept now, so a
+            // killed session (a power cut) leaves them.
+            if let Some(b) = body.as_mut() {
+                b.keep(rec.pos)?;
+            }
+            if let Some(t) = trace.as_mut() {
+                t.flush(&rec.records)?;
+            }
+        }
         // Output.
         out.clear();
         fw.take_output(&mut out);
@@ -360,6 +393,13 @@ pub fn serve_with(
         }
     }
     drop(slave);
+    if let Some(t) = trace.as_mut() {
+        t.flush(&rec.records)?;
+    }
+    if let Some(b) = body.as_mut() {
+        // The head stops where its last step left it, whatever the firmware had planned.
+        b.keep(rec.pos)?;
+    }
     let end_us = rec.last_step_us;
     let moves = MoveLog {
         executed: &fw.executed,

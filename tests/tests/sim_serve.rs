@@ -65,6 +65,8 @@ fn a_host_prints_pauses_and_resumes_over_the_pseudo_terminal() {
                 exit_after_idle: 1.0,
                 link: None,
                 flash: None,
+                machine: None,
+                trace: None,
                 sd: None,
             },
             move |p| {

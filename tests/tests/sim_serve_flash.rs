@@ -32,6 +32,8 @@ fn session_with(flash: &Path, lines: &[&str], pause_after: Option<usize>) -> Vec
                 exit_after_idle: 0.5,
                 link: None,
                 flash: Some(flash),
+                machine: None,
+                trace: None,
                 sd: None,
             },
             move |p| {

@@ -128,6 +128,8 @@ fn a_host_prints_a_sliced_file_from_the_card_with_a_layer_pause() {
                 link: None,
                 flash: None,
                 sd: Some(sd),
+                machine: None,
+                trace: None,
             },
             move |p| {
                 let _ = tx.send(p.to_path_buf());

@@ -52,7 +52,7 @@ impl Printer {
         self.driver_reqs.pop_front()
     }
 
-    fn push_driver_request(&mut self, r: DriverRequest) {
+    pub(super) fn push_driver_request(&mut self, r: DriverRequest) {
         if self.driver_reqs.is_full() {
             let _ = self.driver_reqs.pop_front();
         }

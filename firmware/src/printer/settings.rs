@@ -93,7 +93,17 @@ impl Printer {
         if steps_change && !self.settings_idle() {
             return Err("steps/mm change only while idle (send M400 first)");
         }
+        let old = self.settings();
         s.apply_to(&mut self.cfg);
+        // M350/M569 values changed: the board writes them to the drivers.
+        let mask = (0..AXES)
+            .filter(|&i| {
+                old.microsteps[i] != s.microsteps[i] || old.stealthchop[i] != s.stealthchop[i]
+            })
+            .fold(0u8, |m, i| m | 1 << i);
+        if mask != 0 {
+            self.push_driver_request(super::DriverRequest::Apply { mask });
+        }
         for (id, pid) in [(HeaterId::Hotend, s.hotend_pid), (HeaterId::Bed, s.bed_pid)] {
             if let Some(g) = pid {
                 // Checked by validate(): in range, so set_pid accepts it.
@@ -374,6 +384,25 @@ impl Printer {
         self.say(format_args!(
             "; Settings (M500 saves, M501 loads, M502 factory):"
         ));
+        // M350 before M92: sent back, M350 scales steps/mm, then M92 sets them exactly.
+        let c = &self.cfg;
+        self.report_line(&gcode::Command::Driver(gcode::DriverCommand::Microsteps {
+            all: None,
+            axes: AxisWords(core::array::from_fn(|i| {
+                Some(f32::from(c.axes[i].microsteps))
+            })),
+        }));
+        for on in [true, false] {
+            let axes = gcode::AxisFlags(core::array::from_fn(|i| {
+                self.cfg.driver_stealthchop[i] == on
+            }));
+            if axes.0.iter().any(|a| *a) {
+                self.report_line(&gcode::Command::Driver(gcode::DriverCommand::Chopper {
+                    axes,
+                    stealthchop: Some(on),
+                }));
+            }
+        }
         for code in ["M92", "M203", "M201"] {
             let c = self.current(code);
             self.report_line(&c);

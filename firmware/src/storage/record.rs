@@ -8,8 +8,13 @@
 //!        travel mm/s² │ junction deviation mm │ home offset mm[X Y Z] │ hotend PID │ bed PID │
 //!        pause: retract mm, retract feed mm/s, lift mm, park X, park Y mm, park feed mm/s,
 //!        speed-up ×, max flow mm³/s, segment mm │ driver current mA[4] (u16)
+//!        │ microsteps[4] (u16, M350) │ u8 stealthChop bits X=0..E=3 (M569)   ← format 2
 //! PID = u8 (1 = PID, 0 = bang-bang) │ f32 Kp │ f32 Ki │ f32 Kd (zeros for bang-bang)
 //! ```
+//!
+//! Format 2 added M350 and M569 (Marlin saves M569's mode; it does not save microsteps, but
+//! here steps/mm scale with them, so saved steps/mm without their microsteps would be wrong).
+//! A format-1 record still loads: the two new fields take the build's factory values.
 //!
 //! Every `f32` is stored as its bits, so a load gives back exactly what was saved. A record
 //! whose CRC, version or length does not match, or whose values are out of range, is refused
@@ -21,10 +26,13 @@ use crate::thermal::pid::PidGains;
 
 /// Version of the byte layout. Any change of the layout or of a value's meaning bumps it; a
 /// store of another version loads the factory defaults (there is no migration yet).
-pub const FORMAT_VERSION: u16 = 1;
+pub const FORMAT_VERSION: u16 = 2;
 
-/// Bytes of the body of format 1.
-pub const BODY_LEN: usize = 4 * AXES * 3 + 4 * 4 + 4 * 3 + 13 * 2 + 4 * 9 + 2 * AXES;
+/// Bytes of the body of format 1 (still read: see the module documentation).
+pub const BODY_LEN_V1: usize = 4 * AXES * 3 + 4 * 4 + 4 * 3 + 13 * 2 + 4 * 9 + 2 * AXES;
+
+/// Bytes of the body of format 2.
+pub const BODY_LEN: usize = BODY_LEN_V1 + 2 * AXES + 1;
 
 /// Bytes of a whole record (header, body, CRC).
 pub const RECORD_LEN: usize = 4 + BODY_LEN + 4;
@@ -137,6 +145,10 @@ pub struct Settings {
     pub pause: PauseConfig,
     /// M906 X Y Z E, mA.
     pub driver_current_ma: [u16; AXES],
+    /// M350 X Y Z E: microsteps per full step (1, 2, 4, ..., 256).
+    pub microsteps: [u16; AXES],
+    /// M569 X Y Z E: stealthChop (true) or spreadCycle.
+    pub stealthchop: [bool; AXES],
 }
 
 /// Why a stored record was refused.
@@ -190,6 +202,8 @@ impl Settings {
             bed_pid,
             pause: cfg.pause,
             driver_current_ma: cfg.driver_current_ma,
+            microsteps: cfg.axes.map(|a| a.microsteps),
+            stealthchop: cfg.driver_stealthchop,
         }
     }
 
@@ -199,7 +213,10 @@ impl Settings {
             a.steps_per_mm = self.steps_per_mm[i];
             a.max_feed_mm_s = self.max_feed_mm_s[i];
             a.max_accel_mm_s2 = self.max_accel_mm_s2[i];
+            // The saved steps/mm are at these microsteps: set both, no scaling.
+            a.microsteps = self.microsteps[i];
         }
+        cfg.driver_stealthchop = self.stealthchop;
         cfg.accel_print_mm_s2 = self.accel_print_mm_s2;
         cfg.accel_retract_mm_s2 = self.accel_retract_mm_s2;
         cfg.accel_travel_mm_s2 = self.accel_travel_mm_s2;
@@ -250,7 +267,16 @@ impl Settings {
             ],
         )?;
         let currents = self.driver_current_ma.map(f32::from);
-        check(&DRIVER_CURRENT, &currents)
+        check(&DRIVER_CURRENT, &currents)?;
+        if self
+            .microsteps
+            .iter()
+            .all(|m| m.is_power_of_two() && *m <= 256)
+        {
+            Ok(())
+        } else {
+            Err(RecordError::OutOfRange("microsteps"))
+        }
     }
 
     /// The record's bytes.
@@ -295,14 +321,27 @@ impl Settings {
             w.f32(v);
         }
         self.driver_current_ma.iter().for_each(|v| w.u16(*v));
+        self.microsteps.iter().for_each(|v| w.u16(*v));
+        w.u8(self
+            .stealthchop
+            .iter()
+            .enumerate()
+            .fold(0, |b, (i, on)| b | u8::from(*on) << i));
         let crc = crate::storage::crc32(&w.buf[..RECORD_LEN - 4]);
         w.u32(crc);
         w.buf
     }
 
-    /// Read a record, checking its CRC, version, length and every value's range.
+    /// Read a record, checking its CRC, version, length and every value's range. A format-1
+    /// record loads with the microsteps and driver modes of `MachineConfig::ENDER3` (the
+    /// build's factory values).
     pub fn decode(bytes: &[u8]) -> Result<Settings, RecordError> {
-        let body = checked_body(bytes, FORMAT_VERSION, BODY_LEN)?;
+        let v1 = bytes.len() >= 2 && u16::from_le_bytes([bytes[0], bytes[1]]) == 1;
+        let body = if v1 {
+            checked_body(bytes, 1, BODY_LEN_V1)?
+        } else {
+            checked_body(bytes, FORMAT_VERSION, BODY_LEN)?
+        };
         let mut r = Reader { buf: body, at: 0 };
         let mut arr = || [r.f32(), r.f32(), r.f32(), r.f32()];
         let steps_per_mm = arr();
@@ -340,6 +379,20 @@ impl Settings {
             segment_len_mm: r.f32(),
         };
         let driver_current_ma = [r.u16(), r.u16(), r.u16(), r.u16()];
+        let factory = MachineConfig::ENDER3;
+        let (microsteps, stealthchop) = if v1 {
+            (
+                factory.axes.map(|a| a.microsteps),
+                factory.driver_stealthchop,
+            )
+        } else {
+            let m = [r.u16(), r.u16(), r.u16(), r.u16()];
+            let bits = r.u8();
+            if bits & !0b1111 != 0 {
+                return Err(RecordError::OutOfRange("driver modes"));
+            }
+            (m, core::array::from_fn(|i| bits & (1 << i) != 0))
+        };
         let s = Settings {
             steps_per_mm,
             max_feed_mm_s,
@@ -353,6 +406,8 @@ impl Settings {
             bed_pid,
             pause,
             driver_current_ma,
+            microsteps,
+            stealthchop,
         };
         s.validate()?;
         Ok(s)
@@ -495,6 +550,37 @@ mod tests {
             Err(RecordError::BadCrc)
         );
         assert_eq!(Settings::decode(&[]), Err(RecordError::Truncated));
+    }
+
+    /// A format-1 record (written by the firmware before M350/M569 were saved) loads, the new
+    /// fields at the factory values. The bytes are built here by the format-1 layout: the
+    /// format-2 record without its last 9 body bytes, version 1, its own CRC.
+    #[test]
+    fn a_format_1_record_loads_with_the_new_fields_at_their_defaults() {
+        let mut s = factory();
+        s.steps_per_mm[3] = 97.5;
+        s.microsteps = [32, 32, 8, 64];
+        s.stealthchop = [false, true, false, true];
+        let v2 = s.encode();
+        let mut v1 = Vec::new();
+        v1.extend_from_slice(&1u16.to_le_bytes());
+        v1.extend_from_slice(&(BODY_LEN_V1 as u16).to_le_bytes());
+        v1.extend_from_slice(&v2[4..4 + BODY_LEN_V1]);
+        let crc = crate::storage::crc32(&v1);
+        v1.extend_from_slice(&crc.to_le_bytes());
+        let got = Settings::decode(&v1).unwrap();
+        let mut want = s;
+        want.microsteps = factory().microsteps;
+        want.stealthchop = factory().stealthchop;
+        assert_eq!(got, want);
+        // Format 2 keeps them.
+        assert_eq!(Settings::decode(&v2), Ok(s));
+        let mut bad = s;
+        bad.microsteps[1] = 12;
+        assert_eq!(
+            Settings::decode(&bad.encode()),
+            Err(RecordError::OutOfRange("microsteps"))
+        );
     }
 
     #[test]

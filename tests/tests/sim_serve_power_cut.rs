@@ -1,0 +1,369 @@
+//! End to end: power-cut resume through `sim serve`. The test plays the host over the
+//! pseudo-terminal. A numbered job is layer-paused (realtime `M25`); once the paused-job record
+//! is in the flash file, the sim process is killed (`kill -9`: the power goes). A new `sim
+//! serve` on the same `--flash` and `--machine` files announces the kept job; the host sends
+//! `M1000`, then the job from the line the firmware names, and the job completes. The moves the
+//! sim executed across both processes (`--trace`: the sim's own record of the steps, in the
+//! head's physical coordinates from its endstops) must equal an unpaused run's, move for move,
+//! to the step.
+//!
+//! The sim binary is taken from the target directory this test runs from (built by cargo).
+
+use firmware::storage::{SettingsStore, Skr2FlashModel};
+use std::io::{BufRead, BufReader, Read, Write};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+use tests::workspace_root;
+
+fn profile_dir() -> PathBuf {
+    let exe = std::env::current_exe().expect("test exe");
+    exe.parent()
+        .and_then(Path::parent)
+        .map(Path::to_path_buf)
+        .expect("target dir")
+}
+
+/// The `sim` binary, built by cargo once per test run (a no-op when up to date).
+fn sim_bin() -> PathBuf {
+    static BIN: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+    BIN.get_or_init(build_sim).clone()
+}
+
+fn build_sim() -> PathBuf {
+    let dir = profile_dir();
+    let target = dir.parent().expect("target root");
+    let mut c = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
+    c.args(["build", "-q", "-p", "sim", "--bin", "sim"])
+        .current_dir(workspace_root())
+        .env("CARGO_TARGET_DIR", target);
+    if dir.file_name().is_some_and(|n| n == "release") {
+        c.arg("--release");
+    }
+    assert!(c.status().expect("cargo build").success(), "building sim");
+    dir.join("sim")
+}
+
+fn checksum(s: &str) -> u8 {
+    s.bytes().fold(0, |a, b| a ^ b)
+}
+
+/// The job: home (M400: a layer pause is asked for after homing), heaters set without
+/// waiting, 5 layers of squares with Cura markers. Line i is numbered i + 1.
+fn job() -> Vec<String> {
+    let mut v: Vec<String> = [
+        "G28",
+        "M400",
+        "M83",
+        "M104 S205",
+        "M140 S60",
+        "M106 S200",
+        "G92 E0",
+    ]
+    .map(String::from)
+    .to_vec();
+    for layer in 0..5 {
+        v.push(format!(";LAYER:{layer}"));
+        v.push(format!("G1 Z{:.1} F600", 0.2 * (layer + 1) as f32));
+        v.push("G1 F2400".into());
+        for i in 0..12 {
+            let (x, y) = [(30.5, 30.0), (90.25, 30.0), (90.25, 91.3), (30.5, 91.3)][i % 4];
+            v.push(format!("G1 X{x} Y{y} E2.11"));
+        }
+    }
+    v
+}
+
+fn numbered(lines: &[String], i: usize) -> String {
+    let body = format!("N{} {}", i + 1, lines[i]);
+    format!("{body}*{}", checksum(&body))
+}
+
+/// One `sim serve` process and the host's end of its pseudo-terminal.
+struct Session {
+    child: Child,
+    dev: std::fs::File,
+    rx: mpsc::Receiver<String>,
+    seen: Vec<String>,
+}
+
+impl Session {
+    fn start(flash: &Path, machine: &Path, trace: &Path) -> Session {
+        let bin = sim_bin();
+        let mut child = Command::new(bin)
+            .args(["serve", "--speed", "200"])
+            .arg("--flash")
+            .arg(flash)
+            .arg("--machine")
+            .arg(machine)
+            .arg("--trace")
+            .arg(trace)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("start sim serve");
+        let mut line = String::new();
+        BufReader::new(child.stdout.take().expect("stdout"))
+            .read_line(&mut line)
+            .expect("device path");
+        let device = reachable(line.trim(), child.id());
+        let dev = std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .open(&device)
+            .expect("open the pty");
+        let mut reader = dev.try_clone().expect("clone");
+        let (tx, rx) = mpsc::channel();
+        std::thread::spawn(move || {
+            let mut buf = [0u8; 1024];
+            let mut line = Vec::new();
+            while let Ok(n) = reader.read(&mut buf) {
+                if n == 0 {
+                    break;
+                }
+                for &b in &buf[..n] {
+                    if b == b'\n' {
+                        let _ = tx.send(String::from_utf8_lossy(&line).trim().to_string());
+                        line.clear();
+                    } else {
+                        line.push(b);
+                    }
+                }
+            }
+        });
+        Session {
+            child,
+            dev,
+            rx,
+            seen: Vec::new(),
+        }
+    }
+
+    /// Read lines until one satisfies `f`; returns it.
+    fn until(&mut self, what: &str, f: impl Fn(&str) -> bool) -> String {
+        let end = Instant::now() + Duration::from_secs(60);
+        loop {
+            let left = end.saturating_duration_since(Instant::now());
+            let l = self
+                .rx
+                .recv_timeout(left)
+                .unwrap_or_else(|_| panic!("no {what}; saw {:?}", self.seen));
+            self.seen.push(l.clone());
+            if f(&l) {
+                return l;
+            }
+        }
+    }
+
+    fn write(&mut self, l: &str) {
+        self.dev
+            .write_all(format!("{l}\n").as_bytes())
+            .expect("write");
+    }
+
+    /// Send a line and wait for its `ok`.
+    fn send(&mut self, l: &str) {
+        self.write(l);
+        self.until(&format!("ok for {l}"), |s| s.starts_with("ok"));
+    }
+
+    /// The power goes: SIGKILL, nothing runs after it.
+    fn kill(mut self) -> Vec<String> {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+        std::mem::take(&mut self.seen)
+    }
+}
+
+impl Drop for Session {
+    fn drop(&mut self) {
+        if let Ok(None) = self.child.try_wait() {
+            let _ = self.child.kill();
+            let _ = self.child.wait();
+        }
+    }
+}
+
+/// The device path, or the sim's open descriptor of it where /dev/pts does not show it.
+fn reachable(device: &str, pid: u32) -> String {
+    if Path::new(device).exists() {
+        return device.to_string();
+    }
+    if let Ok(entries) = std::fs::read_dir(format!("/proc/{pid}/fd")) {
+        for e in entries.flatten() {
+            if std::fs::read_link(e.path()).is_ok_and(|t| t == Path::new(device)) {
+                return e.path().display().to_string();
+            }
+        }
+    }
+    device.to_string()
+}
+
+/// The trace's moves (one line each), waiting up to 20 s for `n` of them.
+fn moves(trace: &Path, n: usize) -> Vec<String> {
+    let end = Instant::now() + Duration::from_secs(20);
+    loop {
+        let v: Vec<String> = std::fs::read_to_string(trace)
+            .unwrap_or_default()
+            .lines()
+            .map(String::from)
+            .collect();
+        if v.len() >= n || Instant::now() > end {
+            return v;
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// True once the flash image holds a paused-job record (read through the firmware's store on
+/// a copy of the file).
+fn job_in_flash(flash: &Path) -> bool {
+    let Ok(bytes) = std::fs::read(flash) else {
+        return false;
+    };
+    let len = bytes.len() as u32;
+    let model: Skr2FlashModel<Vec<u8>> = Skr2FlashModel::new(bytes);
+    SettingsStore::new(model, 0..len)
+        .ok()
+        .and_then(|mut s| s.load_job().ok().flatten())
+        .is_some()
+}
+
+struct Files {
+    flash: PathBuf,
+    machine: PathBuf,
+    trace: PathBuf,
+}
+
+impl Files {
+    fn new(tag: &str) -> Files {
+        let d = std::env::temp_dir();
+        let pid = std::process::id();
+        let f = Files {
+            flash: d.join(format!("power-cut-{tag}-{pid}.flash")),
+            machine: d.join(format!("power-cut-{tag}-{pid}.machine")),
+            trace: d.join(format!("power-cut-{tag}-{pid}.moves")),
+        };
+        f.remove();
+        f
+    }
+
+    fn remove(&self) {
+        for p in [&self.flash, &self.machine, &self.trace] {
+            let _ = std::fs::remove_file(p);
+        }
+    }
+}
+
+#[test]
+fn a_job_killed_while_paused_resumes_with_m1000_and_runs_the_moves_of_an_unpaused_run() {
+    let lines = job();
+
+    // The reference: the same job without a pause.
+    let r = Files::new("ref");
+    let mut s = Session::start(&r.flash, &r.machine, &r.trace);
+    s.send("M110 N0");
+    for i in 0..lines.len() {
+        let l = numbered(&lines, i);
+        s.send(&l);
+    }
+    s.send("M400");
+    let n = lines.iter().filter(|l| l.contains(" X")).count() + 5;
+    let want = moves(&r.trace, n);
+    assert_eq!(want.len(), n, "every move of the reference traced");
+    s.kill();
+
+    // The job, layer-paused during layer 1; killed once the record is in flash.
+    let f = Files::new("cut");
+    let mut a = Session::start(&f.flash, &f.machine, &f.trace);
+    a.send("M110 N0");
+    let pause_at = lines.iter().position(|l| l == ";LAYER:1").unwrap() + 4;
+    let mut kept = None;
+    for i in 0..lines.len() {
+        if i == pause_at {
+            a.write("M25");
+        }
+        let l = numbered(&lines, i);
+        a.write(&l);
+        let got = a.until("ok or a kept job", |s| {
+            s.starts_with("ok") || s.contains("power-cut resume: keeping job")
+        });
+        if got.contains("keeping job") {
+            kept = Some(got);
+            break; // parked with the queue full: the host's line waits, the power goes
+        }
+    }
+    let kept = match kept {
+        Some(k) => k,
+        None => a.until("a kept job", |s| {
+            s.contains("power-cut resume: keeping job")
+        }),
+    };
+    let end = Instant::now() + Duration::from_secs(10);
+    while !job_in_flash(&f.flash) {
+        assert!(
+            Instant::now() < end,
+            "the record never reached the flash file"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let first_seen = a.kill();
+    let line: usize = kept
+        .rsplit(' ')
+        .next()
+        .and_then(|w| w.parse().ok())
+        .unwrap_or_else(|| panic!("{kept}"));
+    let before = moves(&f.trace, 0).len();
+    assert!(before > 0 && before < want.len(), "{kept}: {before} moves");
+
+    // Power again: the same flash and machine; the host resumes from the line named.
+    let mut b = Session::start(&f.flash, &f.machine, &f.trace);
+    let note = b.until("the kept-job notification", |s| {
+        s.starts_with("//action:notification Paused job kept")
+    });
+    assert!(
+        note.contains(&format!("continue from host line {line} ")),
+        "{note}"
+    );
+    b.write("M1000");
+    let reply = b.until("M1000's reply", |s| s.contains("power-cut resume: layer"));
+    assert!(
+        reply.ends_with(&format!(
+            "send the job from host line {line} (M110 N{} first)",
+            line - 1
+        )),
+        "{reply}"
+    );
+    b.until("ok for M1000", |s| s.starts_with("ok"));
+    b.send(&format!("M110 N{}", line - 1));
+    for i in (line - 1)..lines.len() {
+        let l = numbered(&lines, i);
+        b.send(&l);
+    }
+    b.send("M400");
+    assert!(
+        b.seen.iter().any(|l| l == "//action:resumed"),
+        "{:?}",
+        b.seen
+    );
+    let got = moves(&f.trace, want.len());
+    let second_seen = b.kill();
+    assert!(
+        !job_in_flash(&f.flash),
+        "the record is cleared once resumed"
+    );
+    assert_eq!(
+        got.len(),
+        want.len(),
+        "moves: {} before the cut + {} after, want {}\n{first_seen:?}\n{second_seen:?}",
+        before,
+        got.len() - before,
+        want.len()
+    );
+    for (k, (g, w)) in got.iter().zip(&want).enumerate() {
+        assert_eq!(g, w, "move {k} (the cut was after move {before})");
+    }
+    r.remove();
+    f.remove();
+}
