@@ -3,6 +3,8 @@
 
 use std::path::PathBuf;
 
+pub mod pty;
+
 /// Root of the workspace (where `Cargo.toml`, `memory.x` and `tests/fixtures` live).
 pub fn workspace_root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))

@@ -16,6 +16,7 @@ use firmware::config::MachineConfig;
 use firmware::gcode::parse_line;
 use firmware::machine::MachineState;
 use host_tools::job::{ops, Job};
+use tests::pty::reachable;
 use tests::workspace_root;
 
 mod hosts_common;
@@ -96,24 +97,6 @@ impl Drop for Sim {
             let _ = self.child.wait();
         }
     }
-}
-
-/// The device path, or, where this sandbox's /dev/pts does not show the pseudo-terminal (some
-/// container setups), the sim's own open descriptor of it under /proc, which opens the same
-/// terminal.
-fn reachable(device: &str, pid: u32) -> String {
-    if Path::new(device).exists() {
-        return device.to_string();
-    }
-    let dir = format!("/proc/{pid}/fd");
-    if let Ok(entries) = std::fs::read_dir(&dir) {
-        for e in entries.flatten() {
-            if std::fs::read_link(e.path()).is_ok_and(|t| t == Path::new(device)) {
-                return e.path().display().to_string();
-            }
-        }
-    }
-    device.to_string()
 }
 
 fn send(device: &str, args: &[&str]) -> (bool, String) {

@@ -4,54 +4,12 @@
 
 use sim::run::Policy;
 use sim::serve::{serve_with, ServeArgs};
-use std::io::{Read, Write};
 use std::sync::mpsc;
-use std::time::{Duration, Instant};
+use std::time::Duration;
+use tests::pty::PtyHost;
 
-fn checksum(s: &str) -> u8 {
-    s.bytes().fold(0, |a, b| a ^ b)
-}
-
-struct Host {
-    dev: std::fs::File,
-    lines: mpsc::Receiver<String>,
-    seen: Vec<String>,
-}
-
-impl Host {
-    fn write(&mut self, text: &str) {
-        self.dev
-            .write_all(format!("{text}\n").as_bytes())
-            .expect("write to the pty");
-    }
-
-    fn send(&mut self, n: u32, cmd: &str) {
-        let pre = format!("N{n} {cmd}");
-        let cs = checksum(&pre);
-        self.write(&format!("{pre}*{cs}"));
-    }
-
-    /// Read lines until one satisfies `pred`; returns it.
-    fn until(&mut self, what: &str, pred: impl Fn(&str) -> bool) -> String {
-        let end = Instant::now() + Duration::from_secs(60);
-        loop {
-            let left = end.saturating_duration_since(Instant::now());
-            match self.lines.recv_timeout(left) {
-                Ok(l) => {
-                    self.seen.push(l.clone());
-                    if pred(&l) {
-                        return l;
-                    }
-                }
-                Err(_) => panic!("timed out waiting for {what}; saw {:?}", self.seen),
-            }
-        }
-    }
-
-    fn ok(&mut self) {
-        self.until("ok", |l| l.starts_with("ok"));
-    }
-}
+/// How long the host waits for any one answer.
+const WAIT: Duration = Duration::from_secs(60);
 
 #[test]
 fn a_host_prints_pauses_and_resumes_over_the_pseudo_terminal() {
@@ -77,43 +35,15 @@ fn a_host_prints_pauses_and_resumes_over_the_pseudo_terminal() {
     let path = rx
         .recv_timeout(Duration::from_secs(10))
         .expect("sim serve printed no device path");
-    let dev = std::fs::OpenOptions::new()
-        .read(true)
-        .write(true)
-        .open(&path)
-        .expect("open the pty");
-    let mut reader = dev.try_clone().expect("clone the pty handle");
-    let (ltx, lrx) = mpsc::channel();
-    std::thread::spawn(move || {
-        let mut buf = [0u8; 1024];
-        let mut line = Vec::new();
-        while let Ok(n) = reader.read(&mut buf) {
-            if n == 0 {
-                break;
-            }
-            for &b in &buf[..n] {
-                if b == b'\n' {
-                    let _ = ltx.send(String::from_utf8_lossy(&line).trim().to_string());
-                    line.clear();
-                } else {
-                    line.push(b);
-                }
-            }
-        }
-    });
-    let mut host = Host {
-        dev,
-        lines: lrx,
-        seen: Vec::new(),
-    };
+    let mut host = PtyHost::open(&path);
 
     host.write("M110 N0");
-    host.ok();
+    host.ok(WAIT);
     // A line with a wrong checksum is asked for again.
     host.write("N1 G90*0");
-    let resend = host.until("Resend", |l| l.starts_with("Resend:"));
+    let resend = host.until("Resend", WAIT, |l| l.starts_with("Resend:"));
     assert!(resend.contains('1'), "{resend}");
-    host.ok();
+    host.ok(WAIT);
 
     let mut job = vec![
         "G90".to_string(),
@@ -126,20 +56,20 @@ fn a_host_prints_pauses_and_resumes_over_the_pseudo_terminal() {
     }
     let mut n = 1;
     for (i, line) in job.iter().enumerate() {
-        host.send(n, line);
+        host.send_numbered(n, line);
         n += 1;
-        host.ok();
+        host.ok(WAIT);
         if i == 8 {
             // Realtime pause: unnumbered, written at once.
             host.write("M25 S1");
-            host.until("//action:paused", |l| l.contains("//action:paused"));
+            host.until("//action:paused", WAIT, |l| l.contains("//action:paused"));
             host.write("M24");
-            host.until("//action:resume", |l| l.contains("//action:resume"));
+            host.until("//action:resume", WAIT, |l| l.contains("//action:resume"));
         }
     }
     // M400 is answered once every move has run: the job completed.
-    host.send(n, "M400");
-    host.ok();
+    host.send_numbered(n, "M400");
+    host.ok(WAIT);
     drop(host);
 
     let record = server

@@ -3,18 +3,14 @@
 
 use sim::run::Policy;
 use sim::serve::{serve_with, ServeArgs};
-use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use std::sync::mpsc;
-use std::time::{Duration, Instant};
+use std::time::Duration;
+use tests::pty::{checksum, PtyHost};
 
 /// One `sim serve` session: send `lines` (each waits for its `ok`), return everything read.
 fn session(flash: &Path, lines: &[&str]) -> Vec<String> {
     session_with(flash, lines, None)
-}
-
-fn checksum(s: &str) -> u8 {
-    s.bytes().fold(0, |a, b| a ^ b)
 }
 
 /// A `sim serve` session: send `lines` (each waits for its `ok`); with `pause_after = Some(k)`,
@@ -44,75 +40,31 @@ fn session_with(flash: &Path, lines: &[&str], pause_after: Option<usize>) -> Vec
     let path = rx
         .recv_timeout(Duration::from_secs(10))
         .expect("sim serve printed no device path");
-    let mut dev = std::fs::OpenOptions::new()
-        .read(true)
-        .write(true)
-        .open(&path)
-        .expect("open the pty");
-    let mut reader = dev.try_clone().expect("clone the pty handle");
-    let (ltx, lrx) = mpsc::channel();
-    std::thread::spawn(move || {
-        let mut buf = [0u8; 1024];
-        let mut line = Vec::new();
-        while let Ok(n) = reader.read(&mut buf) {
-            if n == 0 {
-                break;
-            }
-            for &b in &buf[..n] {
-                if b == b'\n' {
-                    let _ = ltx.send(String::from_utf8_lossy(&line).trim().to_string());
-                    line.clear();
-                } else {
-                    line.push(b);
-                }
-            }
-        }
-    });
-    let mut seen = Vec::new();
-    let kept = |seen: &Vec<String>| seen.iter().any(|l| l.contains("power-cut resume:"));
+    let mut host = PtyHost::open(&path);
+    let pausing = pause_after.is_some();
+    let keeps = |l: &str| l.contains("power-cut resume:");
     for (i, l) in lines.iter().enumerate() {
-        if pause_after.is_some() && kept(&seen) {
+        if pausing && host.seen.iter().any(|s| keeps(s)) {
             break; // parked: the queue is full, the rest of the job waits (the power goes now)
         }
         if pause_after == Some(i) {
-            dev.write_all(b"M25\n").expect("write");
+            host.write("M25");
         }
-        dev.write_all(format!("{l}\n").as_bytes()).expect("write");
-        let end = Instant::now() + Duration::from_secs(30);
-        loop {
-            let left = end.saturating_duration_since(Instant::now());
-            let got = lrx
-                .recv_timeout(left)
-                .unwrap_or_else(|_| panic!("no ok for {l:?}; saw {seen:?}"));
-            let ok = got.starts_with("ok");
-            seen.push(got);
-            if ok || (pause_after.is_some() && kept(&seen)) {
-                break;
-            }
-        }
+        host.write(l);
+        host.until(&format!("ok for {l:?}"), Duration::from_secs(30), |s| {
+            s.starts_with("ok") || (pausing && keeps(s))
+        });
     }
-    if pause_after.is_some() {
-        let end = Instant::now() + Duration::from_secs(60);
-        while !kept(&seen) {
-            let left = end.saturating_duration_since(Instant::now());
-            let got = lrx
-                .recv_timeout(left)
-                .unwrap_or_else(|_| panic!("no paused-job record; saw {seen:?}"));
-            seen.push(got);
-        }
+    if pausing && !host.seen.iter().any(|s| keeps(s)) {
+        host.until("the paused-job record", Duration::from_secs(60), keeps);
     }
     // The store runs in the session loop right after the `ok`: wait for its answer.
-    if lines.contains(&"M500") {
-        let end = Instant::now() + Duration::from_secs(30);
-        while !seen.iter().any(|l| l.contains("Settings Stored")) {
-            let left = end.saturating_duration_since(Instant::now());
-            let got = lrx
-                .recv_timeout(left)
-                .unwrap_or_else(|_| panic!("M500 never stored; saw {seen:?}"));
-            seen.push(got);
-        }
+    let stored = |l: &str| l.contains("Settings Stored");
+    if lines.contains(&"M500") && !host.seen.iter().any(|s| stored(s)) {
+        host.until("M500's store", Duration::from_secs(30), stored);
     }
-    drop(dev);
+    let seen = std::mem::take(&mut host.seen);
+    drop(host);
     server
         .join()
         .expect("server thread")

@@ -10,44 +10,14 @@
 //! The sim binary is taken from the target directory this test runs from (built by cargo).
 
 use firmware::storage::{SettingsStore, Skr2FlashModel};
-use std::io::{BufRead, BufReader, Read, Write};
+use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
-use std::sync::mpsc;
 use std::time::{Duration, Instant};
-use tests::workspace_root;
+use tests::pty::{checksum, reachable, PtyHost};
 
-fn profile_dir() -> PathBuf {
-    let exe = std::env::current_exe().expect("test exe");
-    exe.parent()
-        .and_then(Path::parent)
-        .map(Path::to_path_buf)
-        .expect("target dir")
-}
-
-/// The `sim` binary, built by cargo once per test run (a no-op when up to date).
-fn sim_bin() -> PathBuf {
-    static BIN: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
-    BIN.get_or_init(build_sim).clone()
-}
-
-fn build_sim() -> PathBuf {
-    let dir = profile_dir();
-    let target = dir.parent().expect("target root");
-    let mut c = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
-    c.args(["build", "-q", "-p", "sim", "--bin", "sim"])
-        .current_dir(workspace_root())
-        .env("CARGO_TARGET_DIR", target);
-    if dir.file_name().is_some_and(|n| n == "release") {
-        c.arg("--release");
-    }
-    assert!(c.status().expect("cargo build").success(), "building sim");
-    dir.join("sim")
-}
-
-fn checksum(s: &str) -> u8 {
-    s.bytes().fold(0, |a, b| a ^ b)
-}
+mod hosts_common;
+use hosts_common::bin;
 
 /// The job: home (M400: a layer pause is asked for after homing), heaters set without
 /// waiting, 5 layers of squares with Cura markers. Line i is numbered i + 1.
@@ -83,15 +53,12 @@ fn numbered(lines: &[String], i: usize) -> String {
 /// One `sim serve` process and the host's end of its pseudo-terminal.
 struct Session {
     child: Child,
-    dev: std::fs::File,
-    rx: mpsc::Receiver<String>,
-    seen: Vec<String>,
+    host: PtyHost,
 }
 
 impl Session {
     fn start(flash: &Path, machine: &Path, trace: &Path) -> Session {
-        let bin = sim_bin();
-        let mut child = Command::new(bin)
+        let mut child = Command::new(bin("sim", "sim"))
             .args(["serve", "--speed", "200"])
             .arg("--flash")
             .arg(flash)
@@ -108,58 +75,17 @@ impl Session {
             .read_line(&mut line)
             .expect("device path");
         let device = reachable(line.trim(), child.id());
-        let dev = std::fs::OpenOptions::new()
-            .read(true)
-            .write(true)
-            .open(&device)
-            .expect("open the pty");
-        let mut reader = dev.try_clone().expect("clone");
-        let (tx, rx) = mpsc::channel();
-        std::thread::spawn(move || {
-            let mut buf = [0u8; 1024];
-            let mut line = Vec::new();
-            while let Ok(n) = reader.read(&mut buf) {
-                if n == 0 {
-                    break;
-                }
-                for &b in &buf[..n] {
-                    if b == b'\n' {
-                        let _ = tx.send(String::from_utf8_lossy(&line).trim().to_string());
-                        line.clear();
-                    } else {
-                        line.push(b);
-                    }
-                }
-            }
-        });
-        Session {
-            child,
-            dev,
-            rx,
-            seen: Vec::new(),
-        }
+        let host = PtyHost::open(Path::new(&device));
+        Session { child, host }
     }
 
-    /// Read lines until one satisfies `f`; returns it.
+    /// Read lines until one satisfies `f` (within 60 s); returns it.
     fn until(&mut self, what: &str, f: impl Fn(&str) -> bool) -> String {
-        let end = Instant::now() + Duration::from_secs(60);
-        loop {
-            let left = end.saturating_duration_since(Instant::now());
-            let l = self
-                .rx
-                .recv_timeout(left)
-                .unwrap_or_else(|_| panic!("no {what}; saw {:?}", self.seen));
-            self.seen.push(l.clone());
-            if f(&l) {
-                return l;
-            }
-        }
+        self.host.until(what, Duration::from_secs(60), f)
     }
 
     fn write(&mut self, l: &str) {
-        self.dev
-            .write_all(format!("{l}\n").as_bytes())
-            .expect("write");
+        self.host.write(l);
     }
 
     /// Send a line and wait for its `ok`.
@@ -172,7 +98,7 @@ impl Session {
     fn kill(mut self) -> Vec<String> {
         let _ = self.child.kill();
         let _ = self.child.wait();
-        std::mem::take(&mut self.seen)
+        std::mem::take(&mut self.host.seen)
     }
 }
 
@@ -183,21 +109,6 @@ impl Drop for Session {
             let _ = self.child.wait();
         }
     }
-}
-
-/// The device path, or the sim's open descriptor of it where /dev/pts does not show it.
-fn reachable(device: &str, pid: u32) -> String {
-    if Path::new(device).exists() {
-        return device.to_string();
-    }
-    if let Ok(entries) = std::fs::read_dir(format!("/proc/{pid}/fd")) {
-        for e in entries.flatten() {
-            if std::fs::read_link(e.path()).is_ok_and(|t| t == Path::new(device)) {
-                return e.path().display().to_string();
-            }
-        }
-    }
-    device.to_string()
 }
 
 /// The trace's moves (one line each), waiting up to 20 s for `n` of them.
@@ -343,9 +254,9 @@ fn a_job_killed_while_paused_resumes_with_m1000_and_runs_the_moves_of_an_unpause
     }
     b.send("M400");
     assert!(
-        b.seen.iter().any(|l| l == "//action:resumed"),
+        b.host.seen.iter().any(|l| l == "//action:resumed"),
         "{:?}",
-        b.seen
+        b.host.seen
     );
     let got = moves(&f.trace, want.len());
     let second_seen = b.kill();

@@ -9,46 +9,14 @@
 use firmware::config::MachineConfig;
 use sim::run::Policy;
 use sim::serve::{serve_with, ServeArgs};
-use std::io::{Read, Write};
 use std::sync::mpsc;
-use std::time::{Duration, Instant};
+use std::time::Duration;
+use tests::pty::PtyHost;
 
 const FIXTURE: &str = "prusa-zhop.gcode";
 
-struct Host {
-    dev: std::fs::File,
-    lines: mpsc::Receiver<String>,
-    seen: Vec<String>,
-}
-
-impl Host {
-    fn write(&mut self, text: &str) {
-        self.dev
-            .write_all(format!("{text}\n").as_bytes())
-            .expect("write to the pty");
-    }
-
-    /// Read lines until one satisfies `pred`; returns it.
-    fn until(&mut self, what: &str, secs: u64, pred: impl Fn(&str) -> bool) -> String {
-        let end = Instant::now() + Duration::from_secs(secs);
-        loop {
-            let left = end.saturating_duration_since(Instant::now());
-            match self.lines.recv_timeout(left) {
-                Ok(l) => {
-                    self.seen.push(l.clone());
-                    if pred(&l) {
-                        return l;
-                    }
-                }
-                Err(_) => panic!("timed out waiting for {what}; saw {:?}", self.seen),
-            }
-        }
-    }
-
-    fn ok(&mut self) {
-        self.until("ok", 30, |l| l.starts_with("ok"));
-    }
-}
+/// How long the host waits for an `ok`.
+const OK_WAIT: Duration = Duration::from_secs(30);
 
 /// The head's XYZ (mm, machine = logical here: the file sets no XYZ offset) and the filament
 /// fed so far (mm, net) at every `;LAYER_CHANGE` of a PrusaSlicer file: a small tracker of its
@@ -139,60 +107,42 @@ fn a_host_prints_a_sliced_file_from_the_card_with_a_layer_pause() {
     let path = rx
         .recv_timeout(Duration::from_secs(20))
         .expect("sim serve printed no device path");
-    let dev = std::fs::OpenOptions::new()
-        .read(true)
-        .write(true)
-        .open(&path)
-        .expect("open the pty");
-    let mut reader = dev.try_clone().expect("clone the pty handle");
-    let (ltx, lrx) = mpsc::channel();
-    std::thread::spawn(move || {
-        let mut buf = [0u8; 1024];
-        let mut line = Vec::new();
-        while let Ok(n) = reader.read(&mut buf) {
-            if n == 0 {
-                break;
-            }
-            for &b in &buf[..n] {
-                if b == b'\n' {
-                    let _ = ltx.send(String::from_utf8_lossy(&line).trim().to_string());
-                    line.clear();
-                } else {
-                    line.push(b);
-                }
-            }
-        }
-    });
-    let mut host = Host {
-        dev,
-        lines: lrx,
-        seen: Vec::new(),
-    };
+    let mut host = PtyHost::open(&path);
 
     host.write("M115");
-    host.until("Cap:SDCARD:1", 30, |l| l == "Cap:SDCARD:1");
-    host.ok();
+    host.until("Cap:SDCARD:1", Duration::from_secs(30), |l| {
+        l == "Cap:SDCARD:1"
+    });
+    host.ok(OK_WAIT);
     host.write("M20 L");
-    host.until("the file in the list", 30, |l| {
+    host.until("the file in the list", Duration::from_secs(30), |l| {
         l.ends_with(&format!(" {} {FIXTURE}", gcode.len()))
     });
-    host.until("End file list", 30, |l| l == "End file list");
-    host.ok();
+    host.until("End file list", Duration::from_secs(30), |l| {
+        l == "End file list"
+    });
+    host.ok(OK_WAIT);
     host.write(&format!("M23 {FIXTURE}"));
-    let opened = host.until("File opened", 30, |l| l.starts_with("File opened: "));
+    let opened = host.until("File opened", Duration::from_secs(30), |l| {
+        l.starts_with("File opened: ")
+    });
     assert!(
         opened.ends_with(&format!("Size: {}", gcode.len())),
         "{opened}"
     );
-    host.until("File selected", 30, |l| l == "File selected");
-    host.ok();
+    host.until("File selected", Duration::from_secs(30), |l| {
+        l == "File selected"
+    });
+    host.ok(OK_WAIT);
     host.write("M27 S1");
-    host.ok();
+    host.ok(OK_WAIT);
     host.write("M24");
-    host.ok();
+    host.ok(OK_WAIT);
     // Ask for the layer pause once a third of the file has been read.
     loop {
-        let l = host.until("SD progress", 120, |l| l.starts_with("SD printing byte "));
+        let l = host.until("SD progress", Duration::from_secs(120), |l| {
+            l.starts_with("SD printing byte ")
+        });
         let (a, b) = l["SD printing byte ".len()..].split_once('/').unwrap();
         let (a, b): (u64, u64) = (a.parse().unwrap(), b.parse().unwrap());
         assert_eq!(b, gcode.len() as u64);
@@ -201,13 +151,17 @@ fn a_host_prints_a_sliced_file_from_the_card_with_a_layer_pause() {
         }
     }
     host.write("M25");
-    host.until("//action:paused", 120, |l| l.contains("//action:paused"));
+    host.until("//action:paused", Duration::from_secs(120), |l| {
+        l.contains("//action:paused")
+    });
     host.write("M27");
-    host.until("M27 while paused", 30, |l| {
+    host.until("M27 while paused", Duration::from_secs(30), |l| {
         l.starts_with("SD printing byte ")
     });
     host.write("M24");
-    host.until("Done printing file", 300, |l| l == "Done printing file");
+    host.until("Done printing file", Duration::from_secs(300), |l| {
+        l == "Done printing file"
+    });
     drop(host);
 
     let record = server
