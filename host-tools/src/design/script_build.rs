@@ -9,7 +9,7 @@ use crate::design::model::Model;
 use crate::design::pen::AreaModel;
 use crate::design::points::{self, PointsError};
 use crate::design::profile::Retraction;
-use crate::design::turtle::Turtle;
+use crate::design::turtle::{Turtle, TurtleError};
 use glam::DVec3;
 use rhai::{Array, Dynamic, Engine, Map};
 
@@ -355,44 +355,30 @@ fn register_points(e: &mut Engine) {
     );
 }
 
+/// Registers a pen move as `name(x, y, z)` and as `name(point)`.
+fn register_move(
+    e: &mut Engine,
+    name: &'static str,
+    go: fn(&mut Turtle, DVec3) -> Result<(), TurtleError>,
+) {
+    e.register_fn(
+        name,
+        move |t: &mut Turtle, x: Dynamic, y: Dynamic, z: Dynamic| -> Res<()> {
+            go(t, DVec3::new(num(&x, "x")?, num(&y, "y")?, num(&z, "z")?)).map_err(err)
+        },
+    );
+    e.register_fn(name, move |t: &mut Turtle, p: Dynamic| -> Res<()> {
+        go(t, pt(&p, name)?).map_err(err)
+    });
+}
+
 fn register_pen(e: &mut Engine) {
     e.register_fn("turtle", |p: Dynamic| -> Res<Turtle> {
         Ok(Turtle::at(pt(&p, "start")?, 0.2, 20.0))
     });
-    e.register_fn(
-        "extrude_to",
-        |t: &mut Turtle, x: Dynamic, y: Dynamic, z: Dynamic| -> Res<()> {
-            t.extrude_to(DVec3::new(num(&x, "x")?, num(&y, "y")?, num(&z, "z")?))
-                .map_err(err)
-        },
-    );
-    e.register_fn("extrude_to", |t: &mut Turtle, p: Dynamic| -> Res<()> {
-        t.extrude_to(pt(&p, "extrude_to")?).map_err(err)
-    });
-    e.register_fn(
-        "travel_to",
-        |t: &mut Turtle, x: Dynamic, y: Dynamic, z: Dynamic| -> Res<()> {
-            t.travel_to(DVec3::new(num(&x, "x")?, num(&y, "y")?, num(&z, "z")?))
-                .map_err(err)
-        },
-    );
-    e.register_fn("travel_to", |t: &mut Turtle, p: Dynamic| -> Res<()> {
-        t.travel_to(pt(&p, "travel_to")?).map_err(err)
-    });
-    e.register_fn(
-        "travel_straight_to",
-        |t: &mut Turtle, x: Dynamic, y: Dynamic, z: Dynamic| -> Res<()> {
-            t.travel_straight_to(DVec3::new(num(&x, "x")?, num(&y, "y")?, num(&z, "z")?))
-                .map_err(err)
-        },
-    );
-    e.register_fn(
-        "travel_straight_to",
-        |t: &mut Turtle, p: Dynamic| -> Res<()> {
-            t.travel_straight_to(pt(&p, "travel_straight_to")?)
-                .map_err(err)
-        },
-    );
+    register_move(e, "extrude_to", Turtle::extrude_to);
+    register_move(e, "travel_to", Turtle::travel_to);
+    register_move(e, "travel_straight_to", Turtle::travel_straight_to);
     e.register_fn(
         "extrude_arc",
         |t: &mut Turtle, c: Dynamic, sweep: Dynamic| -> Res<()> {
