@@ -251,6 +251,28 @@ fn baseline(job: &[String]) -> Vec<(u32, u32)> {
 
 /// printcore keeps streaming job lines through the pause; `send_now("M602")` after the
 /// printer announced `//action:paused` goes out with the next `ok` and resumes the job.
+/// The host sent the whole job, the printer stopped once and ends idle, and every job segment
+/// ran once, in order, as in the unpaused `base`.
+fn assert_one_stop_and_the_whole_job(o: &Outcome, base: &[(u32, u32)], tail: &str) {
+    assert!(o.host.done(), "job not sent to the end:\n{tail}");
+    assert_eq!(o.end_state, State::Idle);
+    assert_eq!(o.stops, 1);
+    assert_eq!(o.executed, base, "every segment once, in order");
+}
+
+/// The host's jog (`G91`, `G1 Z5`) ran from the parked position: the highest Z is 5 mm above
+/// the park height (stop Z + the pause's lift).
+fn assert_jogged_5mm_above_park(o: &Outcome) {
+    let cfg = MachineConfig::ENDER3;
+    let spm = cfg.axes[2].steps_per_mm;
+    let top_mm = o.stop_z as f32 / spm + cfg.pause.lift_z_mm + 5.0;
+    assert!(
+        (o.max_z as f32 / spm - top_mm).abs() < 0.3,
+        "max Z {} mm, expected about {top_mm} mm (the jog)",
+        o.max_z as f32 / spm
+    );
+}
+
 #[test]
 fn printcore_streaming_through_a_pause_can_send_its_resume() {
     let job = job(6, 30);
@@ -278,10 +300,7 @@ fn printcore_streaming_through_a_pause_can_send_its_resume() {
         out.contains("//action:resumed"),
         "M602 never got through:\n{tail}"
     );
-    assert!(o.host.done(), "job not sent to the end:\n{tail}");
-    assert_eq!(o.end_state, State::Idle);
-    assert_eq!(o.stops, 1);
-    assert_eq!(o.executed, base, "every segment once, in order");
+    assert_one_stop_and_the_whole_job(&o, &base, &tail);
 }
 
 /// OctoPrint stops streaming at `//action:paused` and stays "Pausing" until its in-flight line
@@ -333,23 +352,11 @@ fn octoprint_gets_its_in_flight_ok_and_its_terminal_works_while_paused() {
         out.contains("ok T:"),
         "M105 not answered while paused:\n{tail}"
     );
-    // The jog ran at once from the parked position: 5 mm above the park height.
-    let cfg = MachineConfig::ENDER3;
-    let spm = cfg.axes[2].steps_per_mm;
-    let top_mm = o.stop_z as f32 / spm + cfg.pause.lift_z_mm + 5.0;
-    assert!(
-        (o.max_z as f32 / spm - top_mm).abs() < 0.3,
-        "max Z {} mm, expected about {top_mm} mm",
-        o.max_z as f32 / spm
-    );
+    // The jog ran at once from the parked position.
+    assert_jogged_5mm_above_park(&o);
     assert!(out.contains("//action:resumed"), "{tail}");
-    assert!(o.host.done(), "{tail}");
-    assert_eq!(o.end_state, State::Idle);
-    assert_eq!(o.stops, 1);
-    assert_eq!(
-        o.executed, base,
-        "the jog is not a job move; every segment once, in order"
-    );
+    // The jog is not a job move.
+    assert_one_stop_and_the_whole_job(&o, &base, &tail);
 }
 
 /// `Error:` only for what hosts treat as a resend or a real fault: a move outside the volume,
@@ -581,19 +588,9 @@ fn printcore_streaming_into_a_parked_printer_sends_late_priority_lines() {
         out.contains("ok T:"),
         "M105 not answered while paused:\n{tail}"
     );
-    let cfg = MachineConfig::ENDER3;
-    let spm = cfg.axes[2].steps_per_mm;
-    let top_mm = o.stop_z as f32 / spm + cfg.pause.lift_z_mm + 5.0;
-    assert!(
-        (o.max_z as f32 / spm - top_mm).abs() < 0.3,
-        "max Z {} mm, expected about {top_mm} mm (the jog)",
-        o.max_z as f32 / spm
-    );
+    assert_jogged_5mm_above_park(&o);
     assert!(out.contains("//action:resumed"), "{tail}");
-    assert!(o.host.done(), "job not sent to the end:\n{tail}");
-    assert_eq!(o.end_state, State::Idle);
-    assert_eq!(o.stops, 1);
-    assert_eq!(o.executed, base, "every segment once, in order");
+    assert_one_stop_and_the_whole_job(&o, &base, &tail);
 }
 
 /// printcore streams on into a parked printer and asks for the cancel late, with `send_now`:
