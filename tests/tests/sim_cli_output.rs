@@ -26,14 +26,16 @@ fn a_closed_pipe_is_a_clean_error() {
         vec!["pattern".to_string(), "demo".into()],
         vec!["run".to_string(), job.display().to_string()],
     ] {
-        let mut child = Command::new(&sim)
+        // The pipe's reader is gone before the child starts, so its first write fails
+        // (closing it after the spawn raced with a child that wrote everything first).
+        let (reader, writer) = std::io::pipe().expect("pipe");
+        drop(reader);
+        let out = Command::new(&sim)
             .args(&args)
-            .stdout(Stdio::piped())
+            .stdout(writer)
             .stderr(Stdio::piped())
-            .spawn()
-            .expect("spawn sim");
-        drop(child.stdout.take()); // the reader goes away before the first write
-        let out = child.wait_with_output().expect("sim output");
+            .output()
+            .expect("sim output");
         let err = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
         assert!(
