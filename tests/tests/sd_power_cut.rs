@@ -234,9 +234,10 @@ fn an_sd_job_paused_resumes_after_a_power_cut_with_m1000_alone() {
 
     let mut a = print_and_pause(&img);
     let kept = a.store.load_job().unwrap().unwrap();
-    let JobSource::Sd { path, offset } = &kept.source else {
+    let JobSource::Sd { path, offset, size } = &kept.source else {
         panic!("{kept:?}");
     };
+    assert_eq!(*size as usize, text.len());
     // The boundary is a layer the file marks, and the offset is its first motion line.
     let layer = first
         .iter()
@@ -304,17 +305,24 @@ fn m1000_refuses_a_kept_sd_job_whose_file_is_gone_or_changed_and_changes_nothing
     let a = print_and_pause(&img);
     let bytes = a.store.into_flash().bytes().to_vec();
 
-    // The file shifted by one byte: the offset is inside a line now.
-    let shifted = format!(" {text}");
-    let cases: [(&str, Option<Image>, &str); 3] = [
+    // Another file under the same name: one byte longer; the same size, but the offset
+    // inside a line.
+    let longer = format!(" {text}");
+    let rotated = format!("{}{}", &text[1..], &text[..1]);
+    let cases: [(&str, Option<Image>, &str); 4] = [
         (
             "gone",
             Some(Image::new("gone", &[("OTHER.GCO", &text)])),
             "echo:refused: M1000: kept SD file: open failed (not found) (M1000 C discards the kept job)",
         ),
         (
-            "changed",
-            Some(Image::new("changed", &[(NAME, &shifted)])),
+            "longer",
+            Some(Image::new("longer", &[(NAME, &longer)])),
+            "echo:refused: M1000: kept SD file: the file changed",
+        ),
+        (
+            "rotated",
+            Some(Image::new("rotated", &[(NAME, &rotated)])),
             "echo:refused: M1000: kept SD file: the file changed",
         ),
         (

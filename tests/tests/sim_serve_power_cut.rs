@@ -365,9 +365,10 @@ fn an_sd_job_killed_while_paused_continues_with_m1000_alone_and_runs_the_moves_o
         before > 0 && before < want.len(),
         "{keeping}: {before} moves"
     );
-    let JobSource::Sd { path, offset } = &kept.source else {
+    let JobSource::Sd { path, offset, size } = &kept.source else {
         panic!("{kept:?}");
     };
+    assert_eq!(*size as usize, gcode.len());
     let offset = *offset as usize;
     assert!(
         keeping.ends_with(&format!("SD file {path} byte {offset}")),
@@ -407,7 +408,7 @@ fn an_sd_job_killed_while_paused_continues_with_m1000_alone_and_runs_the_moves_o
     }
 
     eprintln!(
-        "paused before layer {} of {} (marker {k}, byte {offset}): {before} of {} moves before the cut",
+        "paused before layer {} of {} (marker {k}, {path} byte {offset}): {before} of {} moves before the cut",
         kept.layer,
         markers.len(),
         want.len()

@@ -150,6 +150,7 @@ impl Printer {
             (Some(offset), _) => JobSource::Sd {
                 path: heapless::String::try_from(self.sd_file_path()?).ok()?,
                 offset,
+                size: self.sd_progress()?.1,
             },
             (None, Some(line)) => JobSource::Host { line },
             (None, None) => return None,
@@ -215,7 +216,7 @@ impl core::fmt::Display for Where<'_> {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self.0 {
             JobSource::Host { line } => write!(f, "host line {line}"),
-            JobSource::Sd { path, offset } => write!(f, "SD file {path} byte {offset}"),
+            JobSource::Sd { path, offset, .. } => write!(f, "SD file {path} byte {offset}"),
         }
     }
 }

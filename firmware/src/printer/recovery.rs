@@ -198,8 +198,8 @@ impl Printer {
             Some(j) => match (self.recovery_plan(&j), &j.source) {
                 (Err(r), _) => Some(r),
                 (Ok(_), JobSource::Host { .. }) => Some(Refusal::NothingKept),
-                (Ok(machine), JobSource::Sd { path, offset }) => {
-                    match self.sd_select_at(card, port, path, *offset) {
+                (Ok(machine), JobSource::Sd { path, offset, size }) => {
+                    match self.sd_select_at(card, port, path, *offset, *size) {
                         Err(e) => Some(Refusal::File(e)),
                         Ok(()) => match self.begin_recovery(&j, machine) {
                             Err(r) => {

@@ -89,8 +89,8 @@ pub(super) enum CardRequest {
 pub(super) enum ReopenError {
     /// The card or the file could not be had.
     Card(CardError),
-    /// The offset is past the file's end, or not the first byte of a line: not the file
-    /// that was printing.
+    /// The file's size is not the kept one, or the offset is not the first byte of a line:
+    /// not the file that was printing.
     Changed { size: u32 },
 }
 
@@ -101,7 +101,7 @@ impl core::fmt::Display for ReopenError {
             ReopenError::Card(e) => write!(f, "open failed ({e})"),
             ReopenError::Changed { size } => write!(
                 f,
-                "the file changed ({size} bytes, the kept offset is not a line start in it)"
+                "the file changed (now {size} bytes, or the kept offset is not a line start)"
             ),
         }
     }
@@ -246,15 +246,17 @@ impl Printer {
     }
 
     /// Select `name` to start at `offset` (a kept job's file, M1000): mounted when not yet
-    /// (power-up), the offset checked to be the first byte of a line of the file (byte 0, or
-    /// the byte before it a line end), so a file replaced since the power cut is not fed from
-    /// the middle of a line. `File opened` / `File selected` go to `port` as for M23.
+    /// (power-up), the file checked to be of `size` bytes and the offset to be the first byte
+    /// of a line in it (byte 0, or the byte before it a line end), so a file replaced since the
+    /// power cut is not fed from the middle of a line. `File opened` / `File selected` go to
+    /// `port` as for M23.
     pub(super) fn sd_select_at<D: BlockDevice>(
         &mut self,
         card: &mut Card<D>,
         port: Option<PortId>,
         name: &str,
         offset: u32,
+        size: u32,
     ) -> Result<(), ReopenError>
     where
         D::Error: core::fmt::Debug,
@@ -272,7 +274,8 @@ impl Printer {
         }
         let e = card.open(name).map_err(ReopenError::Card)?;
         let line_start = match offset.checked_sub(1) {
-            None => offset <= e.size,
+            _ if e.size != size => false,
+            None => true,
             Some(before) if offset <= e.size => {
                 let mut b = [0u8; 1];
                 let n = card.read_at(before, &mut b).map_err(ReopenError::Card)?;
