@@ -86,6 +86,20 @@ fn executive_z_at_its_limit_in_a_rounded_segment() {
     ]);
 }
 
+/// `executive` crash-4fba0a… (fifth session): `M0` paused the printer with 58 bytes of USB
+/// lines still waiting (flow control), an `M524` among them. The harness counted the pause as
+/// rest, wrote its final `M400` behind those bytes and resumed: the `M524` cancelled and the
+/// `M400` reached the printer with no silence after the cancel, so it was discarded as the
+/// rest of the cancelled job (docs/frontend.md "Cancel"), as the rule says. Harness fault: it
+/// now resumes every pause and lets every byte be taken before its 3 s of silence.
+#[test]
+fn executive_final_m400_not_queued_behind_a_cancel() {
+    run_executive(&[
+        0x8f, 0x66, 0x71, 0x77, 0x61, 0x9e, 0x7e, 0x68, 0x66, 0x71, 0x77, 0x61, 0x62, 0x6a, 0x98,
+        0x97, 0xc9, 0x47,
+    ]);
+}
+
 /// Replays every committed fuzz input through its target's checks: the seed corpus
 /// (`firmware/fuzz/seeds/<target>/*`) and the inputs the fuzzers found
 /// (`firmware/fuzz/finds/<target>/*`). CI runs this (deterministic), not the fuzzers.
