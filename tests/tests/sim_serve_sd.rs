@@ -11,70 +11,13 @@ use sim::run::Policy;
 use sim::serve::{serve_with, ServeArgs};
 use std::sync::mpsc;
 use std::time::Duration;
+use tests::gcode::layer_markers;
 use tests::pty::PtyHost;
 
 const FIXTURE: &str = "prusa-zhop.gcode";
 
 /// How long the host waits for an `ok`.
 const OK_WAIT: Duration = Duration::from_secs(30);
-
-/// The head's XYZ (mm, machine = logical here: the file sets no XYZ offset) and the filament
-/// fed so far (mm, net) at every `;LAYER_CHANGE` of a PrusaSlicer file: a small tracker of its
-/// own (G90/G91, M82/M83, G92 E, G0/G1, G28).
-fn marker_positions(gcode: &str) -> Vec<([f64; 3], f64)> {
-    let mut pos = [0.0f64; 3];
-    let (mut e_logical, mut e_total) = (0.0f64, 0.0f64);
-    let (mut relative, mut relative_e) = (false, false);
-    let mut out = Vec::new();
-    for raw in gcode.lines() {
-        if raw.trim_start().starts_with(";LAYER_CHANGE") {
-            out.push((pos, e_total));
-        }
-        let code = raw.split(';').next().unwrap_or("").trim();
-        let mut words = code.split_whitespace();
-        let Some(cmd) = words.next() else { continue };
-        let params: Vec<(char, f64)> = words
-            .filter_map(|w| {
-                let c = w.chars().next()?.to_ascii_uppercase();
-                Some((c, w[1..].parse().ok()?))
-            })
-            .collect();
-        match cmd {
-            "G90" => relative = false,
-            "G91" => relative = true,
-            "M82" => relative_e = false,
-            "M83" => relative_e = true,
-            "G92" => {
-                for (c, v) in &params {
-                    if *c == 'E' {
-                        e_logical = *v;
-                    }
-                }
-            }
-            "G28" => {
-                let named: Vec<usize> = params.iter().filter_map(|(c, _)| "XYZ".find(*c)).collect();
-                for (i, p) in pos.iter_mut().enumerate() {
-                    if named.is_empty() || named.contains(&i) {
-                        *p = 0.0;
-                    }
-                }
-            }
-            "G0" | "G1" => {
-                for (c, v) in params {
-                    if let Some(i) = "XYZ".find(c) {
-                        pos[i] = if relative { pos[i] + v } else { v };
-                    } else if c == 'E' {
-                        let d = if relative_e { v } else { v - e_logical };
-                        e_logical += d;
-                        e_total += d;
-                    }
-                }
-            }
-            _ => {}
-        }
-    }
-    out
-}
 
 #[test]
 fn a_host_prints_a_sliced_file_from_the_card_with_a_layer_pause() {
@@ -183,7 +126,11 @@ fn a_host_prints_a_sliced_file_from_the_card_with_a_layer_pause() {
     // The stop is where the file has a layer marker (to the step).
     let stop = r.pause_point_steps.expect("pause point");
     let cfg = MachineConfig::ENDER3;
-    let markers = marker_positions(&gcode);
+    // Where the head is at each of the file's markers (a tracker of the test's own).
+    let markers: Vec<([f64; 3], f64)> = layer_markers(&gcode, ";LAYER_CHANGE")
+        .iter()
+        .map(|m| (m.pos_mm, m.fed_mm))
+        .collect();
     assert_eq!(markers.len(), 10);
     let k = markers
         .iter()

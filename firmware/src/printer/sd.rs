@@ -72,13 +72,39 @@ pub(super) enum CardRequest {
         long: bool,
         next: usize,
     },
-    /// M23 / M32 / a power-cut resume: open `name`, then start at `offset` when `start`.
+    /// M23 / M32 / [`Printer::start_sd_job`]: open `name`, then start at `offset` when
+    /// `start`.
     Open {
         port: Option<PortId>,
         name: String<LONG_NAME_CAP>,
         start: bool,
         offset: u32,
     },
+    /// M1000 of a job kept from the card: open the kept file and continue it (`recovery.rs`).
+    Resume { port: Option<PortId> },
+}
+
+/// Why a kept SD job cannot continue from its offset (M1000).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum ReopenError {
+    /// The card or the file could not be had.
+    Card(CardError),
+    /// The file's size is not the kept one, or the offset is not the first byte of a line:
+    /// not the file that was printing.
+    Changed { size: u32 },
+}
+
+impl core::fmt::Display for ReopenError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            ReopenError::Card(CardError::NoCard) => f.write_str("No media"),
+            ReopenError::Card(e) => write!(f, "open failed ({e})"),
+            ReopenError::Changed { size } => write!(
+                f,
+                "the file changed (now {size} bytes, or the kept offset is not a line start)"
+            ),
+        }
+    }
 }
 
 /// The executive's side of the card. See the module documentation.
@@ -196,8 +222,9 @@ impl Printer {
         }
     }
 
-    /// Open `path` on the card and print it from byte `offset` (a power-cut resume; the
-    /// offset is a line's first byte, as [`Printer::sd_line_offset`] gave it).
+    /// Open `path` on the card and print it from byte `offset` (the offset is a line's first
+    /// byte, as [`Printer::sd_line_offset`] gave it). M1000 does this for a kept SD job, after
+    /// checking the file (see `recovery.rs`).
     pub fn start_sd_job(&mut self, path: &str, offset: u32) {
         self.sd.request = Some(CardRequest::Open {
             port: None,
@@ -205,6 +232,84 @@ impl Printer {
             start: true,
             offset,
         });
+    }
+
+    /// A driver services a card slot.
+    pub(super) fn card_attached(&self) -> bool {
+        self.sd.attached
+    }
+
+    /// M1000 asks for the card (its `ok` waits for the answer; see `recovery.rs`).
+    pub(super) fn request_card_resume(&mut self) {
+        let port = self.asking_port();
+        self.sd.request = Some(CardRequest::Resume { port });
+    }
+
+    /// Select `name` to start at `offset` (a kept job's file, M1000): mounted when not yet
+    /// (power-up), the file checked to be of `size` bytes and the offset to be the first byte
+    /// of a line in it (byte 0, or the byte before it a line end), so a file replaced since the
+    /// power cut is not fed from the middle of a line. `File opened` / `File selected` go to
+    /// `port` as for M23.
+    pub(super) fn sd_select_at<D: BlockDevice>(
+        &mut self,
+        card: &mut Card<D>,
+        port: Option<PortId>,
+        name: &str,
+        offset: u32,
+        size: u32,
+    ) -> Result<(), ReopenError>
+    where
+        D::Error: core::fmt::Debug,
+    {
+        self.sd.job = SdJob::None;
+        if !self.sd.mounted {
+            // Power-up, or a card inserted or released (M22) since: mount it now.
+            self.sd.mounted = card.mount().is_ok();
+            if self.sd.mounted {
+                self.sd.released = false;
+            }
+        }
+        if !self.sd.mounted {
+            return Err(ReopenError::Card(CardError::NoCard));
+        }
+        let e = card.open(name).map_err(ReopenError::Card)?;
+        let line_start = match offset.checked_sub(1) {
+            _ if e.size != size => false,
+            None => true,
+            Some(before) if offset <= e.size => {
+                let mut b = [0u8; 1];
+                let n = card.read_at(before, &mut b).map_err(ReopenError::Card)?;
+                n == 1 && FileLines::is_line_end(b[0])
+            }
+            Some(_) => false,
+        };
+        if !line_start {
+            card.close();
+            return Err(ReopenError::Changed { size: e.size });
+        }
+        let mut t: String<LINE_LEN> = String::new();
+        let _ = write!(t, "File opened: {} Size: {}", e.short, e.size);
+        self.answer_to(port, Response::Plain(&t));
+        self.answer_to(port, Response::Plain("File selected"));
+        self.sd.job = SdJob::Selected {
+            file: SdFile {
+                name: short_text(&e.short),
+                size: e.size,
+            },
+            start_at: offset,
+        };
+        Ok(())
+    }
+
+    /// Forget the selected file (M1000 refused after [`Printer::sd_select_at`]).
+    pub(super) fn sd_unselect<D: BlockDevice>(&mut self, card: &mut Card<D>)
+    where
+        D::Error: core::fmt::Debug,
+    {
+        if !self.sd_printing() {
+            self.sd.job = SdJob::None;
+            card.close();
+        }
     }
 
     /// See [`SdLink::cancelled`].
@@ -370,7 +475,7 @@ impl Printer {
     }
 
     /// Answer a port (None: every port).
-    fn answer_to(&mut self, port: Option<PortId>, r: Response<'_>) {
+    pub(super) fn answer_to(&mut self, port: Option<PortId>, r: Response<'_>) {
         match port {
             Some(p) => {
                 self.link.respond_on(p, r);
@@ -423,6 +528,7 @@ impl Printer {
                 start,
                 offset,
             } => self.card_open(card, port, &name, start, offset),
+            CardRequest::Resume { port } => self.resume_sd_job(card, port),
         }
     }
 
