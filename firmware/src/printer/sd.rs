@@ -254,7 +254,7 @@ impl Printer {
         self.sd.next_report_us = self.now_us.saturating_add(self.sd.auto_report_us);
         self.lines.after_cancel = None;
         self.sd.cancelled = false;
-        let mut t: String<LINE_LEN> = String::new();
+        let mut t: String<{ LINE_LEN + LONG_NAME_CAP }> = String::new();
         let _ = write!(t, "SD printing {} from byte {at}", file.name);
         self.link
             .notify(Response::Action(HostAction::Notification, &t));

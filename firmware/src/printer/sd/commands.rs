@@ -6,14 +6,16 @@ use super::{short_text, CardRequest, SdFile, SdJob};
 use crate::gcode::SdCommand;
 use crate::link::{PortId, Response, LINK_RESERVE};
 use crate::printer::{Printer, LINE_LEN};
-use crate::storage::sd::{Card, CardEntry, CardError, LONG_NAME_CAP};
+use crate::storage::sd::{Card, CardEntry, CardError, CARD_PATH_CAP, LONG_PATH_CAP};
 use core::fmt::Write as _;
 use embedded_sdmmc::BlockDevice;
 use heapless::String;
 
 /// Free output bytes a port needs before the next M20 entry is written to it (the listing
 /// goes out over several service calls when the ring is full; nothing is dropped).
-const LIST_ROOM: usize = LINK_RESERVE + 2 * LONG_NAME_CAP;
+const LIST_ROOM: usize = LINK_RESERVE + 2 * ENTRY_CAP;
+/// Longest M20 L line: short path, size, long path.
+const ENTRY_CAP: usize = CARD_PATH_CAP + 12 + LONG_PATH_CAP;
 
 impl Printer {
     /// SD commands. Returns true when the `ok` is owed (sent once the card has answered).
@@ -121,12 +123,12 @@ impl Printer {
             }
             self.answer_to(port, Response::Plain("Begin file list"));
         }
-        // Entries `next..next+batch` go out now (each line at most ≈ 130 bytes).
-        let batch = (room(self).saturating_sub(LINK_RESERVE) / (LONG_NAME_CAP + 32)).min(8);
+        // Entries `next..next+batch` go out now (each line at most ENTRY_CAP bytes).
+        let batch = (room(self).saturating_sub(LINK_RESERVE) / ENTRY_CAP).min(8);
         let mut written = 0;
         let result = card.for_each_file(|i, e: &CardEntry| {
             if i >= next && written < batch {
-                let mut t: String<{ LONG_NAME_CAP + 32 }> = String::new();
+                let mut t: String<ENTRY_CAP> = String::new();
                 let _ = write!(t, "{} {}", e.short, e.size);
                 if let (true, Some(l)) = (long, &e.long) {
                     let _ = write!(t, " {l}");
@@ -191,7 +193,7 @@ impl Printer {
         match opened {
             Ok(e) => {
                 let mut t: String<LINE_LEN> = String::new();
-                let _ = write!(t, "File opened: {} Size: {}", e.short, e.size);
+                let _ = write!(t, "File opened: {} Size: {}", file_name(&e.short), e.size);
                 self.answer_to(port, Response::Plain(&t));
                 self.answer_to(port, Response::Plain("File selected"));
                 self.sd.job = SdJob::Selected {
@@ -214,4 +216,12 @@ impl Printer {
         }
         self.answer_to(port, Response::Ok);
     }
+}
+
+/// The file's own name, the last component of its path (what Marlin's `File opened:` shows).
+pub(super) fn file_name(path: &str) -> &str {
+    path.bytes()
+        .rposition(|b| b == b'/')
+        .and_then(|i| path.get(i + 1..))
+        .unwrap_or(path)
 }

@@ -88,7 +88,12 @@ impl Printer {
             return Err(ReopenError::Changed { size: e.size });
         }
         let mut t: String<LINE_LEN> = String::new();
-        let _ = write!(t, "File opened: {} Size: {}", e.short, e.size);
+        let _ = write!(
+            t,
+            "File opened: {} Size: {}",
+            super::commands::file_name(&e.short),
+            e.size
+        );
         self.answer_to(port, Response::Plain(&t));
         self.answer_to(port, Response::Plain("File selected"));
         self.sd.job = SdJob::Selected {
