@@ -261,6 +261,74 @@ fn nested_directories_are_listed_and_opened_by_path() {
     assert_eq!(card.open("a/b/c/d/e/f/six.gco").unwrap().size, 505);
 }
 
+/// 3000 random paths (fixed seed) over the nested card: none panics; one that opens gives the
+/// file whose contents its listed entry names; refusals leave no directory handle open (every
+/// file still opens after them).
+#[test]
+fn random_paths_never_panic_and_leave_the_card_usable() {
+    let files = nested_files();
+    let refs: Vec<(&str, Vec<u8>)> = files.iter().map(|(n, c)| (n.as_str(), c.clone())).collect();
+    let img = Image::new("random-paths", &refs);
+    let mut card = img.card();
+    card.mount().unwrap();
+    let mut listed = Vec::new();
+    card.for_each_file(|_, e| listed.push(e.clone())).unwrap();
+    let parts = [
+        "prints",
+        "PRINTS",
+        "cubes",
+        "CUBE.GCO",
+        "cube.gco",
+        "a",
+        "b",
+        "c",
+        "d",
+        "e",
+        "f",
+        "g",
+        "SIX.GCO",
+        "SEVEN.GCO",
+        "ROOT.GCO",
+        "..",
+        ".",
+        "",
+        "Benchy long name.gcode",
+        "\u{e9}",
+        "~1",
+        "CUBEST~1",
+        "x",
+    ];
+    let mut x: u64 = 0x2545_F491_4F6C_DD1D;
+    let mut next = move |n: usize| {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        (x % n as u64) as usize
+    };
+    let mut opened = 0;
+    for _ in 0..3000 {
+        let n = next(10);
+        let mut path: Vec<&str> = (0..n).map(|_| parts[next(parts.len())]).collect();
+        if next(4) == 0 {
+            path.insert(0, "");
+        }
+        let path = path.join("/");
+        if let Ok(e) = card.open(&path) {
+            opened += 1;
+            assert!(listed.contains(&e), "{path}: {e:?}");
+            let written = files
+                .iter()
+                .find(|(p, _)| e.long.as_deref() == Some(p.as_str()))
+                .unwrap();
+            assert_eq!(read_all(&mut card, 512), written.1, "{path}");
+        }
+    }
+    assert!(opened >= 10, "{opened} of 3000 opened");
+    for e in &listed {
+        assert_eq!(card.open(&e.short).as_ref(), Ok(e));
+    }
+}
+
 #[test]
 fn an_absent_card_is_an_error_not_a_panic() {
     let mut card = Card::new(NoCard);
