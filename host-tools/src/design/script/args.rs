@@ -4,9 +4,9 @@
 use glam::DVec3;
 use rhai::{Dynamic, EvalAltResult, Map};
 
-pub(in crate::design) type Res<T> = Result<T, Box<EvalAltResult>>;
+pub(super) type Res<T> = Result<T, Box<EvalAltResult>>;
 
-pub(in crate::design) fn num(d: &Dynamic, what: &str) -> Res<f64> {
+pub(super) fn num(d: &Dynamic, what: &str) -> Res<f64> {
     if let Ok(f) = d.as_float() {
         Ok(f)
     } else if let Ok(i) = d.as_int() {
@@ -16,7 +16,7 @@ pub(in crate::design) fn num(d: &Dynamic, what: &str) -> Res<f64> {
     }
 }
 
-pub(in crate::design) fn count(d: &Dynamic, what: &str) -> Res<usize> {
+pub(super) fn count(d: &Dynamic, what: &str) -> Res<usize> {
     let v = num(d, what)?;
     if v.is_finite() && v >= 0.0 && v.fract() == 0.0 && v <= 1e9 {
         Ok(v as usize)
@@ -26,14 +26,14 @@ pub(in crate::design) fn count(d: &Dynamic, what: &str) -> Res<usize> {
 }
 
 /// Reads options from a map with defaults, rejecting unknown keys.
-pub(in crate::design) struct Opts<'a> {
+pub(super) struct Opts<'a> {
     map: &'a Map,
     what: &'static str,
     known: &'static [&'static str],
 }
 
 impl<'a> Opts<'a> {
-    pub(in crate::design) fn new(
+    pub(super) fn new(
         map: &'a Map,
         what: &'static str,
         known: &'static [&'static str],
@@ -47,24 +47,24 @@ impl<'a> Opts<'a> {
         }
         Ok(Opts { map, what, known })
     }
-    pub(in crate::design) fn f(&self, key: &str, default: f64) -> Res<f64> {
+    pub(super) fn f(&self, key: &str, default: f64) -> Res<f64> {
         debug_assert!(self.known.contains(&key));
         match self.map.get(key) {
             Some(d) => num(d, &format!("{}.{key}", self.what)),
             None => Ok(default),
         }
     }
-    pub(in crate::design) fn n(&self, key: &str, default: usize) -> Res<usize> {
+    pub(super) fn n(&self, key: &str, default: usize) -> Res<usize> {
         match self.map.get(key) {
             Some(d) => count(d, &format!("{}.{key}", self.what)),
             None => Ok(default),
         }
     }
-    pub(in crate::design) fn get(&self, key: &str) -> Option<&Dynamic> {
+    pub(super) fn get(&self, key: &str) -> Option<&Dynamic> {
         debug_assert!(self.known.contains(&key));
         self.map.get(key)
     }
-    pub(in crate::design) fn b(&self, key: &str, default: bool) -> Res<bool> {
+    pub(super) fn b(&self, key: &str, default: bool) -> Res<bool> {
         match self.map.get(key) {
             Some(d) => d
                 .as_bool()
@@ -74,7 +74,7 @@ impl<'a> Opts<'a> {
     }
 }
 
-pub(in crate::design) fn vec3_of(d: &Dynamic, what: &str) -> Res<DVec3> {
+pub(super) fn vec3_of(d: &Dynamic, what: &str) -> Res<DVec3> {
     let arr = d
         .clone()
         .into_array()
@@ -89,11 +89,11 @@ pub(in crate::design) fn vec3_of(d: &Dynamic, what: &str) -> Res<DVec3> {
     ))
 }
 
-pub(in crate::design) fn err<E: std::fmt::Display>(e: E) -> Box<EvalAltResult> {
+pub(super) fn err<E: std::fmt::Display>(e: E) -> Box<EvalAltResult> {
     e.to_string().into()
 }
 
-pub(in crate::design) fn arr3(p: DVec3) -> Dynamic {
+pub(super) fn arr3(p: DVec3) -> Dynamic {
     Dynamic::from_array(vec![
         Dynamic::from_float(p.x),
         Dynamic::from_float(p.y),

@@ -10,15 +10,20 @@
 //!
 //! This module runs scripts (the sandboxed engine, the bed constants, errors with their place);
 //! the functions scripts call are registered by family in its submodules: `turtle`, `model`,
-//! `model_ops`, `parts`, and `args` reads their arguments.
+//! `model_ops`, `parts`, `points` (FullControl-style building from points), `pen` (pen moves and
+//! state changes at any point) and `aliases` (other tools' names, hints for unknown ones);
+//! `args` reads their arguments.
 
+mod aliases;
 mod args;
 mod model;
 mod model_ops;
 mod parts;
+mod pen;
+mod points;
 mod turtle;
 
-pub(super) use args::{arr3, count, err, num, vec3_of, Opts, Res};
+use args::{err, Res};
 
 use crate::design::model::Model;
 use crate::design::modulate::Bitmap;
@@ -159,7 +164,7 @@ impl ScriptRunner {
         scope.push_constant("PI", std::f64::consts::PI);
         let result: Dynamic = engine.eval_ast_with_scope(&mut scope, &ast).map_err(|e| {
             let mut msg = describe(&e);
-            if let Some(h) = not_found(&e).and_then(|sig| super::script_build::hint(&engine, sig)) {
+            if let Some(h) = not_found(&e).and_then(|sig| aliases::hint(&engine, sig)) {
                 msg = format!("{msg} ({h})");
             }
             at(msg, innermost_position(&e))
@@ -216,7 +221,10 @@ impl ScriptRunner {
         model::register_model(&mut e, shared.clone());
         model_ops::register_model_ops(&mut e, shared, self.profile.clone());
         parts::register_parts(&mut e);
-        super::script_build::register(&mut e);
+        points::register_points(&mut e);
+        pen::register_pen(&mut e);
+        model::register_model_geometry(&mut e);
+        aliases::register_kanada(&mut e);
         let dir = dir.to_path_buf();
         e.register_type_with_name::<Bitmap>("Bitmap");
         e.register_fn("world_map", || Bitmap::world_map().map_err(err));

@@ -3,6 +3,7 @@
 //! and the bitmap modulations (`modulate`, `globe`).
 
 use super::args::{count, err, num, vec3_of, Opts, Res};
+use super::points::pt;
 use super::{describe, fn_label, Shared};
 use crate::design::deform::{self, DeformError};
 use crate::design::model::{Model, Step};
@@ -196,5 +197,41 @@ pub(super) fn register_model(e: &mut Engine, shared: Arc<Mutex<Shared>>) {
             s.warnings.extend(w);
         }
         Ok(m)
+    });
+}
+
+pub(super) fn register_model_geometry(e: &mut Engine) {
+    e.register_fn("moved", |m: Model, v: Dynamic| -> Res<Model> {
+        Ok(m.translate(pt(&v, "vector")?))
+    });
+    e.register_fn("copies", |m: Model, v: Dynamic, n: Dynamic| -> Res<Model> {
+        let (v, n) = (pt(&v, "vector")?, count(&n, "copies")?);
+        if n == 0 || m.steps.len().saturating_mul(n) > crate::design::parts::MAX_PART_STRINGS {
+            return Err(format!(
+                "copies: 1.. copies of a {}-step model, got {n}",
+                m.steps.len()
+            )
+            .into());
+        }
+        Ok(Model::assemble(
+            (0..n).map(|k| m.clone().translate(v * k as f64)),
+        ))
+    });
+    e.register_fn(
+        "reflect_xy",
+        |m: Model, p1: Dynamic, p2: Dynamic| -> Res<Model> {
+            let (a, b) = (pt(&p1, "mirror point 1")?, pt(&p2, "mirror point 2")?);
+            if (b - a).truncate().length_squared().is_nan()
+                || (b - a).truncate().length_squared() <= 0.0
+            {
+                return Err(
+                    "reflect_xy: the two points of the mirror line must differ in X or Y".into(),
+                );
+            }
+            Ok(m.reflect_xy(a, b))
+        },
+    );
+    e.register_fn("subdivide", |m: Model, max_len: Dynamic| -> Res<Model> {
+        m.subdivide(num(&max_len, "max length")?).map_err(err)
     });
 }
