@@ -89,6 +89,9 @@ impl ColumnIds {
 /// The printed-so-far view of a design's sample points, in XY columns of `cell_mm`.
 pub struct Grid {
     cell_mm: f64,
+    /// `1 / cell_mm`: a column index is `floor(v * inv_cell)` (a product, not a division,
+    /// the same at build and query time).
+    inv_cell: f64,
     /// Every point in print order (the queries' warm start reads its neighbours here).
     points: Vec<[f64; 3]>,
     /// How many of `points` are printed.
@@ -98,21 +101,34 @@ pub struct Grid {
     ids: ColumnIds,
     /// Column cell coordinates covered by some point: query boxes are clipped to them.
     extent: [[i32; 2]; 2],
-    /// Column `c` holds entries `start[c]..start[c + 1]` of the arrays below.
-    start: Vec<u32>,
-    /// Highest printed z of each column (−∞ before its first point).
-    top_z: Vec<f64>,
-    /// Per column, where the last support query's height split it (queries climb slowly:
-    /// the next split is usually at or next to it, found without a binary search).
-    cursor: Vec<u32>,
+    /// Per column id: its entries and search state (one cache line for a query's lookups).
+    cols: Vec<Column>,
     /// Column id of each point in print order (`u32::MAX`: not indexed, NaN).
     column_of: Vec<u32>,
-    /// Heights, ascending within each column.
-    z_mm: Vec<f64>,
-    /// X and Y, in the same order.
-    xy_mm: Vec<[f64; 2]>,
-    /// Print index, in the same order (only `seq < printed` is printed material).
-    seq: Vec<u32>,
+    /// The points column by column, by height (ascending) within each.
+    entries: Vec<Entry>,
+}
+
+/// A point in its column (32 bytes: two per cache line, all a scan reads of one point).
+#[derive(Clone, Copy)]
+struct Entry {
+    x_mm: f64,
+    y_mm: f64,
+    z_mm: f64,
+    /// Print index: only `seq < printed` is printed material.
+    seq: u32,
+}
+
+/// One XY column: entries `start..end` of the arrays in [`Grid`].
+#[derive(Clone, Copy)]
+struct Column {
+    start: u32,
+    end: u32,
+    /// Where the last support query's height split the column (queries climb slowly: the
+    /// next split is usually at or next to it, found without a binary search).
+    cursor: u32,
+    /// Highest printed z (−∞ before the column's first printed point).
+    top_z: f64,
 }
 
 /// The best point so far of a nearest search: squared distance and print index.
@@ -148,21 +164,22 @@ impl Grid {
         } else {
             1.0
         };
+        let inv_cell = 1.0 / cell_mm;
         let n = points.len();
-        let keys: Vec<Option<[i32; 2]>> = points
-            .iter()
-            .map(|p| {
-                (!p.iter().any(|v| v.is_nan()))
-                    .then(|| [floor_div(p[0], cell_mm), floor_div(p[1], cell_mm)])
-            })
-            .collect();
-        let mut extent = [[i32::MAX; 2], [i32::MIN; 2]];
-        for k in keys.iter().flatten() {
+        let indexed = |p: &[f64; 3]| !p.iter().any(|v| v.is_nan());
+        // The column extent from the coordinates' extent (the column of a coordinate grows
+        // with it).
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for p in points.iter().filter(|p| indexed(p)) {
             for a in 0..2 {
-                extent[0][a] = extent[0][a].min(k[a]);
-                extent[1][a] = extent[1][a].max(k[a]);
+                lo[a] = lo[a].min(p[a]);
+                hi[a] = hi[a].max(p[a]);
             }
         }
+        let extent = [
+            lo.map(|v| floor_div(v, inv_cell)),
+            hi.map(|v| floor_div(v, inv_cell)),
+        ];
         let span = |a: usize| i64::from(extent[1][a]) - i64::from(extent[0][a]) + 1;
         let dense = span(0) > 0 && span(1) > 0 && span(0) * span(1) <= MAX_DENSE_COLUMNS;
         let mut ids = if dense {
@@ -178,11 +195,12 @@ impl Grid {
         // Column ids in order of first appearance, and the size of each column.
         let mut count: Vec<u32> = Vec::new();
         let mut column_of = Vec::with_capacity(n);
-        for k in &keys {
-            let Some([ix, iy]) = *k else {
+        for p in &points {
+            if !indexed(p) {
                 column_of.push(u32::MAX);
                 continue;
-            };
+            }
+            let (ix, iy) = (floor_div(p[0], inv_cell), floor_div(p[1], inv_cell));
             let next = count.len() as u32;
             let id = match &mut ids {
                 ColumnIds::Dense { lo, nx, ids, .. } => {
@@ -204,46 +222,54 @@ impl Grid {
         // Counting sort by column (print order inside each), then by height in each column
         // (a stable sort: print order stays for equal heights; layered designs print
         // upwards, so most columns are sorted already and the sort only checks them).
-        let mut start = Vec::with_capacity(count.len() + 1);
+        let mut cols = Vec::with_capacity(count.len());
         let mut total = 0u32;
-        start.push(0);
         for c in &count {
+            cols.push(Column {
+                start: total,
+                end: total,
+                cursor: 0,
+                top_z: f64::NEG_INFINITY,
+            });
             total += c;
-            start.push(total);
         }
-        let mut fill: Vec<u32> = start[..count.len()].to_vec();
         let mut order = vec![0u32; total as usize];
         for (i, c) in column_of.iter().enumerate() {
-            if let Some(f) = fill.get_mut(*c as usize) {
-                order[*f as usize] = i as u32;
-                *f += 1;
+            if let Some(col) = cols.get_mut(*c as usize) {
+                order[col.end as usize] = i as u32;
+                col.end += 1;
             }
         }
-        for c in 0..count.len() {
-            let col = &mut order[start[c] as usize..start[c + 1] as usize];
-            if !col.is_sorted_by(|a, b| points[*a as usize][2] <= points[*b as usize][2]) {
-                col.sort_by(|a, b| points[*a as usize][2].total_cmp(&points[*b as usize][2]));
+        let z = |i: &u32| points[*i as usize][2];
+        for c in &cols {
+            let col = &mut order[c.start as usize..c.end as usize];
+            if !col.is_sorted_by(|a, b| z(a) <= z(b)) {
+                col.sort_by(|a, b| z(a).total_cmp(&z(b)));
             }
         }
-        let z_mm = order.iter().map(|i| points[*i as usize][2]).collect();
-        let xy_mm = order
+        let entries = order
             .iter()
-            .map(|i| [points[*i as usize][0], points[*i as usize][1]])
+            .map(|i| {
+                let p = points[*i as usize];
+                Entry {
+                    x_mm: p[0],
+                    y_mm: p[1],
+                    z_mm: p[2],
+                    seq: *i,
+                }
+            })
             .collect();
         Grid {
             cell_mm,
-            top_z: vec![f64::NEG_INFINITY; count.len()],
-            cursor: vec![0; count.len()],
+            inv_cell,
             points,
             printed: 0,
             hint: 0,
             ids,
             extent,
-            start,
+            cols,
             column_of,
-            z_mm,
-            xy_mm,
-            seq: order,
+            entries,
         }
     }
 
@@ -256,8 +282,8 @@ impl Grid {
     pub fn print_through(&mut self, end: usize) {
         let end = end.min(self.points.len());
         for i in self.printed..end {
-            if let Some(top) = self.top_z.get_mut(self.column_of[i] as usize) {
-                *top = top.max(self.points[i][2]);
+            if let Some(c) = self.cols.get_mut(self.column_of[i] as usize) {
+                c.top_z = c.top_z.max(self.points[i][2]);
             }
         }
         self.printed = self.printed.max(end);
@@ -266,7 +292,7 @@ impl Grid {
     /// Column index of a coordinate.
     #[inline]
     fn idx(&self, v: f64) -> i32 {
-        floor_div(v, self.cell_mm)
+        floor_div(v, self.inv_cell)
     }
 
     /// Column cell coordinates of `lo..=hi` along axis `a`, clipped to the indexed extent.
@@ -277,11 +303,12 @@ impl Grid {
         l..h.saturating_add(1).max(l)
     }
 
-    /// Entries of a column (empty when it has no points).
+    /// Id and entries of a column (`None` when it has no points).
     #[inline]
     fn column(&self, ix: i32, iy: i32) -> Option<(usize, Range<usize>)> {
         let c = self.ids.get(ix, iy)?;
-        Some((c, self.start[c] as usize..self.start[c + 1] as usize))
+        let col = &self.cols[c];
+        Some((c, col.start as usize..col.end as usize))
     }
 
     /// Squared distance from `q` to column `(ix, iy)` in XY, a hair short (its edges widened
@@ -384,26 +411,23 @@ impl Grid {
         let Some((c, r)) = self.column(ix, iy) else {
             return false;
         };
-        let zs = &self.z_mm[r.clone()];
-        let top = split_near(zs, self.cursor[c] as usize, max_z);
-        self.cursor[c] = top as u32;
+        let col = &self.entries[r];
+        let top = split_near(col, self.cols[c].cursor as usize, max_z);
+        self.cols[c].cursor = top as u32;
         let mut improved = false;
-        for k in (0..top).rev() {
-            let z = zs[k];
-            let dz2 = (z - q[2]).powi(2);
+        for e in col[..top].iter().rev() {
+            let dz2 = (e.z_mm - q[2]).powi(2);
             if g2 + dz2 > best.d2 {
-                if z <= q[2] {
+                if e.z_mm <= q[2] {
                     break; // every point lower is farther still
                 }
                 continue;
             }
-            let e = r.start + k;
-            let s = self.seq[e] as usize;
+            let s = e.seq as usize;
             if s >= self.printed {
                 continue;
             }
-            let [x, y] = self.xy_mm[e];
-            let d2 = dist2([x, y, z], q);
+            let d2 = dist2([e.x_mm, e.y_mm, e.z_mm], q);
             if best.beaten_by(d2, s) {
                 *best = Best { d2, seq: s };
                 improved = true;
@@ -422,22 +446,20 @@ impl Grid {
                 let Some((c, r)) = self.column(ix, iy) else {
                     continue;
                 };
-                let top = self.top_z[c];
+                let top = self.cols[c].top_z;
                 if top < min_z {
                     continue;
                 }
-                let zs = &self.z_mm[r.clone()];
-                let from = r.start + zs.partition_point(|z| *z < min_z);
-                for e in from..r.end {
-                    if self.z_mm[e] > top {
+                let col = &self.entries[r];
+                for e in &col[col.partition_point(|e| e.z_mm < min_z)..] {
+                    if e.z_mm > top {
                         break; // nothing printed above the top
                     }
-                    let [x, y] = self.xy_mm[e];
-                    if (self.seq[e] as usize) < self.printed
-                        && x >= lo[0]
-                        && x <= hi[0]
-                        && y >= lo[1]
-                        && y <= hi[1]
+                    if (e.seq as usize) < self.printed
+                        && e.x_mm >= lo[0]
+                        && e.x_mm <= hi[0]
+                        && e.y_mm >= lo[1]
+                        && e.y_mm <= hi[1]
                     {
                         return true;
                     }
@@ -448,12 +470,12 @@ impl Grid {
     }
 }
 
-/// The number of heights in `zs` (ascending) at most `max_z`, searched outwards from `guess`
+/// The number of entries in `zs` (ascending heights) at most `max_z` high, searched outwards from `guess`
 /// (doubling steps, then halving): O(1) when the guess is right or next to it, O(log n) at
-/// worst. Equals `zs.partition_point(|z| *z <= max_z)`.
+/// worst. Equals `zs.partition_point(|e| e.z_mm <= max_z)`.
 #[inline]
-fn split_near(zs: &[f64], guess: usize, max_z: f64) -> usize {
-    let below = |i: usize| zs[i] <= max_z;
+fn split_near(zs: &[Entry], guess: usize, max_z: f64) -> usize {
+    let below = |i: usize| zs[i].z_mm <= max_z;
     let n = zs.len();
     let g = guess.min(n);
     if g < n && below(g) {
@@ -464,7 +486,7 @@ fn split_near(zs: &[f64], guess: usize, max_z: f64) -> usize {
             step *= 2;
         }
         let hi = (lo + step - 1).min(n);
-        lo + zs[lo..hi].partition_point(|z| *z <= max_z)
+        lo + zs[lo..hi].partition_point(|e| e.z_mm <= max_z)
     } else {
         // The split is at or below g.
         let (mut hi, mut step) = (g, 1);
@@ -473,15 +495,15 @@ fn split_near(zs: &[f64], guess: usize, max_z: f64) -> usize {
             step *= 2;
         }
         let lo = hi.saturating_sub(step - 1);
-        lo + zs[lo..hi].partition_point(|z| *z <= max_z)
+        lo + zs[lo..hi].partition_point(|e| e.z_mm <= max_z)
     }
 }
 
-/// `floor(v / cell)` as a cell coordinate, saturating beyond ±2^31 cells (NaN gives 0), without
+/// `floor(v * inv_cell)` as a cell coordinate, saturating beyond ±2^31 cells (NaN gives 0), without
 /// the libm `floor` call (x86-64 without SSE4.1 has no rounding instruction).
 #[inline]
-fn floor_div(v: f64, cell: f64) -> i32 {
-    let x = v / cell;
+fn floor_div(v: f64, inv_cell: f64) -> i32 {
+    let x = v * inv_cell;
     let t = x as i32;
     if f64::from(t) > x {
         t.saturating_sub(1)
@@ -492,7 +514,7 @@ fn floor_div(v: f64, cell: f64) -> i32 {
 
 #[cfg(test)]
 mod tests {
-    use super::split_near;
+    use super::{split_near, Entry};
     use proptest::prelude::*;
 
     proptest! {
@@ -505,10 +527,13 @@ mod tests {
             max_z in prop_oneof![(0u8..22).prop_map(f64::from), Just(f64::NAN), -1.0f64..21.0],
         ) {
             zs.sort_unstable();
-            let zs: Vec<f64> = zs.into_iter().map(f64::from).collect();
+            let col: Vec<Entry> = zs
+                .into_iter()
+                .map(|z| Entry { x_mm: 0.0, y_mm: 0.0, z_mm: f64::from(z), seq: 0 })
+                .collect();
             prop_assert_eq!(
-                split_near(&zs, guess, max_z),
-                zs.partition_point(|z| *z <= max_z)
+                split_near(&col, guess, max_z),
+                col.partition_point(|e| e.z_mm <= max_z)
             );
         }
     }

@@ -184,7 +184,16 @@ impl Printed for Grid {
 /// Number of sample points of an extruded string: one every `sample_mm` (at least one, at
 /// most 10,000), the last at its end.
 fn sample_count(s: &Str, o: &CheckOptions) -> usize {
-    ((s.len_mm() / o.sample_mm).ceil() as usize).clamp(1, 10_000)
+    // ceil(x) without the libm call (x86-64 without SSE4.1 has no rounding instruction):
+    // the same count for every x, NaN and infinities included.
+    let x = s.len_mm() / o.sample_mm;
+    let t = x as usize;
+    let n = if (t as f64) < x {
+        t.saturating_add(1)
+    } else {
+        t
+    };
+    n.clamp(1, 10_000)
 }
 
 /// [`check`] with the printed material in `P`.
@@ -212,19 +221,21 @@ pub(crate) fn check_with<P: Printed>(
     };
     // Every sample point of every extruded string, in print order: the points the support
     // check asks about and, once their string is checked, printed material.
-    let mut points = Vec::new();
+    // Also the number of points of each extruded string, in order.
+    let (mut points, mut counts) = (Vec::new(), Vec::new());
     for step in &model.steps {
         if let Step::String(s) = step {
             if s.cross_mm2 > 0.0 {
                 let n = sample_count(s, o);
                 points.extend((1..=n).map(|k| s.start.lerp(s.end, k as f64 / n as f64).to_array()));
+                counts.push(n);
             }
         }
     }
-    let mut tree = P::build(
-        o.support_radius_mm.max(o.nozzle_radius_mm).max(0.1) / 1.0,
-        points,
-    );
+    // Columns as wide as the support radius: measured fastest on the globe (1.2 mm: 8.7 ms,
+    // 0.6 mm: 9.4 ms, 0.4 mm: 12.9 ms; narrower columns mean more of them per query).
+    let mut tree = P::build(o.support_radius_mm.max(o.nozzle_radius_mm).max(0.1), points);
+    let mut counts = counts.into_iter();
     let mut printed = 0;
     let mut pos: Option<DVec3> = None;
     let r2 = o.support_radius_mm * o.support_radius_mm;
@@ -288,7 +299,7 @@ pub(crate) fn check_with<P: Printed>(
                     // Support at every sample point along the string (its start is the
                     // previous string's end, already checked), then the string is printed
                     // (after the check: it cannot support itself).
-                    let n = sample_count(s, o);
+                    let n = counts.next().unwrap_or(0);
                     for k in 0..n {
                         let q = DVec3::from_array(tree.point(printed + k));
                         if q.z > bed_contact_z
