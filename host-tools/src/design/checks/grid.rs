@@ -233,32 +233,32 @@ impl Grid {
             });
             total += c;
         }
-        let mut order = vec![0u32; total as usize];
-        for (i, c) in column_of.iter().enumerate() {
+        let mut entries = vec![
+            Entry {
+                x_mm: 0.0,
+                y_mm: 0.0,
+                z_mm: 0.0,
+                seq: 0,
+            };
+            total as usize
+        ];
+        for (i, (c, p)) in column_of.iter().zip(&points).enumerate() {
             if let Some(col) = cols.get_mut(*c as usize) {
-                order[col.end as usize] = i as u32;
-                col.end += 1;
-            }
-        }
-        let z = |i: &u32| points[*i as usize][2];
-        for c in &cols {
-            let col = &mut order[c.start as usize..c.end as usize];
-            if !col.is_sorted_by(|a, b| z(a) <= z(b)) {
-                col.sort_by(|a, b| z(a).total_cmp(&z(b)));
-            }
-        }
-        let entries = order
-            .iter()
-            .map(|i| {
-                let p = points[*i as usize];
-                Entry {
+                entries[col.end as usize] = Entry {
                     x_mm: p[0],
                     y_mm: p[1],
                     z_mm: p[2],
-                    seq: *i,
-                }
-            })
-            .collect();
+                    seq: i as u32,
+                };
+                col.end += 1;
+            }
+        }
+        for c in &cols {
+            let col = &mut entries[c.start as usize..c.end as usize];
+            if !col.is_sorted_by(|a, b| a.z_mm <= b.z_mm) {
+                col.sort_by(|a, b| a.z_mm.total_cmp(&b.z_mm));
+            }
+        }
         Grid {
             cell_mm,
             inv_cell,
