@@ -69,7 +69,7 @@ enum ColumnIds {
 }
 
 impl ColumnIds {
-    #[inline]
+    #[inline(always)]
     fn get(&self, ix: i32, iy: i32) -> Option<usize> {
         match self {
             ColumnIds::Dense { lo, nx, ny, ids } => {
@@ -304,7 +304,7 @@ impl Grid {
     }
 
     /// Id and entries of a column (`None` when it has no points).
-    #[inline]
+    #[inline(always)]
     fn column(&self, ix: i32, iy: i32) -> Option<(usize, Range<usize>)> {
         let c = self.ids.get(ix, iy)?;
         let col = &self.cols[c];
@@ -357,7 +357,7 @@ impl Grid {
             d2: r2,
             seq: usize::MAX,
         };
-        for s in [self.hint + 1, self.hint + 2, self.hint] {
+        for s in [self.hint + 1] {
             if s < self.printed {
                 let p = self.points[s];
                 let d2 = dist2(p, q);
