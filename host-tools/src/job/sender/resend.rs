@@ -9,10 +9,11 @@ use super::protocol::frame;
 use super::{Event, Session, State, ACK_DOUBT, MAX_NUDGES, MAX_RESENDS, RESYNC_AFTER};
 
 impl<P: Read + Write> Session<P> {
-    /// No `ok` for the oldest unacknowledged line within [`Options::ok_timeout`]: the line or
-    /// its `ok` was lost. Resend it: a printer that never got it runs it now; one that did
-    /// refuses the repeat by its line number (Marlin asks for the next line, ours acknowledges
-    /// the duplicate), so it never runs twice. Every `ok` still owed is written off.
+    /// No `ok` for the oldest unacknowledged line within
+    /// [`Options::ok_timeout`](super::Options::ok_timeout): the line or its `ok` was lost.
+    /// Resend it: a printer that never got it runs it now; one that did refuses the repeat by
+    /// its line number (Marlin asks for the next line, ours acknowledges the duplicate), so it
+    /// never runs twice. Every `ok` still owed is written off.
     pub(super) fn nudge(&mut self) -> std::io::Result<()> {
         self.nudges += 1;
         let line = self.acked + 1;
