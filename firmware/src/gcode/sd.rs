@@ -1,7 +1,8 @@
 //! The SD-card M-codes (Marlin's `gcode/sd/M20.cpp` … `M32.cpp`): their parameters as parsed,
-//! and their G-code text. The executive's handlers are in `printer/sd.rs`. M24 (start/resume),
-//! M25 (pause) and M524 (cancel) are the realtime [`Command::Resume`], [`Command::Pause`] and
-//! [`Command::Cancel`]; plain M27 is [`super::ReportCommand::JobStatus`].
+//! and their G-code text. The executive's handlers are in `printer/sd/commands.rs`. M24
+//! (start/resume), M25 (pause) and M524 (cancel) are the realtime [`Command::Resume`],
+//! [`Command::Pause`] and [`Command::Cancel`]; plain M27 is
+//! [`super::ReportCommand::JobStatus`].
 //!
 //! [`Command::Resume`]: super::Command::Resume
 //! [`Command::Pause`]: super::Command::Pause

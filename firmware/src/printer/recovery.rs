@@ -22,13 +22,14 @@
 //!   is cleared before the head leaves the park position (as for any resume), so a second
 //!   power cut during or after the return offers nothing stale.
 //!
-//! For a job kept from the SD card (`SD file NAME byte N`), M1000 does the same by itself: it
-//! opens the file first (mounting the card after power-up) and checks that the kept offset is
-//! a line start of it, then answers `File opened: …`, `File selected`, `echo:power-cut resume:
-//! layer L at Z<mm>: SD file NAME from byte N` and `ok`, queues the same four steps, and feeds
-//! the file from the offset behind them, as M26 S<N> + M24 would. No card, no such file, or a
-//! file that changed (the offset past its end or inside a line) is refused with an `echo:`
-//! and nothing is heated, homed or started; the record stays for another try or `M1000 C`.
+//! For a job kept from the SD card (`SD file PATH byte N`), M1000 does the same by itself: it
+//! opens the file first (mounting the card after power-up) and checks that it has the kept
+//! size and that the kept offset starts a line in it, then answers `File opened: …`, `File
+//! selected`, `echo:power-cut resume: layer L at Z<mm>: SD file PATH byte N continues` and
+//! `ok`, queues the same four steps, and feeds the file from the offset behind them, as
+//! `M26 S<N>` + `M24` would. No card, no such file, or a file that changed (another size, or
+//! the offset inside a line) is refused with an `echo:` and nothing is heated, homed or
+//! started; the record stays for another try or `M1000 C`.
 //!
 //! A job move queued while a record is kept and no M1000 is under way starts another job:
 //! the record is discarded then (with an `echo:`), so a stale job is never offered again.

@@ -1,0 +1,121 @@
+//! The SD listing across the seam to a real host: `sim serve --sd DIR` with files in nested
+//! directories answers `M20 L`, and OctoPrint's own M20 line parser
+//! (`octoprint.util.comm.parse_file_list_line`, OctoPrint 1.11.8 from PyPI, run in the venv
+//! `scripts/setup-hosts.sh` makes) reads back every file's short path, size and long path as
+//! written. Then each file is selected as OctoPrint selects a card file (`M23 /<short path>`:
+//! OctoPrint puts a `/` before a name from the card's list) and the firmware answers
+//! `File opened: <its name> Size: <size>`. Needs `bash scripts/setup-hosts.sh`. ≈ 5 s (3 of them the
+//! session's idle end).
+
+mod hosts_common;
+
+use hosts_common::host_python;
+use sim::run::Policy;
+use sim::serve::{serve_with, ServeArgs};
+use std::io::Write;
+use std::process::{Command, Stdio};
+use std::sync::mpsc;
+use std::time::Duration;
+use tests::pty::PtyHost;
+
+const WAIT: Duration = Duration::from_secs(30);
+
+/// (path under DIR, size).
+const FILES: [(&str, usize); 5] = [
+    ("Root file.gcode", 101),
+    ("prints/Benchy long name.gcode", 202),
+    ("prints/CUBES/CUBE.GCO", 303),
+    ("prints/cubes two/cube two.gcode", 404),
+    ("a/b/c/d/e/f/six.gcode", 505),
+];
+
+#[test]
+fn octoprint_reads_the_nested_listing_and_its_selection_opens_each_file() {
+    let py = host_python("octoprint");
+    let dir = std::env::temp_dir().join(format!("octoprint-sd-{}", std::process::id()));
+    for (path, n) in FILES {
+        let p = dir.join(path);
+        std::fs::create_dir_all(p.parent().unwrap()).unwrap();
+        std::fs::write(&p, "G1 X1 ; filler\n".repeat(n / 15 + 1).get(..n).unwrap()).unwrap();
+    }
+    // OctoPrint's parser, started first (its import takes ≈ 0.5 s; the session ends after 3 s
+    // without a line), fed the lines as they came.
+    let mut child = Command::new(&py)
+        .env("PYTHONDONTWRITEBYTECODE", "1")
+        .args([
+            "-c",
+            "import sys, json\n\
+             from octoprint.util.comm import parse_file_list_line\n\
+             print(json.dumps([list(parse_file_list_line(l)) for l in sys.stdin.read().splitlines()]))",
+        ])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("octoprint's python");
+    let (tx, rx) = mpsc::channel();
+    let sd = dir.clone();
+    let server = std::thread::spawn(move || {
+        serve_with(
+            ServeArgs {
+                speed: 10.0,
+                record: None,
+                policy: Policy::Firmware,
+                exit_after_idle: 3.0,
+                link: None,
+                flash: None,
+                sd: Some(sd),
+                machine: None,
+                trace: None,
+            },
+            move |p| {
+                let _ = tx.send(p.to_path_buf());
+            },
+        )
+    });
+    let path = rx
+        .recv_timeout(Duration::from_secs(20))
+        .expect("device path");
+    let mut host = PtyHost::open(&path);
+    host.write("M20 L");
+    host.until("Begin file list", WAIT, |l| l == "Begin file list");
+    let mut lines = Vec::new();
+    loop {
+        let l = host.until("a listing line", WAIT, |_| true);
+        if l == "End file list" {
+            break;
+        }
+        lines.push(l);
+    }
+    host.ok(WAIT);
+
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(lines.join("\n").as_bytes())
+        .unwrap();
+    let out = child.wait_with_output().unwrap();
+    let parsed: Vec<(String, u64, Option<String>, Option<String>)> =
+        serde_json::from_slice(&out.stdout)
+            .unwrap_or_else(|e| panic!("{e}: {}", String::from_utf8_lossy(&out.stdout)));
+    assert_eq!(parsed.len(), FILES.len(), "{lines:?}");
+    for (path, n) in FILES {
+        let (short, size, _, _) = parsed
+            .iter()
+            .find(|p| p.3.as_deref() == Some(path))
+            .unwrap_or_else(|| panic!("{path} not read back by OctoPrint: {parsed:?}"));
+        assert_eq!(*size as usize, n, "{path}");
+        assert_eq!(short.split('/').count(), path.split('/').count(), "{short}");
+        // Selected as OctoPrint selects a card file: a `/` before the listed name.
+        host.write(&format!("M23 /{short}"));
+        let opened = host.until("File opened", WAIT, |l| {
+            l.starts_with("File opened: ") || l.starts_with("open failed")
+        });
+        let name = short.rsplit('/').next().unwrap();
+        assert_eq!(opened, format!("File opened: {name} Size: {n}"), "{short}");
+        host.ok(WAIT);
+    }
+    drop(host);
+    let _ = server.join();
+    let _ = std::fs::remove_dir_all(&dir);
+}
