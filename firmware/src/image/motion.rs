@@ -1,0 +1,215 @@
+//! The motion task (every 1 ms): the pause button, G28 through the step interrupt, the
+//! executive's poll, step events into the step interrupt's queue, stepper enable/disable and
+//! idle timeout, halt handling, and the drivers serviced while nothing moves.
+
+use embassy_stm32::gpio::Input;
+use embassy_time::{Duration, Ticker};
+use firmware::config::MachineConfig;
+use firmware::motion::Axis;
+use firmware::printer::{Printer, State, StepperRequest};
+use firmware::stepgen::StepEvent;
+use heapless::spsc::Producer;
+
+use super::drivers::{service_drivers, Drivers};
+use super::host::flush_output;
+use super::{beat, printer_now_ns, printer_now_us, Shared, LOOP_MOTION};
+use crate::board::clock;
+use crate::board::drivers::homing_watch::EventFlags;
+use crate::board::drivers::{IdleTimeout, PauseButton};
+use crate::board::stepper::{self, PinEvent, LOOKAHEAD_NS};
+
+/// Stepper drivers switch off after this long without motion (Marlin's default 120 s).
+const STEPPER_IDLE_S: u32 = 120;
+
+fn steps(cfg: &MachineConfig, axis: Axis, mm: f32) -> i32 {
+    let v = libm::roundf(mm * cfg.axis(axis).steps_per_mm);
+    if v.is_finite() {
+        v.clamp(i32::MIN as f32, i32::MAX as f32) as i32
+    } else {
+        0
+    }
+}
+
+/// Queues the executive's step events up to [`LOOKAHEAD_NS`] ahead, each with its homing
+/// flags (a homing move, the switch that ends it). `held` is an event taken from the
+/// executive that did not fit in the queue (queued first next time).
+fn feed_steps(
+    p: &mut Printer,
+    producer: &mut Producer<'static, PinEvent>,
+    held: &mut Option<(StepEvent, EventFlags)>,
+) {
+    let now = printer_now_ns();
+    let to_pin = |ev: &StepEvent, flags: EventFlags| PinEvent {
+        t_ticks: ev.t_ns / clock::NS_PER_TICK,
+        axis_mask: ev.axis_mask,
+        dir_mask: ev.dir_mask,
+        flags,
+    };
+    let mut queued = false;
+    if let Some((ev, flags)) = held.take() {
+        if producer.enqueue(to_pin(&ev, flags)).is_err() {
+            *held = Some((ev, flags));
+            return;
+        }
+        queued = true;
+    }
+    while producer.ready() {
+        let Some(t) = p.next_step_ns() else { break };
+        if t > now + LOOKAHEAD_NS {
+            break;
+        }
+        let Some(ev) = p.next_step() else { break };
+        let flags = EventFlags::of(p, &ev);
+        if producer.enqueue(to_pin(&ev, flags)).is_err() {
+            *held = Some((ev, flags));
+            break;
+        }
+        queued = true;
+    }
+    if queued {
+        stepper::with(|s| s.exec.pins.set_enabled(true));
+        stepper::kick();
+    }
+}
+
+/// Software limits of X, Y, Z in steps, and their home (minimum) positions.
+pub(super) fn limits_steps(cfg: &MachineConfig) -> [(i32, i32); 3] {
+    [Axis::X, Axis::Y, Axis::Z].map(|a| {
+        (
+            steps(cfg, a, cfg.axis(a).min_mm),
+            steps(cfg, a, cfg.axis(a).max_mm),
+        )
+    })
+}
+
+/// G28 on the board, before `Printer::poll` each tick: an approach the step interrupt
+/// stopped at its switch goes to the executive with what was never stepped (the held event
+/// included); the executive learns whether events are still in flight (homing decides on
+/// a move's end only after its last step) and the switches' states (M119).
+fn homing_before_poll(p: &mut Printer, held: &mut Option<(StepEvent, EventFlags)>) {
+    if let Some(mut trip) = stepper::take_trip() {
+        if let Some((ev, _)) = held.take() {
+            trip.add(ev.axis_mask, ev.dir_mask);
+        }
+        defmt::info!("endstop {} hit", trip.axis.index());
+        p.endstop_trip(trip.axis, trip.undone);
+    }
+    let in_flight = stepper::with(|s| {
+        p.sample_endstops(&mut s.endstops);
+        s.in_flight()
+    })
+    .unwrap_or(false);
+    p.set_steps_in_flight(in_flight || held.is_some());
+}
+
+/// After `Printer::poll`, before new events are queued: the step interrupt follows the
+/// executive's homed axes (an axis homed in this poll is at its minimum).
+fn homing_after_poll(p: &mut Printer) {
+    let fresh = p.take_homed();
+    let homed = p.homed_axes();
+    let home = limits_steps(p.config()).map(|(min, _)| min);
+    stepper::with(|s| s.exec.set_homed(homed, fresh, home));
+}
+
+#[embassy_executor::task]
+pub(super) async fn motion_task(
+    printer: Shared,
+    mut producer: Producer<'static, PinEvent>,
+    button_pin: Input<'static>,
+    mut led: embassy_stm32::gpio::Output<'static>,
+    mut drivers: Drivers,
+) {
+    let mut ticker = Ticker::every(Duration::from_millis(1));
+    let mut button = PauseButton::new();
+    let mut idle = IdleTimeout::new(STEPPER_IDLE_S);
+    let mut pending_disable: Option<u8> = None;
+    let mut halted = false;
+    let mut blink: u32 = 0;
+    let mut held: Option<(StepEvent, EventFlags)> = None;
+    loop {
+        ticker.next().await;
+        beat(LOOP_MOTION);
+        let now_us = printer_now_us();
+        {
+            let mut p = printer.borrow_mut();
+            let state = p.state();
+            let paused = matches!(state, State::Paused | State::Pausing);
+            if let Some(req) = button.update(button_pin.is_low(), now_us, paused) {
+                defmt::info!("pause button: {}", defmt::Debug2Format(&req));
+                p.request(req, now_us);
+            }
+            homing_before_poll(&mut p, &mut held);
+            p.poll(now_us);
+            homing_after_poll(&mut p);
+            if p.state() == State::Halted {
+                if !halted {
+                    halted = true;
+                    defmt::error!("halted: motion stopped, heaters off");
+                    stepper::with(|s| {
+                        s.flush = true;
+                        s.exec.pins.set_enabled(false);
+                    });
+                    stepper::kick();
+                }
+            } else {
+                feed_steps(&mut p, &mut producer, &mut held);
+            }
+            let running = stepper::with(|s| s.running).unwrap_or(false);
+            // M17/M18/M84 from the executive, in job order. A disable waits until the
+            // step queue has run dry (the executive issues it once the planner is done;
+            // up to 2 ms of steps may still be queued here).
+            if pending_disable.is_none() {
+                while let Some(r) = p.take_stepper_request() {
+                    match r {
+                        StepperRequest::Enable { mask } => {
+                            stepper::with(|s| s.exec.pins.set_axes_enabled(mask, true));
+                        }
+                        StepperRequest::Disable { mask } => {
+                            pending_disable = Some(mask);
+                            break;
+                        }
+                        StepperRequest::IdleTimeout { s } => idle.set_timeout_s(s),
+                    }
+                }
+            }
+            if let Some(mask) = pending_disable {
+                if !running {
+                    pending_disable = None;
+                    let on = stepper::with(|s| {
+                        s.exec.pins.set_axes_enabled(mask, false);
+                        s.exec.pins.enabled_mask()
+                    })
+                    .unwrap_or(0);
+                    defmt::info!(
+                        "steppers disabled: {=u8:#06b}, still on: {=u8:#06b}",
+                        mask,
+                        on
+                    );
+                }
+            }
+            let busy = p.state() != State::Idle || running;
+            if idle.update(busy, now_us) {
+                stepper::with(|s| s.exec.pins.set_enabled(false));
+            }
+            if let Some(n) = stepper::with(|s| core::mem::take(&mut s.exec.refused)) {
+                if n > 0 {
+                    defmt::warn!("{} steps refused (not homed or outside the volume)", n);
+                }
+            }
+            flush_output(&mut p);
+        }
+        // The drivers' UART lines block the executor: only while nothing moves or is queued.
+        let quiet = {
+            let mut p = printer.borrow_mut();
+            p.state() == State::Idle && p.next_step_ns().is_none()
+        } && !stepper::with(|s| s.running).unwrap_or(false);
+        if quiet && !halted {
+            service_drivers(printer, &mut drivers);
+        }
+        blink = blink.wrapping_add(1);
+        let period = if halted { 100 } else { 500 };
+        if blink.is_multiple_of(period) {
+            led.toggle();
+        }
+    }
+}
