@@ -72,6 +72,34 @@ fn host_stream_resume_lost_in_a_broken_line_is_pressed_again() {
     ]);
 }
 
+/// `executive` z-speed-a1901a07 (open since the fourth session, fixed in the fifth): a park
+/// cut short by a quick stop, then `G1 X100 Y100 F6000` from the park height down to the job's
+/// Z0 with a layer pause's speed-up requested: 8 Z steps in 3.59 ms where the limit allows
+/// 3.6 ms. The move ran at Z's limit and a 0.2 mm segment with 10 of the move's 9.5 Z steps per
+/// segment ran Z 5 % over it; the planner now caps a cut move by its slowest segment
+/// (`planner::cap_for_segments`). The input is also in `finds/` (replayed below); named here so
+/// a failure says what it was.
+#[test]
+fn executive_z_at_its_limit_in_a_rounded_segment() {
+    run_executive(&[
+        0x8f, 0x7e, 0x68, 0x61, 0x71, 0x77, 0x67, 0x9e, 0xdc, 0xf7, 0x67, 0x9e,
+    ]);
+}
+
+/// `executive` crash-4fba0a… (fifth session): `M0` paused the printer with 58 bytes of USB
+/// lines still waiting (flow control), an `M524` among them. The harness counted the pause as
+/// rest, wrote its final `M400` behind those bytes and resumed: the `M524` cancelled and the
+/// `M400` reached the printer with no silence after the cancel, so it was discarded as the
+/// rest of the cancelled job (docs/frontend.md "Cancel"), as the rule says. Harness fault: it
+/// now resumes every pause and lets every byte be taken before its 3 s of silence.
+#[test]
+fn executive_final_m400_not_queued_behind_a_cancel() {
+    run_executive(&[
+        0x8f, 0x66, 0x71, 0x77, 0x61, 0x9e, 0x7e, 0x68, 0x66, 0x71, 0x77, 0x61, 0x62, 0x6a, 0x98,
+        0x97, 0xc9, 0x47,
+    ]);
+}
+
 /// Replays every committed fuzz input through its target's checks: the seed corpus
 /// (`firmware/fuzz/seeds/<target>/*`) and the inputs the fuzzers found
 /// (`firmware/fuzz/finds/<target>/*`). CI runs this (deterministic), not the fuzzers.

@@ -251,7 +251,7 @@ fn park_stays_inside_the_travel() {
 /// that many steps, whatever the speed.
 fn axis_speeds(r: &Run) -> [f64; 4] {
     const WINDOW: usize = 32;
-    const SLACK: f64 = 3.0;
+    const SLACK: f64 = 1.0;
     let mut out = [0.0f64; 4];
     for (ax, o) in out.iter_mut().enumerate() {
         let mut times = Vec::new();

@@ -3,6 +3,7 @@
 
 use std::path::PathBuf;
 
+pub mod gcode;
 pub mod pty;
 
 /// Root of the workspace (where `Cargo.toml`, `memory.x` and `tests/fixtures` live).

@@ -1,6 +1,6 @@
-//! `sim serve --sd DIR`: a host lists the card, selects a sliced file by its long name, starts
-//! it (M24), asks for a layer pause (M25) while it prints, resumes (M24) and sees `Done
-//! printing file`. The session's record (recorded from the executed steps, independent of the
+//! `sim serve --sd DIR`: a host lists the card, selects a sliced file in a sub-directory by its
+//! long path, starts it (M24), asks for a layer pause (M25) while it prints, resumes (M24) and
+//! sees `Done printing file`. The session's record (recorded from the executed steps, independent of the
 //! firmware's layer detector) must show the stop at the first layer boundary after the
 //! request, nothing lost or duplicated, the resume exact; and the stop position must be one
 //! where the file itself has a layer marker (found here by reading the file with a tracker of
@@ -11,6 +11,7 @@ use sim::run::Policy;
 use sim::serve::{serve_with, ServeArgs};
 use std::sync::mpsc;
 use std::time::Duration;
+use tests::gcode::layer_markers;
 use tests::pty::PtyHost;
 
 const FIXTURE: &str = "prusa-zhop.gcode";
@@ -18,71 +19,14 @@ const FIXTURE: &str = "prusa-zhop.gcode";
 /// How long the host waits for an `ok`.
 const OK_WAIT: Duration = Duration::from_secs(30);
 
-/// The head's XYZ (mm, machine = logical here: the file sets no XYZ offset) and the filament
-/// fed so far (mm, net) at every `;LAYER_CHANGE` of a PrusaSlicer file: a small tracker of its
-/// own (G90/G91, M82/M83, G92 E, G0/G1, G28).
-fn marker_positions(gcode: &str) -> Vec<([f64; 3], f64)> {
-    let mut pos = [0.0f64; 3];
-    let (mut e_logical, mut e_total) = (0.0f64, 0.0f64);
-    let (mut relative, mut relative_e) = (false, false);
-    let mut out = Vec::new();
-    for raw in gcode.lines() {
-        if raw.trim_start().starts_with(";LAYER_CHANGE") {
-            out.push((pos, e_total));
-        }
-        let code = raw.split(';').next().unwrap_or("").trim();
-        let mut words = code.split_whitespace();
-        let Some(cmd) = words.next() else { continue };
-        let params: Vec<(char, f64)> = words
-            .filter_map(|w| {
-                let c = w.chars().next()?.to_ascii_uppercase();
-                Some((c, w[1..].parse().ok()?))
-            })
-            .collect();
-        match cmd {
-            "G90" => relative = false,
-            "G91" => relative = true,
-            "M82" => relative_e = false,
-            "M83" => relative_e = true,
-            "G92" => {
-                for (c, v) in &params {
-                    if *c == 'E' {
-                        e_logical = *v;
-                    }
-                }
-            }
-            "G28" => {
-                let named: Vec<usize> = params.iter().filter_map(|(c, _)| "XYZ".find(*c)).collect();
-                for (i, p) in pos.iter_mut().enumerate() {
-                    if named.is_empty() || named.contains(&i) {
-                        *p = 0.0;
-                    }
-                }
-            }
-            "G0" | "G1" => {
-                for (c, v) in params {
-                    if let Some(i) = "XYZ".find(c) {
-                        pos[i] = if relative { pos[i] + v } else { v };
-                    } else if c == 'E' {
-                        let d = if relative_e { v } else { v - e_logical };
-                        e_logical += d;
-                        e_total += d;
-                    }
-                }
-            }
-            _ => {}
-        }
-    }
-    out
-}
-
 #[test]
 fn a_host_prints_a_sliced_file_from_the_card_with_a_layer_pause() {
     let src = format!("{}/fixtures/corpus/{FIXTURE}", env!("CARGO_MANIFEST_DIR"));
     let gcode = std::fs::read_to_string(&src).expect("fixture");
     let dir = std::env::temp_dir().join(format!("sim-serve-sd-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    std::fs::write(dir.join(FIXTURE), &gcode).unwrap();
+    // In a sub-directory: M20 lists it by its path, M23 opens it by its path.
+    std::fs::create_dir_all(dir.join("prints")).unwrap();
+    std::fs::write(dir.join("prints").join(FIXTURE), &gcode).unwrap();
 
     let (tx, rx) = mpsc::channel();
     let sd = dir.clone();
@@ -116,13 +60,13 @@ fn a_host_prints_a_sliced_file_from_the_card_with_a_layer_pause() {
     host.ok(OK_WAIT);
     host.write("M20 L");
     host.until("the file in the list", Duration::from_secs(30), |l| {
-        l.ends_with(&format!(" {} {FIXTURE}", gcode.len()))
+        l.ends_with(&format!(" {} prints/{FIXTURE}", gcode.len()))
     });
     host.until("End file list", Duration::from_secs(30), |l| {
         l == "End file list"
     });
     host.ok(OK_WAIT);
-    host.write(&format!("M23 {FIXTURE}"));
+    host.write(&format!("M23 prints/{FIXTURE}"));
     let opened = host.until("File opened", Duration::from_secs(30), |l| {
         l.starts_with("File opened: ")
     });
@@ -183,7 +127,11 @@ fn a_host_prints_a_sliced_file_from_the_card_with_a_layer_pause() {
     // The stop is where the file has a layer marker (to the step).
     let stop = r.pause_point_steps.expect("pause point");
     let cfg = MachineConfig::ENDER3;
-    let markers = marker_positions(&gcode);
+    // Where the head is at each of the file's markers (a tracker of the test's own).
+    let markers: Vec<([f64; 3], f64)> = layer_markers(&gcode, ";LAYER_CHANGE")
+        .iter()
+        .map(|m| (m.pos_mm, m.fed_mm))
+        .collect();
     assert_eq!(markers.len(), 10);
     let k = markers
         .iter()

@@ -207,18 +207,9 @@ impl Harness {
         false
     }
 
-    /// The end of a run: a final `M400` on the USB port, every pause resumed, and the checks
-    /// that nothing is wedged.
-    pub fn finish(&mut self) {
-        // After a cancel the printer discards the rest of a streamed job until the host starts
-        // anew (docs/frontend.md "Cancel": a line after 2 s of host silence): let the input
-        // settle, then stay silent for 3 s, as a host starting a new job does.
-        let _ = self.run_to_rest(DRAIN_LIMIT_US);
-        for _ in 0..3 {
-            self.tick(IDLE_TICK_US);
-        }
-        // The M118 is taken only after the M400 has been answered (M400 holds the next line).
-        self.write(PortId::Usb, b"\nM400\nM118 fuzz-end\n");
+    /// Run to rest, resuming every pause (the user's button), up to 8 times; the state reached.
+    /// Panics when the printer does not come to rest (a wedge).
+    fn settle(&mut self) -> State {
         for _ in 0..8 {
             let rest = self.run_to_rest(DRAIN_LIMIT_US);
             let st = self.p.status().state;
@@ -227,13 +218,30 @@ impl Harness {
                 "wedged: state {st:?}, pending {:?}",
                 self.pending.iter().map(Vec::len).collect::<Vec<_>>()
             );
-            if st == State::Paused {
-                self.request(Realtime::Resume);
-                continue;
+            if st != State::Paused {
+                return st;
             }
-            break;
+            self.request(Realtime::Resume);
         }
-        let st = self.p.status().state;
+        self.p.status().state
+    }
+
+    /// The end of a run: a final `M400` on the USB port, every pause resumed, and the checks
+    /// that nothing is wedged.
+    pub fn finish(&mut self) {
+        // Every byte of the input taken first, pauses resumed: while paused, bytes may still
+        // wait (flow control), among them an `M524`, and a final `M400` queued behind it would
+        // be part of the cancelled job.
+        self.settle();
+        // After a cancel the printer discards the rest of a streamed job until the host starts
+        // anew (docs/frontend.md "Cancel": a line after 2 s of host silence): stay silent for
+        // 3 s, as a host starting a new job does.
+        for _ in 0..3 {
+            self.tick(IDLE_TICK_US);
+        }
+        // The M118 is taken only after the M400 has been answered (M400 holds the next line).
+        self.write(PortId::Usb, b"\nM400\nM118 fuzz-end\n");
+        let st = self.settle();
         assert_ne!(st, State::Paused, "still paused after resumes");
         if st != State::Halted {
             let usb = &self.out[0];

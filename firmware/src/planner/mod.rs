@@ -25,7 +25,8 @@ mod kin;
 mod lookahead;
 
 pub use kin::{
-    fmax, fmin, hold_entry_v2, junction_v2, kinematics, sped_up_mm_s, sqrtf, Kin, HOLD_SLACK_MM,
+    cap_for_segments, fmax, fmin, hold_entry_v2, junction_v2, kinematics, sped_up_mm_s, sqrtf, Kin,
+    HOLD_SLACK_MM,
 };
 
 use crate::config::MachineConfig;
@@ -359,13 +360,17 @@ impl Planner {
         let mut cur = [0i64; AXES];
         let mut step_q = [0i64; AXES];
         let mut step_r = [0u32; AXES];
+        let mut max_seg_steps = [0u32; AXES];
         for i in 0..AXES {
             let d = i64::from(req.target[i]) - i64::from(self.end_pos[i]);
             cur[i] = i64::from(self.end_pos[i]);
             step_q[i] = d.div_euclid(i64::from(n));
             // In 0..n, n ≤ 1e6.
             step_r[i] = d.rem_euclid(i64::from(n)) as u32;
+            // ⌈|d|/n⌉ ≤ |d| < 2³².
+            max_seg_steps[i] = d.unsigned_abs().div_ceil(u64::from(n)) as u32;
         }
+        let kin = cap_for_segments(cfg, kin, &max_seg_steps, n);
         self.pending = Some(Pending {
             seq: req.seq,
             kind,

@@ -217,7 +217,7 @@ impl Printer {
             G::Settings(c) => self.settings_command(c),
             G::Driver(c) => self.driver_command(c),
             G::Sd(c) => return self.sd_command(c),
-            G::Recovery(c) => self.recovery_command(c),
+            G::Recovery(c) => return self.recovery_command(c),
             G::Unknown(t) => {
                 self.link.respond(Response::UnknownCommand(t));
             }

@@ -8,6 +8,10 @@
 //! here, per layer. Lines after the boundary keep arriving while the printer parks (they queue
 //! behind the barrier), so neither the link's last line nor the current modal state is the
 //! boundary's: the note is. A host that does not number its lines gets no record (said so).
+//!
+//! A job read from the SD card is noted the same way, by the byte offset of that line in the
+//! file ([`Printer::sd_line_offset`]): the lines read ahead into the queue are after it, so
+//! continuing the file from that offset runs every line after the boundary once.
 
 use super::state::Pause;
 use super::Printer;
@@ -27,6 +31,8 @@ pub(super) struct BoundaryNote {
     z_um: Option<i32>,
     /// `N` of the line that produced the mark (the first line of the new layer).
     line: Option<u32>,
+    /// Byte offset of that line in the SD file, when it was read from the card.
+    sd_offset: Option<u32>,
     /// The modal state before that line.
     modal: MachineState,
 }
@@ -82,17 +88,14 @@ impl Printer {
     ) {
         match store.load_job() {
             Ok(Some(j)) => {
-                let (what, at) = match &j.source {
-                    JobSource::Host { line } => ("host line", *line),
-                    JobSource::Sd { offset, .. } => ("SD offset", *offset),
-                };
-                let mut t: heapless::String<{ super::LINE_LEN }> = heapless::String::new();
+                let mut t = PlaceText::new();
                 let _ = core::fmt::Write::write_fmt(
                     &mut t,
                     format_args!(
-                        "Paused job kept: layer {} at Z{:.3}, continue from {what} {at} (M1000 resumes, M1000 C discards)",
+                        "Paused job kept: layer {} at Z{:.3}, continue from {} (M1000 resumes, M1000 C discards)",
                         j.layer,
-                        j.boundary_z_um as f32 / 1000.0
+                        j.boundary_z_um as f32 / 1000.0,
+                        Where(&j.source)
                     ),
                 );
                 self.link.respond(crate::link::Response::Action(
@@ -116,6 +119,7 @@ impl Printer {
         line: Option<u32>,
         modal: &MachineState,
     ) {
+        let sd_offset = self.sd_line_offset();
         let n = &mut self.job.notes;
         if n.is_full() {
             let _ = n.pop_front();
@@ -124,12 +128,13 @@ impl Printer {
             layer: mark.layer,
             z_um: mark.z_um,
             line,
+            sd_offset,
             modal: *modal,
         });
     }
 
     /// The record for the job parked now, if it stopped at a noted boundary of a numbered
-    /// host stream.
+    /// host stream or of the SD file printing.
     pub fn paused_job(&self) -> Option<PausedJob> {
         if !matches!(self.pause, Pause::Parked { .. })
             || self.pause.mode() != Some(PauseMode::Layer)
@@ -141,14 +146,22 @@ impl Printer {
         let (_, mark) = self.planner.first_mark()?;
         let layer = mark.layer;
         let note = self.job.notes.iter().rev().find(|n| n.layer == layer)?;
-        let line = note.line?;
+        let source = match (note.sd_offset, note.line) {
+            (Some(offset), _) => JobSource::Sd {
+                path: heapless::String::try_from(self.sd_file_path()?).ok()?,
+                offset,
+                size: self.sd_progress()?.1,
+            },
+            (None, Some(line)) => JobSource::Host { line },
+            (None, None) => return None,
+        };
         let spm = |a: Axis| self.cfg.axis(a).steps_per_mm;
         let z_um = note.z_um.unwrap_or_else(|| {
             let z = held.pos[Axis::Z.index()] as f32 / spm(Axis::Z) * 1000.0;
             libm::roundf(z) as i32
         });
         Some(PausedJob {
-            source: JobSource::Host { line },
+            source,
             layer,
             boundary_z_um: z_um,
             boundary_steps: held.pos,
@@ -168,19 +181,21 @@ impl Printer {
         }
         match self.paused_job() {
             Some(j) => {
-                let line = match j.source {
-                    JobSource::Host { line } => line,
-                    JobSource::Sd { offset, .. } => offset,
-                };
-                self.say(format_args!(
-                    "power-cut resume: keeping job at layer {}, host line {line}",
-                    j.layer
-                ));
+                let mut t = PlaceText::new();
+                let _ = core::fmt::Write::write_fmt(
+                    &mut t,
+                    format_args!(
+                        "power-cut resume: keeping job at layer {}, {}",
+                        j.layer,
+                        Where(&j.source)
+                    ),
+                );
+                self.link.respond(crate::link::Response::Echo(&t));
                 self.job.request = Some(JobRequest::Save(j));
                 self.job.saved = true;
             }
             None => self.say(format_args!(
-                "power-cut resume: not kept (no numbered host line at this boundary)"
+                "power-cut resume: not kept (no numbered host line or SD file at this boundary)"
             )),
         }
     }
@@ -196,5 +211,22 @@ impl Printer {
     /// a power cut after the return started must not offer to resume a job that moved on.
     pub(super) fn job_clear_waits(&self) -> bool {
         matches!(self.pause, Pause::Returning { .. }) && self.job.request == Some(JobRequest::Clear)
+    }
+}
+
+/// A message that names where a kept job continues: a line's room, an SD path's, and room for
+/// the widest numbers.
+pub(super) type PlaceText =
+    heapless::String<{ super::LINE_LEN + crate::storage::JOB_PATH_CAP + 32 }>;
+
+/// Where a kept job continues, as the messages say it: `host line N` or `SD file NAME byte N`.
+pub(super) struct Where<'a>(pub(super) &'a JobSource);
+
+impl core::fmt::Display for Where<'_> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self.0 {
+            JobSource::Host { line } => write!(f, "host line {line}"),
+            JobSource::Sd { path, offset, .. } => write!(f, "SD file {path} byte {offset}"),
+        }
     }
 }

@@ -22,19 +22,66 @@
 //!   is cleared before the head leaves the park position (as for any resume), so a second
 //!   power cut during or after the return offers nothing stale.
 //!
+//! For a job kept from the SD card (`SD file NAME byte N`), M1000 does the same by itself: it
+//! opens the file first (mounting the card after power-up) and checks that the kept offset is
+//! a line start of it, then answers `File opened: …`, `File selected`, `echo:power-cut resume:
+//! layer L at Z<mm>: SD file NAME from byte N` and `ok`, queues the same four steps, and feeds
+//! the file from the offset behind them, as M26 S<N> + M24 would. No card, no such file, or a
+//! file that changed (the offset past its end or inside a line) is refused with an `echo:`
+//! and nothing is heated, homed or started; the record stays for another try or `M1000 C`.
+//!
 //! A job move queued while a record is kept and no M1000 is under way starts another job:
 //! the record is discarded then (with an `echo:`), so a stale job is never offered again.
 
+use super::job::{PlaceText, Where};
+use super::sd::ReopenError;
 use super::state::{Held, Pause};
-use super::{job::JobRequest, steps, Command, Printer, CMD_CAPACITY};
+use super::{job::JobRequest, steps, Command, Printer, CMD_CAPACITY, LINE_LEN};
 use crate::gcode::RecoveryCommand;
-use crate::machine::MachineState;
+use crate::link::{PortId, Response};
+use crate::machine::{MachineError, MachineState};
 use crate::motion::{Axis, PauseMode};
-use crate::storage::JobSource;
-use crate::thermal::HeaterId;
+use crate::storage::sd::Card;
+use crate::storage::{JobSource, PausedJob};
+use crate::thermal::{HeaterId, ThermalError};
+use core::fmt::Write as _;
+use embedded_sdmmc::BlockDevice;
 
 /// Commands M1000 queues (position, two heater waits, homing, the return).
 const RECOVERY_COMMANDS: usize = 5;
+
+/// Why M1000 does not resume (the text after `refused: M1000: `).
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Refusal {
+    NothingKept,
+    Busy,
+    QueueFull,
+    DoesNotFit(MachineError),
+    Heater(ThermalError),
+    NoCardSlot,
+    File(ReopenError),
+}
+
+impl core::fmt::Display for Refusal {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Refusal::NothingKept => f.write_str("no paused job kept (nothing to resume)"),
+            Refusal::Busy => f.write_str("only while idle (the resume is under way or a job runs)"),
+            Refusal::QueueFull => f.write_str("command queue full, send it again"),
+            Refusal::DoesNotFit(e) => write!(
+                f,
+                "the kept state does not fit this machine ({e}); M1000 C discards it"
+            ),
+            Refusal::Heater(e) => write!(f, "{e}"),
+            Refusal::NoCardSlot => f.write_str(
+                "the kept job is an SD file and there is no card slot (M1000 C discards it)",
+            ),
+            Refusal::File(e) => {
+                write!(f, "kept SD file: {e} (M1000 C discards the kept job)")
+            }
+        }
+    }
+}
 
 impl Printer {
     /// The record kept at power-up and not yet resumed or discarded.
@@ -42,8 +89,9 @@ impl Printer {
         self.job.kept.as_ref()
     }
 
-    /// M1000 / M1000 C (the `ok` is sent by the caller).
-    pub(super) fn recovery_command(&mut self, c: &RecoveryCommand) {
+    /// M1000 / M1000 C. Returns true when the `ok` is owed: M1000 of an SD job answers once
+    /// the card has (see [`Printer::resume_sd_job`]).
+    pub(super) fn recovery_command(&mut self, c: &RecoveryCommand) -> bool {
         match c {
             RecoveryCommand::Discard => {
                 if self.job.recovering {
@@ -54,6 +102,7 @@ impl Printer {
                 } else {
                     self.say(format_args!("refused: M1000 C: no paused job kept"));
                 }
+                false
             }
             RecoveryCommand::Resume => self.m1000(),
         }
@@ -65,51 +114,61 @@ impl Printer {
         self.job.request = Some(JobRequest::Clear);
     }
 
-    fn m1000(&mut self) {
-        let Some(j) = self.job.kept.clone() else {
-            self.say(format_args!(
-                "refused: M1000: no paused job kept (nothing to resume)"
-            ));
-            return;
+    fn m1000(&mut self) -> bool {
+        let planned = match self.job.kept.clone() {
+            Some(j) => self.recovery_plan(&j).map(|m| (j, m)),
+            None => Err(Refusal::NothingKept),
         };
-        if self.job.recovering || !matches!(self.pause, Pause::Run) || self.has_work() {
-            self.say(format_args!(
-                "refused: M1000: only while idle (the resume is under way or a job runs)"
-            ));
-            return;
+        let refusal = match planned {
+            Ok((j, machine)) => match &j.source {
+                JobSource::Host { line } => match self.begin_recovery(&j, machine) {
+                    Ok(()) => {
+                        self.say(format_args!(
+                            "power-cut resume: layer {} at Z{:.3}: send the job from host line {line} (M110 N{} first)",
+                            j.layer,
+                            j.boundary_z_um as f32 / 1000.0,
+                            line.saturating_sub(1)
+                        ));
+                        return false;
+                    }
+                    Err(r) => r,
+                },
+                JobSource::Sd { .. } if self.card_attached() => {
+                    // The card answers first (`resume_sd_job`); the `ok` waits for it.
+                    self.request_card_resume();
+                    return true;
+                }
+                JobSource::Sd { .. } => Refusal::NoCardSlot,
+            },
+            Err(r) => r,
+        };
+        self.say(format_args!("refused: M1000: {refusal}"));
+        false
+    }
+
+    /// What M1000 checks before it changes anything: idle, queue room, the state fits.
+    fn recovery_plan(&self, j: &PausedJob) -> Result<MachineState, Refusal> {
+        if self.job.recovering
+            || !matches!(self.pause, Pause::Run)
+            || self.has_work()
+            || self.sd_printing()
+        {
+            return Err(Refusal::Busy);
         }
-        let line = match j.source {
-            JobSource::Host { line } => line,
-            JobSource::Sd { .. } => {
-                self.say(format_args!(
-                    "refused: M1000: the kept job is an SD file and this firmware has no SD printing (M1000 C discards it)"
-                ));
-                return;
-            }
-        };
         if CMD_CAPACITY - self.cmds.len() < RECOVERY_COMMANDS {
-            self.say(format_args!(
-                "refused: M1000: command queue full, send it again"
-            ));
-            return;
+            return Err(Refusal::QueueFull);
         }
-        let machine = match MachineState::from_modal(&j.modal, &self.cfg) {
-            Ok(m) => m,
-            Err(e) => {
-                self.say(format_args!(
-                    "refused: M1000: the kept state does not fit this machine ({e}); M1000 C discards it"
-                ));
-                return;
-            }
-        };
+        MachineState::from_modal(&j.modal, &self.cfg).map_err(Refusal::DoesNotFit)
+    }
+
+    /// Set the kept heater targets and fan, the modal state of the boundary, and queue the
+    /// recovery's steps (see the module documentation).
+    fn begin_recovery(&mut self, j: &PausedJob, machine: MachineState) -> Result<(), Refusal> {
         for (id, t) in [(HeaterId::Hotend, j.hotend_c), (HeaterId::Bed, j.bed_c)] {
-            if let Err(e) = self.thermal.set_target(id, t) {
-                self.say(format_args!("refused: M1000: {e}"));
-                return;
-            }
+            self.thermal.set_target(id, t).map_err(Refusal::Heater)?;
         }
         self.fan_pwm = j.fan_pwm;
-        // Host lines from N on are interpreted from the boundary, in the job's modes.
+        // Job lines from the boundary on are interpreted in the job's modes.
         self.machine = machine;
         let mut pos = self.stepgen.position();
         for ax in [Axis::Z, Axis::E] {
@@ -124,12 +183,53 @@ impl Printer {
         let _ = self.cmds.push_back(Command::Home { mask: 0b011 });
         let _ = self.cmds.push_back(Command::Recover);
         self.job.recovering = true;
-        self.say(format_args!(
-            "power-cut resume: layer {} at Z{:.3}: send the job from host line {line} (M110 N{} first)",
-            j.layer,
-            j.boundary_z_um as f32 / 1000.0,
-            line.saturating_sub(1)
-        ));
+        Ok(())
+    }
+
+    /// M1000 of a kept SD job, with the card (from `service_card`): open the file at the kept
+    /// offset, and only if it is there, begin the recovery and feed the file behind it. The
+    /// `ok` owed to `port` goes last.
+    pub(super) fn resume_sd_job<D: BlockDevice>(&mut self, card: &mut Card<D>, port: Option<PortId>)
+    where
+        D::Error: core::fmt::Debug,
+    {
+        let refusal = match self.job.kept.clone() {
+            None => Some(Refusal::NothingKept),
+            Some(j) => match (self.recovery_plan(&j), &j.source) {
+                (Err(r), _) => Some(r),
+                (Ok(_), JobSource::Host { .. }) => Some(Refusal::NothingKept),
+                (Ok(machine), JobSource::Sd { path, offset, size }) => {
+                    match self.sd_select_at(card, port, path, *offset, *size) {
+                        Err(e) => Some(Refusal::File(e)),
+                        Ok(()) => match self.begin_recovery(&j, machine) {
+                            Err(r) => {
+                                self.sd_unselect(card);
+                                Some(r)
+                            }
+                            Ok(()) => {
+                                let mut t = PlaceText::new();
+                                let _ = write!(
+                                    t,
+                                    "power-cut resume: layer {} at Z{:.3}: {} continues",
+                                    j.layer,
+                                    j.boundary_z_um as f32 / 1000.0,
+                                    Where(&j.source)
+                                );
+                                self.answer_to(port, Response::Echo(&t));
+                                self.sd_start_on_resume();
+                                None
+                            }
+                        },
+                    }
+                }
+            },
+        };
+        if let Some(r) = refusal {
+            let mut t: heapless::String<LINE_LEN> = heapless::String::new();
+            let _ = write!(t, "refused: M1000: {r}");
+            self.answer_to(port, Response::Echo(&t));
+        }
+        self.answer_to(port, Response::Ok);
     }
 
     /// M1000's last step, at the front of the queue with the motion idle (X/Y homed): the

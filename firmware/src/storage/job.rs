@@ -13,8 +13,14 @@
 //!        u8 flags (bit 0 relative XYZ, 1 relative E, 2 inches, 3 G10-retracted) │
 //!        f32 feed mm/s │ f32 feed % │ f32 flow % │ f64 G92 offset mm[X Y Z] │ f64 logical E mm │
 //!        f64 commanded machine position mm[X Y Z E] │
-//!        f32 pause retract mm │ f32 hotend target °C │ f32 bed target °C │ u8 fan PWM
+//!        f32 pause retract mm │ f32 hotend target °C │ f32 bed target °C │ u8 fan PWM │
+//!        u32 SD file size (0 for a host job)
 //! ```
+//!
+//! Format 3 added the SD file's size (M1000 refuses a file whose size changed since: another
+//! file under the same name). A format-2 record, whose body is format 3's without the size,
+//! still loads when it is a host job (the firmware that wrote format 2 kept no SD jobs; an SD
+//! record of format 2 is refused: its file could not be checked).
 //!
 //! Format 2 added the commanded machine position and widened the offsets to `f64` (the
 //! interpreter's own precision), so a resumed job computes every later step exactly as the
@@ -25,14 +31,17 @@ use super::record::{checked_body, Reader, RecordError, Writer};
 use crate::motion::{StepPos, AXES};
 
 /// Version of the job record's layout.
-pub const JOB_FORMAT_VERSION: u16 = 2;
+pub const JOB_FORMAT_VERSION: u16 = 3;
 
 /// Longest SD-card path kept (bytes, UTF-8): a directory and a long file name.
 pub const JOB_PATH_CAP: usize = 96;
 
 /// Bytes of the body of format 2.
-pub const JOB_BODY_LEN: usize =
+const JOB_BODY_LEN_V2: usize =
     1 + 4 + 1 + JOB_PATH_CAP + 4 + 4 + 4 * AXES * 2 + 1 + 4 * 3 + 8 * 3 + 8 + 8 * AXES + 4 * 3 + 1;
+
+/// Bytes of the body of format 3 (format 2's and the SD file size).
+pub const JOB_BODY_LEN: usize = JOB_BODY_LEN_V2 + 4;
 
 /// Bytes of a whole job record.
 pub const JOB_RECORD_LEN: usize = 4 + JOB_BODY_LEN + 4;
@@ -53,6 +62,8 @@ pub enum JobSource {
         path: heapless::String<JOB_PATH_CAP>,
         /// Byte offset to continue from.
         offset: u32,
+        /// The file's size, bytes (a file of another size under the same name is not it).
+        size: u32,
     },
 }
 
@@ -118,13 +129,19 @@ impl PausedJob {
         w.u16(JOB_FORMAT_VERSION);
         w.u16(JOB_BODY_LEN as u16);
         let mut path = [0u8; JOB_PATH_CAP];
+        let mut size = 0;
         match &self.source {
             JobSource::Host { line } => {
                 w.u8(1);
                 w.u32(*line);
                 w.u8(0);
             }
-            JobSource::Sd { path: p, offset } => {
+            JobSource::Sd {
+                path: p,
+                offset,
+                size: s,
+            } => {
+                size = *s;
                 w.u8(2);
                 w.u32(*offset);
                 let b = p.as_bytes();
@@ -158,14 +175,21 @@ impl PausedJob {
             w.f32(v);
         }
         w.u8(self.fan_pwm);
+        w.u32(size);
         let crc = crate::storage::crc32(&w.buf[..JOB_RECORD_LEN - 4]);
         w.u32(crc);
         w.buf
     }
 
-    /// Read a record, checking its framing and that its values make sense.
+    /// Read a record, checking its framing and that its values make sense. A format-2 record
+    /// of a host job loads too (see the module documentation).
     pub fn decode(bytes: &[u8]) -> Result<PausedJob, RecordError> {
-        let body = checked_body(bytes, JOB_FORMAT_VERSION, JOB_BODY_LEN)?;
+        let v2 = bytes.len() >= 2 && u16::from_le_bytes([bytes[0], bytes[1]]) == 2;
+        let body = if v2 {
+            checked_body(bytes, 2, JOB_BODY_LEN_V2)?
+        } else {
+            checked_body(bytes, JOB_FORMAT_VERSION, JOB_BODY_LEN)?
+        };
         let mut r = Reader { buf: body, at: 0 };
         let kind = r.u8();
         let pos = r.u32();
@@ -173,6 +197,7 @@ impl PausedJob {
         let raw: [u8; JOB_PATH_CAP] = r.take();
         let source = match kind {
             1 => JobSource::Host { line: pos },
+            2 if v2 => return Err(RecordError::OutOfRange("job source")),
             2 => {
                 let text = raw
                     .get(..len)
@@ -181,7 +206,11 @@ impl PausedJob {
                 let mut path = heapless::String::new();
                 path.push_str(text)
                     .map_err(|_| RecordError::OutOfRange("SD path"))?;
-                JobSource::Sd { path, offset: pos }
+                JobSource::Sd {
+                    path,
+                    offset: pos,
+                    size: 0,
+                }
             }
             _ => return Err(RecordError::OutOfRange("job source")),
         };
@@ -217,6 +246,14 @@ impl PausedJob {
         let hotend_c = r.f32();
         let bed_c = r.f32();
         let fan_pwm = r.u8();
+        let size = if v2 { 0 } else { r.u32() };
+        let source = match source {
+            JobSource::Sd { path, offset, .. } if offset <= size => {
+                JobSource::Sd { path, offset, size }
+            }
+            JobSource::Host { line } if size == 0 => JobSource::Host { line },
+            _ => return Err(RecordError::OutOfRange("SD offset or size")),
+        };
         let finite = [feed_mm_s, feed_pct, flow_pct, retract_mm, hotend_c, bed_c]
             .iter()
             .all(|v| v.is_finite())
@@ -257,6 +294,7 @@ pub(crate) mod tests {
             JobSource::Sd {
                 path,
                 offset: 123_456 + layer,
+                size: 2_000_000,
             }
         };
         PausedJob {
@@ -305,7 +343,44 @@ pub(crate) mod tests {
         for _ in 0..JOB_PATH_CAP {
             path.push('a').unwrap();
         }
-        j.source = JobSource::Sd { path, offset: 9 };
+        j.source = JobSource::Sd {
+            path,
+            offset: 9,
+            size: 9,
+        };
         assert_eq!(PausedJob::decode(&j.encode()), Ok(j));
+    }
+
+    /// `j`'s record in format 2 (format 3 without the size, version 2, its own CRC).
+    fn as_format_2(j: &PausedJob) -> Vec<u8> {
+        let b = j.encode();
+        let mut v = b[..4 + JOB_BODY_LEN_V2].to_vec();
+        v[0..2].copy_from_slice(&2u16.to_le_bytes());
+        v[2..4].copy_from_slice(&(JOB_BODY_LEN_V2 as u16).to_le_bytes());
+        let crc = crate::storage::crc32(&v);
+        v.extend_from_slice(&crc.to_le_bytes());
+        v
+    }
+
+    #[test]
+    fn a_format_2_host_record_loads_and_an_sd_one_is_refused() {
+        let host = sample(3, true);
+        assert_eq!(PausedJob::decode(&as_format_2(&host)), Ok(host));
+        assert_eq!(
+            PausedJob::decode(&as_format_2(&sample(3, false))),
+            Err(RecordError::OutOfRange("job source"))
+        );
+    }
+
+    #[test]
+    fn an_offset_past_the_file_size_is_refused() {
+        let mut j = sample(2, false);
+        if let JobSource::Sd { size, offset, .. } = &mut j.source {
+            *size = *offset - 1;
+        }
+        assert_eq!(
+            PausedJob::decode(&j.encode()),
+            Err(RecordError::OutOfRange("SD offset or size"))
+        );
     }
 }

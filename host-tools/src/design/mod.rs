@@ -12,7 +12,6 @@ pub mod points;
 pub mod profile;
 pub mod progress;
 pub mod script;
-mod script_build;
 pub mod travel;
 pub mod turtle;
 pub mod writer;

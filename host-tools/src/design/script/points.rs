@@ -1,23 +1,18 @@
-//! Script functions for building from points (FullControl's reach), state changes at any
-//! point, model move/copy/reflect, Kanada's turtle names, and the hints that name the right
-//! function when a script calls one that does not exist. A point is an array `[x, y, z]`; a
-//! path is an array of points, so Rhai's own array functions (`+`, `reverse`, `map`,
-//! `extract`...) work on paths.
+//! Script functions for building from points (FullControl's reach): points, polar
+//! coordinates, and the shapes and paths made of them (arcs, circles, polygons, spirals, waves,
+//! moves and reflections of paths). A point is an array `[x, y, z]`; a path is an array of
+//! points, so Rhai's own array functions (`+`, `reverse`, `map`, `extract`...) work on paths.
 
-use super::script::{arr3, count, err, num, vec3_of, Opts, Res};
-use crate::design::model::Model;
-use crate::design::pen::AreaModel;
+use super::args::{arr3, count, err, num, vec3_of, Opts, Res};
 use crate::design::points::{self, PointsError};
-use crate::design::profile::Retraction;
-use crate::design::turtle::{Turtle, TurtleError};
 use glam::DVec3;
 use rhai::{Array, Dynamic, Engine, Map};
 
-fn pt(d: &Dynamic, what: &str) -> Res<DVec3> {
+pub(super) fn pt(d: &Dynamic, what: &str) -> Res<DVec3> {
     vec3_of(d, what)
 }
 
-fn path_of(a: &Array, what: &str) -> Res<Vec<DVec3>> {
+pub(super) fn path_of(a: &Array, what: &str) -> Res<Vec<DVec3>> {
     a.iter()
         .enumerate()
         .map(|(i, d)| pt(d, &format!("{what}: point {i}")))
@@ -28,20 +23,12 @@ fn array_of(ps: Result<Vec<DVec3>, PointsError>) -> Res<Array> {
     Ok(ps.map_err(err)?.into_iter().map(arr3).collect())
 }
 
-fn flag(d: &Dynamic, what: &str) -> Res<bool> {
+pub(super) fn flag(d: &Dynamic, what: &str) -> Res<bool> {
     d.as_bool()
         .map_err(|t| format!("{what}: expected true/false, got {t}").into())
 }
 
-/// Registers everything in this module.
-pub(super) fn register(e: &mut Engine) {
-    register_points(e);
-    register_pen(e);
-    register_model_geometry(e);
-    register_kanada(e);
-}
-
-fn register_points(e: &mut Engine) {
+pub(super) fn register_points(e: &mut Engine) {
     e.register_fn(
         "point",
         |x: Dynamic, y: Dynamic, z: Dynamic| -> Res<Dynamic> {
@@ -353,262 +340,4 @@ fn register_points(e: &mut Engine) {
             )
         },
     );
-}
-
-/// Registers a pen move as `name(x, y, z)` and as `name(point)`.
-fn register_move(
-    e: &mut Engine,
-    name: &'static str,
-    go: fn(&mut Turtle, DVec3) -> Result<(), TurtleError>,
-) {
-    e.register_fn(
-        name,
-        move |t: &mut Turtle, x: Dynamic, y: Dynamic, z: Dynamic| -> Res<()> {
-            go(t, DVec3::new(num(&x, "x")?, num(&y, "y")?, num(&z, "z")?)).map_err(err)
-        },
-    );
-    e.register_fn(name, move |t: &mut Turtle, p: Dynamic| -> Res<()> {
-        go(t, pt(&p, name)?).map_err(err)
-    });
-}
-
-fn register_pen(e: &mut Engine) {
-    e.register_fn("turtle", |p: Dynamic| -> Res<Turtle> {
-        Ok(Turtle::at(pt(&p, "start")?, 0.2, 20.0))
-    });
-    register_move(e, "extrude_to", Turtle::extrude_to);
-    register_move(e, "travel_to", Turtle::travel_to);
-    register_move(e, "travel_straight_to", Turtle::travel_straight_to);
-    e.register_fn(
-        "extrude_arc",
-        |t: &mut Turtle, c: Dynamic, sweep: Dynamic| -> Res<()> {
-            let c = pt(&c, "centre")?;
-            t.extrude_arc([c.x, c.y], num(&sweep, "sweep")?, 0.0)
-                .map_err(err)
-        },
-    );
-    e.register_fn(
-        "extrude_arc",
-        |t: &mut Turtle, c: Dynamic, sweep: Dynamic, dz: Dynamic| -> Res<()> {
-            let c = pt(&c, "centre")?;
-            t.extrude_arc([c.x, c.y], num(&sweep, "sweep")?, num(&dz, "dz")?)
-                .map_err(err)
-        },
-    );
-    e.register_fn("extrude_path", |t: &mut Turtle, a: Array| -> Res<()> {
-        t.extrude_path(&path_of(&a, "extrude_path")?).map_err(err)
-    });
-    e.register_fn("polyline", |t: &mut Turtle, a: Array| -> Res<()> {
-        t.polyline(&path_of(&a, "polyline")?).map_err(err)
-    });
-    e.register_fn("fan", |t: &mut Turtle, p: Dynamic| -> Res<()> {
-        t.fan(num(&p, "fan percent")?).map_err(err)
-    });
-    for (name, is_bed) in [("hotend", false), ("bed", true)] {
-        let set = move |t: &mut Turtle, c: &Dynamic, wait: bool| -> Res<()> {
-            let c = num(c, name)?;
-            if is_bed {
-                t.bed(c, wait)
-            } else {
-                t.hotend(c, wait)
-            }
-            .map_err(err)
-        };
-        e.register_fn(name, move |t: &mut Turtle, c: Dynamic| set(t, &c, false));
-        e.register_fn(
-            name,
-            move |t: &mut Turtle, c: Dynamic, w: Dynamic| -> Res<()> {
-                set(t, &c, flag(&w, "wait")?)
-            },
-        );
-    }
-    e.register_fn("set_extrusion", |t: &mut Turtle, o: Map| -> Res<()> {
-        let o = Opts::new(&o, "set_extrusion", &["width", "height", "area_model"])?;
-        let model = match o_str(&o, "area_model")? {
-            Some(s) => AreaModel::parse(&s).map_err(err)?,
-            None => AreaModel::Rectangle,
-        };
-        t.set_extrusion(o.f("width", 0.4)?, o.f("height", 0.2)?, model)
-            .map_err(err)
-    });
-    e.register_fn(
-        "set_width_height",
-        |t: &mut Turtle, w: Dynamic, h: Dynamic| -> Res<()> {
-            t.set_extrusion(num(&w, "width")?, num(&h, "height")?, AreaModel::Rectangle)
-                .map_err(err)
-        },
-    );
-    e.register_fn("set_speed", |t: &mut Turtle, v: Dynamic| -> Res<()> {
-        t.set_velocity(num(&v, "speed")?).map_err(err)
-    });
-    e.register_fn("set_retraction", |t: &mut Turtle, o: Map| -> Res<()> {
-        let o = Opts::new(&o, "set_retraction", &["length", "speed", "min_travel"])?;
-        t.set_retraction(Retraction {
-            length_mm: o.f("length", 0.0)?,
-            speed_mm_s: o.f("speed", 35.0)?,
-            min_travel_mm: o.f("min_travel", 2.0)?,
-        })
-        .map_err(err)
-    });
-    e.register_fn("gcode", |t: &mut Turtle, s: &str| -> Res<()> {
-        t.gcode(s).map_err(err)
-    });
-    e.register_fn("pause", |t: &mut Turtle| t.pause(false));
-    e.register_fn("pause_now", |t: &mut Turtle| t.pause(true));
-    e.register_get("position", |t: &mut Turtle| arr3(t.state().pos));
-}
-
-fn o_str(o: &Opts, key: &str) -> Res<Option<String>> {
-    match o.get(key) {
-        None => Ok(None),
-        Some(d) => d
-            .clone()
-            .into_string()
-            .map(Some)
-            .map_err(|t| format!("{key}: expected a string, got {t}").into()),
-    }
-}
-
-fn register_model_geometry(e: &mut Engine) {
-    e.register_fn("moved", |m: Model, v: Dynamic| -> Res<Model> {
-        Ok(m.translate(pt(&v, "vector")?))
-    });
-    e.register_fn("copies", |m: Model, v: Dynamic, n: Dynamic| -> Res<Model> {
-        let (v, n) = (pt(&v, "vector")?, count(&n, "copies")?);
-        if n == 0 || m.steps.len().saturating_mul(n) > crate::design::parts::MAX_PART_STRINGS {
-            return Err(format!(
-                "copies: 1.. copies of a {}-step model, got {n}",
-                m.steps.len()
-            )
-            .into());
-        }
-        Ok(Model::assemble(
-            (0..n).map(|k| m.clone().translate(v * k as f64)),
-        ))
-    });
-    e.register_fn(
-        "reflect_xy",
-        |m: Model, p1: Dynamic, p2: Dynamic| -> Res<Model> {
-            let (a, b) = (pt(&p1, "mirror point 1")?, pt(&p2, "mirror point 2")?);
-            if (b - a).truncate().length_squared().is_nan()
-                || (b - a).truncate().length_squared() <= 0.0
-            {
-                return Err(
-                    "reflect_xy: the two points of the mirror line must differ in X or Y".into(),
-                );
-            }
-            Ok(m.reflect_xy(a, b))
-        },
-    );
-    e.register_fn("subdivide", |m: Model, max_len: Dynamic| -> Res<Model> {
-        m.subdivide(num(&max_len, "max length")?).map_err(err)
-    });
-}
-
-/// Kanada's `turtle.py` spellings (and Logo's short ones) as aliases of the same functions.
-fn register_kanada(e: &mut Engine) {
-    e.register_fn("setVelocity", |t: &mut Turtle, v: Dynamic| -> Res<()> {
-        t.set_velocity(num(&v, "velocity")?).map_err(err)
-    });
-    e.register_fn("setCrossSection", |t: &mut Turtle, c: Dynamic| -> Res<()> {
-        t.set_cross_section(num(&c, "cross-section")?).map_err(err)
-    });
-    e.register_fn("setHeading", |t: &mut Turtle, a: Dynamic| -> Res<()> {
-        t.set_heading(num(&a, "heading")?).map_err(err)
-    });
-    for name in ["penup", "pu", "penUp"] {
-        e.register_fn(name, |t: &mut Turtle| t.pen_up());
-    }
-    for name in ["pendown", "pd", "penDown"] {
-        e.register_fn(name, |t: &mut Turtle| t.pen_down());
-    }
-    e.register_fn("fd", |t: &mut Turtle, r: Dynamic| -> Res<()> {
-        t.forward(num(&r, "forward")?, 0.0).map_err(err)
-    });
-    e.register_fn("fd", |t: &mut Turtle, r: Dynamic, dz: Dynamic| -> Res<()> {
-        t.forward(num(&r, "forward")?, num(&dz, "dz")?).map_err(err)
-    });
-    e.register_fn("lt", |t: &mut Turtle, a: Dynamic| -> Res<()> {
-        t.left(num(&a, "left")?).map_err(err)
-    });
-    e.register_fn("rt", |t: &mut Turtle, a: Dynamic| -> Res<()> {
-        t.right(num(&a, "right")?).map_err(err)
-    });
-}
-
-/// Names from FullControl, Kanada's `turtle.py` and Logo that are spelt differently here.
-const RENAMED: &[(&str, &str)] = &[
-    ("arcXY", "arc_xy"),
-    ("variable_arcXY", "variable_arc_xy"),
-    ("circleXY", "circle_xy"),
-    ("polygonXY", "polygon_xy"),
-    ("rectangleXY", "rectangle_xy"),
-    ("spiralXY", "spiral_xy"),
-    ("helixZ", "helix_z"),
-    ("sinewaveXYpolar", "sine_wave_xy"),
-    ("squarewaveXYpolar", "square_wave_xy"),
-    ("trianglewaveXYpolar", "triangle_wave_xy"),
-    ("segmented_path", "subdivide"),
-    ("move", "move_points (a path) or moved (a Model)"),
-    ("move_polar", "polar + move_points"),
-    ("reflectXY", "reflect_xy"),
-    ("Point", "point"),
-    ("Fan", "fan"),
-    ("Hotend", "hotend"),
-    ("Buildplate", "bed"),
-    ("ManualGcode", "gcode"),
-    ("ExtrusionGeometry", "set_extrusion"),
-    ("Printer", "set_speed"),
-    ("Extruder", "pen_up / pen_down (or extrude_to / travel_to)"),
-    ("speed", "set_velocity"),
-    ("setposition", "move_to"),
-    ("setpos", "move_to"),
-    ("turn", "left / right"),
-    ("forward_to", "extrude_to"),
-];
-
-fn normalise(name: &str) -> String {
-    name.chars()
-        .filter(|c| *c != '_')
-        .flat_map(char::to_lowercase)
-        .collect()
-}
-
-/// For a call of a function that does not exist (Rhai's signature `name (types)`), a hint
-/// naming the function meant: a known rename, or a registered function spelt the same but
-/// for case and underscores.
-pub(super) fn hint(engine: &Engine, signature: &str) -> Option<String> {
-    let name = signature
-        .split(|c: char| c == '(' || c.is_whitespace())
-        .next()
-        .unwrap_or("")
-        .trim();
-    if name.is_empty() {
-        return None;
-    }
-    if let Some((_, to)) = RENAMED.iter().find(|(from, _)| *from == name) {
-        return Some(format!("`{name}` is called `{to}` here"));
-    }
-    if names_of(engine).iter().any(|n| n == name) {
-        return Some(format!(
-            "`{name}` exists but not for these arguments; see docs/design.md for its forms"
-        ));
-    }
-    let want = normalise(name);
-    names_of(engine)
-        .into_iter()
-        .find(|n| normalise(n) == want)
-        .map(|n| format!("did you mean `{n}`?"))
-}
-
-/// Names of every registered function, sorted, each once.
-fn names_of(engine: &Engine) -> Vec<String> {
-    let mut names: Vec<String> = engine
-        .gen_fn_signatures(false)
-        .into_iter()
-        .filter_map(|s| s.split('(').next().map(|n| n.trim().to_string()))
-        .collect();
-    names.sort();
-    names.dedup();
-    names
 }

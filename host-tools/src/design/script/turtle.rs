@@ -1,0 +1,103 @@
+//! Script functions of the `Turtle` (Kanada's interface): creating one, moving and turning,
+//! pen and speed changes, the layer/turn marks, and its position getters.
+
+use super::args::{err, num, Res};
+use crate::design::turtle::Turtle;
+use glam::DVec3;
+use rhai::{Dynamic, Engine};
+
+pub(super) fn register_turtle(e: &mut Engine) {
+    e.register_type_with_name::<Turtle>("Turtle");
+    e.register_fn(
+        "init",
+        |fd: Dynamic,
+         head: Dynamic,
+         bed: Dynamic,
+         c: Dynamic,
+         x: Dynamic,
+         y: Dynamic,
+         z: Dynamic|
+         -> Res<Turtle> {
+            Turtle::init(
+                num(&fd, "filament diameter")?,
+                num(&head, "head temperature")?,
+                num(&bed, "bed temperature")?,
+                num(&c, "cross-section")?,
+                num(&x, "x0")?,
+                num(&y, "y0")?,
+                num(&z, "z0")?,
+            )
+            .map_err(err)
+        },
+    );
+    e.register_fn(
+        "turtle",
+        |x: Dynamic, y: Dynamic, z: Dynamic| -> Res<Turtle> {
+            Ok(Turtle::at(
+                DVec3::new(num(&x, "x")?, num(&y, "y")?, num(&z, "z")?),
+                0.2,
+                20.0,
+            ))
+        },
+    );
+    e.register_fn("forward", |t: &mut Turtle, r: Dynamic| -> Res<()> {
+        t.forward(num(&r, "forward")?, 0.0).map_err(err)
+    });
+    e.register_fn(
+        "forward",
+        |t: &mut Turtle, r: Dynamic, dz: Dynamic| -> Res<()> {
+            t.forward(num(&r, "forward")?, num(&dz, "dz")?).map_err(err)
+        },
+    );
+    e.register_fn("left", |t: &mut Turtle, a: Dynamic| -> Res<()> {
+        t.left(num(&a, "left")?).map_err(err)
+    });
+    e.register_fn("right", |t: &mut Turtle, a: Dynamic| -> Res<()> {
+        t.right(num(&a, "right")?).map_err(err)
+    });
+    e.register_fn("up", |t: &mut Turtle, d: Dynamic| -> Res<()> {
+        t.up(num(&d, "up")?).map_err(err)
+    });
+    e.register_fn("down", |t: &mut Turtle, d: Dynamic| -> Res<()> {
+        t.down(num(&d, "down")?).map_err(err)
+    });
+    e.register_fn("set_velocity", |t: &mut Turtle, v: Dynamic| -> Res<()> {
+        t.set_velocity(num(&v, "velocity")?).map_err(err)
+    });
+    e.register_fn(
+        "set_cross_section",
+        |t: &mut Turtle, c: Dynamic| -> Res<()> {
+            t.set_cross_section(num(&c, "cross-section")?).map_err(err)
+        },
+    );
+    e.register_fn("set_heading", |t: &mut Turtle, a: Dynamic| -> Res<()> {
+        t.set_heading(num(&a, "heading")?).map_err(err)
+    });
+    e.register_fn(
+        "move_to",
+        |t: &mut Turtle, x: Dynamic, y: Dynamic, z: Dynamic| -> Res<()> {
+            t.goto(num(&x, "x")?, num(&y, "y")?, num(&z, "z")?)
+                .map_err(err)
+        },
+    );
+    e.register_fn("comment", |t: &mut Turtle, s: &str| t.comment(s));
+    e.register_fn("pen_up", |t: &mut Turtle| t.pen_up());
+    e.register_fn("pen_down", |t: &mut Turtle| t.pen_down());
+    e.register_fn("push", |t: &mut Turtle| -> Res<()> {
+        t.push().map_err(err)
+    });
+    e.register_fn("pop", |t: &mut Turtle| -> Res<()> { t.pop().map_err(err) });
+    e.register_fn("mark_turn", |t: &mut Turtle, h: Dynamic| -> Res<()> {
+        t.mark_turn(num(&h, "pitch")?);
+        Ok(())
+    });
+    e.register_fn("mark_layer", |t: &mut Turtle, h: Dynamic| -> Res<()> {
+        t.mark_layer(num(&h, "height")?);
+        Ok(())
+    });
+    e.register_fn("model", |t: &mut Turtle| t.model().clone());
+    e.register_get("x", |t: &mut Turtle| t.state().pos.x);
+    e.register_get("y", |t: &mut Turtle| t.state().pos.y);
+    e.register_get("z", |t: &mut Turtle| t.state().pos.z);
+    e.register_get("heading", |t: &mut Turtle| t.state().heading_deg);
+}

@@ -1,0 +1,82 @@
+//! Checking a model before writing: values that cannot become G-code are refused with the
+//! index of their step.
+
+use super::WriteError;
+use crate::design::model::{Model, StateChange, Step};
+
+/// Rejects values that cannot become G-code (non-finite points, non-positive speeds, negative
+/// cross-sections or filament diameters).
+pub fn validate(model: &Model) -> Result<(), WriteError> {
+    let bad = |index: usize, msg: String| Err(WriteError::BadStep { index, msg });
+    for (i, s) in model.steps.iter().enumerate() {
+        match s {
+            Step::String(s) => {
+                if !(s.start.is_finite() && s.end.is_finite()) {
+                    return bad(i, format!("non-finite point {:?} → {:?}", s.start, s.end));
+                }
+                if !(s.cross_mm2.is_finite() && s.cross_mm2 >= 0.0) {
+                    return bad(i, format!("cross-section {} mm² is invalid", s.cross_mm2));
+                }
+                if !(s.speed_mm_s.is_finite() && s.speed_mm_s > 0.0) {
+                    return bad(i, format!("speed {} mm/s is invalid", s.speed_mm_s));
+                }
+                if let Some(a) = s.arc {
+                    if !(a.center_xy[0].is_finite() && a.center_xy[1].is_finite()) {
+                        return bad(i, "non-finite arc centre".into());
+                    }
+                }
+            }
+            Step::Travel { to, speed_mm_s } => {
+                if !to.is_finite() {
+                    return bad(i, format!("non-finite travel target {to:?}"));
+                }
+                if let Some(v) = speed_mm_s {
+                    if !(v.is_finite() && *v > 0.0) {
+                        return bad(i, format!("travel speed {v} mm/s is invalid"));
+                    }
+                }
+            }
+            Step::Marker {
+                z_mm, height_mm, ..
+            } => {
+                if !(z_mm.is_finite() && height_mm.is_finite()) {
+                    return bad(i, "non-finite marker height".into());
+                }
+            }
+            Step::State(StateChange::FilamentDiameter(d)) => {
+                if !(d.is_finite() && *d > 0.0) {
+                    return bad(i, format!("filament diameter {d} mm is invalid"));
+                }
+            }
+            Step::State(StateChange::HotendTemp { celsius, .. })
+            | Step::State(StateChange::BedTemp { celsius, .. }) => {
+                if !(celsius.is_finite() && (0.0..=400.0).contains(celsius)) {
+                    return bad(i, format!("temperature {celsius} °C is out of range"));
+                }
+            }
+            Step::State(StateChange::Fan(d)) => {
+                if !d.is_finite() {
+                    return bad(i, "non-finite fan duty".into());
+                }
+            }
+            Step::State(StateChange::Retraction(r)) => {
+                let ok = |v: f64| v.is_finite() && v >= 0.0;
+                if !(ok(r.length_mm) && ok(r.min_travel_mm) && r.speed_mm_s.is_finite())
+                    || r.speed_mm_s <= 0.0
+                {
+                    return bad(i, format!("retraction {r:?} is invalid"));
+                }
+            }
+            Step::State(StateChange::Gcode(g)) => {
+                if g.chars()
+                    .any(|c| !(c.is_ascii_graphic() || c == ' ' || c == '\n'))
+                {
+                    return bad(i, format!("raw G-code {g:?}: only printable ASCII lines"));
+                }
+            }
+            Step::State(StateChange::Pause { .. }) => {}
+            Step::Comment(_) | Step::Type(_) => {}
+        }
+    }
+    Ok(())
+}
