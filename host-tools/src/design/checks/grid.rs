@@ -122,6 +122,8 @@ struct Entry {
 /// One XY column: entries `start..end` of the arrays in [`Grid`].
 #[derive(Clone, Copy)]
 struct Column {
+    /// Cell coordinates (ix, iy).
+    key: [i32; 2],
     start: u32,
     end: u32,
     /// Where the last support query's height split the column (queries climb slowly: the
@@ -157,7 +159,9 @@ pub fn dist2(p: [f64; 3], q: [f64; 3]) -> f64 {
 impl Grid {
     /// Indexes `points` (every point the design will print, in print order) in XY columns
     /// of `cell_mm`; none is printed yet. Points with a NaN coordinate are never found (no
-    /// distance or comparison with NaN holds), so they are left out.
+    /// distance or comparison with NaN holds), so they are left out, and so are points past
+    /// the first `u32::MAX - 1` (indices are 32-bit; such a design would need over 100 GB for
+    /// its points alone, so the allocation fails long before).
     pub fn build(cell_mm: f64, points: Vec<[f64; 3]>) -> Grid {
         let cell_mm = if cell_mm > 0.0 && cell_mm.is_finite() {
             cell_mm
@@ -165,12 +169,12 @@ impl Grid {
             1.0
         };
         let inv_cell = 1.0 / cell_mm;
-        let n = points.len();
+        let n = points.len().min(u32::MAX as usize - 1);
         let indexed = |p: &[f64; 3]| !p.iter().any(|v| v.is_nan());
         // The column extent from the coordinates' extent (the column of a coordinate grows
         // with it).
         let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-        for p in points.iter().filter(|p| indexed(p)) {
+        for p in points[..n].iter().filter(|p| indexed(p)) {
             for a in 0..2 {
                 lo[a] = lo[a].min(p[a]);
                 hi[a] = hi[a].max(p[a]);
@@ -181,7 +185,8 @@ impl Grid {
             hi.map(|v| floor_div(v, inv_cell)),
         ];
         let span = |a: usize| i64::from(extent[1][a]) - i64::from(extent[0][a]) + 1;
-        let dense = span(0) > 0 && span(1) > 0 && span(0) * span(1) <= MAX_DENSE_COLUMNS;
+        let dense =
+            span(0) > 0 && span(1) > 0 && span(0).saturating_mul(span(1)) <= MAX_DENSE_COLUMNS;
         let mut ids = if dense {
             ColumnIds::Dense {
                 lo: extent[0],
@@ -194,8 +199,9 @@ impl Grid {
         };
         // Column ids in order of first appearance, and the size of each column.
         let mut count: Vec<u32> = Vec::new();
+        let mut keys = Vec::new();
         let mut column_of = Vec::with_capacity(n);
-        for p in &points {
+        for p in &points[..n] {
             if !indexed(p) {
                 column_of.push(u32::MAX);
                 continue;
@@ -215,6 +221,7 @@ impl Grid {
             };
             if id == next {
                 count.push(0);
+                keys.push([ix, iy]);
             }
             count[id as usize] += 1;
             column_of.push(id);
@@ -224,8 +231,9 @@ impl Grid {
         // upwards, so most columns are sorted already and the sort only checks them).
         let mut cols = Vec::with_capacity(count.len());
         let mut total = 0u32;
-        for c in &count {
+        for (c, key) in count.iter().zip(keys) {
             cols.push(Column {
+                key,
                 start: total,
                 end: total,
                 cursor: 0,
@@ -282,7 +290,8 @@ impl Grid {
     pub fn print_through(&mut self, end: usize) {
         let end = end.min(self.points.len());
         for i in self.printed..end {
-            if let Some(c) = self.cols.get_mut(self.column_of[i] as usize) {
+            let c = self.column_of.get(i).map_or(u32::MAX, |c| *c);
+            if let Some(c) = self.cols.get_mut(c as usize) {
                 c.top_z = c.top_z.max(self.points[i][2]);
             }
         }
@@ -295,12 +304,28 @@ impl Grid {
         floor_div(v, self.inv_cell)
     }
 
-    /// Column cell coordinates of `lo..=hi` along axis `a`, clipped to the indexed extent.
+    /// Column cell coordinates of `lo..=hi` along axis `a`, clipped to the indexed extent
+    /// (in i64: the extent may reach `i32::MAX`, whose successor ends the range).
     #[inline]
-    fn span(&self, a: usize, lo: f64, hi: f64) -> Range<i32> {
-        let l = self.idx(lo).max(self.extent[0][a]);
-        let h = self.idx(hi).min(self.extent[1][a]);
-        l..h.saturating_add(1).max(l)
+    fn span(&self, a: usize, lo: f64, hi: f64) -> Range<i64> {
+        let l = i64::from(self.idx(lo).max(self.extent[0][a]));
+        let h = i64::from(self.idx(hi).min(self.extent[1][a]));
+        l..(h + 1).max(l)
+    }
+
+    /// True when the box `xs` × `ys` has more cells than there are columns with points (tiny
+    /// cells, far-flung points or a huge radius): a query then walks the list of those
+    /// columns instead of the cells, so its work stays bounded by the number of columns.
+    #[inline]
+    fn walk_list(&self, xs: &Range<i64>, ys: &Range<i64>) -> bool {
+        (xs.end - xs.start).saturating_mul(ys.end - ys.start) > self.cols.len() as i64
+    }
+
+    /// The cells of column `c` when they lie in `xs` × `ys`.
+    #[inline]
+    fn listed(&self, c: usize, xs: &Range<i64>, ys: &Range<i64>) -> Option<(i32, i32)> {
+        let [ix, iy] = self.cols[c].key;
+        (xs.contains(&i64::from(ix)) && ys.contains(&i64::from(iy))).then_some((ix, iy))
     }
 
     /// Id and entries of a column (`None` when it has no points).
@@ -376,19 +401,33 @@ impl Grid {
         // The box the best distance reaches, a hair wide (see `gap2`).
         let b = best.d2.sqrt();
         let b = b + 1e-9 * (1.0 + b + q[0].abs().max(q[1].abs()));
-        let xs = self.span(0, q[0] - b, q[0] + b);
-        let ys = self.span(1, q[1] - b, q[1] + b);
-        for ix in xs {
-            for iy in ys.clone() {
-                if ix == cx && iy == cy {
-                    continue;
+        let (xs, ys) = (
+            self.span(0, q[0] - b, q[0] + b),
+            self.span(1, q[1] - b, q[1] + b),
+        );
+        let mut visit = |g: &mut Grid, ix: i32, iy: i32| {
+            // True when the search is over (`first` and found).
+            if ix == cx && iy == cy {
+                return false;
+            }
+            let g2 = g.gap2(q, ix, iy);
+            g2 <= best.d2 && g.scan_column(q, max_z, ix, iy, g2, &mut best) && first
+        };
+        if self.walk_list(&xs, &ys) {
+            for c in 0..self.cols.len() {
+                if let Some((ix, iy)) = self.listed(c, &xs, &ys) {
+                    if visit(self, ix, iy) {
+                        return Some(best);
+                    }
                 }
-                let g2 = self.gap2(q, ix, iy);
-                if g2 > best.d2 {
-                    continue;
-                }
-                if self.scan_column(q, max_z, ix, iy, g2, &mut best) && first {
-                    return Some(best);
+            }
+        } else {
+            // Inside the extent, so within i32.
+            for ix in xs.clone() {
+                for iy in ys.clone() {
+                    if visit(self, ix as i32, iy as i32) {
+                        return Some(best);
+                    }
                 }
             }
         }
@@ -441,32 +480,41 @@ impl Grid {
         if min_z.is_nan() {
             return false; // no height is at or above NaN
         }
-        for ix in self.span(0, lo[0], hi[0]) {
-            for iy in self.span(1, lo[1], hi[1]) {
-                let Some((c, r)) = self.column(ix, iy) else {
-                    continue;
-                };
-                let top = self.cols[c].top_z;
-                if top < min_z {
-                    continue;
+        let found = |ix: i32, iy: i32| {
+            let Some((c, r)) = self.column(ix, iy) else {
+                return false;
+            };
+            let top = self.cols[c].top_z;
+            if top < min_z {
+                return false;
+            }
+            let col = &self.entries[r];
+            for e in &col[col.partition_point(|e| e.z_mm < min_z)..] {
+                if e.z_mm > top {
+                    break; // nothing printed above the top
                 }
-                let col = &self.entries[r];
-                for e in &col[col.partition_point(|e| e.z_mm < min_z)..] {
-                    if e.z_mm > top {
-                        break; // nothing printed above the top
-                    }
-                    if (e.seq as usize) < self.printed
-                        && e.x_mm >= lo[0]
-                        && e.x_mm <= hi[0]
-                        && e.y_mm >= lo[1]
-                        && e.y_mm <= hi[1]
-                    {
-                        return true;
-                    }
+                if (e.seq as usize) < self.printed
+                    && e.x_mm >= lo[0]
+                    && e.x_mm <= hi[0]
+                    && e.y_mm >= lo[1]
+                    && e.y_mm <= hi[1]
+                {
+                    return true;
                 }
             }
+            false
+        };
+        let (xs, ys) = (self.span(0, lo[0], hi[0]), self.span(1, lo[1], hi[1]));
+        if self.walk_list(&xs, &ys) {
+            (0..self.cols.len()).any(|c| {
+                self.listed(c, &xs, &ys)
+                    .is_some_and(|(ix, iy)| found(ix, iy))
+            })
+        } else {
+            // Inside the extent, so within i32.
+            xs.clone()
+                .any(|ix| ys.clone().any(|iy| found(ix as i32, iy as i32)))
         }
-        false
     }
 }
 

@@ -11,10 +11,13 @@
 //! - **travel crosses printed material** at or above the nozzle's height;
 //! - **flow above the profile's maximum** (cross-section × speed).
 //!
-//! Printed material is indexed in a uniform grid ([`crate::design::checks::grid`]): points sampled
-//! along the strings in cubic cells of the support radius, with the highest point per XY
-//! column for the travel check; every query touches a fixed handful of cells, so the checks
-//! cost about as much as writing the G-code.
+//! Printed material is indexed once ([`crate::design::checks::grid`]): every point sampled along
+//! the strings, in XY columns of the support radius sorted by height, of which a growing prefix
+//! in print order is printed; a query starts from the previous answer's successor and touches
+//! a handful of columns, so the checks cost less than building and writing the G-code
+//! (`cpu_time` example: 0.96–0.98× on the globe, 0.86–0.89× on a 45,000-segment helix).
+//! The answers are those of a plain scan over the printed points (`scan.rs` tests them
+//! against one).
 
 mod grid;
 

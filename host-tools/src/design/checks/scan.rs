@@ -206,3 +206,51 @@ proptest! {
         prop_assert_eq!(check_with::<Grid>(&model, &p, &o), check_with::<Scan>(&model, &p, &o));
     }
 }
+
+/// Infinite, huge and NaN coordinates: no panic, and the grid still answers as the scan does
+/// (the columns are hashed when the points spread over more than the direct index holds).
+#[test]
+fn extreme_coordinates_match_the_scan() {
+    let (inf, nan) = (f64::INFINITY, f64::NAN);
+    let points = vec![
+        [0.0, 0.0, 0.2],
+        [inf, 0.0, 0.2],
+        [-1e300, 1e300, 0.4],
+        [nan, 0.0, 0.2],
+        [0.1, 0.1, inf],
+        [0.2, -inf, 0.3],
+        [0.3, 0.0, nan],
+        [5e9, -5e9, 0.1],
+        [0.2, 0.2, 0.6],
+    ];
+    let queries = [
+        [0.0, 0.0, 1.0],
+        [0.1, 0.1, 0.5],
+        [inf, 0.0, 1.0],
+        [nan, 0.0, 1.0],
+        [5e9, -5e9, 0.5],
+        [-1e300, 1e300, 1.0],
+        [0.0, 0.0, -inf],
+    ];
+    for cell_mm in [1.2, 0.0, -1.0, nan, 1e-300] {
+        let mut grid = Grid::build(cell_mm, points.clone());
+        let mut scan = Scan::build(cell_mm, points.clone());
+        for printed in [0, 3, 6, points.len()] {
+            grid.print_through(printed);
+            scan.print_through(printed);
+            for q in queries {
+                for (r2, drop) in [(1.44, 0.05), (1e-6, 0.0), (4.0, -1.0)] {
+                    let z = q[2] - drop;
+                    assert_eq!(grid.nearest_below(q, r2, z), scan.nearest_below(q, r2, z));
+                    assert_eq!(grid.any_below(q, r2, z), scan.any_below(q, r2, z));
+                }
+                let (lo, hi) = ([q[0] - 0.3, q[1] - 0.3], [q[0] + 0.3, q[1] + 0.3]);
+                assert_eq!(
+                    grid.any_at_or_above(lo, hi, q[2]),
+                    scan.any_at_or_above(lo, hi, q[2]),
+                    "{q:?} {cell_mm}"
+                );
+            }
+        }
+    }
+}
