@@ -72,6 +72,7 @@ pub use command::{
 pub use emit::write_command;
 use error::err;
 pub use error::{ParseError, ParseErrorKind};
+pub(crate) use number::decimal;
 pub use number::{MAX_ABS_VALUE, MAX_NUMBER_LEN, MAX_SIG_DIGITS, MIN_ABS_VALUE};
 pub use parse::{parse_line, Line};
 use words::Words;

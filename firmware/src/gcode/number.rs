@@ -2,8 +2,9 @@
 //!
 //! There is no exponent (in G-code `X1E5` means X=1, E=5), no `nan`, no `inf`. A number is lexed
 //! once into an exact decimal (mantissa and count of fractional digits) and converted on demand:
-//! to `f32` with correct rounding (an exact fast path for the usual short numbers, core's
-//! correctly rounded parser otherwise) or to an integer (exact, or an error if it has a fraction).
+//! to `f32` with correct rounding (an exact fast path for the usual short numbers, an exact
+//! integer division otherwise: core's parser would link its 10 KiB power-of-five table and
+//! big-decimal code into the image) or to an integer (exact, or an error if it has a fraction).
 
 use super::ParseErrorKind;
 
@@ -125,7 +126,7 @@ pub(crate) fn lex(line: &[u8], pos: usize) -> Result<Option<(Num, usize)>, Parse
 
 impl Num {
     /// The value as `f32`, correctly rounded, within ±[`MAX_ABS_VALUE`].
-    pub fn to_f32(self, line: &[u8]) -> Result<f32, ParseErrorKind> {
+    pub fn to_f32(self, _line: &[u8]) -> Result<f32, ParseErrorKind> {
         let mag = if self.mant <= (1 << 24) && usize::from(self.scale) < POW10_F32.len() {
             // Both operands exact in f32, so the single division rounds correctly.
             let p = POW10_F32
@@ -134,7 +135,7 @@ impl Num {
                 .unwrap_or(1.0);
             self.mant as f32 / p
         } else {
-            slow_f32(line, self)?
+            exact_f32(self.mant, self.scale)
         };
         if !mag.is_finite() || mag > MAX_ABS_VALUE || (mag != 0.0 && mag < MIN_ABS_VALUE) {
             return Err(ParseErrorKind::OutOfRange);
@@ -179,20 +180,55 @@ impl Num {
     }
 }
 
-/// Correctly rounded conversion through core's parser (Eisel-Lemire with a big-decimal
-/// fallback): used only for long mantissas or many fractional digits.
-fn slow_f32(line: &[u8], n: Num) -> Result<f32, ParseErrorKind> {
-    let text = line
-        .get(usize::from(n.start)..usize::from(n.end))
-        .ok_or(ParseErrorKind::NumberTooLong)?;
-    // Skip the sign: the caller applies it.
-    let text = match text.first() {
-        Some(b'-') | Some(b'+') => text.get(1..).unwrap_or(&[]),
-        _ => text,
-    };
-    let s = core::str::from_utf8(text).map_err(|_| ParseErrorKind::BadNumber)?;
-    // core accepts "1." and ".5" as we do; both sides already checked to be digits and a point.
-    s.parse::<f32>().map_err(|_| ParseErrorKind::BadNumber)
+/// A whole text that is one decimal number (as in a G-code word), as `f32`: for numbers in
+/// comments (the layer detector's `;Z:0.3`), so nothing else parses floats (see the module
+/// documentation). None for anything else (exponents, `inf`, trailing text) or out of range.
+pub(crate) fn decimal(text: &[u8]) -> Option<f32> {
+    match lex(text, 0) {
+        Ok(Some((n, end))) if end == text.len() => n.to_f32(text).ok(),
+        _ => None,
+    }
+}
+
+/// `mant / 10^scale` as `f32`, correctly rounded (to nearest, ties to even), by integer
+/// division: the quotient's leading bits and whether anything was left over decide the
+/// rounding. Exact for every number [`lex`] gives (`mant < 10^19`, `scale <= 31`, so
+/// `10^scale < 2^104` and every value is a normal `f32`).
+fn exact_f32(mant: u64, scale: u8) -> f32 {
+    if mant == 0 {
+        return 0.0;
+    }
+    let d = 10u128.pow(u32::from(scale.min(38)));
+    // value = n / d * 2^e, with n in [2^127, 2^128).
+    let t = mant.leading_zeros();
+    let n = u128::from(mant << t) << 64;
+    let (mut q, mut r) = (n / d, n % d);
+    let mut e = -(64 + t as i32);
+    if q < 1 << 40 {
+        // A large divisor (d > 2^87, so r < d < 2^104 and r << 24 fits): 24 more bits.
+        let n2 = r << 24;
+        q = (q << 24) | (n2 / d);
+        r = n2 % d;
+        e -= 24;
+    }
+    // q >= 2^40: keep its 24 leading bits, round on the rest and the remainder.
+    let shift = (128 - q.leading_zeros()) - 24;
+    let mut m = (q >> shift) as u32;
+    let rest = q & ((1u128 << shift) - 1);
+    let half = 1u128 << (shift - 1);
+    if rest > half || (rest == half && (r != 0 || m & 1 == 1)) {
+        m += 1;
+    }
+    let mut exp = e + shift as i32;
+    if m == 1 << 24 {
+        m >>= 1;
+        exp += 1;
+    }
+    // m in [2^23, 2^24): the value is m * 2^exp; a normal f32's biased exponent is exp + 150.
+    match u32::try_from(exp + 150) {
+        Ok(b) if (1..255).contains(&b) => f32::from_bits((b << 23) | (m & 0x7F_FFFF)),
+        _ => f32::INFINITY,
+    }
 }
 
 #[cfg(test)]
@@ -258,6 +294,27 @@ mod tests {
             }
             let want: f32 = s.parse().unwrap();
             prop_assert_eq!(f(&s).map(f32::to_bits), Ok(want.to_bits()), "{}", s);
+        }
+
+        /// The integer-division path against core's parser over its whole domain: up to 19
+        /// significant digits, up to 31 fractional ones.
+        #[test]
+        fn exact_path_agrees_with_core(mant in 0u64..10_000_000_000_000_000_000, digits in 1u32..20, scale in 0u8..32) {
+            let mant = mant % 10u64.pow(digits).max(1);
+            let mut s = heapless::String::<64>::new();
+            use core::fmt::Write;
+            let text = heapless::String::<20>::try_from(mant.to_string().as_str()).unwrap();
+            let scale_u = usize::from(scale);
+            if scale_u == 0 {
+                write!(s, "{text}").unwrap();
+            } else if text.len() > scale_u {
+                let (i, f) = text.split_at(text.len() - scale_u);
+                write!(s, "{i}.{f}").unwrap();
+            } else {
+                write!(s, "0.{:0>w$}", text.as_str(), w = scale_u).unwrap();
+            }
+            let want: f32 = s.parse().unwrap();
+            prop_assert_eq!(exact_f32(mant, scale).to_bits(), want.to_bits(), "{}", s);
         }
 
         /// Shortest round-trip text of any in-range f32 parses back to the same bits.

@@ -382,8 +382,7 @@ fn trim(s: &[u8]) -> &[u8] {
 
 /// A decimal in mm → µm, if the text is one.
 fn mm_to_um(s: &[u8]) -> Option<i32> {
-    let s = core::str::from_utf8(trim(s)).ok()?;
-    let v: f32 = s.parse().ok()?;
+    let v = crate::gcode::decimal(trim(s))?;
     if !v.is_finite() || v.abs() > 1.0e6 {
         return None;
     }
