@@ -1,15 +1,16 @@
 //! `sim serve --sd DIR`: the directory as the printer's SD card, read through the firmware's
 //! own FAT code ([`firmware::storage::sd::Card`], embedded-sdmmc).
 //!
-//! At startup the files of DIR (top level, regular files) are copied into a FAT image in a
-//! temporary file, made with the `fatfs` crate (an independent FAT implementation, so the
-//! firmware's reader is checked against a writer it does not share; no external tool such as
-//! mkfs.fat/mtools is needed). The image has an MBR with one partition at block 2048, as
-//! cards are sold (embedded-sdmmc reads only MBR-partitioned cards): FAT16 with 512-byte
-//! clusters up to 24 MiB of files, FAT32 beyond. Long file names are kept (VFAT). The image
-//! is served as a file-backed block device ([`ImageDevice`]) and deleted when the session
-//! ends; later changes to DIR are not seen (restart the session). `--sd-image FILE` serves an
-//! existing image instead (never written by the firmware, which only reads the card).
+//! At startup the files of DIR (regular files, in its sub-directories too) are copied into a
+//! FAT image in a temporary file, made with the `fatfs` crate (an independent FAT
+//! implementation, so the firmware's reader is checked against a writer it does not share; no
+//! external tool such as mkfs.fat/mtools is needed). The image has an MBR with one partition
+//! at block 2048, as cards are sold (embedded-sdmmc reads only MBR-partitioned cards): FAT16
+//! with 512-byte clusters up to 24 MiB of files, FAT32 beyond. Long file names are kept
+//! (VFAT). The image is served as a file-backed block device ([`ImageDevice`]) and deleted
+//! when the session ends; later changes to DIR are not seen (restart the session).
+//! `--sd-image FILE` serves an existing image instead (never written by the firmware, which
+//! only reads the card).
 
 use anyhow::{bail, Context};
 use embedded_sdmmc::{Block, BlockCount, BlockDevice, BlockIdx};
@@ -46,15 +47,11 @@ impl ImageDevice {
         })
     }
 
-    /// Build an image of `dir`'s files in a temporary file (see the module documentation).
+    /// Build an image of `dir`'s files (and its sub-directories') in a temporary file (see
+    /// the module documentation).
     pub fn from_dir(dir: &Path) -> anyhow::Result<Self> {
         let mut files = Vec::new();
-        for e in std::fs::read_dir(dir).with_context(|| format!("reading {}", dir.display()))? {
-            let e = e?;
-            if e.file_type()?.is_file() {
-                files.push((e.file_name().to_string_lossy().into_owned(), e.path()));
-            }
-        }
+        collect_files(dir, "", 0, &mut files)?;
         files.sort();
         let path = std::env::temp_dir().join(format!(
             "sim-sd-{}-{}.img",
@@ -157,7 +154,32 @@ impl Seek for Part<'_> {
     }
 }
 
-/// Write a card image holding `files` (name, contents) to `path`: MBR, one FAT partition.
+/// Directory levels below DIR that `from_dir` copies (deeper ones are left out; the firmware
+/// reads 6, `CARD_MAX_DEPTH`, and the tests make deeper ones on purpose with `write_image`).
+const COPY_DEPTH: usize = 16;
+
+/// The regular files under `dir` as (`prefix/name` path, file path), down to COPY_DEPTH.
+fn collect_files(
+    dir: &Path,
+    prefix: &str,
+    depth: usize,
+    out: &mut Vec<(String, PathBuf)>,
+) -> anyhow::Result<()> {
+    for e in std::fs::read_dir(dir).with_context(|| format!("reading {}", dir.display()))? {
+        let e = e?;
+        let name = format!("{prefix}{}", e.file_name().to_string_lossy());
+        let t = e.file_type()?;
+        if t.is_file() {
+            out.push((name, e.path()));
+        } else if t.is_dir() && depth < COPY_DEPTH {
+            collect_files(&e.path(), &format!("{name}/"), depth + 1, out)?;
+        }
+    }
+    Ok(())
+}
+
+/// Write a card image holding `files` (path, contents) to `path`: MBR, one FAT partition. A
+/// path with `/` puts the file in sub-directories (created as needed).
 pub fn write_image(path: &Path, files: &[(String, Vec<u8>)]) -> anyhow::Result<()> {
     let total: u64 = files.iter().map(|(_, c)| c.len() as u64 + 4096).sum();
     let fat16 = total <= FAT16_FILES_MAX;
@@ -209,8 +231,19 @@ pub fn write_image(path: &Path, files: &[(String, Vec<u8>)]) -> anyhow::Result<(
         .context("opening the new card image")?;
     let root = fs.root_dir();
     for (name, contents) in files {
-        let mut f = root
-            .create_file(name)
+        let mut dir = root.clone();
+        let mut parts: Vec<&str> = name.split('/').collect();
+        let leaf = parts.pop().unwrap_or_default();
+        for d in parts {
+            dir = match dir.open_dir(d) {
+                Ok(sub) => sub,
+                Err(_) => dir
+                    .create_dir(d)
+                    .with_context(|| format!("directory {d} of {name} on the card image"))?,
+            };
+        }
+        let mut f = dir
+            .create_file(leaf)
             .with_context(|| format!("{name} on the card image"))?;
         f.truncate()?;
         f.write_all(contents)

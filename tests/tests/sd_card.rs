@@ -164,6 +164,171 @@ fn long_names_are_listed_and_open_by_either_name() {
     }
 }
 
+/// Files in nested directories: (path written by `fatfs`, size). The last one is 7
+/// directories down, one more than the firmware reads.
+fn nested_files() -> Vec<(String, Vec<u8>)> {
+    [
+        ("ROOT.GCO", 101),
+        ("prints/Benchy long name.gcode", 202),
+        ("prints/CUBES/CUBE.GCO", 303),
+        ("prints/cubes two/cube two.gcode", 404),
+        ("a/b/c/d/e/f/SIX.GCO", 505),
+        ("a/b/c/d/e/f/g/SEVEN.GCO", 606),
+    ]
+    .iter()
+    .enumerate()
+    .map(|(i, (p, n))| (p.to_string(), text(*n, 10 + i as u32)))
+    .collect()
+}
+
+#[test]
+fn nested_directories_are_listed_and_opened_by_path() {
+    let files = nested_files();
+    let refs: Vec<(&str, Vec<u8>)> = files.iter().map(|(n, c)| (n.as_str(), c.clone())).collect();
+    let img = Image::new("nested", &refs);
+    let mut card = img.card();
+    card.mount().unwrap();
+    let mut listed = Vec::new();
+    let n = card.for_each_file(|_, e| listed.push(e.clone())).unwrap();
+    assert_eq!(n, listed.len());
+    // Every file down to 6 levels, by its long path (what was written; every path here has
+    // a lower-case component, so a long name) and its short path (upper case, 8.3 components,
+    // as many as the long path).
+    for (path, contents) in &files[..5] {
+        let e = listed
+            .iter()
+            .find(|e| e.long.as_deref() == Some(path.as_str()))
+            .unwrap_or_else(|| panic!("{path} not listed: {listed:?}"));
+        assert_eq!(e.size as usize, contents.len(), "{path}");
+        assert_eq!(e.short.split('/').count(), path.split('/').count(), "{e:?}");
+        for c in e.short.split('/') {
+            let (base, ext) = c.split_once('.').unwrap_or((c, ""));
+            assert!(
+                base.len() <= 8 && ext.len() <= 3 && c == c.to_uppercase(),
+                "{e:?}"
+            );
+        }
+        // Opened by the short path, the long path, a mix, lower case, a leading `/`.
+        let mixed: Vec<&str> = e
+            .short
+            .split('/')
+            .zip(path.split('/'))
+            .enumerate()
+            .map(|(i, (s, l))| if i % 2 == 0 { l } else { s })
+            .collect();
+        for name in [
+            e.short.to_string(),
+            path.clone(),
+            mixed.join("/"),
+            e.short.to_lowercase(),
+            format!("/{path}"),
+        ] {
+            let got = card
+                .open(&name)
+                .unwrap_or_else(|err| panic!("{name}: {err:?}"));
+            assert_eq!(got, *e, "{name}");
+            assert_eq!(&read_all(&mut card, 512), contents, "{name}");
+        }
+    }
+    assert_eq!(
+        listed.len(),
+        5,
+        "the 7-level file is not listed: {listed:?}"
+    );
+    assert!(listed.iter().any(|e| e.short == "ROOT.GCO"), "{listed:?}");
+    // Refused cleanly: too deep, a directory, missing, a file as a directory, empty parts.
+    assert_eq!(
+        card.open("a/b/c/d/e/f/g/SEVEN.GCO"),
+        Err(CardError::TooDeep)
+    );
+    assert_eq!(card.open("prints"), Err(CardError::BadName));
+    assert_eq!(card.open("prints/missing.gco"), Err(CardError::NotFound));
+    assert_eq!(card.open("nowhere/CUBE.GCO"), Err(CardError::NotFound));
+    assert_eq!(card.open("ROOT.GCO/CUBE.GCO"), Err(CardError::NotFound));
+    for bad in [
+        "prints//CUBES/CUBE.GCO",
+        "prints/",
+        "./ROOT.GCO",
+        "prints/../ROOT.GCO",
+    ] {
+        assert_eq!(card.open(bad), Err(CardError::BadName), "{bad}");
+    }
+    // Nothing stays open after a refusal: every file still opens.
+    for _ in 0..20 {
+        assert!(card.open("a/b/c/d/e/nowhere/SIX.GCO").is_err());
+        assert!(card.open("prints/cubes/missing").is_err());
+    }
+    assert_eq!(card.open("a/b/c/d/e/f/six.gco").unwrap().size, 505);
+}
+
+/// 3000 random paths (fixed seed) over the nested card: none panics; one that opens gives the
+/// file whose contents its listed entry names; refusals leave no directory handle open (every
+/// file still opens after them).
+#[test]
+fn random_paths_never_panic_and_leave_the_card_usable() {
+    let files = nested_files();
+    let refs: Vec<(&str, Vec<u8>)> = files.iter().map(|(n, c)| (n.as_str(), c.clone())).collect();
+    let img = Image::new("random-paths", &refs);
+    let mut card = img.card();
+    card.mount().unwrap();
+    let mut listed = Vec::new();
+    card.for_each_file(|_, e| listed.push(e.clone())).unwrap();
+    let parts = [
+        "prints",
+        "PRINTS",
+        "cubes",
+        "CUBE.GCO",
+        "cube.gco",
+        "a",
+        "b",
+        "c",
+        "d",
+        "e",
+        "f",
+        "g",
+        "SIX.GCO",
+        "SEVEN.GCO",
+        "ROOT.GCO",
+        "..",
+        ".",
+        "",
+        "Benchy long name.gcode",
+        "\u{e9}",
+        "~1",
+        "CUBEST~1",
+        "x",
+    ];
+    let mut x: u64 = 0x2545_F491_4F6C_DD1D;
+    let mut next = move |n: usize| {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        (x % n as u64) as usize
+    };
+    let mut opened = 0;
+    for _ in 0..3000 {
+        let n = next(10);
+        let mut path: Vec<&str> = (0..n).map(|_| parts[next(parts.len())]).collect();
+        if next(4) == 0 {
+            path.insert(0, "");
+        }
+        let path = path.join("/");
+        if let Ok(e) = card.open(&path) {
+            opened += 1;
+            assert!(listed.contains(&e), "{path}: {e:?}");
+            let written = files
+                .iter()
+                .find(|(p, _)| e.long.as_deref() == Some(p.as_str()))
+                .unwrap();
+            assert_eq!(read_all(&mut card, 512), written.1, "{path}");
+        }
+    }
+    assert!(opened >= 10, "{opened} of 3000 opened");
+    for e in &listed {
+        assert_eq!(card.open(&e.short).as_ref(), Ok(e));
+    }
+}
+
 #[test]
 fn an_absent_card_is_an_error_not_a_panic() {
     let mut card = Card::new(NoCard);
@@ -356,6 +521,85 @@ fn m_codes_answer_as_marlin_and_a_job_runs_to_done() {
     assert!(b.cmd("M27").contains("Not SD printing"));
     assert!(b.cmd("M22").contains("SD card released"));
     assert!(b.cmd("M23 CUBE.GCO").contains("No media"));
+}
+
+/// M20 and M20 L list the nested files as Marlin does (`DIR/FILE.GCO size`, `... long/path`),
+/// read back here line by line; M23 opens a nested file by the listed path and M24 prints it;
+/// a path too deep is refused as Marlin refuses a missing file.
+#[test]
+fn m20_lists_and_m23_opens_files_in_directories() {
+    let j = job(30, false, true);
+    let mut files = nested_files();
+    files.push(("jobs/Part one/part.gcode".into(), j.clone()));
+    let refs: Vec<(&str, Vec<u8>)> = files.iter().map(|(n, c)| (n.as_str(), c.clone())).collect();
+    let img = Image::new("m20-nested", &refs);
+    let mut b = Bench::new(img.card());
+    let listing = |text: &str| -> Vec<Vec<String>> {
+        let lines: Vec<&str> = text.lines().collect();
+        let begin = lines
+            .iter()
+            .position(|l| *l == "Begin file list")
+            .expect(text);
+        let end = lines
+            .iter()
+            .position(|l| *l == "End file list")
+            .expect(text);
+        lines[begin + 1..end]
+            .iter()
+            .map(|l| l.splitn(3, ' ').map(String::from).collect())
+            .collect()
+    };
+    let short = listing(&b.cmd("M20"));
+    let long = listing(&b.cmd("M20 L"));
+    assert_eq!(short.len(), 6, "every file but the 7-level one: {short:?}");
+    assert_eq!(long.len(), 6);
+    for (path, contents) in files.iter().filter(|(p, _)| !p.contains("SEVEN")) {
+        // M20 L: short path, size, long path (the written one).
+        let l = long
+            .iter()
+            .find(|l| l.get(2) == Some(path))
+            .unwrap_or_else(|| panic!("{path} in {long:?}"));
+        assert_eq!(l[1], contents.len().to_string(), "{l:?}");
+        assert!(!l[0].starts_with('/') && l[0].split('/').count() == path.split('/').count());
+        // M20: the same short path and size.
+        assert!(
+            short.contains(&vec![l[0].clone(), l[1].clone()]),
+            "{l:?} in {short:?}"
+        );
+        // M23 by the listed short path: Marlin's replies, the file's own name.
+        let sel = b.cmd(&format!("M23 {}", l[0]));
+        let name = l[0].rsplit('/').next().unwrap();
+        assert!(
+            sel.contains(&format!("File opened: {name} Size: {}", contents.len()))
+                && sel.contains("File selected"),
+            "{sel}"
+        );
+    }
+    let deep = b.cmd("M23 a/b/c/d/e/f/g/SEVEN.GCO");
+    assert!(
+        deep.contains("open failed, File: a/b/c/d/e/f/g/SEVEN.GCO."),
+        "{deep}"
+    );
+    // A nested job runs to its end, every move once.
+    // (M23 ends the name at a space, as Marlin's M23 does: the directory by its short name,
+    // lower case, the file by its long name, a leading `/`.)
+    let part = &long
+        .iter()
+        .find(|l| l[2] == "jobs/Part one/part.gcode")
+        .unwrap()[0];
+    let dir = part.rsplit_once('/').unwrap().0.to_lowercase();
+    let sel = b.cmd(&format!("M23 /{dir}/part.gcode"));
+    assert!(sel.contains("File selected"), "{sel}");
+    assert!(b.cmd("M27 C").contains(&format!("Current file: {part}")));
+    b.pending.extend_from_slice(b"M24\n");
+    b.run_until("Done printing file", 600, |b| {
+        b.out.contains("Done printing file")
+    });
+    let moves = j
+        .split(|&c| c == b'\n')
+        .filter(|l| l.starts_with(b"G1"))
+        .count();
+    assert_eq!(b.executed.len(), moves);
 }
 
 #[test]

@@ -31,8 +31,9 @@ type Flash = NorFlashModel<Vec<u8>, 16, 2048>;
 /// Where the head is at the first power-on, steps from the switches (not homed).
 const START: [i64; 4] = [3_000, 2_000, 900, 0];
 
-/// The job's file name on the card (a long name: the record keeps the short one).
-const NAME: &str = "power-cut-job.gcode";
+/// The job's file on the card, in a sub-directory, by long names (the record keeps the short
+/// path).
+const NAME: &str = "print-jobs/power-cut-job.gcode";
 
 /// The job file (Cura markers, M83, heaters set without waiting) and the byte offset of the
 /// first motion line of each layer (the `G1 Z` after `;LAYER:n`).
@@ -267,7 +268,11 @@ fn an_sd_job_paused_resumes_after_a_power_cut_with_m1000_alone() {
     );
     let reply = b.send("M1000");
     let want = [
-        format!("File opened: {path} Size: {}", text.len()),
+        format!(
+            "File opened: {} Size: {}",
+            path.rsplit('/').next().unwrap(),
+            text.len()
+        ),
         "File selected".to_string(),
         format!("echo:power-cut resume: layer {layer} at Z{z:.3}: SD file {path} byte {offset} continues"),
     ];

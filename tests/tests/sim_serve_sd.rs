@@ -1,6 +1,6 @@
-//! `sim serve --sd DIR`: a host lists the card, selects a sliced file by its long name, starts
-//! it (M24), asks for a layer pause (M25) while it prints, resumes (M24) and sees `Done
-//! printing file`. The session's record (recorded from the executed steps, independent of the
+//! `sim serve --sd DIR`: a host lists the card, selects a sliced file in a sub-directory by its
+//! long path, starts it (M24), asks for a layer pause (M25) while it prints, resumes (M24) and
+//! sees `Done printing file`. The session's record (recorded from the executed steps, independent of the
 //! firmware's layer detector) must show the stop at the first layer boundary after the
 //! request, nothing lost or duplicated, the resume exact; and the stop position must be one
 //! where the file itself has a layer marker (found here by reading the file with a tracker of
@@ -24,8 +24,9 @@ fn a_host_prints_a_sliced_file_from_the_card_with_a_layer_pause() {
     let src = format!("{}/fixtures/corpus/{FIXTURE}", env!("CARGO_MANIFEST_DIR"));
     let gcode = std::fs::read_to_string(&src).expect("fixture");
     let dir = std::env::temp_dir().join(format!("sim-serve-sd-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    std::fs::write(dir.join(FIXTURE), &gcode).unwrap();
+    // In a sub-directory: M20 lists it by its path, M23 opens it by its path.
+    std::fs::create_dir_all(dir.join("prints")).unwrap();
+    std::fs::write(dir.join("prints").join(FIXTURE), &gcode).unwrap();
 
     let (tx, rx) = mpsc::channel();
     let sd = dir.clone();
@@ -59,13 +60,13 @@ fn a_host_prints_a_sliced_file_from_the_card_with_a_layer_pause() {
     host.ok(OK_WAIT);
     host.write("M20 L");
     host.until("the file in the list", Duration::from_secs(30), |l| {
-        l.ends_with(&format!(" {} {FIXTURE}", gcode.len()))
+        l.ends_with(&format!(" {} prints/{FIXTURE}", gcode.len()))
     });
     host.until("End file list", Duration::from_secs(30), |l| {
         l == "End file list"
     });
     host.ok(OK_WAIT);
-    host.write(&format!("M23 {FIXTURE}"));
+    host.write(&format!("M23 prints/{FIXTURE}"));
     let opened = host.until("File opened", Duration::from_secs(30), |l| {
         l.starts_with("File opened: ")
     });

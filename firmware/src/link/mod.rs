@@ -98,24 +98,35 @@
 //! ```
 
 mod assemble;
+mod classify;
 // Lines read from a file (the SD card), by the same assembler rules.
 mod file;
+mod output;
 mod ports;
+mod realtime;
 mod response;
+mod sequence;
 
 pub use file::{FileLine, FileLines};
 pub use ports::{HostPorts, PortId, PORTS};
+pub use realtime::{
+    control_byte, realtime_of, BYTE_BREAK_WAIT, BYTE_CANCEL, BYTE_EMERGENCY_STOP, BYTE_PAUSE_LAYER,
+    BYTE_PAUSE_NOW, BYTE_QUICK_STOP, BYTE_RESUME,
+};
 
 pub use response::{
     HostAction, PositionReport, Response, TempReport, CAPABILITIES, FIRMWARE_NAME,
     FIRMWARE_VERSION, PROTOCOL_VERSION,
 };
 
-use crate::gcode::{self, Command};
-use crate::motion::{PauseMode, Realtime};
-use assemble::{trim, Assembled, Assembler};
-use core::fmt::{self, Write};
+use crate::gcode;
+use crate::motion::Realtime;
+use assemble::Assembler;
+use classify::{classify, split_number, Verdict, TOO_LONG};
 use heapless::{Deque, Vec};
+// What the tests' `use super::*` found here before the split.
+#[cfg(test)]
+use crate::{gcode::Command, motion::PauseMode};
 
 /// Longest command text kept per line, bytes, line number, comment head and checksum included,
 /// line end excluded (longer lines: see the module documentation).
@@ -139,49 +150,6 @@ pub const OUT_CAP: usize = 4096;
 pub const OUT_RESERVE: usize = 1024;
 /// How far behind the last line number a line may be and still count as a harmless duplicate.
 pub const DUPLICATE_WINDOW: u32 = 16;
-
-/// Control byte: emergency stop (Ctrl-X, CAN).
-pub const BYTE_EMERGENCY_STOP: u8 = 0x18;
-/// Control byte: quick stop (Ctrl-Y, EM).
-pub const BYTE_QUICK_STOP: u8 = 0x19;
-/// Control byte: pause at the layer boundary (Ctrl-P, DLE).
-pub const BYTE_PAUSE_LAYER: u8 = 0x10;
-/// Control byte: pause now (Ctrl-N, SO).
-pub const BYTE_PAUSE_NOW: u8 = 0x0E;
-/// Control byte: resume (Ctrl-R, DC2).
-pub const BYTE_RESUME: u8 = 0x12;
-/// Control byte: cancel the job (Ctrl-C, ETX).
-pub const BYTE_CANCEL: u8 = 0x03;
-/// Control byte: break out of a heater wait (Ctrl-B, STX).
-pub const BYTE_BREAK_WAIT: u8 = 0x02;
-
-/// The realtime request of a single control byte, if it is one.
-pub const fn control_byte(b: u8) -> Option<Realtime> {
-    match b {
-        BYTE_EMERGENCY_STOP => Some(Realtime::EmergencyStop),
-        BYTE_QUICK_STOP => Some(Realtime::QuickStop),
-        BYTE_PAUSE_LAYER => Some(Realtime::Pause(PauseMode::Layer)),
-        BYTE_PAUSE_NOW => Some(Realtime::Pause(PauseMode::Now)),
-        BYTE_RESUME => Some(Realtime::Resume),
-        BYTE_CANCEL => Some(Realtime::Cancel),
-        BYTE_BREAK_WAIT => Some(Realtime::BreakWait),
-        _ => None,
-    }
-}
-
-/// The realtime request a parsed command stands for, if any (the host-link spellings).
-pub fn realtime_of(cmd: &Command) -> Option<Realtime> {
-    match cmd {
-        Command::BreakWait => Some(Realtime::BreakWait),
-        Command::EmergencyStop => Some(Realtime::EmergencyStop),
-        Command::QuickStop => Some(Realtime::QuickStop),
-        Command::Pause { now: false, .. } => Some(Realtime::Pause(PauseMode::Layer)),
-        Command::Pause { now: true, .. } => Some(Realtime::Pause(PauseMode::Now)),
-        Command::Resume { .. } => Some(Realtime::Resume),
-        Command::Cancel => Some(Realtime::Cancel),
-        _ => None,
-    }
-}
 
 /// The XOR checksum of a line (every byte before `*`).
 pub fn checksum(bytes: &[u8]) -> u8 {
@@ -254,13 +222,6 @@ impl Default for HostLink {
     fn default() -> Self {
         Self::new()
     }
-}
-
-/// How a line's number compares with the expected one.
-enum Seq {
-    Next,
-    Duplicate,
-    Gap,
 }
 
 impl HostLink {
@@ -352,68 +313,6 @@ impl HostLink {
         self.halted
     }
 
-    /// Queue one response (a line end is added). Returns false, and counts it in
-    /// [`LinkStats::output_dropped`], if it does not fit the output ring: it is then dropped
-    /// whole, never cut.
-    pub fn respond(&mut self, r: Response<'_>) -> bool {
-        let before = self.out.len();
-        let written = match r {
-            // The most frequent answer, without the formatting machinery.
-            Response::Ok if self.output_free() >= 3 => {
-                for b in *b"ok\n" {
-                    let _ = self.out.push_back(b);
-                }
-                Ok(())
-            }
-            r => writeln!(Ring(&mut self.out), "{r}"),
-        };
-        if written.is_err() {
-            // Did not fit: take back what was written, so a response is never cut.
-            self.out.truncate(before);
-            self.stats.output_dropped = self.stats.output_dropped.saturating_add(1);
-            return false;
-        }
-        true
-    }
-
-    /// Bytes free in the output ring.
-    pub fn output_free(&self) -> usize {
-        OUT_CAP - self.out.len()
-    }
-
-    /// Bytes waiting in the output ring.
-    pub fn output_len(&self) -> usize {
-        self.out.len()
-    }
-
-    /// Move all pending output into `w` (each response is followed by `\n`).
-    pub fn write_output<W: Write>(&mut self, w: &mut W) -> fmt::Result {
-        let mut chunk = [0u8; 64];
-        while !self.out.is_empty() {
-            let n = self.read_output(&mut chunk);
-            // The ring holds ASCII only.
-            let s = core::str::from_utf8(chunk.get(..n).unwrap_or(&[])).map_err(|_| fmt::Error)?;
-            w.write_str(s)?;
-        }
-        Ok(())
-    }
-
-    /// Move up to `buf.len()` bytes of pending output into `buf` (for a UART/DMA driver);
-    /// returns the count.
-    pub fn read_output(&mut self, buf: &mut [u8]) -> usize {
-        let mut n = 0;
-        for slot in buf.iter_mut() {
-            match self.out.pop_front() {
-                Some(b) => {
-                    *slot = b;
-                    n += 1;
-                }
-                None => break,
-            }
-        }
-        n
-    }
-
     /// The last line number accepted (`L`).
     pub fn last_line(&self) -> u32 {
         self.last_line
@@ -433,15 +332,6 @@ impl HostLink {
             // The callers checked for room.
             let _ = self.realtime.push_back(rt);
         }
-    }
-
-    /// Refuse a line and ask for `L+1` again (Marlin: error, `Resend:`, `ok`).
-    fn resend(&mut self, msg: &str) {
-        self.stats.rejected = self.stats.rejected.saturating_add(1);
-        self.respond(Response::LineError(msg, self.last_line));
-        self.stats.resends = self.stats.resends.saturating_add(1);
-        self.respond(Response::Resend(self.last_line.wrapping_add(1)));
-        self.respond(Response::Ok);
     }
 
     /// A line end arrived: check and route the line. Returns false, leaving everything as it
@@ -488,209 +378,6 @@ impl HostLink {
             }
         }
         true
-    }
-
-    /// Whether a command line with this number would go into the FIFO.
-    fn takes_slot(&self, number: Option<u32>) -> bool {
-        number.is_none_or(|n| matches!(self.seq(n), Seq::Next))
-    }
-
-    fn seq(&self, n: u32) -> Seq {
-        if n == self.last_line.wrapping_add(1) {
-            Seq::Next
-        } else if n <= self.last_line && self.last_line - n < DUPLICATE_WINDOW {
-            Seq::Duplicate
-        } else {
-            Seq::Gap
-        }
-    }
-
-    /// Line-number bookkeeping for a line that is not realtime: true (and `L` advanced) when
-    /// the line is to be handled; a duplicate is acknowledged, a gap asks for a resend.
-    fn number_ok(&mut self, number: Option<u32>) -> bool {
-        let Some(n) = number else {
-            return true;
-        };
-        match self.seq(n) {
-            Seq::Next => {
-                self.last_line = n;
-                true
-            }
-            Seq::Duplicate => {
-                self.stats.duplicates = self.stats.duplicates.saturating_add(1);
-                self.respond(Response::Ok);
-                false
-            }
-            Seq::Gap => {
-                self.resend("Line Number is not Last Line Number+1");
-                false
-            }
-        }
-    }
-
-    fn realtime_line(&mut self, number: Option<u32>, rt: Realtime) {
-        // M112 halts: like Marlin's kill(), no `ok`.
-        let answer = rt != Realtime::EmergencyStop;
-        let Some(n) = number else {
-            self.push_realtime(rt);
-            if answer {
-                self.respond(Response::Ok);
-            }
-            return;
-        };
-        match self.seq(n) {
-            Seq::Next => {
-                // Acted already when it first arrived ahead of its turn?
-                if self.early != Some((n, rt)) {
-                    self.push_realtime(rt);
-                }
-                self.early = None;
-                self.last_line = n;
-                if answer {
-                    self.respond(Response::Ok);
-                }
-            }
-            Seq::Duplicate => {
-                self.stats.duplicates = self.stats.duplicates.saturating_add(1);
-                self.respond(Response::Ok);
-            }
-            Seq::Gap => {
-                if self.early != Some((n, rt)) {
-                    self.push_realtime(rt);
-                    self.early = Some((n, rt));
-                }
-                if answer {
-                    self.resend("Line Number is not Last Line Number+1");
-                }
-            }
-        }
-    }
-
-    /// A checked command line for the FIFO (room was checked).
-    fn command_line(&mut self, line: ReceivedLine) {
-        if !self.number_ok(line.number) {
-            return;
-        }
-        if self.lines.push_back(line).is_ok() {
-            self.stats.lines = self.stats.lines.saturating_add(1);
-        }
-    }
-}
-
-/// The answer to a line longer than [`LINE_CAP`] that is not display text.
-const TOO_LONG: &str = "Line too long (max 128 bytes), ignored";
-
-/// What a complete line is, decided without changing any state.
-enum Verdict {
-    /// Refused with `Resend: L+1`: the line looked numbered or carried a checksum, and did not
-    /// check out.
-    Resend(&'static str),
-    /// M110: the new last line number, if one was given.
-    SetLineNumber(Option<u32>),
-    /// A realtime request (line number, request).
-    Realtime(Option<u32>, Realtime),
-    /// A command line for the FIFO.
-    Command(ReceivedLine),
-    /// A checked line longer than [`LINE_CAP`] that is not display text: ignored, `echo:`.
-    TooLong(Option<u32>),
-}
-
-fn classify(a: &Assembled<'_>) -> Verdict {
-    let (number, rest) = split_number(a.raw);
-    let number = match number {
-        Some(Ok(n)) => Some(n),
-        Some(Err(())) => return Verdict::Resend("Bad line number"),
-        None => None,
-    };
-    match (number, a.checksum) {
-        (Some(_), None) => return Verdict::Resend("No Checksum with line number"),
-        // Hosts send a checksum only with a line number: a checksum without one is a numbered
-        // line whose `N` was corrupted, or the tail of a line broken in two by a corrupted
-        // line end. Either way the host must send L+1 again.
-        (None, Some(_)) => return Verdict::Resend("No Line Number with checksum"),
-        // A wrong checksum means a corrupted line, whatever happened to its `N` (a corrupted
-        // `N` makes the line look unnumbered: it is resent all the same).
-        (_, Some(_)) if !a.sum_ok => return Verdict::Resend("checksum mismatch"),
-        // Two lines merged by a lost line end (`N19 M400*31` + its own resend): the XOR of the
-        // repeated text cancels and the sum of the merge can be right. A checksum-like
-        // `*<digit>` inside the text is refused as Marlin does (it checks up to the first
-        // `*`), so the host resends instead of the line being lost.
-        (_, Some(_)) if a.merged => return Verdict::Resend("checksum mismatch"),
-        _ => {}
-    }
-    let text = trim(rest);
-    // Commands the link handles itself: M110 and the realtime requests.
-    let command = if a.cut || matches!(text.first(), Some(b'M' | b'm')) {
-        gcode::parse_line(text).ok().and_then(|l| l.command)
-    } else {
-        None
-    };
-    if a.cut {
-        // Only display text may be cut (M117/M118, unknown commands that are only echoed);
-        // anything else cut short could do the wrong thing.
-        if !matches!(
-            command,
-            Some(Command::Message(_) | Command::Echo(_) | Command::Unknown(_))
-        ) {
-            return Verdict::TooLong(number);
-        }
-    }
-    match command {
-        Some(Command::SetLineNumber(m)) => return Verdict::SetLineNumber(m.or(number)),
-        Some(ref c) => {
-            if let Some(rt) = realtime_of(c) {
-                return Verdict::Realtime(number, rt);
-            }
-        }
-        None => {}
-    }
-    let mut t = Vec::new();
-    // Part of a line of at most LINE_CAP bytes, so it fits.
-    let _ = t.extend_from_slice(text);
-    Verdict::Command(ReceivedLine { text: t, number })
-}
-
-/// Split a leading `N<digits>`: (number or error, rest). `None` when the line has no number.
-fn split_number(raw: &[u8]) -> (Option<Result<u32, ()>>, &[u8]) {
-    // `N-1` (printcore's `N-1 M110` at connect, accepted by Marlin): the line before 0, kept as
-    // u32::MAX so that `last_line + 1` wraps to 0. Any other negative number is refused.
-    if let (Some(b'N' | b'n'), Some(b'-'), Some(b'1')) = (raw.first(), raw.get(1), raw.get(2)) {
-        if !raw.get(3).is_some_and(u8::is_ascii_digit) {
-            return (Some(Ok(u32::MAX)), raw.get(3..).unwrap_or(&[]));
-        }
-    }
-    match (raw.first(), raw.get(1)) {
-        (Some(b'N' | b'n'), Some(d)) if d.is_ascii_digit() => {}
-        _ => return (None, raw),
-    }
-    let mut n: u64 = 0;
-    let mut i = 1;
-    while let Some(d) = raw.get(i).filter(|d| d.is_ascii_digit()) {
-        n = n * 10 + u64::from(d - b'0');
-        if n > u64::from(u32::MAX) {
-            return (Some(Err(())), &[]);
-        }
-        i += 1;
-    }
-    (Some(Ok(n as u32)), raw.get(i..).unwrap_or(&[]))
-}
-
-/// Writes into the output ring, ASCII only (others become `?`).
-struct Ring<'a>(&'a mut Deque<u8, OUT_CAP>);
-
-impl Write for Ring<'_> {
-    fn write_str(&mut self, s: &str) -> fmt::Result {
-        if s.is_ascii() {
-            for &b in s.as_bytes() {
-                self.0.push_back(b).map_err(|_| fmt::Error)?;
-            }
-            return Ok(());
-        }
-        for ch in s.chars() {
-            let b = if ch.is_ascii() { ch as u8 } else { b'?' };
-            self.0.push_back(b).map_err(|_| fmt::Error)?;
-        }
-        Ok(())
     }
 }
 

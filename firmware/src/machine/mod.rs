@@ -42,25 +42,23 @@
 //! ```
 
 mod arc;
+mod error;
 mod interp;
+mod limits;
 
 pub use arc::{ArcMoves, ARC_CHORD_TOLERANCE_MM, ARC_MAX_SEGMENTS, ARC_MIN_SEGMENT_MM};
+pub use error::MachineError;
 pub use interp::{Interpreter, Step};
+pub use limits::{dwell_ms, BOUNDS_TOLERANCE_MM, OVERRIDE_RANGE_PCT};
+pub(crate) use limits::{round_i32, to_steps};
 
 use crate::config::MachineConfig;
 use crate::gcode::{AxisFlags, AxisWords, Command};
 use crate::motion::{Axis, MoveRequest, StepPos, AXES};
-use core::fmt;
+use limits::{check_axis, check_bounds, check_override};
 
 /// Millimetres per inch (G20).
 pub const MM_PER_INCH: f64 = 25.4;
-
-/// Lowest and highest M220/M221 override, percent.
-pub const OVERRIDE_RANGE_PCT: core::ops::RangeInclusive<f32> = 10.0..=999.0;
-
-/// How far (mm) a target may lie outside the build volume and still count as inside: absorbs
-/// the rounding of decimal text, nothing more.
-pub const BOUNDS_TOLERANCE_MM: f64 = 1e-4;
 
 /// What the executive must do for a command, after the machine state has taken it in.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -83,68 +81,6 @@ pub enum Action {
     /// Not a machine-state command: the executive handles it (temperatures, fans, reports,
     /// pause/resume, M0, M400, M600, M760/M761, M117/M118, unknown commands, ...).
     Executive,
-}
-
-/// Why a command was refused. The state is unchanged whenever one of these is returned.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum MachineError {
-    /// The target lies outside the build volume (the axes' `min_mm..=max_mm`).
-    OutOfBounds(Axis),
-    /// The target in steps does not fit an `i32`.
-    StepOverflow(Axis),
-    /// `F` is zero or negative.
-    BadFeed,
-    /// M220/M221 outside [`OVERRIDE_RANGE_PCT`].
-    OverrideOutOfRange,
-    /// G4/M0 with a negative time.
-    NegativeTime,
-    /// G2/G3 without I/J or R.
-    ArcNoCentre,
-    /// G2/G3 with both I/J and R.
-    ArcCentreAndRadius,
-    /// G2/G3 with R and the end point equal to the start point, or a zero radius.
-    ArcDegenerate,
-    /// A point of the arc between its start and end lies outside the build volume.
-    ArcOutOfBounds(Axis),
-    /// G2/G3 whose end point is not on the circle (radius mismatch beyond tolerance) or whose R
-    /// is shorter than half the chord.
-    ArcEndNotOnCircle,
-}
-
-impl MachineError {
-    /// A short, static, human-readable description.
-    pub const fn message(self) -> &'static str {
-        match self {
-            Self::OutOfBounds(_) => "move outside the build volume",
-            Self::StepOverflow(_) => "position too large for the step counter",
-            Self::BadFeed => "feed rate must be positive",
-            Self::OverrideOutOfRange => "override must be 10..999 percent",
-            Self::NegativeTime => "time must not be negative",
-            Self::ArcNoCentre => "arc needs I/J or R",
-            Self::ArcCentreAndRadius => "arc takes either I/J or R, not both",
-            Self::ArcDegenerate => "arc has no extent (zero radius, or R with end = start)",
-            Self::ArcEndNotOnCircle => "arc end point is not on the circle",
-            Self::ArcOutOfBounds(_) => "arc leaves the build volume",
-        }
-    }
-
-    /// The axis concerned, if any.
-    pub const fn axis(self) -> Option<Axis> {
-        match self {
-            Self::OutOfBounds(a) | Self::ArcOutOfBounds(a) | Self::StepOverflow(a) => Some(a),
-            _ => None,
-        }
-    }
-}
-
-impl fmt::Display for MachineError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.message())?;
-        if let Some(a) = self.axis() {
-            write!(f, " ({})", a.letter())?;
-        }
-        Ok(())
-    }
 }
 
 /// The modal state of the G-code interpreter: modes, offsets, feed, overrides and the commanded
@@ -552,77 +488,6 @@ impl MachineState {
             steps,
         })
     }
-}
-
-fn check_override(pct: f32) -> Result<f32, MachineError> {
-    if OVERRIDE_RANGE_PCT.contains(&pct) {
-        Ok(pct)
-    } else {
-        Err(MachineError::OverrideOutOfRange)
-    }
-}
-
-/// G4/M0 time in whole milliseconds (P wins over S, as in Marlin).
-pub fn dwell_ms(ms: Option<f32>, s: Option<f32>) -> Result<u32, MachineError> {
-    let ms = match (ms, s) {
-        (Some(p), _) => f64::from(p),
-        (None, Some(s)) => f64::from(s) * 1000.0,
-        (None, None) => 0.0,
-    };
-    if ms < 0.0 {
-        return Err(MachineError::NegativeTime);
-    }
-    // The parser bounds values to 1e7, so this fits a u32.
-    Ok(libm::round(ms).min(f64::from(u32::MAX)) as u32)
-}
-
-/// X Y Z within the build volume (E has no limits unless the configuration gives some).
-fn check_bounds(pos: &[f64; AXES], cfg: &MachineConfig) -> Result<(), MachineError> {
-    for axis in [Axis::X, Axis::Y, Axis::Z] {
-        check_axis(axis, pos[axis.index()], cfg)?;
-    }
-    Ok(())
-}
-
-fn check_axis(axis: Axis, v: f64, cfg: &MachineConfig) -> Result<(), MachineError> {
-    let a = cfg.axis(axis);
-    if v < f64::from(a.min_mm) - BOUNDS_TOLERANCE_MM
-        || v > f64::from(a.max_mm) + BOUNDS_TOLERANCE_MM
-    {
-        return Err(MachineError::OutOfBounds(axis));
-    }
-    Ok(())
-}
-
-/// Absolute mm → absolute steps, rounding half away from zero.
-pub(crate) fn to_steps(pos: &[f64; AXES], cfg: &MachineConfig) -> Result<StepPos, MachineError> {
-    let mut out = [0i32; AXES];
-    for axis in Axis::ALL {
-        let i = axis.index();
-        out[i] = round_i32(pos[i] * f64::from(cfg.axis(axis).steps_per_mm))
-            .ok_or(MachineError::StepOverflow(axis))?;
-    }
-    Ok(out)
-}
-
-/// Round half away from zero to an `i32`, or `None` outside its range (and for NaN). Exact:
-/// for |x| < 2^31 the truncation and the fraction `x - trunc(x)` are exact in `f64`; the same
-/// result as `libm::round`, without its bit twiddling (property-tested).
-pub(crate) fn round_i32(x: f64) -> Option<i32> {
-    if !(x > f64::from(i32::MIN) - 0.5 && x < f64::from(i32::MAX) + 0.5) {
-        return None;
-    }
-    // In range: the casts cannot saturate.
-    let t = x as i64;
-    let frac = x - t as f64;
-    let r = if frac >= 0.5 {
-        t + 1
-    } else if frac <= -0.5 {
-        t - 1
-    } else {
-        t
-    };
-    i32::try_from(r).ok()
 }
 
 #[cfg(test)]

@@ -88,7 +88,7 @@ impl Printer {
     ) {
         match store.load_job() {
             Ok(Some(j)) => {
-                let mut t: heapless::String<{ super::LINE_LEN }> = heapless::String::new();
+                let mut t = PlaceText::new();
                 let _ = core::fmt::Write::write_fmt(
                     &mut t,
                     format_args!(
@@ -181,11 +181,16 @@ impl Printer {
         }
         match self.paused_job() {
             Some(j) => {
-                self.say(format_args!(
-                    "power-cut resume: keeping job at layer {}, {}",
-                    j.layer,
-                    Where(&j.source)
-                ));
+                let mut t = PlaceText::new();
+                let _ = core::fmt::Write::write_fmt(
+                    &mut t,
+                    format_args!(
+                        "power-cut resume: keeping job at layer {}, {}",
+                        j.layer,
+                        Where(&j.source)
+                    ),
+                );
+                self.link.respond(crate::link::Response::Echo(&t));
                 self.job.request = Some(JobRequest::Save(j));
                 self.job.saved = true;
             }
@@ -208,6 +213,11 @@ impl Printer {
         matches!(self.pause, Pause::Returning { .. }) && self.job.request == Some(JobRequest::Clear)
     }
 }
+
+/// A message that names where a kept job continues: a line's room, an SD path's, and room for
+/// the widest numbers.
+pub(super) type PlaceText =
+    heapless::String<{ super::LINE_LEN + crate::storage::JOB_PATH_CAP + 32 }>;
 
 /// Where a kept job continues, as the messages say it: `host line N` or `SD file NAME byte N`.
 pub(super) struct Where<'a>(pub(super) &'a JobSource);

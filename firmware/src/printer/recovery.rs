@@ -33,7 +33,7 @@
 //! A job move queued while a record is kept and no M1000 is under way starts another job:
 //! the record is discarded then (with an `echo:`), so a stale job is never offered again.
 
-use super::job::Where;
+use super::job::{PlaceText, Where};
 use super::sd::ReopenError;
 use super::state::{Held, Pause};
 use super::{job::JobRequest, steps, Command, Printer, CMD_CAPACITY, LINE_LEN};
@@ -207,7 +207,7 @@ impl Printer {
                                 Some(r)
                             }
                             Ok(()) => {
-                                let mut t: heapless::String<LINE_LEN> = heapless::String::new();
+                                let mut t = PlaceText::new();
                                 let _ = write!(
                                     t,
                                     "power-cut resume: layer {} at Z{:.3}: {} continues",

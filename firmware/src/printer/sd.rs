@@ -17,11 +17,18 @@
 //! record. A host line waiting for room goes first.
 //!
 //! Fixed memory: one [`SD_CHUNK`]-byte read buffer and the line assembler (≈ 700 bytes).
+//!
+//! Here: the card's state, the job's lines and the service loop; `sd/commands.rs`: the
+//! M-codes' replies; `sd/reopen.rs`: finding a power-cut job's file again (M1000).
+
+mod commands;
+mod reopen;
+
+pub(super) use reopen::ReopenError;
 
 use super::{Printer, LINE_LEN};
-use crate::gcode::SdCommand;
-use crate::link::{FileLine, FileLines, HostAction, PortId, Response, LINK_RESERVE};
-use crate::storage::sd::{Card, CardEntry, CardError, LONG_NAME_CAP};
+use crate::link::{FileLine, FileLines, HostAction, PortId, Response};
+use crate::storage::sd::{Card, CardError, LONG_NAME_CAP};
 use core::fmt::Write as _;
 use embedded_sdmmc::BlockDevice;
 use heapless::String;
@@ -30,9 +37,6 @@ use heapless::String;
 pub const SD_CHUNK: usize = 512;
 /// File lines handled per [`Printer::service_card`] call at most (the queue bounds it first).
 pub const SD_LINES_PER_SERVICE: usize = 64;
-/// Free output bytes a port needs before the next M20 entry is written to it (the listing
-/// goes out over several service calls when the ring is full; nothing is dropped).
-const LIST_ROOM: usize = LINK_RESERVE + 2 * LONG_NAME_CAP;
 
 /// The file selected or printing.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -82,29 +86,6 @@ pub(super) enum CardRequest {
     },
     /// M1000 of a job kept from the card: open the kept file and continue it (`recovery.rs`).
     Resume { port: Option<PortId> },
-}
-
-/// Why a kept SD job cannot continue from its offset (M1000).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) enum ReopenError {
-    /// The card or the file could not be had.
-    Card(CardError),
-    /// The file's size is not the kept one, or the offset is not the first byte of a line:
-    /// not the file that was printing.
-    Changed { size: u32 },
-}
-
-impl core::fmt::Display for ReopenError {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        match self {
-            ReopenError::Card(CardError::NoCard) => f.write_str("No media"),
-            ReopenError::Card(e) => write!(f, "open failed ({e})"),
-            ReopenError::Changed { size } => write!(
-                f,
-                "the file changed (now {size} bytes, or the kept offset is not a line start)"
-            ),
-        }
-    }
 }
 
 /// The executive's side of the card. See the module documentation.
@@ -234,84 +215,6 @@ impl Printer {
         });
     }
 
-    /// A driver services a card slot.
-    pub(super) fn card_attached(&self) -> bool {
-        self.sd.attached
-    }
-
-    /// M1000 asks for the card (its `ok` waits for the answer; see `recovery.rs`).
-    pub(super) fn request_card_resume(&mut self) {
-        let port = self.asking_port();
-        self.sd.request = Some(CardRequest::Resume { port });
-    }
-
-    /// Select `name` to start at `offset` (a kept job's file, M1000): mounted when not yet
-    /// (power-up), the file checked to be of `size` bytes and the offset to be the first byte
-    /// of a line in it (byte 0, or the byte before it a line end), so a file replaced since the
-    /// power cut is not fed from the middle of a line. `File opened` / `File selected` go to
-    /// `port` as for M23.
-    pub(super) fn sd_select_at<D: BlockDevice>(
-        &mut self,
-        card: &mut Card<D>,
-        port: Option<PortId>,
-        name: &str,
-        offset: u32,
-        size: u32,
-    ) -> Result<(), ReopenError>
-    where
-        D::Error: core::fmt::Debug,
-    {
-        self.sd.job = SdJob::None;
-        if !self.sd.mounted {
-            // Power-up, or a card inserted or released (M22) since: mount it now.
-            self.sd.mounted = card.mount().is_ok();
-            if self.sd.mounted {
-                self.sd.released = false;
-            }
-        }
-        if !self.sd.mounted {
-            return Err(ReopenError::Card(CardError::NoCard));
-        }
-        let e = card.open(name).map_err(ReopenError::Card)?;
-        let line_start = match offset.checked_sub(1) {
-            _ if e.size != size => false,
-            None => true,
-            Some(before) if offset <= e.size => {
-                let mut b = [0u8; 1];
-                let n = card.read_at(before, &mut b).map_err(ReopenError::Card)?;
-                n == 1 && FileLines::is_line_end(b[0])
-            }
-            Some(_) => false,
-        };
-        if !line_start {
-            card.close();
-            return Err(ReopenError::Changed { size: e.size });
-        }
-        let mut t: String<LINE_LEN> = String::new();
-        let _ = write!(t, "File opened: {} Size: {}", e.short, e.size);
-        self.answer_to(port, Response::Plain(&t));
-        self.answer_to(port, Response::Plain("File selected"));
-        self.sd.job = SdJob::Selected {
-            file: SdFile {
-                name: short_text(&e.short),
-                size: e.size,
-            },
-            start_at: offset,
-        };
-        Ok(())
-    }
-
-    /// Forget the selected file (M1000 refused after [`Printer::sd_select_at`]).
-    pub(super) fn sd_unselect<D: BlockDevice>(&mut self, card: &mut Card<D>)
-    where
-        D::Error: core::fmt::Debug,
-    {
-        if !self.sd_printing() {
-            self.sd.job = SdJob::None;
-            card.close();
-        }
-    }
-
     /// See [`SdLink::cancelled`].
     pub(super) fn sd_cancelled(&self) -> bool {
         self.sd.cancelled
@@ -330,84 +233,6 @@ impl Printer {
         } else {
             Some(self.link.reply_port())
         }
-    }
-
-    /// SD commands. Returns true when the `ok` is owed (sent once the card has answered).
-    pub(super) fn sd_command(&mut self, c: &SdCommand) -> bool {
-        let port = self.asking_port();
-        let needs_card = !matches!(
-            c,
-            SdCommand::Seek(_) | SdCommand::AutoReport(_) | SdCommand::CurrentFile
-        );
-        if needs_card && !self.sd.attached {
-            self.link.respond(Response::Echo("No media"));
-            return false;
-        }
-        match c {
-            SdCommand::Init => self.sd.request = Some(CardRequest::Mount { port }),
-            SdCommand::Release => self.sd.request = Some(CardRequest::Release { port }),
-            SdCommand::List { long } => {
-                self.sd.request = Some(CardRequest::List {
-                    port,
-                    long: *long,
-                    next: 0,
-                })
-            }
-            SdCommand::Select(name) | SdCommand::SelectAndStart(name) => {
-                if self.sd_printing() {
-                    self.warn(format_args!("SD printing: cancel it first (M524)"));
-                    return false;
-                }
-                self.sd.request = Some(CardRequest::Open {
-                    port,
-                    name: short_text(name),
-                    start: matches!(c, SdCommand::SelectAndStart(_)),
-                    offset: 0,
-                });
-            }
-            SdCommand::Seek(s) => {
-                match &mut self.sd.job {
-                    SdJob::Selected { file, start_at } if *s <= file.size => *start_at = *s,
-                    SdJob::Selected { .. } => self.warn(format_args!("M26: beyond the file's end")),
-                    SdJob::Printing { .. } => self.warn(format_args!("M26: not while SD printing")),
-                    SdJob::None => {
-                        self.link.respond(Response::Echo("No file selected"));
-                    }
-                }
-                return false;
-            }
-            SdCommand::AutoReport(s) => {
-                self.sd.auto_report_us = u64::from(*s) * 1_000_000;
-                self.sd.next_report_us = self.now_us.saturating_add(self.sd.auto_report_us);
-                return false;
-            }
-            SdCommand::CurrentFile => {
-                let mut t: String<LINE_LEN> = String::new();
-                match self.sd_file_path() {
-                    Some(n) => {
-                        let _ = write!(t, "Current file: {n}");
-                    }
-                    None => {
-                        let _ = t.push_str("Current file: (no file)");
-                    }
-                }
-                self.link.respond(Response::Echo(&t));
-                return false;
-            }
-        }
-        true
-    }
-
-    /// M27: `SD printing byte a/b`, or false when no card job runs (the caller then says
-    /// `Not SD printing`).
-    pub(super) fn sd_status(&mut self) -> bool {
-        let Some((a, b)) = self.sd_progress() else {
-            return false;
-        };
-        let mut t: String<LINE_LEN> = String::new();
-        let _ = write!(t, "SD printing byte {a}/{b}");
-        self.link.respond(Response::Plain(&t));
-        true
     }
 
     /// M24 (hook in `request`): starts the selected file when no pause is to be resumed.
@@ -429,7 +254,7 @@ impl Printer {
         self.sd.next_report_us = self.now_us.saturating_add(self.sd.auto_report_us);
         self.lines.after_cancel = None;
         self.sd.cancelled = false;
-        let mut t: String<LINE_LEN> = String::new();
+        let mut t: String<{ LINE_LEN + LONG_NAME_CAP }> = String::new();
         let _ = write!(t, "SD printing {} from byte {at}", file.name);
         self.link
             .notify(Response::Action(HostAction::Notification, &t));
@@ -530,127 +355,6 @@ impl Printer {
             } => self.card_open(card, port, &name, start, offset),
             CardRequest::Resume { port } => self.resume_sd_job(card, port),
         }
-    }
-
-    /// M20: `Begin file list`, `NAME SIZE` (M20 L: `NAME SIZE LONGNAME`) per file, `End file
-    /// list`, `ok` (Marlin's `CardReader::ls`). Written a few entries per call while the
-    /// port's output ring has room, so a long list is never cut.
-    fn card_list<D: BlockDevice>(
-        &mut self,
-        card: &mut Card<D>,
-        port: Option<PortId>,
-        long: bool,
-        next: usize,
-    ) where
-        D::Error: core::fmt::Debug,
-    {
-        if !self.sd.mounted {
-            self.answer_to(port, Response::Echo("No media"));
-            self.answer_to(port, Response::Ok);
-            return;
-        }
-        // A list for every port (M20 in a file) does not wait for room: a port nobody reads
-        // must not stall the card; what does not fit is dropped there (and counted).
-        let room = |p: &Self| port.map_or(usize::MAX / 2, |q| p.link.output_free_on(q));
-        if next == 0 {
-            if room(self) < LIST_ROOM {
-                self.sd.request = Some(CardRequest::List { port, long, next });
-                return;
-            }
-            self.answer_to(port, Response::Plain("Begin file list"));
-        }
-        // Entries `next..next+batch` go out now (each line at most ≈ 130 bytes).
-        let batch = (room(self).saturating_sub(LINK_RESERVE) / (LONG_NAME_CAP + 32)).min(8);
-        let mut written = 0;
-        let result = card.for_each_file(|i, e: &CardEntry| {
-            if i >= next && written < batch {
-                let mut t: String<{ LONG_NAME_CAP + 32 }> = String::new();
-                let _ = write!(t, "{} {}", e.short, e.size);
-                if let (true, Some(l)) = (long, &e.long) {
-                    let _ = write!(t, " {l}");
-                }
-                self.answer_to(port, Response::Plain(&t));
-                written += 1;
-            }
-        });
-        match result {
-            Ok(total) if next + written < total => {
-                self.sd.request = Some(CardRequest::List {
-                    port,
-                    long,
-                    next: next + written,
-                });
-            }
-            Ok(_) => {
-                self.answer_to(port, Response::Plain("End file list"));
-                self.answer_to(port, Response::Ok);
-            }
-            Err(e) => {
-                let mut t: String<LINE_LEN> = String::new();
-                let _ = write!(t, "SD read error ({e})");
-                self.answer_to(port, Response::Echo(&t));
-                self.answer_to(port, Response::Plain("End file list"));
-                self.answer_to(port, Response::Ok);
-            }
-        }
-    }
-
-    /// M23/M32: `File opened: NAME Size: N` and `File selected`, or `open failed, File:
-    /// NAME.` (Marlin's `CardReader::openFileRead`).
-    fn card_open<D: BlockDevice>(
-        &mut self,
-        card: &mut Card<D>,
-        port: Option<PortId>,
-        name: &str,
-        start: bool,
-        offset: u32,
-    ) where
-        D::Error: core::fmt::Debug,
-    {
-        if self.sd_printing() {
-            self.answer_to(
-                port,
-                Response::Echo("refused: SD printing: cancel it first (M524)"),
-            );
-            self.answer_to(port, Response::Ok);
-            return;
-        }
-        self.sd.job = SdJob::None;
-        if !self.sd.mounted && !self.sd.released {
-            // Not mounted yet (a power-cut resume right after power-up, a card inserted
-            // since): try once.
-            self.sd.mounted = card.mount().is_ok();
-        }
-        let opened = if self.sd.mounted {
-            card.open(name)
-        } else {
-            Err(CardError::NoCard)
-        };
-        match opened {
-            Ok(e) => {
-                let mut t: String<LINE_LEN> = String::new();
-                let _ = write!(t, "File opened: {} Size: {}", e.short, e.size);
-                self.answer_to(port, Response::Plain(&t));
-                self.answer_to(port, Response::Plain("File selected"));
-                self.sd.job = SdJob::Selected {
-                    file: SdFile {
-                        name: short_text(&e.short),
-                        size: e.size,
-                    },
-                    start_at: offset.min(e.size),
-                };
-                if start {
-                    self.sd_start_on_resume();
-                }
-            }
-            Err(CardError::NoCard) => self.answer_to(port, Response::Echo("No media")),
-            Err(_) => {
-                let mut t: String<LINE_LEN> = String::new();
-                let _ = write!(t, "open failed, File: {name}.");
-                self.answer_to(port, Response::Plain(&t));
-            }
-        }
-        self.answer_to(port, Response::Ok);
     }
 
     /// The card's job is forgotten (M21 again, M22): lines already queued still run.

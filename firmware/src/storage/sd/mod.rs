@@ -4,31 +4,48 @@
 //! (`board/sd.rs`), a file-backed image in the simulator (`sim/src/sd.rs`), an image made by
 //! the test in the tests.
 //!
-//! [`Card`] lists the files of the card's root directory (with their long names when the card
-//! has them), opens one by its short (8.3) or long name, and reads it at any byte offset. The
+//! [`Card`] lists the files of the card, in its root directory and in sub-directories down to
+//! [`CARD_MAX_DEPTH`] levels (with their long names when the card has them), opens one by its
+//! path (`DIR/SUB/FILE.GCO`, each component by its short (8.3) or long name, ASCII case
+//! ignored), and reads it at any byte offset. The
 //! executive (`printer/sd.rs`) turns the bytes into lines with the host link's own line
 //! assembler ([`crate::link::FileLines`]), so a job from the card is read by the same rules as
 //! a streamed one, with its comments (and so its layer markers) always present.
 //!
-//! Fixed capacities: one volume (the first MBR partition), one open directory (the root), one
-//! open file ([`CARD_VOLUMES`], [`CARD_DIRS`], [`CARD_FILES`]); long names up to
-//! [`LONG_NAME_CAP`] bytes of UTF-8 (longer ones are shown by their short name, as the crate
-//! does). The crate keeps one 512-byte block cache; this type adds no buffer of its own.
+//! Paths are given and reported as Marlin's M20 lists them (`printListing` in Marlin's
+//! `sd/cardreader.cpp`): the short names joined by `/`, no leading `/` (`DIR/SUB/FILE.GCO`;
+//! a leading `/` is accepted when opening), and for M20 L the long path the same way, each
+//! component by its long name (or its short one when it has none).
 //!
-//! Limits: files in sub-directories are not listed or opened (root only); the card is read,
-//! never written (no M28/M928 logging). The crate needs an MBR-partitioned card (every card
-//! sold is; a "superfloppy" without a partition table is refused with a format error).
+//! Fixed capacities: one volume (the first MBR partition), the root directory and one
+//! directory per level below it open at once, one open file ([`CARD_VOLUMES`], [`CARD_DIRS`],
+//! [`CARD_FILES`]); [`CARD_MAX_DEPTH`] directory levels below the root (deeper directories
+//! are not listed, and a deeper path is refused), which keeps every short path within
+//! [`CARD_PATH_CAP`] bytes (the power-cut record's path); long names up to
+//! [`LONG_NAME_CAP`] bytes of UTF-8 (longer ones are shown by their short name, as the crate
+//! does), long paths up to [`LONG_PATH_CAP`] bytes (a longer one is listed by its short path).
+//! No list of names is kept: a directory is read again for each of its sub-directories
+//! (a listing reads each directory `1 + sub-directories` times). The crate keeps one 512-byte
+//! block cache; this type adds no buffer of its own.
+//!
+//! Limits: the card is read, never written (no M28/M928 logging). The crate needs an
+//! MBR-partitioned card (every card sold is; a "superfloppy" without a partition table is
+//! refused with a format error).
 
 use embedded_sdmmc::{
-    BlockDevice, Error, LfnBuffer, Mode, RawDirectory, RawFile, RawVolume, ShortFileName,
+    BlockDevice, DirEntry, Error, LfnBuffer, Mode, RawDirectory, RawFile, RawVolume, ShortFileName,
     TimeSource, Timestamp, VolumeIdx, VolumeManager,
 };
 use heapless::String;
 
 /// Volumes open at once (the first partition).
 pub const CARD_VOLUMES: usize = 1;
-/// Directories open at once (the root).
-pub const CARD_DIRS: usize = 1;
+/// Directory levels below the root that are listed and opened (Marlin's SdFat branch allows
+/// 10, `MAX_DIR_DEPTH` in `sd/cardreader.h`; 6 here keeps every short path within
+/// [`CARD_PATH_CAP`], the power-cut record's path).
+pub const CARD_MAX_DEPTH: usize = 6;
+/// Directories open at once (the root and one per level below it).
+pub const CARD_DIRS: usize = 1 + CARD_MAX_DEPTH;
 /// Files open at once (the selected job).
 pub const CARD_FILES: usize = 1;
 /// Longest long file name kept, bytes of UTF-8 (the power-cut record keeps as many:
@@ -36,6 +53,11 @@ pub const CARD_FILES: usize = 1;
 pub const LONG_NAME_CAP: usize = crate::storage::JOB_PATH_CAP;
 /// A short (8.3) name as text: `NAME.EXT`.
 pub const SHORT_NAME_CAP: usize = 12;
+/// Longest short path, `DIR/SUB/FILE.GCO` (bytes): the power-cut record's path capacity.
+pub const CARD_PATH_CAP: usize = crate::storage::JOB_PATH_CAP;
+const _: () = assert!(CARD_MAX_DEPTH * (SHORT_NAME_CAP + 1) + SHORT_NAME_CAP <= CARD_PATH_CAP);
+/// Longest long path M20 L lists (bytes of UTF-8).
+pub const LONG_PATH_CAP: usize = 2 * LONG_NAME_CAP;
 
 /// Why a card operation failed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -48,6 +70,8 @@ pub enum CardError {
     NotFound,
     /// The name cannot be a file name (empty, a directory, too long).
     BadName,
+    /// The path goes more than [`CARD_MAX_DEPTH`] directories down.
+    TooDeep,
     /// A block could not be read.
     Read,
 }
@@ -59,6 +83,7 @@ impl core::fmt::Display for CardError {
             CardError::Format => "no FAT volume",
             CardError::NotFound => "not found",
             CardError::BadName => "bad file name",
+            CardError::TooDeep => "path too deep",
             CardError::Read => "read error",
         })
     }
@@ -78,26 +103,132 @@ fn card_error<E: core::fmt::Debug>(e: Error<E>) -> CardError {
     }
 }
 
-/// A file of the card's root directory.
+/// A file of the card.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct CardEntry {
-    /// The short (8.3) name, `NAME.EXT` (what Marlin's M20 lists and M23 takes).
-    pub short: String<SHORT_NAME_CAP>,
-    /// The long name, if the card has one that fits [`LONG_NAME_CAP`].
-    pub long: Option<String<LONG_NAME_CAP>>,
+    /// The short path, `DIR/SUB/FILE.GCO` (`FILE.GCO` in the root): what Marlin's M20 lists
+    /// and M23 takes.
+    pub short: String<CARD_PATH_CAP>,
+    /// The long path (each component by its long name, or its short one), if the file or a
+    /// directory above it has a long name and the path fits [`LONG_PATH_CAP`].
+    pub long: Option<String<LONG_PATH_CAP>>,
     /// Size, bytes.
     pub size: u32,
 }
 
-impl CardEntry {
-    /// Whether `name` names this entry: its short or long name, ASCII case ignored (FAT
-    /// names are case-insensitive).
-    pub fn is_named(&self, name: &str) -> bool {
+/// One directory entry as this code sees it: a file or a sub-directory, visible.
+struct Named {
+    sfn: ShortFileName,
+    short: String<SHORT_NAME_CAP>,
+    long: Option<String<LONG_NAME_CAP>>,
+    dir: bool,
+    size: u32,
+}
+
+impl Named {
+    /// A visible file or sub-directory (not hidden, system, the volume label, `.` or `..`).
+    fn of(e: &DirEntry, long: Option<&str>) -> Option<Named> {
+        let a = e.attributes;
+        if a.is_volume() || a.is_hidden() || a.is_system() {
+            return None;
+        }
+        // `NAME.EXT` from the 8.3 bytes (bytes beyond ASCII, an OEM code page, shown as `?`).
+        let (base, ext) = (e.name.base_name(), e.name.extension());
+        if base.first() == Some(&b'.') {
+            return None;
+        }
+        let mut short: String<SHORT_NAME_CAP> = String::new();
+        let dot: &[u8] = if ext.is_empty() { b"" } else { b"." };
+        for &b in base.iter().chain(dot).chain(ext) {
+            let _ = short.push(if b.is_ascii() { char::from(b) } else { '?' });
+        }
+        let long = long.and_then(|l| String::try_from(l).ok());
+        Some(Named {
+            sfn: e.name.clone(),
+            short,
+            long,
+            dir: a.is_directory(),
+            size: e.size,
+        })
+    }
+
+    /// Whether `name` names this entry: its short or long name, ASCII case ignored (FAT names
+    /// are case-insensitive).
+    fn is(&self, name: &str) -> bool {
         self.short.eq_ignore_ascii_case(name)
             || self
                 .long
                 .as_ref()
                 .is_some_and(|l| l.eq_ignore_ascii_case(name))
+    }
+}
+
+/// `path` cut at its first `/`: the first component and the rest, if there is a `/` (a byte
+/// search: `str::split`'s pattern machinery costs flash).
+fn first_component(path: &str) -> (&str, Option<&str>) {
+    match path.bytes().position(|b| b == b'/') {
+        Some(i) => (path.get(..i).unwrap_or(""), path.get(i + 1..)),
+        None => (path, None),
+    }
+}
+
+/// `prefix/name` (or `name` for an empty prefix), if it fits.
+fn joined<const N: usize>(prefix: &str, name: &str) -> Option<String<N>> {
+    let mut s = String::new();
+    if !prefix.is_empty() {
+        s.push_str(prefix).ok()?;
+        s.push_str("/").ok()?;
+    }
+    s.push_str(name).ok()?;
+    Some(s)
+}
+
+/// The path of a directory being walked: short, and long while it fits.
+struct DirPath {
+    short: String<CARD_PATH_CAP>,
+    /// None once it no longer fits [`LONG_PATH_CAP`].
+    long: Option<String<LONG_PATH_CAP>>,
+    /// A component so far has a long name.
+    any_long: bool,
+}
+
+impl DirPath {
+    const ROOT: DirPath = DirPath {
+        short: String::new(),
+        long: Some(String::new()),
+        any_long: false,
+    };
+
+    fn child_path(
+        &self,
+        c: &Named,
+    ) -> Option<(String<CARD_PATH_CAP>, Option<String<LONG_PATH_CAP>>)> {
+        let short = joined(&self.short, &c.short)?;
+        let long = self
+            .long
+            .as_ref()
+            .and_then(|l| joined(l, c.long.as_deref().unwrap_or(&c.short)));
+        Some((short, long))
+    }
+
+    /// The path of sub-directory `c` (None: it does not fit [`CARD_PATH_CAP`]).
+    fn child(&self, c: &Named) -> Option<DirPath> {
+        let (short, long) = self.child_path(c)?;
+        Some(DirPath {
+            short,
+            long,
+            any_long: self.any_long || c.long.is_some(),
+        })
+    }
+
+    /// The entry of file `c` in this directory.
+    fn entry(&self, c: &Named) -> Option<CardEntry> {
+        let (short, long) = self.child_path(c)?;
+        Some(CardEntry {
+            short,
+            long: long.filter(|_| self.any_long || c.long.is_some()),
+            size: c.size,
+        })
     }
 }
 
@@ -127,30 +258,6 @@ where
     vm: VolumeManager<D, NoClock, CARD_DIRS, CARD_FILES, CARD_VOLUMES>,
     mounted: Option<(RawVolume, RawDirectory)>,
     file: Option<RawFile>,
-}
-
-fn entry_of(e: &embedded_sdmmc::DirEntry, long: Option<&str>) -> Option<CardEntry> {
-    let a = e.attributes;
-    if a.is_directory() || a.is_volume() || a.is_hidden() || a.is_system() {
-        return None;
-    }
-    let mut short = String::new();
-    let _ = core::fmt::write(&mut short, format_args!("{}", e.name));
-    let long = long.and_then(|l| {
-        let mut s = String::new();
-        s.push_str(l).ok()?;
-        Some(s)
-    });
-    Some(CardEntry {
-        short,
-        long,
-        size: e.size,
-    })
-}
-
-/// The name without the leading `/` hosts write (`M23 /FILE.GCO`).
-fn strip_root(name: &str) -> &str {
-    name.trim_start_matches('/')
 }
 
 impl<D: BlockDevice> Card<D>
@@ -204,65 +311,159 @@ where
         self.mounted.map(|(_, r)| r).ok_or(CardError::NoCard)
     }
 
-    /// Every entry of the root directory with its long name, through one `dyn` callback: the
-    /// FAT code's directory walk is compiled once for listing and finding (flash is tight).
+    /// Every entry of `dir` with its long name, through one `dyn` callback: the FAT code's
+    /// directory walk is compiled once for listing and finding (flash is tight).
     fn scan(
         &mut self,
-        f: &mut dyn FnMut(&embedded_sdmmc::DirEntry, Option<&str>),
+        dir: RawDirectory,
+        f: &mut dyn FnMut(&DirEntry, Option<&str>),
     ) -> Result<(), CardError> {
-        let root = self.root()?;
         let mut storage = [0u8; LONG_NAME_CAP];
         let mut lfn = LfnBuffer::new(&mut storage);
         self.vm
-            .iterate_dir_lfn(root, &mut lfn, |e, long| f(e, long))
+            .iterate_dir_lfn(dir, &mut lfn, |e, long| f(e, long))
             .map_err(card_error)
     }
 
-    /// Call `f` with every file of the root directory, in directory order (index from 0).
-    /// Returns how many there are.
+    /// The first visible entry of `dir` for which `pick` holds.
+    fn pick(
+        &mut self,
+        dir: RawDirectory,
+        pick: &mut dyn FnMut(&Named) -> bool,
+    ) -> Result<Option<Named>, CardError> {
+        let mut found = None;
+        self.scan(dir, &mut |e, long| {
+            if found.is_none() {
+                found = Named::of(e, long).filter(|c| pick(c));
+            }
+        })?;
+        Ok(found)
+    }
+
+    /// Call `f` with every file of `dir` (at `path`, `depth` levels below the root), then walk
+    /// its sub-directories, in directory order. `n` counts the files.
+    fn walk(
+        &mut self,
+        dir: RawDirectory,
+        path: &DirPath,
+        depth: usize,
+        n: &mut usize,
+        f: &mut dyn FnMut(usize, &CardEntry),
+    ) -> Result<(), CardError> {
+        let mut subdirs = 0usize;
+        self.scan(dir, &mut |e, long| match Named::of(e, long) {
+            Some(c) if c.dir => subdirs += 1,
+            Some(c) => {
+                if let Some(entry) = path.entry(&c) {
+                    f(*n, &entry);
+                    *n += 1;
+                }
+            }
+            None => {}
+        })?;
+        if depth == CARD_MAX_DEPTH {
+            return Ok(());
+        }
+        for i in 0..subdirs {
+            // The i-th sub-directory: the directory is read again (no names are kept).
+            let mut k = 0;
+            let found = self.pick(dir, &mut |c| {
+                k += usize::from(c.dir);
+                c.dir && k == i + 1
+            })?;
+            let Some((c, sub)) =
+                found.and_then(|c| Some((path.child(&c)?, c)).map(|(p, c)| (c, p)))
+            else {
+                continue;
+            };
+            let child = self.vm.open_dir(dir, &c.sfn).map_err(card_error)?;
+            let walked = self.walk(child, &sub, depth + 1, n, f);
+            let _ = self.vm.close_dir(child);
+            walked?;
+        }
+        Ok(())
+    }
+
+    /// Call `f` with every file of the card (the root's, then each sub-directory's, in
+    /// directory order, down to [`CARD_MAX_DEPTH`] levels; index from 0). Returns how many
+    /// there are.
     pub fn for_each_file(
         &mut self,
         mut f: impl FnMut(usize, &CardEntry),
     ) -> Result<usize, CardError> {
+        let root = self.root()?;
         let mut n = 0;
-        self.scan(&mut |e, long| {
-            if let Some(entry) = entry_of(e, long) {
-                f(n, &entry);
-                n += 1;
-            }
-        })?;
+        self.walk(root, &DirPath::ROOT, 0, &mut n, &mut f)?;
         Ok(n)
     }
 
-    /// The root directory's file named `name` (short or long name, see
-    /// [`CardEntry::is_named`]; a leading `/` is ignored).
-    pub fn find(&mut self, name: &str) -> Result<(CardEntry, ShortFileName), CardError> {
-        let name = strip_root(name);
-        if name.is_empty() || name.contains('/') {
-            return Err(CardError::BadName);
-        }
-        let mut found = None;
-        self.scan(&mut |e, long| {
-            if found.is_none() {
-                if let Some(entry) = entry_of(e, long).filter(|c| c.is_named(name)) {
-                    found = Some((entry, e.name.clone()));
-                }
-            }
-        })?;
-        found.ok_or(CardError::NotFound)
-    }
-
-    /// Open the file `name` for reading (closing the one open before); returns its entry.
-    pub fn open(&mut self, name: &str) -> Result<CardEntry, CardError> {
+    /// Open the file at `path` for reading (closing the one open before); returns its entry.
+    /// Each `/`-separated component is a short or long name, ASCII case ignored; a leading
+    /// `/` is ignored (`M23 /DIR/FILE.GCO`).
+    pub fn open(&mut self, path: &str) -> Result<CardEntry, CardError> {
         self.close();
-        let (entry, sfn) = self.find(name)?;
         let root = self.root()?;
-        let file = self
-            .vm
-            .open_file_in_dir(root, &sfn, Mode::ReadOnly)
-            .map_err(card_error)?;
+        let path = path.trim_start_matches('/');
+        let mut parts = 0;
+        let mut rest = Some(path);
+        while let Some((name, next)) = rest.map(first_component) {
+            if name.is_empty() || name == "." || name == ".." {
+                return Err(CardError::BadName);
+            }
+            parts += 1;
+            rest = next;
+        }
+        if parts > CARD_MAX_DEPTH + 1 {
+            return Err(CardError::TooDeep);
+        }
+        let mut dir = root;
+        let mut at = DirPath::ROOT;
+        let opened = self.open_below(&mut dir, &mut at, path);
+        if dir != root {
+            let _ = self.vm.close_dir(dir);
+        }
+        let (entry, file) = opened?;
         self.file = Some(file);
         Ok(entry)
+    }
+
+    /// [`Card::open`] from `dir` down (`dir` is the last directory opened: the caller closes
+    /// it).
+    fn open_below(
+        &mut self,
+        dir: &mut RawDirectory,
+        at: &mut DirPath,
+        path: &str,
+    ) -> Result<(CardEntry, RawFile), CardError> {
+        let mut rest = Some(path);
+        while let Some((name, next)) = rest.map(first_component) {
+            rest = next;
+            let last = rest.is_none();
+            let c = self
+                .pick(*dir, &mut |c| c.is(name))?
+                .ok_or(CardError::NotFound)?;
+            match (last, c.dir) {
+                (true, false) => {
+                    let entry = at.entry(&c).ok_or(CardError::BadName)?;
+                    let file = self
+                        .vm
+                        .open_file_in_dir(*dir, &c.sfn, Mode::ReadOnly)
+                        .map_err(card_error)?;
+                    return Ok((entry, file));
+                }
+                (true, true) => return Err(CardError::BadName),
+                (false, false) => return Err(CardError::NotFound),
+                (false, true) => {
+                    *at = at.child(&c).ok_or(CardError::BadName)?;
+                    let child = self.vm.open_dir(*dir, &c.sfn).map_err(card_error)?;
+                    if Some(*dir) != self.mounted.map(|(_, r)| r) {
+                        let _ = self.vm.close_dir(*dir);
+                    }
+                    *dir = child;
+                }
+            }
+        }
+        Err(CardError::BadName)
     }
 
     /// Whether a file is open.

@@ -1,21 +1,31 @@
-//! The checks' spatial index: printed points in a uniform grid of cubic cells (the support
-//! radius wide), indexed directly over the design's bounding box when that has
-//! at most 4 M cells, hashed by cell coordinates otherwise (and outside the box), plus the
-//! highest point of every XY column.
+//! The checks' spatial index: every sample point the design will print, known before the
+//! checks start, sorted once into XY columns (a counting sort by column, then by height
+//! inside each column: one flat array, CSR layout), of which only the first `printed` (in
+//! print order) count as printed material. Printing a string is then just moving that
+//! count on, with no allocation.
 //!
-//! - [`Grid::nearest_below`] (support): the cells around the point (3×3 columns, the heights
-//!   below it), its own column first and from the top down, skipping cells farther than the
-//!   best point so far;
+//! - [`Grid::nearest_below`] (support and widening at a string's end) and
+//!   [`Grid::any_below`] (support along a string): started from the points printed right
+//!   after the previous answer (consecutive queries follow the material below them, so the
+//!   previous answer's successor is usually the answer or close to it), then the query's own
+//!   column, then the columns within the best distance so far; in each column a binary search
+//!   finds the highest point allowed and the scan goes down, stopping as soon as the height
+//!   difference alone is farther than the best point.
 //! - [`Grid::any_at_or_above`] (travel): the columns under a small XY box, skipped in O(1)
-//!   when their highest point is lower than asked, else only the cells from that height up.
+//!   when their highest printed point is lower than asked, else only the points between the
+//!   asked height and that top.
 //!
-//! Replaces an R*-tree (`rstar`), whose incremental inserts cost ~10× the whole compile.
+//! The answers are exactly those of a scan over the printed points (the property tests
+//! in `checks::scan` compare them): the nearest point, ties to the earliest printed.
+//! Replaces a grid of cubic cells with one growable list per cell (and, before it, an
+//! R*-tree), which cost 2.1× (and ~10×) the compile on the globe.
 
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
+use std::ops::Range;
 
 /// A multiplicative hash for small integer keys (the std SipHash is several times slower and
-/// guards against adversarial keys, which cell coordinates are not).
+/// guards against adversarial keys, which column coordinates are not).
 #[derive(Default)]
 pub struct CellHasher(u64);
 
@@ -41,256 +51,416 @@ impl Hasher for CellHasher {
 
 type Map<K, V> = HashMap<K, V, BuildHasherDefault<CellHasher>>;
 
-/// Printed points in cubic cells of `cell` mm.
-pub struct Grid {
-    cell: f64,
-    /// Cell height: `cell / Z_SPLIT`.
-    cell_z: f64,
-    /// Cells inside the design's bounding box, indexed directly (no hashing) when that box
-    /// is small enough; `None` for huge designs.
-    dense: Option<Dense>,
-    /// Cells outside `dense` (all of them without it).
-    cells: Map<[i32; 3], Vec<[f64; 3]>>,
-    /// Highest point per XY column outside `dense`.
-    columns: Map<[i32; 2], f64>,
+/// Most columns indexed directly (16 MB of ids, zeroed lazily by the allocator); beyond
+/// that (designs spread over kilometres) the columns are hashed.
+const MAX_DENSE_COLUMNS: i64 = 1 << 22;
+
+/// How a column's cell coordinates map to its id (0..count).
+enum ColumnIds {
+    /// `ids[(iy - lo.1) * nx + (ix - lo.0)]` holds 1 + the id (0: no points).
+    Dense {
+        lo: [i32; 2],
+        nx: i32,
+        ny: i32,
+        ids: Vec<u32>,
+    },
+    /// Sparse designs.
+    Hashed(Map<[i32; 2], u32>),
 }
 
-/// A directly indexed block of cells: `slot` maps a cell to 1 + its index in `store` (0 =
-/// empty; zeroed memory is an empty grid), `tops` holds each column's highest point.
-struct Dense {
-    lo: [i32; 3],
-    n: [i32; 3],
-    slot: Vec<u32>,
-    store: Vec<Vec<[f64; 3]>>,
-    tops: Vec<f64>,
-}
-
-/// Cells per `cell` of height (1: cubic cells; 2 and 4 measured no faster on the globe).
-const Z_SPLIT: f64 = 1.0;
-
-/// Most cells of a dense block (16 MB of slots, zeroed lazily by the allocator).
-const MAX_DENSE_CELLS: i64 = 1 << 22;
-
-impl Dense {
-    #[inline]
-    fn cell_index(&self, k: [i32; 3]) -> Option<usize> {
-        let mut idx = 0i64;
-        for a in (0..3).rev() {
-            let d = i64::from(k[a]) - i64::from(self.lo[a]);
-            if d < 0 || d >= i64::from(self.n[a]) {
-                return None;
+impl ColumnIds {
+    #[inline(always)]
+    fn get(&self, ix: i32, iy: i32) -> Option<usize> {
+        match self {
+            ColumnIds::Dense { lo, nx, ny, ids } => {
+                let (dx, dy) = (ix.wrapping_sub(lo[0]), iy.wrapping_sub(lo[1]));
+                // Negative differences wrap to huge unsigned values: one comparison per axis.
+                if (dx as u32) >= (*nx as u32) || (dy as u32) >= (*ny as u32) {
+                    return None;
+                }
+                let id = ids[dy as usize * *nx as usize + dx as usize];
+                id.checked_sub(1).map(|v| v as usize)
             }
-            idx = idx * i64::from(self.n[a]) + d;
+            ColumnIds::Hashed(m) => m.get(&[ix, iy]).map(|v| *v as usize),
         }
-        Some(idx as usize)
     }
+}
 
+/// The printed-so-far view of a design's sample points, in XY columns of `cell_mm`.
+pub struct Grid {
+    cell_mm: f64,
+    /// `1 / cell_mm`: a column index is `floor(v * inv_cell)` (a product, not a division,
+    /// the same at build and query time).
+    inv_cell: f64,
+    /// Every point in print order (the queries' warm start reads its neighbours here).
+    points: Vec<[f64; 3]>,
+    /// How many of `points` are printed.
+    printed: usize,
+    /// Print index of the last point a query found (its successor starts the next query).
+    hint: usize,
+    ids: ColumnIds,
+    /// Column cell coordinates covered by some point: query boxes are clipped to them.
+    extent: [[i32; 2]; 2],
+    /// Per column id: its entries and search state (one cache line for a query's lookups).
+    cols: Vec<Column>,
+    /// Column id of each point in print order (`u32::MAX`: not indexed, NaN).
+    column_of: Vec<u32>,
+    /// The points column by column, by height (ascending) within each.
+    entries: Vec<Entry>,
+}
+
+/// A point in its column (32 bytes: two per cache line, all a scan reads of one point).
+#[derive(Clone, Copy)]
+struct Entry {
+    x_mm: f64,
+    y_mm: f64,
+    z_mm: f64,
+    /// Print index: only `seq < printed` is printed material.
+    seq: u32,
+}
+
+/// One XY column: entries `start..end` of the arrays in [`Grid`].
+#[derive(Clone, Copy)]
+struct Column {
+    start: u32,
+    end: u32,
+    /// Where the last support query's height split the column (queries climb slowly: the
+    /// next split is usually at or next to it, found without a binary search).
+    cursor: u32,
+    /// Highest printed z (−∞ before the column's first printed point).
+    top_z: f64,
+}
+
+/// The best point so far of a nearest search: squared distance and print index.
+#[derive(Clone, Copy)]
+struct Best {
+    d2: f64,
+    seq: usize,
+}
+
+impl Best {
+    /// True when the point at `d2`, printed at `seq`, is better: nearer, or as near and
+    /// printed earlier (the tie rule that makes the answer independent of the search order).
     #[inline]
-    fn column_index(&self, ix: i32, iy: i32) -> Option<usize> {
-        let dx = i64::from(ix) - i64::from(self.lo[0]);
-        let dy = i64::from(iy) - i64::from(self.lo[1]);
-        if dx < 0 || dy < 0 || dx >= i64::from(self.n[0]) || dy >= i64::from(self.n[1]) {
-            return None;
-        }
-        Some((dy * i64::from(self.n[0]) + dx) as usize)
+    fn beaten_by(&self, d2: f64, seq: usize) -> bool {
+        d2 < self.d2 || (d2 == self.d2 && seq < self.seq)
     }
+}
+
+/// Squared distance, summed in the same order everywhere (the scan reference included), so
+/// equal points compare equal to the last bit.
+#[inline]
+pub fn dist2(p: [f64; 3], q: [f64; 3]) -> f64 {
+    (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)
 }
 
 impl Grid {
-    /// An empty grid with cells of `cell_mm` (the support radius: a radius query then touches
-    /// 3×3×3 cells).
-    pub fn new(cell_mm: f64) -> Grid {
-        Grid {
-            cell: cell_mm,
-            cell_z: cell_mm / Z_SPLIT,
-            dense: None,
-            cells: Map::default(),
-            columns: Map::default(),
-        }
-    }
-
-    /// [`Grid::new`] with the cells of the box `lo..=hi` (the design's bounding box, grown by
-    /// two cells) indexed directly when it has at most 4 M cells: no hashing on the hot path.
-    /// Points outside the box still work (hashed).
-    pub fn with_bounds(cell_mm: f64, lo: [f64; 3], hi: [f64; 3]) -> Grid {
-        let mut g = Grid::new(cell_mm);
-        if !(lo.iter().chain(&hi).all(|v| v.is_finite()) && cell_mm > 0.0) {
-            return g;
-        }
-        let l = [
-            g.idx(lo[0]).saturating_sub(2),
-            g.idx(lo[1]).saturating_sub(2),
-            g.idx_z(lo[2]).saturating_sub(2),
-        ];
-        let h = [
-            g.idx(hi[0]).saturating_add(2),
-            g.idx(hi[1]).saturating_add(2),
-            g.idx_z(hi[2]).saturating_add(2),
-        ];
-        let n = [0, 1, 2].map(|a| i64::from(h[a]) - i64::from(l[a]) + 1);
-        let total = n[0].saturating_mul(n[1]).saturating_mul(n[2]);
-        if n.iter().any(|v| *v <= 0) || total > MAX_DENSE_CELLS {
-            return g;
-        }
-        let n32 = n.map(|v| v as i32);
-        g.dense = Some(Dense {
-            lo: l,
-            n: n32,
-            slot: vec![0; total as usize],
-            store: Vec::new(),
-            tops: vec![f64::NEG_INFINITY; (n[0] * n[1]) as usize],
-        });
-        g
-    }
-
-    fn idx(&self, v: f64) -> i32 {
-        // Saturating: coordinates beyond ±2^31 cells land in the edge cells.
-        (v / self.cell).floor() as i32
-    }
-
-    fn idx_z(&self, v: f64) -> i32 {
-        (v / self.cell_z).floor() as i32
-    }
-
-    /// Adds a printed point.
-    pub fn insert(&mut self, p: [f64; 3]) {
-        let k = [self.idx(p[0]), self.idx(p[1]), self.idx_z(p[2])];
-        if let Some(d) = &mut self.dense {
-            if let (Some(ci), Some(col)) = (d.cell_index(k), d.column_index(k[0], k[1])) {
-                let s = d.slot[ci];
-                if s == 0 {
-                    d.store.push(vec![p]);
-                    d.slot[ci] = d.store.len() as u32;
-                } else {
-                    d.store[s as usize - 1].push(p);
-                }
-                if p[2] > d.tops[col] {
-                    d.tops[col] = p[2];
-                }
-                return;
-            }
-        }
-        self.cells.entry(k).or_default().push(p);
-        let top = self
-            .columns
-            .entry([k[0], k[1]])
-            .or_insert(f64::NEG_INFINITY);
-        *top = top.max(p[2]);
-    }
-
-    /// The points of one cell.
-    #[inline]
-    fn cell_points(&self, k: [i32; 3]) -> Option<&[[f64; 3]]> {
-        if let Some(d) = &self.dense {
-            if let Some(ci) = d.cell_index(k) {
-                let s = d.slot[ci];
-                return (s != 0).then(|| d.store[s as usize - 1].as_slice());
-            }
-        }
-        self.cells.get(&k).map(Vec::as_slice)
-    }
-
-    /// The highest point of one XY column, if it has any.
-    #[inline]
-    fn column_top(&self, ix: i32, iy: i32) -> Option<f64> {
-        // A column may hold dense cells and, above or below the dense block, hashed ones.
-        let hashed = if self.columns.is_empty() {
-            None
+    /// Indexes `points` (every point the design will print, in print order) in XY columns
+    /// of `cell_mm`; none is printed yet. Points with a NaN coordinate are never found (no
+    /// distance or comparison with NaN holds), so they are left out.
+    pub fn build(cell_mm: f64, points: Vec<[f64; 3]>) -> Grid {
+        let cell_mm = if cell_mm > 0.0 && cell_mm.is_finite() {
+            cell_mm
         } else {
-            self.columns.get(&[ix, iy]).copied()
+            1.0
         };
-        let dense = self
-            .dense
-            .as_ref()
-            .and_then(|d| d.column_index(ix, iy).map(|c| d.tops[c]))
-            .filter(|t| *t > f64::NEG_INFINITY);
-        match (dense, hashed) {
-            (Some(a), Some(b)) => Some(a.max(b)),
-            (a, b) => a.or(b),
+        let inv_cell = 1.0 / cell_mm;
+        let n = points.len();
+        let indexed = |p: &[f64; 3]| !p.iter().any(|v| v.is_nan());
+        // The column extent from the coordinates' extent (the column of a coordinate grows
+        // with it).
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for p in points.iter().filter(|p| indexed(p)) {
+            for a in 0..2 {
+                lo[a] = lo[a].min(p[a]);
+                hi[a] = hi[a].max(p[a]);
+            }
         }
-    }
-
-    /// The nearest point within `sqrt(r2)` of `q` whose z is at most `max_z`, if any.
-    pub fn nearest_below(&self, q: [f64; 3], r2: f64, max_z: f64) -> Option<[f64; 3]> {
-        let r = r2.sqrt();
-        let lo = [self.idx(q[0] - r), self.idx(q[1] - r), self.idx_z(q[2] - r)];
-        let hi = [
-            self.idx(q[0] + r),
-            self.idx(q[1] + r),
-            self.idx_z(q[2].min(max_z)),
+        let extent = [
+            lo.map(|v| floor_div(v, inv_cell)),
+            hi.map(|v| floor_div(v, inv_cell)),
         ];
-        let size = [self.cell, self.cell, self.cell_z];
-        // Squared distance from q[a] to the cell interval i along axis a (0 inside it).
-        let gap2 = |a: usize, i: i32| {
-            let c = size[a];
-            let (l, h) = (f64::from(i) * c, f64::from(i + 1) * c);
-            let d = if q[a] < l {
-                l - q[a]
-            } else if q[a] > h {
-                q[a] - h
-            } else {
-                0.0
-            };
-            d * d
+        let span = |a: usize| i64::from(extent[1][a]) - i64::from(extent[0][a]) + 1;
+        let dense = span(0) > 0 && span(1) > 0 && span(0) * span(1) <= MAX_DENSE_COLUMNS;
+        let mut ids = if dense {
+            ColumnIds::Dense {
+                lo: extent[0],
+                nx: span(0) as i32,
+                ny: span(1) as i32,
+                ids: vec![0; (span(0) * span(1)) as usize],
+            }
+        } else {
+            ColumnIds::Hashed(Map::default())
         };
-        let mut best: Option<(f64, [f64; 3])> = None;
-        let mut best_d2 = r2;
-        // The point's own column first (the material right below is usually there), then the
-        // others; cells farther than the best point so far are skipped, and each column is
-        // searched from the top down (nearest heights first).
-        let (cx, cy) = (self.idx(q[0]), self.idx(q[1]));
-        let centre = (lo[0]..=hi[0]).contains(&cx) && (lo[1]..=hi[1]).contains(&cy);
-        let others = (lo[0]..=hi[0])
-            .flat_map(|ix| (lo[1]..=hi[1]).map(move |iy| (ix, iy)))
-            .filter(|&(ix, iy)| !(centre && ix == cx && iy == cy));
-        for (ix, iy) in centre.then_some((cx, cy)).into_iter().chain(others) {
-            let dxy = gap2(0, ix) + gap2(1, iy);
-            if dxy > best_d2 || self.column_top(ix, iy).is_none() {
+        // Column ids in order of first appearance, and the size of each column.
+        let mut count: Vec<u32> = Vec::new();
+        let mut column_of = Vec::with_capacity(n);
+        for p in &points {
+            if !indexed(p) {
+                column_of.push(u32::MAX);
                 continue;
             }
-            for iz in (lo[2]..=hi[2]).rev() {
-                if dxy + gap2(2, iz) > best_d2 {
-                    continue;
-                }
-                let Some(pts) = self.cell_points([ix, iy, iz]) else {
-                    continue;
-                };
-                for p in pts {
-                    if p[2] > max_z {
-                        continue;
+            let (ix, iy) = (floor_div(p[0], inv_cell), floor_div(p[1], inv_cell));
+            let next = count.len() as u32;
+            let id = match &mut ids {
+                ColumnIds::Dense { lo, nx, ids, .. } => {
+                    let slot =
+                        &mut ids[(iy - lo[1]) as usize * *nx as usize + (ix - lo[0]) as usize];
+                    if *slot == 0 {
+                        *slot = next + 1;
                     }
-                    let d2 = (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2);
-                    if d2 <= best_d2 && best.is_none_or(|(b, _)| d2 < b) {
-                        best = Some((d2, *p));
-                        best_d2 = d2;
+                    *slot - 1
+                }
+                ColumnIds::Hashed(m) => *m.entry([ix, iy]).or_insert(next),
+            };
+            if id == next {
+                count.push(0);
+            }
+            count[id as usize] += 1;
+            column_of.push(id);
+        }
+        // Counting sort by column (print order inside each), then by height in each column
+        // (a stable sort: print order stays for equal heights; layered designs print
+        // upwards, so most columns are sorted already and the sort only checks them).
+        let mut cols = Vec::with_capacity(count.len());
+        let mut total = 0u32;
+        for c in &count {
+            cols.push(Column {
+                start: total,
+                end: total,
+                cursor: 0,
+                top_z: f64::NEG_INFINITY,
+            });
+            total += c;
+        }
+        let mut entries = vec![
+            Entry {
+                x_mm: 0.0,
+                y_mm: 0.0,
+                z_mm: 0.0,
+                seq: 0,
+            };
+            total as usize
+        ];
+        for (i, (c, p)) in column_of.iter().zip(&points).enumerate() {
+            if let Some(col) = cols.get_mut(*c as usize) {
+                entries[col.end as usize] = Entry {
+                    x_mm: p[0],
+                    y_mm: p[1],
+                    z_mm: p[2],
+                    seq: i as u32,
+                };
+                col.end += 1;
+            }
+        }
+        for c in &cols {
+            let col = &mut entries[c.start as usize..c.end as usize];
+            if !col.is_sorted_by(|a, b| a.z_mm <= b.z_mm) {
+                col.sort_by(|a, b| a.z_mm.total_cmp(&b.z_mm));
+            }
+        }
+        Grid {
+            cell_mm,
+            inv_cell,
+            points,
+            printed: 0,
+            hint: 0,
+            ids,
+            extent,
+            cols,
+            column_of,
+            entries,
+        }
+    }
+
+    /// Point `i` in print order.
+    pub fn point(&self, i: usize) -> [f64; 3] {
+        self.points[i]
+    }
+
+    /// Marks the points before `end` (in print order) as printed.
+    pub fn print_through(&mut self, end: usize) {
+        let end = end.min(self.points.len());
+        for i in self.printed..end {
+            if let Some(c) = self.cols.get_mut(self.column_of[i] as usize) {
+                c.top_z = c.top_z.max(self.points[i][2]);
+            }
+        }
+        self.printed = self.printed.max(end);
+    }
+
+    /// Column index of a coordinate.
+    #[inline]
+    fn idx(&self, v: f64) -> i32 {
+        floor_div(v, self.inv_cell)
+    }
+
+    /// Column cell coordinates of `lo..=hi` along axis `a`, clipped to the indexed extent.
+    #[inline]
+    fn span(&self, a: usize, lo: f64, hi: f64) -> Range<i32> {
+        let l = self.idx(lo).max(self.extent[0][a]);
+        let h = self.idx(hi).min(self.extent[1][a]);
+        l..h.saturating_add(1).max(l)
+    }
+
+    /// Id and entries of a column (`None` when it has no points).
+    #[inline(always)]
+    fn column(&self, ix: i32, iy: i32) -> Option<(usize, Range<usize>)> {
+        let c = self.ids.get(ix, iy)?;
+        let col = &self.cols[c];
+        Some((c, col.start as usize..col.end as usize))
+    }
+
+    /// Squared distance from `q` to column `(ix, iy)` in XY, a hair short (its edges widened
+    /// by 1e-9 of their size) so rounding never makes a point inside seem farther.
+    #[inline]
+    fn gap2(&self, q: [f64; 3], ix: i32, iy: i32) -> f64 {
+        let axis = |v: f64, i: i32| {
+            let l = f64::from(i) * self.cell_mm;
+            let h = l + self.cell_mm;
+            let w = 1e-9 * (1.0 + l.abs() + self.cell_mm);
+            if v < l - w {
+                l - w - v
+            } else if v > h + w {
+                v - h - w
+            } else {
+                0.0
+            }
+        };
+        axis(q[0], ix).powi(2) + axis(q[1], iy).powi(2)
+    }
+
+    /// The nearest printed point within `sqrt(r2)` of `q` whose z is at most `max_z` (ties to
+    /// the earliest printed), if any.
+    pub fn nearest_below(&mut self, q: [f64; 3], r2: f64, max_z: f64) -> Option<[f64; 3]> {
+        let best = self.search(q, r2, max_z, false)?;
+        self.hint = best.seq;
+        Some(self.points[best.seq])
+    }
+
+    /// True when some printed point within `sqrt(r2)` of `q` has z at most `max_z`.
+    pub fn any_below(&mut self, q: [f64; 3], r2: f64, max_z: f64) -> bool {
+        match self.search(q, r2, max_z, true) {
+            Some(b) => {
+                self.hint = b.seq;
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// The nearest (or, with `first`, any) printed point within `sqrt(r2)` of `q` at most
+    /// `max_z` high: warm start from the last answer's successors, then q's own column, then
+    /// the columns the best distance so far still reaches.
+    fn search(&mut self, q: [f64; 3], r2: f64, max_z: f64, first: bool) -> Option<Best> {
+        let mut best = Best {
+            d2: r2,
+            seq: usize::MAX,
+        };
+        for s in [self.hint + 1] {
+            if s < self.printed {
+                let p = self.points[s];
+                let d2 = dist2(p, q);
+                if p[2] <= max_z && best.beaten_by(d2, s) {
+                    best = Best { d2, seq: s };
+                    if first {
+                        return Some(best);
                     }
                 }
             }
         }
-        best.map(|(_, p)| p)
+        let (cx, cy) = (self.idx(q[0]), self.idx(q[1]));
+        if self.scan_column(q, max_z, cx, cy, 0.0, &mut best) && first {
+            return Some(best);
+        }
+        // The box the best distance reaches, a hair wide (see `gap2`).
+        let b = best.d2.sqrt();
+        let b = b + 1e-9 * (1.0 + b + q[0].abs().max(q[1].abs()));
+        let xs = self.span(0, q[0] - b, q[0] + b);
+        let ys = self.span(1, q[1] - b, q[1] + b);
+        for ix in xs {
+            for iy in ys.clone() {
+                if ix == cx && iy == cy {
+                    continue;
+                }
+                let g2 = self.gap2(q, ix, iy);
+                if g2 > best.d2 {
+                    continue;
+                }
+                if self.scan_column(q, max_z, ix, iy, g2, &mut best) && first {
+                    return Some(best);
+                }
+            }
+        }
+        (best.seq != usize::MAX).then_some(best)
     }
 
-    /// True when a point lies in the XY box `lo..=hi` at height `min_z` or above.
+    /// Scans one column from its highest point at most `max_z` down, until the height
+    /// difference plus the column's XY gap `g2` alone exceeds the best distance; true when
+    /// it improved `best`.
+    #[inline]
+    fn scan_column(
+        &mut self,
+        q: [f64; 3],
+        max_z: f64,
+        ix: i32,
+        iy: i32,
+        g2: f64,
+        best: &mut Best,
+    ) -> bool {
+        let Some((c, r)) = self.column(ix, iy) else {
+            return false;
+        };
+        let col = &self.entries[r];
+        let top = split_near(col, self.cols[c].cursor as usize, max_z);
+        self.cols[c].cursor = top as u32;
+        let mut improved = false;
+        for e in col[..top].iter().rev() {
+            let dz2 = (e.z_mm - q[2]).powi(2);
+            if g2 + dz2 > best.d2 {
+                if e.z_mm <= q[2] {
+                    break; // every point lower is farther still
+                }
+                continue;
+            }
+            let s = e.seq as usize;
+            if s >= self.printed {
+                continue;
+            }
+            let d2 = dist2([e.x_mm, e.y_mm, e.z_mm], q);
+            if best.beaten_by(d2, s) {
+                *best = Best { d2, seq: s };
+                improved = true;
+            }
+        }
+        improved
+    }
+
+    /// True when a printed point lies in the XY box `lo..=hi` at height `min_z` or above.
     pub fn any_at_or_above(&self, lo: [f64; 2], hi: [f64; 2], min_z: f64) -> bool {
-        for ix in self.idx(lo[0])..=self.idx(hi[0]) {
-            for iy in self.idx(lo[1])..=self.idx(hi[1]) {
-                let Some(top) = self.column_top(ix, iy) else {
+        if min_z.is_nan() {
+            return false; // no height is at or above NaN
+        }
+        for ix in self.span(0, lo[0], hi[0]) {
+            for iy in self.span(1, lo[1], hi[1]) {
+                let Some((c, r)) = self.column(ix, iy) else {
                     continue;
                 };
+                let top = self.cols[c].top_z;
                 if top < min_z {
                     continue;
                 }
-                for iz in self.idx_z(min_z)..=self.idx_z(top) {
-                    let Some(pts) = self.cell_points([ix, iy, iz]) else {
-                        continue;
-                    };
-                    if pts.iter().any(|p| {
-                        p[2] >= min_z
-                            && p[0] >= lo[0]
-                            && p[0] <= hi[0]
-                            && p[1] >= lo[1]
-                            && p[1] <= hi[1]
-                    }) {
+                let col = &self.entries[r];
+                for e in &col[col.partition_point(|e| e.z_mm < min_z)..] {
+                    if e.z_mm > top {
+                        break; // nothing printed above the top
+                    }
+                    if (e.seq as usize) < self.printed
+                        && e.x_mm >= lo[0]
+                        && e.x_mm <= hi[0]
+                        && e.y_mm >= lo[1]
+                        && e.y_mm <= hi[1]
+                    {
                         return true;
                     }
                 }
@@ -300,65 +470,71 @@ impl Grid {
     }
 }
 
+/// The number of entries in `zs` (ascending heights) at most `max_z` high, searched outwards from `guess`
+/// (doubling steps, then halving): O(1) when the guess is right or next to it, O(log n) at
+/// worst. Equals `zs.partition_point(|e| e.z_mm <= max_z)`.
+#[inline]
+fn split_near(zs: &[Entry], guess: usize, max_z: f64) -> usize {
+    let below = |i: usize| zs[i].z_mm <= max_z;
+    let n = zs.len();
+    let g = guess.min(n);
+    if g < n && below(g) {
+        // The split is above g: find a step that passes it, then binary search.
+        let (mut lo, mut step) = (g + 1, 1);
+        while lo + step - 1 < n && below(lo + step - 1) {
+            lo += step;
+            step *= 2;
+        }
+        let hi = (lo + step - 1).min(n);
+        lo + zs[lo..hi].partition_point(|e| e.z_mm <= max_z)
+    } else {
+        // The split is at or below g.
+        let (mut hi, mut step) = (g, 1);
+        while hi >= step && !below(hi - step) {
+            hi -= step;
+            step *= 2;
+        }
+        let lo = hi.saturating_sub(step - 1);
+        lo + zs[lo..hi].partition_point(|e| e.z_mm <= max_z)
+    }
+}
+
+/// `floor(v * inv_cell)` as a cell coordinate, saturating beyond ±2^31 cells (NaN gives 0), without
+/// the libm `floor` call (x86-64 without SSE4.1 has no rounding instruction).
+#[inline]
+fn floor_div(v: f64, inv_cell: f64) -> i32 {
+    let x = v * inv_cell;
+    let t = x as i32;
+    if f64::from(t) > x {
+        t.saturating_sub(1)
+    } else {
+        t
+    }
+}
+
 #[cfg(test)]
 mod tests {
-    use super::*;
+    use super::{split_near, Entry};
+    use proptest::prelude::*;
 
-    /// The grid answers as a scan over every point does.
-    #[test]
-    fn matches_a_linear_scan() {
-        // Hashed only; dense over part of the points (the rest hashed); dense over all.
-        for bounds in [
-            None,
-            Some(([-4.0, -4.0, 0.0], [4.0, 4.0, 5.0])),
-            Some(([-10.0, -10.0, 0.0], [10.0, 10.0, 10.0])),
-        ] {
-            scan_matches(match bounds {
-                None => Grid::new(1.2),
-                Some((lo, hi)) => Grid::with_bounds(1.2, lo, hi),
-            });
-        }
-    }
-
-    fn scan_matches(mut g: Grid) {
-        let mut pts = Vec::new();
-        let mut x = 12345u64;
-        let mut rnd = || {
-            x = x
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (x >> 11) as f64 / (1u64 << 53) as f64
-        };
-        for _ in 0..3000 {
-            let p = [rnd() * 20.0 - 10.0, rnd() * 20.0 - 10.0, rnd() * 10.0];
-            g.insert(p);
-            pts.push(p);
-        }
-        for _ in 0..500 {
-            let q = [rnd() * 24.0 - 12.0, rnd() * 24.0 - 12.0, rnd() * 12.0];
-            let (r2, max_z) = (1.44, q[2] - 0.05);
-            let want = pts
-                .iter()
-                .filter(|p| p[2] <= max_z)
-                .map(|p| {
-                    (
-                        (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2),
-                        *p,
-                    )
-                })
-                .filter(|(d2, _)| *d2 <= r2)
-                .min_by(|a, b| a.0.total_cmp(&b.0))
-                .map(|(_, p)| p);
-            assert_eq!(g.nearest_below(q, r2, max_z), want);
-            let (lo, hi, z) = (
-                [q[0] - 0.3, q[1] - 0.3],
-                [q[0] + 0.3, q[1] + 0.3],
-                q[2] - 0.1,
+    proptest! {
+        /// The split found from any guess is the binary search's (ties, guesses past the end
+        /// and a NaN height included).
+        #[test]
+        fn split_near_is_the_partition_point(
+            mut zs in proptest::collection::vec(0u8..20, 0..80),
+            guess in 0usize..90,
+            max_z in prop_oneof![(0u8..22).prop_map(f64::from), Just(f64::NAN), -1.0f64..21.0],
+        ) {
+            zs.sort_unstable();
+            let col: Vec<Entry> = zs
+                .into_iter()
+                .map(|z| Entry { x_mm: 0.0, y_mm: 0.0, z_mm: f64::from(z), seq: 0 })
+                .collect();
+            prop_assert_eq!(
+                split_near(&col, guess, max_z),
+                col.partition_point(|e| e.z_mm <= max_z)
             );
-            let any = pts.iter().any(|p| {
-                p[2] >= z && p[0] >= lo[0] && p[0] <= hi[0] && p[1] >= lo[1] && p[1] <= hi[1]
-            });
-            assert_eq!(g.any_at_or_above(lo, hi, z), any);
         }
     }
 }

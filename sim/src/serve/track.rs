@@ -1,0 +1,190 @@
+//! Following the session as it runs: realtime requests sniffed from the host's bytes, and each
+//! pause tracked through the firmware's records from request to resume.
+
+use crate::exec::PrinterExec;
+use crate::port::{Executive, Lane, RunState};
+use crate::recorder::Recorder;
+use firmware::motion::{PauseMode, Realtime};
+use firmware::printer::Record;
+
+/// One pause as the session saw it.
+#[derive(Clone, Debug, Default)]
+pub(super) struct PauseTrack {
+    pub(super) mode: Option<PauseMode>,
+    pub(super) t_req_us: u64,
+    pub(super) pos_req: [i32; 4],
+    pub(super) rec_idx_req: usize,
+    pub(super) reaction_us: Option<u64>,
+    pub(super) stopped: Option<(u64, [i32; 4], Option<u32>, bool)>,
+    pub(super) parked_us: Option<u64>,
+    pub(super) resume_req_us: Option<u64>,
+    pub(super) rec_idx_resume: usize,
+    pub(super) resumed: Option<(u64, [i32; 4])>,
+    /// The firmware cancelled the job before this pause reached Paused: a cancel, not a pause.
+    pub(super) cancelled: bool,
+}
+
+/// Lines from the host, assembled to find realtime requests (for the record only: the
+/// firmware's own link acts on them).
+#[derive(Default)]
+pub(super) struct Sniffer {
+    pub(super) buf: Vec<u8>,
+    /// Complete non-empty lines seen, and of those the numbered ones.
+    pub(super) lines: u64,
+    pub(super) numbered: u64,
+}
+
+impl Sniffer {
+    pub(super) fn feed(&mut self, bytes: &[u8], out: &mut Vec<Realtime>) {
+        for &b in bytes {
+            if let Some(r) = firmware::link::control_byte(b) {
+                out.push(r);
+                continue;
+            }
+            if b == b'\n' || b == b'\r' {
+                let line = std::mem::take(&mut self.buf);
+                let text = String::from_utf8_lossy(&line);
+                let body = text.trim();
+                if body.is_empty() {
+                    continue;
+                }
+                self.lines += 1;
+                self.numbered += u64::from(body.starts_with('N'));
+                let body = match body.strip_prefix('N') {
+                    Some(rest) => rest.split_once(' ').map_or("", |x| x.1),
+                    None => body,
+                };
+                let body = body.split('*').next().unwrap_or("");
+                if let Ok(l) = firmware::gcode::parse_line(body.as_bytes()) {
+                    if let Some(r) = l.command.as_ref().and_then(firmware::link::realtime_of) {
+                        out.push(r);
+                    }
+                }
+            } else if self.buf.len() < 256 {
+                self.buf.push(b);
+            }
+        }
+    }
+}
+
+pub(super) fn note_request(
+    pauses: &mut Vec<PauseTrack>,
+    r: Realtime,
+    now_us: u64,
+    rec: &Recorder,
+    fw: &PrinterExec,
+) {
+    match r {
+        Realtime::Pause(mode) => {
+            let active = pauses
+                .last()
+                .is_some_and(|p| p.resumed.is_none() && p.resume_req_us.is_none());
+            // Called after the firmware took the bytes: a pause it accepted shows as Pausing
+            // (also from an idle printer inside a streamed job, e.g. at a boundary the host
+            // drained with M400); a refused one leaves it as it was.
+            let state = fw.status().state;
+            if !active && matches!(state, RunState::Pausing | RunState::Paused) {
+                pauses.push(PauseTrack {
+                    mode: Some(mode),
+                    t_req_us: now_us,
+                    pos_req: rec.pos,
+                    rec_idx_req: rec.records.len(),
+                    ..PauseTrack::default()
+                });
+            }
+        }
+        Realtime::Resume => {
+            if let Some(p) = pauses.last_mut() {
+                if p.resume_req_us.is_none() && p.stopped.is_some() {
+                    p.resume_req_us = Some(now_us);
+                    p.rec_idx_resume = rec.records.len().saturating_sub(1);
+                }
+            }
+        }
+        _ => {}
+    }
+}
+
+pub(super) fn track(
+    pauses: &mut Vec<PauseTrack>,
+    fw: &PrinterExec,
+    rec: &Recorder,
+    seen: &mut usize,
+    cancel_marks: &mut Vec<usize>,
+) {
+    for r in fw.notes.iter().skip(*seen) {
+        if let Record::State {
+            state: firmware::printer::State::Cancelled,
+            ..
+        } = *r
+        {
+            cancel_marks.push(fw.executed.len());
+            if let Some(p) = pauses.last_mut() {
+                if p.parked_us.is_none() {
+                    p.cancelled = true;
+                }
+            }
+        }
+        // A pause the firmware started by itself (M761 schedule, M600/M0, M25 in the job):
+        // tracked from the moment it began.
+        if let Record::State {
+            state: firmware::printer::State::Pausing,
+            t_us,
+        } = *r
+        {
+            let active = pauses
+                .last()
+                .is_some_and(|p| p.resumed.is_none() && p.resume_req_us.is_none());
+            if !active {
+                pauses.push(PauseTrack {
+                    mode: Some(PauseMode::Layer),
+                    t_req_us: t_us,
+                    pos_req: rec.pos,
+                    rec_idx_req: rec.records.len(),
+                    ..PauseTrack::default()
+                });
+            }
+        }
+        let Some(p) = pauses.last_mut() else {
+            continue;
+        };
+        match *r {
+            Record::SpeedUp { t_us } | Record::Brake { t_us, .. }
+                if t_us >= p.t_req_us && p.reaction_us.is_none() =>
+            {
+                p.reaction_us = Some(t_us);
+            }
+            Record::Stopped {
+                pos,
+                layer,
+                mid_block,
+                t_us,
+            } if p.stopped.is_none() => {
+                p.stopped = Some((t_us, pos, layer, mid_block));
+            }
+            Record::State { state, t_us }
+                if state == firmware::printer::State::Paused && p.parked_us.is_none() =>
+            {
+                p.parked_us = Some(t_us);
+            }
+            _ => {}
+        }
+    }
+    *seen = fw.notes.len();
+    // A resume is found in the executed blocks (the first job block after the request); a
+    // host may already have asked for the next pause by then, so every pause is looked at.
+    for p in pauses
+        .iter_mut()
+        .filter(|p| p.resume_req_us.is_some() && p.resumed.is_none())
+    {
+        let t_res = p.resume_req_us.unwrap_or(0);
+        if let Some(r) = rec
+            .records
+            .iter()
+            .skip(p.rec_idx_resume)
+            .find(|r| r.tag.lane == Lane::Job && r.t_start_us >= t_res)
+        {
+            p.resumed = Some((r.t_start_us, r.start));
+        }
+    }
+}
