@@ -7,151 +7,27 @@
 //! axis or direction) is the **reaction**: the first change of motion the request caused,
 //! whether a speed-up (steps come earlier) or braking (steps come later). The executed blocks of
 //! A and B are then compared for lost and duplicated moves and the resume position.
+//!
+//! Submodules: `scenario` (what defines a run), `drive` (stepping the engines: trial run,
+//! lock-step, park wait, the rest in turns).
+
+mod drive;
+mod scenario;
+
+pub use scenario::{Mode, PauseWhen, Policy, Scenario};
 
 use crate::engine::{Engine, Stop};
-use crate::hostlink::{Host, LinkConfig, Origin};
+use crate::hostlink::Host;
 use crate::job::{JobInfo, JobLines};
 use crate::metrics::{self, PauseReport, RunFacts, RunView};
 use crate::port::{Executive, FirmwareKnobs, RunState};
 use crate::split;
 use crate::stream::{self, Compare, LineEnds, Side};
+use drive::{
+    first_job_after_service, line_time, lockstep, new_engine, run_in_turns, wait_parked,
+    STREAM_CHUNK_US,
+};
 use firmware::config::MachineConfig;
-
-/// How the printer and host handle a pause (see the crate docs).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, clap::ValueEnum, serde::Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Policy {
-    /// Conventional firmware: no segmentation, the pause queued behind every buffered move
-    /// (16 moves), park once the queue has drained.
-    Fifo,
-    /// The paper's host-side method on a FIFO firmware: moves pre-split by the host, the pause
-    /// sequence appended by the host after the current layer.
-    HostSplit,
-    /// This project's firmware: segmentation in the planner, layer barrier, speed-up, feed hold.
-    Firmware,
-}
-
-impl Policy {
-    /// Name as on the command line.
-    pub fn name(self) -> &'static str {
-        match self {
-            Policy::Fifo => "fifo",
-            Policy::HostSplit => "host-split",
-            Policy::Firmware => "firmware",
-        }
-    }
-}
-
-/// Pause mode.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, clap::ValueEnum, serde::Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Mode {
-    /// Finish the current layer, stop at its end.
-    Layer,
-    /// Stop as soon as possible (feed hold).
-    Now,
-}
-
-impl Mode {
-    /// Name as on the command line.
-    pub fn name(self) -> &'static str {
-        match self {
-            Mode::Layer => "layer",
-            Mode::Now => "now",
-        }
-    }
-}
-
-/// When the pause is requested.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum PauseWhen {
-    /// At this virtual time, µs.
-    AtUs(u64),
-    /// Scheduled before the job for the start of layer `n` (M761 L n for the firmware; a pause
-    /// placed in the stream before layer `n` for the conventional policies).
-    AtLayer(u32),
-    /// While job line `line` executes, at `fraction` of its duration (the lab's "during the 3rd
-    /// line").
-    DuringLine {
-        /// Job line index.
-        line: usize,
-        /// 0..1 of the line's execution time.
-        fraction: f64,
-    },
-}
-
-/// Everything that defines one run.
-#[derive(Clone, Debug)]
-pub struct Scenario {
-    /// Policy.
-    pub policy: Policy,
-    /// Pause mode.
-    pub mode: Mode,
-    /// When to pause (`None`: print without pausing).
-    pub pause: Option<PauseWhen>,
-    /// Resume this long after the printer is parked, µs (`None`: stay paused, end the run).
-    pub resume_after_us: Option<u64>,
-    /// Machine configuration.
-    pub machine: MachineConfig,
-    /// Host link.
-    pub link: LinkConfig,
-    /// Moves the conventional policies buffer (paper: 16).
-    pub queue_limit: usize,
-    /// Planner segment length for the `firmware` policy, mm (`None`: the firmware default).
-    pub segment_len_mm: Option<f32>,
-    /// Host-split piece length, mm (paper: 0.1–0.2).
-    pub split_mm: f64,
-    /// Give up after this much virtual time, µs.
-    pub max_time_us: u64,
-    /// Also run the job with segmentation off to measure segmentation's print-time cost.
-    pub measure_segmentation_cost: bool,
-    /// Keep the executed-block record of a run without a pause (`Outcome::run.rec.records`).
-    /// A pause always keeps both runs' records (the metrics compare them); without one only
-    /// callers that inspect the records need them (`sim run` does not: memory then stays
-    /// flat with job length, see docs/sim.md).
-    pub keep_records: bool,
-}
-
-impl Scenario {
-    /// Defaults for a policy and mode: 115200 baud, queue 16, host pieces 0.2 mm.
-    pub fn new(policy: Policy, mode: Mode) -> Self {
-        Self {
-            policy,
-            mode,
-            pause: None,
-            resume_after_us: Some(10_000_000),
-            machine: MachineConfig::ENDER3,
-            link: LinkConfig::default(),
-            queue_limit: 16,
-            segment_len_mm: None,
-            split_mm: 0.2,
-            max_time_us: 48 * 3600 * 1_000_000,
-            measure_segmentation_cost: false,
-            keep_records: true,
-        }
-    }
-
-    /// The firmware knobs this policy sets.
-    pub fn knobs(&self) -> FirmwareKnobs {
-        match self.policy {
-            Policy::Fifo | Policy::HostSplit => FirmwareKnobs {
-                segment_len_mm: None,
-                pause_at_tail: true,
-                queue_limit: Some(self.queue_limit),
-                speedup: Some(1.0),
-            },
-            Policy::Firmware => FirmwareKnobs {
-                segment_len_mm: Some(
-                    self.segment_len_mm
-                        .unwrap_or(self.machine.pause.segment_len_mm),
-                ),
-                pause_at_tail: false,
-                queue_limit: None,
-                speedup: None,
-            },
-        }
-    }
-}
 
 /// Builds executives: the seam to `firmware::printer::Printer` (see [`crate::exec`]).
 pub trait Factory {
@@ -200,44 +76,6 @@ pub fn prepare_job(
             (JobLines::from_lines(&s.lines), Some(s.source))
         }
         _ => (job.clone(), None),
-    }
-}
-
-fn new_engine<F: Factory>(f: &F, sc: &Scenario, job: JobLines) -> Engine<F::Exec> {
-    let fw = f.make(&sc.machine, &sc.knobs());
-    let host = Host::new(sc.link.clone(), job);
-    Engine::new(fw, host)
-}
-
-/// Time at `fraction` of the execution of the sent lines `lines` (the pieces of one original
-/// line), from a trial run.
-fn line_time<F: Factory>(
-    f: &F,
-    sc: &Scenario,
-    job: &JobLines,
-    lines: std::ops::RangeInclusive<usize>,
-    fraction: f64,
-) -> Option<u64> {
-    let mut e = new_engine(f, sc, job.clone());
-    let mut t0 = None;
-    loop {
-        match e.advance(sc.max_time_us, true) {
-            Stop::Step(ev) => {
-                let here = matches!(
-                    e.origin_of_seq(ev.tag.seq),
-                    Some(Origin::Job(l)) if lines.contains(&l)
-                );
-                match (t0, here) {
-                    (None, true) => t0 = Some(ev.t_us),
-                    (Some(t), false) => {
-                        let d = ev.t_us.saturating_sub(t) as f64;
-                        return Some(t + (d * fraction.clamp(0.0, 1.0)) as u64);
-                    }
-                    _ => {}
-                }
-            }
-            _ => return t0,
-        }
     }
 }
 
@@ -608,111 +446,4 @@ pub fn unfinished<E: Executive>(sc: &Scenario, o: &Outcome<E>) -> Option<String>
         ));
     }
     None
-}
-
-/// Virtual time A runs before B catches up and their records are compared, µs.
-const STREAM_CHUNK_US: u64 = 2_000_000;
-
-/// Index of A's first job record after its first service record (printing again after the
-/// pause), if any.
-fn first_job_after_service<E: Executive>(a: &Engine<E>) -> Option<usize> {
-    let recs = &a.rec.records;
-    let s = recs.iter().position(|r| stream::key_of(a, r).is_none())?;
-    (s..recs.len()).find(|&i| stream::key_of(a, &recs[i]).is_some())
-}
-
-/// Run A and B to the end in turns (B catching up with A's number of executed blocks after
-/// each chunk of A), comparing their records as they complete. Returns whether each finished.
-fn run_in_turns<E: Executive>(
-    a: &mut Engine<E>,
-    b: &mut Engine<E>,
-    max_us: u64,
-    cmp: &mut Compare,
-    ends: &mut LineEnds,
-) -> (bool, bool) {
-    // None while running; Some(finished) once it finished, stalled or ran out of time.
-    let mut a_end: Option<bool> = None;
-    let mut b_end: Option<bool> = None;
-    let step = |e: &mut Engine<E>| -> Option<bool> {
-        let deadline = (e.now_us + STREAM_CHUNK_US).min(max_us);
-        match e.advance(deadline, false) {
-            Stop::Finished => Some(true),
-            Stop::Stalled => Some(false),
-            _ if e.now_us >= max_us => Some(false),
-            _ => None,
-        }
-    };
-    loop {
-        if a_end.is_none() {
-            a_end = step(a);
-            stream::feed(a, Side::A, a_end.is_some(), cmp, ends);
-        }
-        while b_end.is_none() && (a_end.is_some() || cmp.fed_b <= cmp.fed_a) {
-            b_end = step(b);
-            stream::feed(b, Side::B, b_end.is_some(), cmp, ends);
-        }
-        if let (Some(x), Some(y)) = (a_end, b_end) {
-            return (x, y);
-        }
-    }
-}
-
-/// Step A and B together from the request on; the time of the first step that differs.
-fn lockstep<E: Executive>(
-    a: &mut Engine<E>,
-    b: &mut Engine<E>,
-    _t_req: u64,
-    max_us: u64,
-) -> Option<u64> {
-    loop {
-        match b.advance(max_us, true) {
-            Stop::Step(eb) => match a.advance(eb.t_us, true) {
-                Stop::Step(ea) => {
-                    if !ea.same_motion(&eb) {
-                        return Some(ea.t_us.min(eb.t_us));
-                    }
-                }
-                // A did not step when B did: A has braked or stopped.
-                _ => return Some(eb.t_us),
-            },
-            _ => {
-                // The reference has no more steps: any further step of A differs.
-                return match a.advance(max_us, true) {
-                    Stop::Step(ea) => Some(ea.t_us),
-                    _ => None,
-                };
-            }
-        }
-    }
-}
-
-/// Advance until the printer is parked; the time of the last parking step.
-fn wait_parked<E: Executive>(a: &mut Engine<E>, sc: &Scenario) -> Option<u64> {
-    let slice = 20_000;
-    loop {
-        let st = a.fw.status().state;
-        let idle_motion = a.fw.next_step_us(a.now_us).is_none();
-        let parked = match sc.policy {
-            Policy::Fifo | Policy::Firmware => st == RunState::Paused && idle_motion,
-            Policy::HostSplit => {
-                a.host.holding()
-                    && a.host.inserts_done()
-                    && idle_motion
-                    && a.host.tx.is_idle()
-                    && a.fw.status().queue_depth == 0
-            }
-        };
-        if parked {
-            return Some(a.rec.last_step_us);
-        }
-        if a.now_us >= sc.max_time_us {
-            return None;
-        }
-        if matches!(
-            a.advance(a.now_us + slice, false),
-            Stop::Finished | Stop::Stalled
-        ) {
-            return None;
-        }
-    }
 }

@@ -7,7 +7,7 @@ use heapless::Deque;
 
 impl HostLink {
     /// Queue one response (a line end is added). Returns false, and counts it in
-    /// [`LinkStats::output_dropped`], if it does not fit the output ring: it is then dropped
+    /// [`LinkStats::output_dropped`](super::LinkStats::output_dropped), if it does not fit the output ring: it is then dropped
     /// whole, never cut.
     pub fn respond(&mut self, r: Response<'_>) -> bool {
         let before = self.out.len();
