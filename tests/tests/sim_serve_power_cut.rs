@@ -197,6 +197,41 @@ impl Files {
     }
 }
 
+/// Ends a resumed run whose last line (`M400`) is sent: the firmware said `//action:resumed`,
+/// the record is gone from flash, and the moves traced (the cut run's `before` ones, then the
+/// resumed run's) are the reference's `want`, in order. `first_seen` is what the host saw in
+/// the cut run (for the message).
+fn assert_resumed_as_reference(
+    b: Session,
+    f: &Files,
+    want: &[String],
+    before: usize,
+    first_seen: &[String],
+) {
+    assert!(
+        b.host.seen.iter().any(|l| l == "//action:resumed"),
+        "{:?}",
+        b.host.seen
+    );
+    let got = moves(&f.trace, want.len());
+    let second_seen = b.kill();
+    assert!(
+        !job_in_flash(&f.flash),
+        "the record is cleared once resumed"
+    );
+    assert_eq!(
+        got.len(),
+        want.len(),
+        "moves: {} before the cut + {} after, want {}\n{first_seen:?}\n{second_seen:?}",
+        before,
+        got.len() - before,
+        want.len()
+    );
+    for (k, (g, w)) in got.iter().zip(want).enumerate() {
+        assert_eq!(g, w, "move {k} (the cut was after move {before})");
+    }
+}
+
 #[test]
 fn a_job_killed_while_paused_resumes_with_m1000_and_runs_the_moves_of_an_unpaused_run() {
     let lines = job();
@@ -276,28 +311,7 @@ fn a_job_killed_while_paused_resumes_with_m1000_and_runs_the_moves_of_an_unpause
         b.send(&l);
     }
     b.send("M400");
-    assert!(
-        b.host.seen.iter().any(|l| l == "//action:resumed"),
-        "{:?}",
-        b.host.seen
-    );
-    let got = moves(&f.trace, want.len());
-    let second_seen = b.kill();
-    assert!(
-        !job_in_flash(&f.flash),
-        "the record is cleared once resumed"
-    );
-    assert_eq!(
-        got.len(),
-        want.len(),
-        "moves: {} before the cut + {} after, want {}\n{first_seen:?}\n{second_seen:?}",
-        before,
-        got.len() - before,
-        want.len()
-    );
-    for (k, (g, w)) in got.iter().zip(&want).enumerate() {
-        assert_eq!(g, w, "move {k} (the cut was after move {before})");
-    }
+    assert_resumed_as_reference(b, &f, &want, before, &first_seen);
     r.remove();
     f.remove();
 }
@@ -432,28 +446,7 @@ fn an_sd_job_killed_while_paused_continues_with_m1000_alone_and_runs_the_moves_o
     b.until("ok for M1000", |s| s.starts_with("ok"));
     b.until("Done printing file", |l| l == "Done printing file");
     b.send("M400");
-    assert!(
-        b.host.seen.iter().any(|l| l == "//action:resumed"),
-        "{:?}",
-        b.host.seen
-    );
-    let got = moves(&f.trace, want.len());
-    let second_seen = b.kill();
-    assert!(
-        !job_in_flash(&f.flash),
-        "the record is cleared once resumed"
-    );
-    assert_eq!(
-        got.len(),
-        want.len(),
-        "moves: {} before the cut + {} after, want {}\n{first_seen:?}\n{second_seen:?}",
-        before,
-        got.len() - before,
-        want.len()
-    );
-    for (k, (g, w)) in got.iter().zip(&want).enumerate() {
-        assert_eq!(g, w, "move {k} (the cut was after move {before})");
-    }
+    assert_resumed_as_reference(b, &f, &want, before, &first_seen);
     r.remove();
     f.remove();
     let _ = std::fs::remove_dir_all(&card);

@@ -28,6 +28,25 @@ pub(super) fn flag(d: &Dynamic, what: &str) -> Res<bool> {
         .map_err(|t| format!("{what}: expected true/false, got {t}").into())
 }
 
+/// A path of a point, three numbers and a count (`arc_xy`, `triangle_wave_xy`).
+type Path5 = fn(DVec3, f64, f64, f64, usize) -> Result<Vec<DVec3>, PointsError>;
+
+/// Registers `name(point, a, b, c, n)` calling `f`; `labels` name the five arguments in errors.
+fn register_path5(e: &mut Engine, name: &str, labels: [&'static str; 5], f: Path5) {
+    e.register_fn(
+        name,
+        move |p: Dynamic, a: Dynamic, b: Dynamic, c: Dynamic, n: Dynamic| -> Res<Array> {
+            array_of(f(
+                pt(&p, labels[0])?,
+                num(&a, labels[1])?,
+                num(&b, labels[2])?,
+                num(&c, labels[3])?,
+                count(&n, labels[4])?,
+            ))
+        },
+    );
+}
+
 pub(super) fn register_points(e: &mut Engine) {
     e.register_fn(
         "point",
@@ -64,17 +83,11 @@ pub(super) fn register_points(e: &mut Engine) {
     e.register_fn("path_length", |a: Array| -> Res<f64> {
         Ok(points::path_length(&path_of(&a, "path_length")?))
     });
-    e.register_fn(
+    register_path5(
+        e,
         "arc_xy",
-        |c: Dynamic, r: Dynamic, a0: Dynamic, sweep: Dynamic, n: Dynamic| -> Res<Array> {
-            array_of(points::arc_xy(
-                pt(&c, "centre")?,
-                num(&r, "radius")?,
-                num(&a0, "start angle")?,
-                num(&sweep, "sweep")?,
-                count(&n, "segments")?,
-            ))
-        },
+        ["centre", "radius", "start angle", "sweep", "segments"],
+        points::arc_xy,
     );
     e.register_fn(
         "variable_arc_xy",
@@ -278,17 +291,17 @@ pub(super) fn register_points(e: &mut Engine) {
             square(&s, &a, &amp, &sp, &n, flag(&x, "extra_half_period")?)
         },
     );
-    e.register_fn(
+    register_path5(
+        e,
         "triangle_wave_xy",
-        |s: Dynamic, a: Dynamic, amp: Dynamic, sp: Dynamic, n: Dynamic| -> Res<Array> {
-            array_of(points::triangle_wave_xy(
-                pt(&s, "start")?,
-                num(&a, "direction angle")?,
-                num(&amp, "amplitude")?,
-                num(&sp, "tip spacing")?,
-                count(&n, "periods")?,
-            ))
-        },
+        [
+            "start",
+            "direction angle",
+            "amplitude",
+            "tip spacing",
+            "periods",
+        ],
+        points::triangle_wave_xy,
     );
     e.register_fn(
         "segmented_line",

@@ -5,9 +5,8 @@
 use std::io::{ErrorKind, Read, Write};
 use std::time::Duration;
 
-use super::fallback;
 use super::protocol::{self, Action, Response};
-use super::{Capabilities, Event, Out, PauseMethod, Pending, Request, Session, State, Sync};
+use super::{Capabilities, Event, Out, PauseMethod, Pending, Request, Session, State};
 
 impl<P: Read + Write> Session<P> {
     pub(super) fn read_port(&mut self, now: Duration) -> std::io::Result<()> {
@@ -93,15 +92,7 @@ impl<P: Read + Write> Session<P> {
                 if e.contains("nothing to pause") && self.state == State::Pausing {
                     // The firmware had already finished every queued move (the head waits at
                     // the boundary): park from the host.
-                    let m = self.modal.clone();
-                    let seq = fallback::pause_sequence(&m, &self.opts.host_pause);
-                    self.paused_modal = Some(m);
-                    self.queue.extend(seq.into_iter().map(Out::plain));
-                    self.queue.push_back(Out {
-                        line: "M400".into(),
-                        sync: Some(Sync::HostParked),
-                        tracked: true,
-                    });
+                    self.queue_host_park();
                 }
                 self.events.push(Event::Message(e));
             }

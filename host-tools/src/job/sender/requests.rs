@@ -128,15 +128,7 @@ impl<P: Read + Write> Session<P> {
                 }
             }
             Sync::HostDrain => {
-                let m = self.modal.clone();
-                let seq = fallback::pause_sequence(&m, &self.opts.host_pause);
-                self.paused_modal = Some(m);
-                self.queue.extend(seq.into_iter().map(Out::plain));
-                self.queue.push_back(Out {
-                    line: "M400".into(),
-                    sync: Some(Sync::HostParked),
-                    tracked: true,
-                });
+                self.queue_host_park();
             }
             Sync::HostParked => {
                 let b = self.first_unsent_layer();
@@ -152,5 +144,19 @@ impl<P: Read + Write> Session<P> {
             }
         }
         Ok(())
+    }
+
+    /// Queues the host-side pause sequence for the current modal state (kept for the resume
+    /// sequence) and an `M400` after it: paused once that is acknowledged.
+    pub(super) fn queue_host_park(&mut self) {
+        let m = self.modal.clone();
+        let seq = fallback::pause_sequence(&m, &self.opts.host_pause);
+        self.paused_modal = Some(m);
+        self.queue.extend(seq.into_iter().map(Out::plain));
+        self.queue.push_back(Out {
+            line: "M400".into(),
+            sync: Some(Sync::HostParked),
+            tracked: true,
+        });
     }
 }

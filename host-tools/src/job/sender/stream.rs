@@ -125,15 +125,7 @@ impl<P: Read + Write> Session<P> {
                             self.send_numbered("M400".into(), Some(Sync::Trigger))
                         }
                         _ => {
-                            let m = self.modal.clone();
-                            let seq = fallback::pause_sequence(&m, &self.opts.host_pause);
-                            self.paused_modal = Some(m);
-                            self.queue.extend(seq.into_iter().map(Out::plain));
-                            self.queue.push_back(Out {
-                                line: "M400".into(),
-                                sync: Some(Sync::HostParked),
-                                tracked: true,
-                            });
+                            self.queue_host_park();
                             self.send_next(now)
                         }
                     };
