@@ -11,6 +11,7 @@
 //! as the height difference alone exceeds the best distance found: the first layer below is
 //! usually all it reads. Queries run in parallel (rayon).
 
+use crate::paste::bins::bin_by_cell;
 use crate::paste::timebased::Sample;
 use glam::{DVec2, DVec3};
 use rayon::prelude::*;
@@ -127,22 +128,15 @@ impl Columns {
             let iy = (((p.y - lo.y) / cell) as usize).min(ny - 1);
             iy * nx + ix
         };
-        let mut starts = vec![0u32; nx * ny + 1];
-        for s in dep() {
-            starts[col(s.pos) + 1] += 1;
-        }
-        for i in 0..nx * ny {
-            starts[i + 1] += starts[i];
-        }
-        let mut cursor = starts.clone();
-        let mut order = vec![0u32; starts[nx * ny] as usize];
-        for (i, s) in samples.iter().enumerate() {
-            if s.extruding && s.pos.is_finite() {
-                let c = col(s.pos);
-                order[cursor[c] as usize] = i as u32;
-                cursor[c] += 1;
-            }
-        }
+        let (mut starts, mut cursor, mut order) = (Vec::new(), Vec::new(), Vec::new());
+        let items = || {
+            samples
+                .iter()
+                .enumerate()
+                .filter(|(_, s)| s.extruding && s.pos.is_finite())
+                .map(|(i, s)| (i as u32, col(s.pos)))
+        };
+        bin_by_cell(nx * ny, items, &mut starts, &mut cursor, &mut order);
         // Sort every column by z (ties by index), in parallel over disjoint slices.
         let mut slices: Vec<&mut [u32]> = Vec::with_capacity(nx * ny);
         let mut rest: &mut [u32] = &mut order;

@@ -1,6 +1,7 @@
 //! Neighbour search for growth: a uniform grid over the nodes, rebuilt every iteration by a
 //! counting sort, queried over the 3×3 cells around a point.
 
+use crate::paste::bins::bin_by_cell;
 use glam::DVec2;
 
 /// Uniform grid over points, rebuilt by counting sort.
@@ -32,25 +33,18 @@ impl PointGrid {
         self.nx = (((hi.x - lo.x) / cell) as usize + 1).min(1 << 14);
         self.ny = (((hi.y - lo.y) / cell) as usize + 1).min(1 << 14);
         let cells = self.nx * self.ny;
-        self.starts.clear();
-        self.starts.resize(cells + 1, 0);
-        for p in pts {
-            let c = self.cell_of(*p);
-            self.starts[c + 1] += 1;
-        }
-        for i in 0..cells {
-            self.starts[i + 1] += self.starts[i];
-        }
-        self.cursor.clear();
-        self.cursor.extend_from_slice(&self.starts[..cells]);
-        self.order.clear();
-        self.order.resize(pts.len(), 0);
-        for (k, p) in pts.iter().enumerate() {
-            let c = self.cell_of(*p);
-            let slot = self.cursor[c] as usize;
-            self.order[slot] = k as u32;
-            self.cursor[c] += 1;
-        }
+        let (mut starts, mut cursor, mut order) = (
+            std::mem::take(&mut self.starts),
+            std::mem::take(&mut self.cursor),
+            std::mem::take(&mut self.order),
+        );
+        let items = || {
+            pts.iter()
+                .enumerate()
+                .map(|(k, p)| (k as u32, self.cell_of(*p)))
+        };
+        bin_by_cell(cells, items, &mut starts, &mut cursor, &mut order);
+        (self.starts, self.cursor, self.order) = (starts, cursor, order);
     }
 
     fn coords(&self, p: DVec2) -> (usize, usize) {
