@@ -108,3 +108,34 @@ impl PtyHost {
         self.until("ok", limit, |l| l.starts_with("ok"));
     }
 }
+
+/// `sim serve` running on a thread of the test process (see [`serve_in_thread`]).
+pub struct ServeThread(std::thread::JoinHandle<Result<sim::serve::ServeRecord, String>>);
+
+impl ServeThread {
+    /// Wait for the session to end; its record, or why it failed (the thread's panic too).
+    pub fn record(self) -> Result<sim::serve::ServeRecord, String> {
+        self.0
+            .join()
+            .unwrap_or_else(|_| Err("the sim serve thread panicked".to_string()))
+    }
+}
+
+/// Start `sim serve` with `args` on a thread and open a host on its pseudo-terminal once it
+/// has printed the device's path (panics when that takes longer than `ready_limit`).
+pub fn serve_in_thread(
+    args: sim::serve::ServeArgs,
+    ready_limit: Duration,
+) -> (ServeThread, PtyHost) {
+    let (tx, rx) = mpsc::channel();
+    let server = std::thread::spawn(move || {
+        sim::serve::serve_with(args, move |p| {
+            let _ = tx.send(p.to_path_buf());
+        })
+        .map_err(|e| format!("{e:#}"))
+    });
+    let path = rx
+        .recv_timeout(ready_limit)
+        .expect("sim serve printed no device path");
+    (ServeThread(server), PtyHost::open(&path))
+}

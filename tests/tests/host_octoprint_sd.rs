@@ -11,12 +11,11 @@ mod hosts_common;
 
 use hosts_common::host_python;
 use sim::run::Policy;
-use sim::serve::{serve_with, ServeArgs};
+use sim::serve::ServeArgs;
 use std::io::Write;
 use std::process::{Command, Stdio};
-use std::sync::mpsc;
 use std::time::Duration;
-use tests::pty::PtyHost;
+use tests::pty::serve_in_thread;
 
 const WAIT: Duration = Duration::from_secs(30);
 
@@ -52,30 +51,21 @@ fn octoprint_reads_the_nested_listing_and_its_selection_opens_each_file() {
         .stdout(Stdio::piped())
         .spawn()
         .expect("octoprint's python");
-    let (tx, rx) = mpsc::channel();
     let sd = dir.clone();
-    let server = std::thread::spawn(move || {
-        serve_with(
-            ServeArgs {
-                speed: 10.0,
-                record: None,
-                policy: Policy::Firmware,
-                exit_after_idle: 3.0,
-                link: None,
-                flash: None,
-                sd: Some(sd),
-                machine: None,
-                trace: None,
-            },
-            move |p| {
-                let _ = tx.send(p.to_path_buf());
-            },
-        )
-    });
-    let path = rx
-        .recv_timeout(Duration::from_secs(20))
-        .expect("device path");
-    let mut host = PtyHost::open(&path);
+    let (server, mut host) = serve_in_thread(
+        ServeArgs {
+            speed: 10.0,
+            record: None,
+            policy: Policy::Firmware,
+            exit_after_idle: 3.0,
+            link: None,
+            flash: None,
+            sd: Some(sd),
+            machine: None,
+            trace: None,
+        },
+        Duration::from_secs(20),
+    );
     host.write("M20 L");
     host.until("Begin file list", WAIT, |l| l == "Begin file list");
     let mut lines = Vec::new();
@@ -116,6 +106,6 @@ fn octoprint_reads_the_nested_listing_and_its_selection_opens_each_file() {
         host.ok(WAIT);
     }
     drop(host);
-    let _ = server.join();
+    let _ = server.record();
     let _ = std::fs::remove_dir_all(&dir);
 }

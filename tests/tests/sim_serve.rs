@@ -3,39 +3,29 @@
 //! `//action:paused`, resume, and see the job complete; then check the session's pause record.
 
 use sim::run::Policy;
-use sim::serve::{serve_with, ServeArgs};
-use std::sync::mpsc;
+use sim::serve::ServeArgs;
 use std::time::Duration;
-use tests::pty::PtyHost;
+use tests::pty::serve_in_thread;
 
 /// How long the host waits for any one answer.
 const WAIT: Duration = Duration::from_secs(60);
 
 #[test]
 fn a_host_prints_pauses_and_resumes_over_the_pseudo_terminal() {
-    let (tx, rx) = mpsc::channel();
-    let server = std::thread::spawn(move || {
-        serve_with(
-            ServeArgs {
-                speed: 20.0,
-                record: None,
-                policy: Policy::Firmware,
-                exit_after_idle: 1.0,
-                link: None,
-                flash: None,
-                machine: None,
-                trace: None,
-                sd: None,
-            },
-            move |p| {
-                let _ = tx.send(p.to_path_buf());
-            },
-        )
-    });
-    let path = rx
-        .recv_timeout(Duration::from_secs(10))
-        .expect("sim serve printed no device path");
-    let mut host = PtyHost::open(&path);
+    let (server, mut host) = serve_in_thread(
+        ServeArgs {
+            speed: 20.0,
+            record: None,
+            policy: Policy::Firmware,
+            exit_after_idle: 1.0,
+            link: None,
+            flash: None,
+            machine: None,
+            trace: None,
+            sd: None,
+        },
+        Duration::from_secs(10),
+    );
 
     host.write("M110 N0");
     host.ok(WAIT);
@@ -72,10 +62,7 @@ fn a_host_prints_pauses_and_resumes_over_the_pseudo_terminal() {
     host.ok(WAIT);
     drop(host);
 
-    let record = server
-        .join()
-        .expect("server thread")
-        .expect("serve session");
+    let record = server.record().expect("serve session");
     let s = &record.session;
     assert!(s.finished && !s.cancelled, "{s:#?}");
     assert_eq!(s.lost_moves + s.duplicated_moves, 0, "{s:#?}");

@@ -2,11 +2,10 @@
 //! (the file is the board's settings area, driven through the firmware's own store).
 
 use sim::run::Policy;
-use sim::serve::{serve_with, ServeArgs};
+use sim::serve::ServeArgs;
 use std::path::{Path, PathBuf};
-use std::sync::mpsc;
 use std::time::Duration;
-use tests::pty::{checksum, PtyHost};
+use tests::pty::{checksum, serve_in_thread};
 
 /// One `sim serve` session: send `lines` (each waits for its `ok`), return everything read.
 fn session(flash: &Path, lines: &[&str]) -> Vec<String> {
@@ -17,30 +16,21 @@ fn session(flash: &Path, lines: &[&str]) -> Vec<String> {
 /// write a realtime `M25` (layer pause) after the k-th line and, once every line is sent, read
 /// until the printer says it keeps the paused job. Returns everything read.
 fn session_with(flash: &Path, lines: &[&str], pause_after: Option<usize>) -> Vec<String> {
-    let (tx, rx) = mpsc::channel();
     let flash: PathBuf = flash.to_path_buf();
-    let server = std::thread::spawn(move || {
-        serve_with(
-            ServeArgs {
-                speed: 20.0,
-                record: None,
-                policy: Policy::Firmware,
-                exit_after_idle: 0.5,
-                link: None,
-                flash: Some(flash),
-                machine: None,
-                trace: None,
-                sd: None,
-            },
-            move |p| {
-                let _ = tx.send(p.to_path_buf());
-            },
-        )
-    });
-    let path = rx
-        .recv_timeout(Duration::from_secs(10))
-        .expect("sim serve printed no device path");
-    let mut host = PtyHost::open(&path);
+    let (server, mut host) = serve_in_thread(
+        ServeArgs {
+            speed: 20.0,
+            record: None,
+            policy: Policy::Firmware,
+            exit_after_idle: 0.5,
+            link: None,
+            flash: Some(flash),
+            machine: None,
+            trace: None,
+            sd: None,
+        },
+        Duration::from_secs(10),
+    );
     let pausing = pause_after.is_some();
     let keeps = |l: &str| l.contains("power-cut resume:");
     for (i, l) in lines.iter().enumerate() {
@@ -65,10 +55,7 @@ fn session_with(flash: &Path, lines: &[&str], pause_after: Option<usize>) -> Vec
     }
     let seen = std::mem::take(&mut host.seen);
     drop(host);
-    server
-        .join()
-        .expect("server thread")
-        .expect("serve session");
+    server.record().expect("serve session");
     seen
 }
 

@@ -8,11 +8,10 @@
 
 use firmware::config::MachineConfig;
 use sim::run::Policy;
-use sim::serve::{serve_with, ServeArgs};
-use std::sync::mpsc;
+use sim::serve::ServeArgs;
 use std::time::Duration;
 use tests::gcode::layer_markers;
-use tests::pty::PtyHost;
+use tests::pty::serve_in_thread;
 
 const FIXTURE: &str = "prusa-zhop.gcode";
 
@@ -28,30 +27,21 @@ fn a_host_prints_a_sliced_file_from_the_card_with_a_layer_pause() {
     std::fs::create_dir_all(dir.join("prints")).unwrap();
     std::fs::write(dir.join("prints").join(FIXTURE), &gcode).unwrap();
 
-    let (tx, rx) = mpsc::channel();
     let sd = dir.clone();
-    let server = std::thread::spawn(move || {
-        serve_with(
-            ServeArgs {
-                speed: 50.0,
-                record: None,
-                policy: Policy::Firmware,
-                exit_after_idle: 1.0,
-                link: None,
-                flash: None,
-                sd: Some(sd),
-                machine: None,
-                trace: None,
-            },
-            move |p| {
-                let _ = tx.send(p.to_path_buf());
-            },
-        )
-    });
-    let path = rx
-        .recv_timeout(Duration::from_secs(20))
-        .expect("sim serve printed no device path");
-    let mut host = PtyHost::open(&path);
+    let (server, mut host) = serve_in_thread(
+        ServeArgs {
+            speed: 50.0,
+            record: None,
+            policy: Policy::Firmware,
+            exit_after_idle: 1.0,
+            link: None,
+            flash: None,
+            sd: Some(sd),
+            machine: None,
+            trace: None,
+        },
+        Duration::from_secs(20),
+    );
 
     host.write("M115");
     host.until("Cap:SDCARD:1", Duration::from_secs(30), |l| {
@@ -108,10 +98,7 @@ fn a_host_prints_a_sliced_file_from_the_card_with_a_layer_pause() {
     });
     drop(host);
 
-    let record = server
-        .join()
-        .expect("server thread")
-        .expect("serve session");
+    let record = server.record().expect("serve session");
     let _ = std::fs::remove_dir_all(&dir);
     let s = &record.session;
     assert!(s.finished && !s.cancelled, "{s:#?}");
