@@ -190,6 +190,12 @@ pub(crate) fn decimal(text: &[u8]) -> Option<f32> {
     }
 }
 
+/// The largest `scale` [`lex`] can give: a number of at most [`MAX_NUMBER_LEN`] bytes has at
+/// most that many less one (the point) fractional digits. [`exact_f32`] relies on it (`r << 24`
+/// fits in `u128` only while `10^scale < 2^104`), so a longer number limit fails to compile.
+const MAX_SCALE: u8 = (MAX_NUMBER_LEN - 1) as u8;
+const _: () = assert!(MAX_SCALE <= 31);
+
 /// `mant / 10^scale` as `f32`, correctly rounded (to nearest, ties to even), by integer
 /// division: the quotient's leading bits and whether anything was left over decide the
 /// rounding. Exact for every number [`lex`] gives (`mant < 10^19`, `scale <= 31`, so
@@ -198,7 +204,7 @@ fn exact_f32(mant: u64, scale: u8) -> f32 {
     if mant == 0 {
         return 0.0;
     }
-    let d = 10u128.pow(u32::from(scale.min(38)));
+    let d = 10u128.pow(u32::from(scale.min(MAX_SCALE)));
     // value = n / d * 2^e, with n in [2^127, 2^128).
     let t = mant.leading_zeros();
     let n = u128::from(mant << t) << 64;
