@@ -192,17 +192,7 @@ impl Printer {
         };
         match opened {
             Ok(e) => {
-                let mut t: String<LINE_LEN> = String::new();
-                let _ = write!(t, "File opened: {} Size: {}", file_name(&e.short), e.size);
-                self.answer_to(port, Response::Plain(&t));
-                self.answer_to(port, Response::Plain("File selected"));
-                self.sd.job = SdJob::Selected {
-                    file: SdFile {
-                        name: short_text(&e.short),
-                        size: e.size,
-                    },
-                    start_at: offset.min(e.size),
-                };
+                self.select_entry(port, &e, offset.min(e.size));
                 if start {
                     self.sd_start_on_resume();
                 }
@@ -218,8 +208,26 @@ impl Printer {
     }
 }
 
+impl Printer {
+    /// `e` is the selected file, to start at byte `start_at`: Marlin's `File opened: NAME
+    /// Size: N` and `File selected` to `port` (M23, M32, and M1000 of a kept SD job).
+    pub(super) fn select_entry(&mut self, port: Option<PortId>, e: &CardEntry, start_at: u32) {
+        let mut t: String<LINE_LEN> = String::new();
+        let _ = write!(t, "File opened: {} Size: {}", file_name(&e.short), e.size);
+        self.answer_to(port, Response::Plain(&t));
+        self.answer_to(port, Response::Plain("File selected"));
+        self.sd.job = SdJob::Selected {
+            file: SdFile {
+                name: short_text(&e.short),
+                size: e.size,
+            },
+            start_at,
+        };
+    }
+}
+
 /// The file's own name, the last component of its path (what Marlin's `File opened:` shows).
-pub(super) fn file_name(path: &str) -> &str {
+fn file_name(path: &str) -> &str {
     path.bytes()
         .rposition(|b| b == b'/')
         .and_then(|i| path.get(i + 1..))

@@ -2,13 +2,11 @@
 //! sequence): find the kept file again and check it is the one that was printing before the
 //! file is fed from the kept offset.
 
-use super::{short_text, CardRequest, SdFile, SdJob};
-use crate::link::{FileLines, PortId, Response};
-use crate::printer::{Printer, LINE_LEN};
+use super::{CardRequest, SdJob};
+use crate::link::{FileLines, PortId};
+use crate::printer::Printer;
 use crate::storage::sd::{Card, CardError};
-use core::fmt::Write as _;
 use embedded_sdmmc::BlockDevice;
-use heapless::String;
 
 /// Why a kept SD job cannot continue from its offset (M1000).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -87,22 +85,7 @@ impl Printer {
             card.close();
             return Err(ReopenError::Changed { size: e.size });
         }
-        let mut t: String<LINE_LEN> = String::new();
-        let _ = write!(
-            t,
-            "File opened: {} Size: {}",
-            super::commands::file_name(&e.short),
-            e.size
-        );
-        self.answer_to(port, Response::Plain(&t));
-        self.answer_to(port, Response::Plain("File selected"));
-        self.sd.job = SdJob::Selected {
-            file: SdFile {
-                name: short_text(&e.short),
-                size: e.size,
-            },
-            start_at: offset,
-        };
+        self.select_entry(port, &e, offset);
         Ok(())
     }
 
