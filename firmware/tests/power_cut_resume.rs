@@ -29,8 +29,8 @@ fn checksum(s: &str) -> u8 {
 /// The job (Cura markers, M83, heaters set without waiting); line i is numbered i + 1. Also
 /// returns the index of the first motion line of each layer.
 fn job() -> (Vec<String>, Vec<usize>) {
-    // M400 after G28: a layer pause requested while G28 homes through the endstops is lost
-    // today (reported to the lead; see docs/settings.md), so the pause comes after homing.
+    // M400 after G28: the pause is asked for with the head homed (a pause during G28 is
+    // tested in homing.rs).
     let mut v: Vec<String> = [
         "G28",
         "M400",
