@@ -73,6 +73,8 @@
 
 #![cfg_attr(not(test), no_std)]
 #![deny(missing_docs)]
+// Vendored copy (layerpause): this toolchain's newer lint on upstream's unchanged signatures.
+#![allow(mismatched_lifetime_syntaxes)]
 
 // ****************************************************************************
 //

@@ -205,7 +205,9 @@ where
                     volume_type: volume,
                 };
                 // We already checked for space
-                data.open_volumes.push(info).unwrap();
+                data.open_volumes
+                    .push(info)
+                    .map_err(|_| Error::TooManyOpenVolumes)?;
                 Ok(id)
             }
             _ => Err(Error::FormatError("Partition type not supported")),
@@ -295,6 +297,13 @@ where
 
         if !dir_entry.attributes.is_directory() {
             return Err(Error::OpenedFileAsDir);
+        }
+        // A damaged entry pointing outside the volume is never walked.
+        let in_volume = match &data.open_volumes[volume_idx].volume_type {
+            VolumeType::Fat(fat) => fat.is_valid_cluster(dir_entry.cluster),
+        };
+        if dir_entry.cluster != ClusterId::ROOT_DIR && !in_volume {
+            return Err(Error::BadCluster);
         }
 
         // We don't check if the directory is already open - directories hold
@@ -579,6 +588,14 @@ where
 
                 if dir_entry.attributes.is_directory() {
                     return Err(Error::OpenedDirAsFile);
+                }
+
+                // A file with data starts inside the volume (a damaged entry is never read).
+                let in_volume = match &data.open_volumes[volume_idx].volume_type {
+                    VolumeType::Fat(fat) => fat.is_valid_cluster(dir_entry.cluster),
+                };
+                if dir_entry.size > 0 && !in_volume {
+                    return Err(Error::BadCluster);
                 }
 
                 // Check it's not already open

@@ -30,23 +30,75 @@ impl<'a> Bpb<'a> {
             return Err("Bad BPB footer");
         }
 
+        // Every field the arithmetic below and the rest of the crate rely on is checked
+        // first: a damaged or foreign boot sector is a format error, never a division by
+        // zero, an overflow or a cluster outside the volume.
+        let blocks_per_cluster = u32::from(bpb.blocks_per_cluster());
+        if !blocks_per_cluster.is_power_of_two() {
+            // Also rejects 0 (a division by zero below).
+            return Err("Invalid number of blocks per cluster");
+        }
+        if bpb.reserved_block_count() == 0 {
+            return Err("Invalid reserved block count");
+        }
+        if bpb.num_fats() == 0 {
+            return Err("Invalid number of FATs");
+        }
+        if bpb.fat_size() == 0 {
+            return Err("Invalid FAT size");
+        }
+        // The root directory area is whole blocks of entries (Linux refuses a volume whose
+        // count is not, as "bogus number of directory entries").
+        let root_bytes = u32::from(bpb.root_entries_count()) * OnDiskDirEntry::LEN_U32;
+        if root_bytes.checked_rem(u32::from(bpb.bytes_per_block())) != Some(0) {
+            return Err("Invalid root entry count");
+        }
         let root_dir_blocks =
             BlockCount::from_bytes(u32::from(bpb.root_entries_count()) * OnDiskDirEntry::LEN_U32).0;
-        let non_data_blocks = u32::from(bpb.reserved_block_count())
-            + (u32::from(bpb.num_fats()) * bpb.fat_size())
-            + root_dir_blocks;
-        let data_blocks = bpb.total_blocks() - non_data_blocks;
-        bpb.cluster_count = data_blocks / u32::from(bpb.blocks_per_cluster());
+        let non_data_blocks = u32::from(bpb.num_fats())
+            .checked_mul(bpb.fat_size())
+            .and_then(|fats| fats.checked_add(u32::from(bpb.reserved_block_count())))
+            .and_then(|n| n.checked_add(root_dir_blocks))
+            .ok_or("Invalid FAT size")?;
+        let data_blocks = bpb
+            .total_blocks()
+            .checked_sub(non_data_blocks)
+            .ok_or("Volume smaller than its FATs")?;
+        bpb.cluster_count = data_blocks / blocks_per_cluster;
         if bpb.cluster_count < 4085 {
             return Err("FAT12 is unsupported");
         } else if bpb.cluster_count < 65525 {
             bpb.fat_type = FatType::Fat16;
-        } else {
+        } else if bpb.cluster_count <= 0x0FFF_FFF5 {
             bpb.fat_type = FatType::Fat32;
+        } else {
+            // FAT32 cluster numbers have 28 bits.
+            return Err("Too many clusters");
         }
-
+        // The FAT must have an entry for every cluster (and the two reserved ones), or a
+        // cluster number read from it could point past its end.
+        let entry_bytes = match bpb.fat_type {
+            FatType::Fat16 => 2,
+            FatType::Fat32 => 4,
+        };
+        let fat_entries =
+            u64::from(bpb.fat_size()) * u64::from(bpb.bytes_per_block()) / entry_bytes;
+        if fat_entries < u64::from(bpb.cluster_count) + 2 {
+            return Err("FAT too small for the volume");
+        }
         match bpb.fat_type {
+            // FAT16 keeps its root directory in a fixed area (FAT32 in a cluster chain).
+            FatType::Fat16 if bpb.root_entries_count() == 0 => Err("Invalid root entry count"),
+            // The 16-bit FAT size is FAT16's, and 0 on FAT32.
+            FatType::Fat16 if bpb.fat_size16() == 0 => Err("Invalid FAT size"),
             FatType::Fat16 => Ok(bpb),
+            FatType::Fat32 if bpb.root_entries_count() != 0 => Err("Invalid root entry count"),
+            FatType::Fat32 if bpb.fat_size16() != 0 => Err("Invalid FAT size"),
+            FatType::Fat32
+                if !(2..=bpb.cluster_count + 1).contains(&bpb.first_root_dir_cluster()) =>
+            {
+                Err("Invalid root directory cluster")
+            }
             FatType::Fat32 if bpb.fs_ver() == 0 => {
                 // Only support FAT32 version 0.0
                 Ok(bpb)

@@ -139,6 +139,45 @@ impl core::fmt::Debug for VolumeName {
     }
 }
 
+/// A walk along a directory's cluster chain: the clusters followed so far and Brent's cycle
+/// detection (a loop is found within about twice its start and length, with no memory of the
+/// clusters seen).
+struct ChainWalk {
+    /// Clusters after the first.
+    clusters: u32,
+    /// The cluster compared against (Brent's tortoise).
+    tortoise: Option<ClusterId>,
+    /// Steps before the tortoise moves up, and the steps since it did.
+    power: u32,
+    steps: u32,
+}
+
+impl ChainWalk {
+    const NEW: ChainWalk = ChainWalk {
+        clusters: 0,
+        tortoise: None,
+        power: 1,
+        steps: 0,
+    };
+
+    /// The chain goes from `from` to `to`: false when it has looped or holds more than
+    /// `max` clusters.
+    fn step(&mut self, from: ClusterId, to: ClusterId, max: u32) -> bool {
+        self.clusters += 1;
+        let tortoise = *self.tortoise.get_or_insert(from);
+        if to == tortoise || self.clusters >= max {
+            return false;
+        }
+        self.steps += 1;
+        if self.steps == self.power {
+            self.tortoise = Some(to);
+            self.power = self.power.saturating_mul(2);
+            self.steps = 0;
+        }
+        true
+    }
+}
+
 /// Identifies a FAT16 or FAT32 Volume on the disk.
 #[cfg_attr(feature = "defmt-log", derive(defmt::Format))]
 #[derive(Debug, PartialEq, Eq)]
@@ -295,10 +334,11 @@ impl FatVolume {
     where
         D: BlockDevice,
     {
-        if cluster.0 > (u32::MAX / 4) {
-            panic!("next_cluster called on invalid cluster {:x?}", cluster);
+        if !self.is_valid_cluster(cluster) {
+            // Never a FAT entry outside the FAT.
+            return Err(Error::BadCluster);
         }
-        match &self.fat_specific_info {
+        let next = match &self.fat_specific_info {
             FatSpecificInfo::Fat16(_fat16_info) => {
                 let fat_offset = cluster.0 * 2;
                 let this_fat_block_num = self.lba_start + self.fat_start.offset_bytes(fat_offset);
@@ -308,6 +348,10 @@ impl FatVolume {
                 let fat_entry =
                     LittleEndian::read_u16(&block[this_fat_ent_offset..=this_fat_ent_offset + 1]);
                 match fat_entry {
+                    0x0000 => {
+                        // Jumped to free space
+                        Err(Error::UnterminatedFatChain)
+                    }
                     0xFFF7 => {
                         // Bad cluster
                         Err(Error::BadCluster)
@@ -350,6 +394,44 @@ impl FatVolume {
                     }
                 }
             }
+        }?;
+        if self.is_valid_cluster(next) {
+            Ok(next)
+        } else {
+            // A chain that leaves the volume (or reaches a reserved value) is damaged.
+            Err(Error::BadCluster)
+        }
+    }
+
+    /// Whether `cluster` is a data cluster of this volume (`2..=cluster_count + 1`), so
+    /// [`Self::cluster_to_block`] maps it into the volume and its FAT entry is in the FAT.
+    pub(crate) fn is_valid_cluster(&self, cluster: ClusterId) -> bool {
+        cluster.0 >= RESERVED_ENTRIES && cluster.0 - RESERVED_ENTRIES < self.cluster_count
+    }
+
+    /// Most clusters a directory's chain can have: a directory holds at most 65536 entries
+    /// of 32 bytes (FAT specification), so a longer chain loops or is damaged.
+    fn max_dir_clusters(&self) -> u32 {
+        (65536 * OnDiskDirEntry::LEN_U32).div_ceil(self.bytes_per_cluster())
+    }
+
+    /// The cluster after `cluster` in a directory's chain (`None` at its end), followed with
+    /// `walked`: a chain that loops, or is longer than a directory can be, is
+    /// [`Error::UnterminatedFatChain`] instead of an endless walk.
+    fn next_dir_cluster<D>(
+        &self,
+        block_cache: &mut BlockCache<D>,
+        cluster: ClusterId,
+        walked: &mut ChainWalk,
+    ) -> Result<Option<ClusterId>, Error<D::Error>>
+    where
+        D: BlockDevice,
+    {
+        match self.next_cluster(block_cache, cluster) {
+            Ok(n) if walked.step(cluster, n, self.max_dir_clusters()) => Ok(Some(n)),
+            Ok(_) => Err(Error::UnterminatedFatChain),
+            Err(Error::EndOfFile) => Ok(None),
+            Err(e) => Err(e),
         }
     }
 
@@ -688,6 +770,8 @@ impl FatVolume {
         // `first_root_dir_block`). Other directories can have any size
         // as they are made of regular clusters.
         let mut current_cluster = Some(dir_info.cluster);
+        // The chain so far (a looping chain is an error).
+        let mut walked = ChainWalk::NEW;
         let mut first_dir_block_num = match dir_info.cluster {
             ClusterId::ROOT_DIR => self.lba_start + fat16_info.first_root_dir_block,
             _ => self.cluster_to_block(dir_info.cluster),
@@ -718,13 +802,10 @@ impl FatVolume {
                 }
             }
             if cluster != ClusterId::ROOT_DIR {
-                current_cluster = match self.next_cluster(block_cache, cluster) {
-                    Ok(n) => {
-                        first_dir_block_num = self.cluster_to_block(n);
-                        Some(n)
-                    }
-                    _ => None,
-                };
+                current_cluster = self.next_dir_cluster(block_cache, cluster, &mut walked)?;
+                if let Some(n) = current_cluster {
+                    first_dir_block_num = self.cluster_to_block(n);
+                }
             } else {
                 current_cluster = None;
             }
@@ -749,6 +830,8 @@ impl FatVolume {
             ClusterId::ROOT_DIR => Some(fat32_info.first_root_dir_cluster),
             _ => Some(dir_info.cluster),
         };
+        // The chain so far (a looping chain is an error).
+        let mut walked = ChainWalk::NEW;
         while let Some(cluster) = current_cluster {
             let start_block_idx = self.cluster_to_block(cluster);
             for block_idx in start_block_idx.range(BlockCount(u32::from(self.blocks_per_cluster))) {
@@ -767,10 +850,7 @@ impl FatVolume {
                     }
                 }
             }
-            current_cluster = match self.next_cluster(block_cache, cluster) {
-                Ok(n) => Some(n),
-                _ => None,
-            };
+            current_cluster = self.next_dir_cluster(block_cache, cluster, &mut walked)?;
         }
         Ok(())
     }
@@ -792,6 +872,8 @@ impl FatVolume {
                 // `first_root_dir_block`). Other directories can have any size
                 // as they are made of regular clusters.
                 let mut current_cluster = Some(dir_info.cluster);
+                // The chain so far (a looping chain is an error).
+                let mut walked = ChainWalk::NEW;
                 let mut first_dir_block_num = match dir_info.cluster {
                     ClusterId::ROOT_DIR => self.lba_start + fat16_info.first_root_dir_block,
                     _ => self.cluster_to_block(dir_info.cluster),
@@ -818,13 +900,11 @@ impl FatVolume {
                         }
                     }
                     if cluster != ClusterId::ROOT_DIR {
-                        current_cluster = match self.next_cluster(block_cache, cluster) {
-                            Ok(n) => {
-                                first_dir_block_num = self.cluster_to_block(n);
-                                Some(n)
-                            }
-                            _ => None,
-                        };
+                        current_cluster =
+                            self.next_dir_cluster(block_cache, cluster, &mut walked)?;
+                        if let Some(n) = current_cluster {
+                            first_dir_block_num = self.cluster_to_block(n);
+                        }
                     } else {
                         current_cluster = None;
                     }
@@ -836,6 +916,8 @@ impl FatVolume {
                     ClusterId::ROOT_DIR => Some(fat32_info.first_root_dir_cluster),
                     _ => Some(dir_info.cluster),
                 };
+                // The chain so far (a looping chain is an error).
+                let mut walked = ChainWalk::NEW;
                 while let Some(cluster) = current_cluster {
                     let block_idx = self.cluster_to_block(cluster);
                     for block in block_idx.range(BlockCount(u32::from(self.blocks_per_cluster))) {
@@ -849,10 +931,7 @@ impl FatVolume {
                             x => return x,
                         }
                     }
-                    current_cluster = match self.next_cluster(block_cache, cluster) {
-                        Ok(n) => Some(n),
-                        _ => None,
-                    }
+                    current_cluster = self.next_dir_cluster(block_cache, cluster, &mut walked)?;
                 }
                 Err(Error::NotFound)
             }
@@ -904,6 +983,8 @@ impl FatVolume {
                 // `first_root_dir_block`). Other directories can have any size
                 // as they are made of regular clusters.
                 let mut current_cluster = Some(dir_info.cluster);
+                // The chain so far (a looping chain is an error).
+                let mut walked = ChainWalk::NEW;
                 let mut first_dir_block_num = match dir_info.cluster {
                     ClusterId::ROOT_DIR => self.lba_start + fat16_info.first_root_dir_block,
                     _ => self.cluster_to_block(dir_info.cluster),
@@ -934,13 +1015,11 @@ impl FatVolume {
                     }
                     // if it's not the root dir, find the next cluster so we can keep looking
                     if cluster != ClusterId::ROOT_DIR {
-                        current_cluster = match self.next_cluster(block_cache, cluster) {
-                            Ok(n) => {
-                                first_dir_block_num = self.cluster_to_block(n);
-                                Some(n)
-                            }
-                            _ => None,
-                        };
+                        current_cluster =
+                            self.next_dir_cluster(block_cache, cluster, &mut walked)?;
+                        if let Some(n) = current_cluster {
+                            first_dir_block_num = self.cluster_to_block(n);
+                        }
                     } else {
                         current_cluster = None;
                     }
@@ -954,6 +1033,8 @@ impl FatVolume {
                     ClusterId::ROOT_DIR => Some(fat32_info.first_root_dir_cluster),
                     _ => Some(dir_info.cluster),
                 };
+                // The chain so far (a looping chain is an error).
+                let mut walked = ChainWalk::NEW;
                 // Walk the directory
                 while let Some(cluster) = current_cluster {
                     // Scan the cluster a block at a time
@@ -974,10 +1055,7 @@ impl FatVolume {
                         }
                     }
                     // Find the next cluster
-                    current_cluster = match self.next_cluster(block_cache, cluster) {
-                        Ok(n) => Some(n),
-                        _ => None,
-                    }
+                    current_cluster = self.next_dir_cluster(block_cache, cluster, &mut walked)?;
                 }
                 // Ok, give up
             }
@@ -1349,6 +1427,13 @@ where
     trace!("Reading BPB");
     let block = block_cache.read(lba_start).map_err(Error::DeviceError)?;
     let bpb = Bpb::create_from_bytes(block).map_err(Error::FormatError)?;
+    if bpb.bytes_per_block() as usize != Block::LEN {
+        return Err(Error::BadBlockSize(bpb.bytes_per_block()));
+    }
+    // The volume lies inside its partition, and no block number of it overflows.
+    if bpb.total_blocks() > num_blocks.0 || lba_start.0.checked_add(bpb.total_blocks()).is_none() {
+        return Err(Error::FormatError("Volume larger than its partition"));
+    }
     let fat_start = BlockCount(u32::from(bpb.reserved_block_count()));
     let second_fat_start = if bpb.num_fats() == 2 {
         Some(fat_start + BlockCount(bpb.fat_size()))
@@ -1357,9 +1442,6 @@ where
     };
     match bpb.fat_type {
         FatType::Fat16 => {
-            if bpb.bytes_per_block() as usize != Block::LEN {
-                return Err(Error::BadBlockSize(bpb.bytes_per_block()));
-            }
             // FirstDataSector = BPB_ResvdSecCnt + (BPB_NumFATs * FATSz) + RootDirSectors;
             let root_dir_blocks = ((u32::from(bpb.root_entries_count()) * OnDiskDirEntry::LEN_U32)
                 + (Block::LEN_U32 - 1))
@@ -1393,6 +1475,10 @@ where
                 fat_start + BlockCount(u32::from(bpb.num_fats()) * bpb.fat_size());
             // Safe to unwrap since this is a Fat32 Type
             let info_location = bpb.fs_info_block().unwrap();
+            // The info sector is in the reserved area (so inside the volume).
+            if info_location.0 >= u32::from(bpb.reserved_block_count()) {
+                return Err(Error::FormatError("Invalid info sector location"));
+            }
             let mut volume = FatVolume {
                 lba_start,
                 num_blocks,
