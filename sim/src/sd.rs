@@ -68,7 +68,10 @@ impl ImageDevice {
                 std::fs::read(p).with_context(|| format!("reading {}", p.display()))?,
             ));
         }
-        write_image(&path, &contents)?;
+        let left_off = write_image(&path, &contents)?;
+        for name in &left_off {
+            eprintln!("sim: {name:?} left off the card: a FAT file name cannot hold it");
+        }
         let mut dev = Self::open(&path)?;
         dev.temp = Some(path);
         Ok(dev)
@@ -179,10 +182,24 @@ fn collect_files(
 }
 
 /// Write a card image holding `files` (path, contents) to `path`: MBR, one FAT partition. A
-/// path with `/` puts the file in sub-directories (created as needed).
-pub fn write_image(path: &Path, files: &[(String, Vec<u8>)]) -> anyhow::Result<()> {
+/// path with `/` puts the file in sub-directories (created as needed). A file whose name (or a
+/// directory of whose path) a FAT volume cannot hold — a line end or another control
+/// character, `*?:<>|"\`, over 255 characters — is left off, as a computer copying to a card
+/// refuses it, and the rest is written: returns the paths left off.
+pub fn write_image(path: &Path, files: &[(String, Vec<u8>)]) -> anyhow::Result<Vec<String>> {
     let total: u64 = files.iter().map(|(_, c)| c.len() as u64 + 4096).sum();
-    let fat16 = total <= FAT16_FILES_MAX;
+    write_image_as(path, files, total > FAT16_FILES_MAX)
+}
+
+/// [`write_image`] with the FAT type chosen: FAT32 (a partition of at least 40 MiB, sparse)
+/// or FAT16.
+pub fn write_image_as(
+    path: &Path,
+    files: &[(String, Vec<u8>)],
+    fat32: bool,
+) -> anyhow::Result<Vec<String>> {
+    let total: u64 = files.iter().map(|(_, c)| c.len() as u64 + 4096).sum();
+    let fat16 = !fat32;
     // FAT16 with 512-byte clusters needs 4085..65525 clusters; FAT32 at least 65525.
     let part_bytes = if fat16 {
         (total + total / 4 + (4 << 20)).clamp(8 << 20, 30 << 20)
@@ -230,7 +247,12 @@ pub fn write_image(path: &Path, files: &[(String, Vec<u8>)]) -> anyhow::Result<(
     let fs = fatfs::FileSystem::new(part(), fatfs::FsOptions::new())
         .context("opening the new card image")?;
     let root = fs.root_dir();
+    let mut left_off = Vec::new();
     for (name, contents) in files {
+        if !name.split('/').all(fat_name_ok) {
+            left_off.push(name.clone());
+            continue;
+        }
         let mut dir = root.clone();
         let mut parts: Vec<&str> = name.split('/').collect();
         let leaf = parts.pop().unwrap_or_default();
@@ -252,5 +274,72 @@ pub fn write_image(path: &Path, files: &[(String, Vec<u8>)]) -> anyhow::Result<(
     }
     drop(root);
     fs.unmount().context("closing the card image")?;
-    Ok(())
+    Ok(left_off)
+}
+
+/// A small FAT16 card image in memory, made by `fatfs` (the seeds of the firmware's
+/// `card_image` fuzz target): an MBR with one partition at block 1, 4200 blocks of FAT16
+/// (one FAT, 16 root entries, 512-byte clusters), `files` written as [`write_image`] writes
+/// them; trailing blocks of zeros are cut (the target reads past the input as zeros).
+pub fn compact_image(files: &[(String, Vec<u8>)]) -> anyhow::Result<Vec<u8>> {
+    const BLOCKS: u32 = 4200;
+    let mut part = io::Cursor::new(vec![0u8; BLOCKS as usize * 512]);
+    fatfs::format_volume(
+        &mut part,
+        fatfs::FormatVolumeOptions::new()
+            .fat_type(fatfs::FatType::Fat16)
+            .bytes_per_cluster(512)
+            .total_sectors(BLOCKS)
+            .fats(1)
+            .max_root_dir_entries(16)
+            .volume_label(*b"LAYERPAUSE "),
+    )
+    .context("formatting the compact image")?;
+    {
+        let fs = fatfs::FileSystem::new(&mut part, fatfs::FsOptions::new())
+            .context("opening the compact image")?;
+        let root = fs.root_dir();
+        for (name, contents) in files {
+            let mut dir = root.clone();
+            let mut parts: Vec<&str> = name.split('/').collect();
+            let leaf = parts.pop().unwrap_or_default();
+            for d in parts {
+                dir = match dir.open_dir(d) {
+                    Ok(sub) => sub,
+                    Err(_) => dir.create_dir(d)?,
+                };
+            }
+            let mut f = dir.create_file(leaf)?;
+            f.truncate()?;
+            f.write_all(contents)?;
+            f.flush()?;
+        }
+        drop(root);
+        fs.unmount()?;
+    }
+    let mut image = vec![0u8; 512];
+    image[446 + 4] = 0x06; // FAT16
+    image[446 + 8..446 + 12].copy_from_slice(&1u32.to_le_bytes());
+    image[446 + 12..446 + 16].copy_from_slice(&BLOCKS.to_le_bytes());
+    image[510] = 0x55;
+    image[511] = 0xAA;
+    image.extend_from_slice(&part.into_inner());
+    let used = image
+        .chunks(512)
+        .rposition(|b| b.iter().any(|&x| x != 0))
+        .map_or(0, |i| (i + 1) * 512);
+    image.truncate(used);
+    Ok(image)
+}
+
+/// Whether a FAT long name can be `name` (the characters `fatfs` writes, as the VFAT rules
+/// allow them: no control characters, none of `"*/:<>?\|`, 1 to 255 bytes, characters of
+/// the Basic Multilingual Plane).
+pub fn fat_name_ok(name: &str) -> bool {
+    (1..=255).contains(&name.len())
+        && name.chars().all(|c| {
+            c.is_ascii_alphanumeric()
+                || ('\u{80}'..='\u{FFFF}').contains(&c)
+                || "$%'-_@~`!(){}. +,;=[]^#&".contains(c)
+        })
 }

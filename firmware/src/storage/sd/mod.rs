@@ -33,8 +33,8 @@
 //! refused with a format error).
 
 use embedded_sdmmc::{
-    BlockDevice, DirEntry, Error, LfnBuffer, Mode, RawDirectory, RawFile, RawVolume, ShortFileName,
-    TimeSource, Timestamp, VolumeIdx, VolumeManager,
+    Block, BlockCount, BlockDevice, BlockIdx, DirEntry, Error, LfnBuffer, Mode, RawDirectory,
+    RawFile, RawVolume, ShortFileName, TimeSource, Timestamp, VolumeIdx, VolumeManager,
 };
 use heapless::String;
 
@@ -64,8 +64,14 @@ pub const LONG_PATH_CAP: usize = 2 * LONG_NAME_CAP;
 pub enum CardError {
     /// No card answered, or it was not initialised (M21).
     NoCard,
-    /// The card has no FAT volume this code reads (no MBR, unknown partition type, bad FAT).
-    Format,
+    /// The card has no FAT volume this code reads (no MBR, unknown partition type, a boot
+    /// sector or FAT that fails its checks: why, in the FAT code's words).
+    Format(&'static str),
+    /// A FAT chain leaves the volume, ends in free space or loops (a damaged card).
+    BadChain,
+    /// The operation would read more than [`CARD_READ_BUDGET`] blocks (a directory tree too
+    /// large to walk at once, or a damaged one that never ends).
+    TooLarge,
     /// No such file in the root directory.
     NotFound,
     /// The name cannot be a file name (empty, a directory, too long).
@@ -80,7 +86,9 @@ impl core::fmt::Display for CardError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         f.write_str(match self {
             CardError::NoCard => "no card",
-            CardError::Format => "no FAT volume",
+            CardError::Format(why) => return write!(f, "no FAT volume: {why}"),
+            CardError::BadChain => "damaged FAT: a cluster chain leaves the volume or loops",
+            CardError::TooLarge => "directory tree too large to read at once",
             CardError::NotFound => "not found",
             CardError::BadName => "bad file name",
             CardError::TooDeep => "path too deep",
@@ -89,17 +97,62 @@ impl core::fmt::Display for CardError {
     }
 }
 
-fn card_error<E: core::fmt::Debug>(e: Error<E>) -> CardError {
+fn card_error<E: core::fmt::Debug>(e: Error<BudgetError<E>>) -> CardError {
     match e {
-        Error::DeviceError(_) => CardError::Read,
+        Error::DeviceError(BudgetError::Spent) => CardError::TooLarge,
+        Error::DeviceError(BudgetError::Device(_)) => CardError::Read,
         Error::NotFound => CardError::NotFound,
         Error::FilenameError(_) | Error::OpenedDirAsFile => CardError::BadName,
-        Error::FormatError(_)
-        | Error::NoSuchVolume
-        | Error::BadCluster
-        | Error::UnterminatedFatChain
-        | Error::BadBlockSize(_) => CardError::Format,
+        Error::FormatError(why) => CardError::Format(why),
+        Error::NoSuchVolume => CardError::Format("no partition"),
+        Error::BadBlockSize(_) => CardError::Format("blocks other than 512 bytes"),
+        Error::BadCluster | Error::UnterminatedFatChain | Error::EndOfFile => CardError::BadChain,
         _ => CardError::Read,
+    }
+}
+
+/// Most blocks one directory operation of [`Card`] reads from the card (mount, a listing
+/// batch, opening a path): 1 MiB, a directory of 32768 entries. The FAT code checks every
+/// structure it reads, but a damaged card can still describe a huge tree (directories that
+/// contain themselves many times over); this bounds the work of one call (on the board the
+/// card is served between the other tasks, and the watchdog allows 2 s). Reading a file is
+/// bounded by its size instead and is not counted.
+pub const CARD_READ_BUDGET: u32 = 2048;
+
+/// Why a block read failed: the device's error, or the operation's read budget is spent.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BudgetError<E> {
+    /// The device failed.
+    Device(E),
+    /// [`CARD_READ_BUDGET`] blocks were read in this operation.
+    Spent,
+}
+
+/// The card's block device with a read budget (see [`CARD_READ_BUDGET`]).
+pub struct Budgeted<D> {
+    device: D,
+    /// Blocks this operation may still read (`None`: not counted).
+    left: core::cell::Cell<Option<u32>>,
+}
+
+impl<D: BlockDevice> BlockDevice for Budgeted<D> {
+    type Error = BudgetError<D::Error>;
+
+    fn read(&self, blocks: &mut [Block], start: BlockIdx) -> Result<(), Self::Error> {
+        if let Some(left) = self.left.get() {
+            let n = u32::try_from(blocks.len()).unwrap_or(u32::MAX);
+            let rest = left.checked_sub(n).ok_or(BudgetError::Spent)?;
+            self.left.set(Some(rest));
+        }
+        self.device.read(blocks, start).map_err(BudgetError::Device)
+    }
+
+    fn write(&self, blocks: &[Block], start: BlockIdx) -> Result<(), Self::Error> {
+        self.device.write(blocks, start).map_err(BudgetError::Device)
+    }
+
+    fn num_blocks(&self) -> Result<BlockCount, Self::Error> {
+        self.device.num_blocks().map_err(BudgetError::Device)
     }
 }
 
@@ -132,7 +185,8 @@ impl Named {
         if a.is_volume() || a.is_hidden() || a.is_system() {
             return None;
         }
-        // `NAME.EXT` from the 8.3 bytes (bytes beyond ASCII, an OEM code page, shown as `?`).
+        // `NAME.EXT` from the 8.3 bytes (bytes beyond ASCII, an OEM code page, and control
+        // bytes of a damaged entry shown as `?`: a name never breaks a reply line).
         let (base, ext) = (e.name.base_name(), e.name.extension());
         if base.first() == Some(&b'.') {
             return None;
@@ -140,9 +194,14 @@ impl Named {
         let mut short: String<SHORT_NAME_CAP> = String::new();
         let dot: &[u8] = if ext.is_empty() { b"" } else { b"." };
         for &b in base.iter().chain(dot).chain(ext) {
-            let _ = short.push(if b.is_ascii() { char::from(b) } else { '?' });
+            let printable = b.is_ascii() && !b.is_ascii_control();
+            let _ = short.push(if printable { char::from(b) } else { '?' });
         }
-        let long = long.and_then(|l| String::try_from(l).ok());
+        // A long name with a control character (a line end, from a damaged entry or a
+        // careless tool) is not used: the file goes by its short name.
+        let long = long
+            .filter(|l| !l.chars().any(char::is_control))
+            .and_then(|l| String::try_from(l).ok());
         Some(Named {
             sfn: e.name.clone(),
             short,
@@ -255,7 +314,7 @@ pub struct Card<D: BlockDevice>
 where
     D::Error: core::fmt::Debug,
 {
-    vm: VolumeManager<D, NoClock, CARD_DIRS, CARD_FILES, CARD_VOLUMES>,
+    vm: VolumeManager<Budgeted<D>, NoClock, CARD_DIRS, CARD_FILES, CARD_VOLUMES>,
     mounted: Option<(RawVolume, RawDirectory)>,
     file: Option<RawFile>,
 }
@@ -267,7 +326,14 @@ where
     /// A card on `device`, not yet initialised ([`Card::mount`]).
     pub fn new(device: D) -> Self {
         Self {
-            vm: VolumeManager::new_with_limits(device, NoClock, 0x5D00),
+            vm: VolumeManager::new_with_limits(
+                Budgeted {
+                    device,
+                    left: core::cell::Cell::new(None),
+                },
+                NoClock,
+                0x5D00,
+            ),
             mounted: None,
             file: None,
         }
@@ -278,12 +344,25 @@ where
         self.mounted.is_some()
     }
 
+    /// Count the blocks read from now on against `budget` (`None`: do not count).
+    fn budget(&self, budget: Option<u32>) {
+        // `device` hands the block device to a closure that must return the time source
+        // type (the crate's signature).
+        self.vm.device(|d| {
+            d.left.set(budget);
+            NoClock
+        });
+    }
+
     /// Open the card's first FAT volume and its root directory (M21). A card already
-    /// mounted is released first (the card may have been swapped).
+    /// mounted is released first (the card may have been swapped). Every field of the boot
+    /// sector is checked first (the patched embedded-sdmmc, `vendor/embedded-sdmmc`): a
+    /// damaged or foreign card is [`CardError::Format`], never a crash.
     pub fn mount(&mut self) -> Result<(), CardError> {
         self.release();
+        self.budget(Some(CARD_READ_BUDGET));
         let volume = self.vm.open_raw_volume(VolumeIdx(0)).map_err(|e| match e {
-            Error::DeviceError(_) => CardError::NoCard,
+            Error::DeviceError(BudgetError::Device(_)) => CardError::NoCard,
             e => card_error(e),
         })?;
         match self.vm.open_root_dir(volume) {
@@ -393,6 +472,7 @@ where
     ) -> Result<usize, CardError> {
         let root = self.root()?;
         let mut n = 0;
+        self.budget(Some(CARD_READ_BUDGET));
         self.walk(root, &DirPath::ROOT, 0, &mut n, &mut f)?;
         Ok(n)
     }
@@ -418,6 +498,7 @@ where
         }
         let mut dir = root;
         let mut at = DirPath::ROOT;
+        self.budget(Some(CARD_READ_BUDGET));
         let opened = self.open_below(&mut dir, &mut at, path);
         if dir != root {
             let _ = self.vm.close_dir(dir);
@@ -475,6 +556,8 @@ where
     /// (0 at or past the end).
     pub fn read_at(&mut self, offset: u32, buf: &mut [u8]) -> Result<usize, CardError> {
         let file = self.file.ok_or(CardError::NoCard)?;
+        // Bounded by the file's size (a looping chain just repeats data): not counted.
+        self.budget(None);
         let len = self.vm.file_length(file).map_err(card_error)?;
         if offset >= len {
             return Ok(0);
