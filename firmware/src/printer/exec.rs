@@ -4,7 +4,7 @@
 
 use super::state::{Pause, Stop};
 use super::{service, Printer, Record};
-use crate::motion::PauseMode;
+
 use crate::planner::{BlockKind, PlannedBlock, RING_CAPACITY};
 use crate::stepgen::StepEvent;
 use crate::thermal::HeaterId;
@@ -144,7 +144,7 @@ impl Printer {
         match &mut self.pause {
             Pause::Run => self.job_block(),
             Pause::Stopping { how, .. } => {
-                if how.mode() != PauseMode::Now
+                if !how.brakes()
                     || matches!(how, Stop::Hold { after_homing: true })
                     || (self.stepgen.is_braking() && self.stepgen.exit_speed_mm_s() > 0.0)
                 {

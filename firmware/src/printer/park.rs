@@ -4,7 +4,7 @@
 use super::state::{AfterPark, AfterReturn, AfterStop, Held, Pause, Stop};
 use super::{steps, PausedLines, Printer, Record, ServiceMove};
 use crate::link::HostAction;
-use crate::motion::{Axis, PauseMode};
+use crate::motion::Axis;
 use crate::planner::Barrier;
 use crate::printer::LAYER_PAUSE_IDLE_US;
 use crate::stepgen::ExecBlock;
@@ -17,7 +17,7 @@ impl Printer {
         };
         match how {
             Stop::Hold { after_homing: true } => false,
-            _ if how.mode() == PauseMode::Now => {
+            _ if how.brakes() => {
                 // Stopped: no step left in the loaded block (held mid-way), or between blocks
                 // with nothing to brake through. A brake that ends exactly at the last queued
                 // point may leave a rounding-sized exit speed with no block after it: the head

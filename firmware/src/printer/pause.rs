@@ -140,7 +140,7 @@ impl Printer {
                 self.say(format_args!("resume deferred until parked"));
             }
             Pause::Stopping { how, then } => {
-                if how.mode() == PauseMode::Now {
+                if how.brakes() {
                     // A feed hold cannot be taken back mid-brake: stop, then continue without
                     // parking.
                     if *then != AfterStop::Cancel {
@@ -203,10 +203,10 @@ impl Printer {
                     self.say(format_args!("nothing to cancel"));
                     return;
                 }
-                // A feed hold already braking (or a tail stop asked for now) goes on as it is;
-                // anything else brakes now.
+                // A feed hold already braking goes on as it is; anything else (a layer
+                // barrier, a conventional tail stop) brakes now.
                 let how = match self.pause {
-                    Pause::Stopping { how, .. } if how.mode() == PauseMode::Now => Some(how),
+                    Pause::Stopping { how, .. } if how.brakes() => Some(how),
                     _ => None,
                 };
                 self.pause = Pause::Stopping {

@@ -89,6 +89,13 @@ impl Stop {
             Stop::Tail { mode, .. } => mode,
         }
     }
+
+    /// Whether this stop brakes the motion (a feed hold). A tail stop never does, whatever
+    /// mode was asked for: it runs everything queued before it to its barrier, as a
+    /// conventional firmware's pause does.
+    pub(super) fn brakes(self) -> bool {
+        matches!(self, Stop::Hold { .. })
+    }
 }
 
 /// What a stopping pause does once the head has stopped.
