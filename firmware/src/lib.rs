@@ -14,6 +14,8 @@
 #![deny(missing_docs)]
 
 pub mod config;
+// The valid range of every setting (commands and the settings store).
+pub mod ranges;
 pub mod drivers;
 pub mod motion;
 

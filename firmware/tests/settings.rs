@@ -322,6 +322,170 @@ fn an_older_format_falls_back_with_an_echo() {
     assert_eq!(p.settings().steps_per_mm[3], 93.0);
 }
 
+/// One range table (issue 24: `M204 S0.000001` ran, and M500 refused it): every settings
+/// command takes the ends of its range in `firmware::ranges` and M500 saves them (a new boot
+/// loads the same), and refuses a value just outside with nothing changed.
+#[test]
+fn what_a_command_takes_m500_saves_and_what_it_refuses_changes_nothing() {
+    use firmware::ranges::*;
+    let per_min = |b: Bound| (b.min * 60.0, b.max * 60.0);
+    let cases: Vec<(&str, f32, f32, f32)> = vec![
+        ("M92 E", STEPS_PER_MM.min, STEPS_PER_MM.max, STEPS_PER_MM.max * 2.0),
+        ("M201 X", ACCEL.min, ACCEL.max, ACCEL.min / 2.0),
+        ("M203 Y", MAX_FEED.min, MAX_FEED.max, MAX_FEED.max * 2.0),
+        ("M204 S", ACCEL.min, ACCEL.max, 0.000001),
+        ("M204 P", ACCEL.min, ACCEL.max, ACCEL.max * 2.0),
+        ("M204 R", ACCEL.min, ACCEL.max, -1.0),
+        ("M204 T", ACCEL.min, ACCEL.max, 1e30),
+        ("M205 J", JUNCTION_DEVIATION.min, JUNCTION_DEVIATION.max, 0.5),
+        ("M206 Z", HOME_OFFSET.min, HOME_OFFSET.max, HOME_OFFSET.max * 2.0),
+        ("M301 P", PID_GAIN.min, PID_GAIN.max, 1e30),
+        ("M304 D", PID_GAIN.min, PID_GAIN.max, -0.5),
+        ("M906 X", DRIVER_CURRENT.min, DRIVER_CURRENT.max, DRIVER_CURRENT.max + 100.0),
+        ("M760 R", PAUSE_RETRACT.min, PAUSE_RETRACT.max, PAUSE_RETRACT.max + 1.0),
+        ("M760 S", SPEEDUP.min, SPEEDUP.max, 0.5),
+        ("M760 V", VOLUMETRIC.min, VOLUMETRIC.max, 0.0),
+        ("M760 L", SEGMENT.min, SEGMENT.max, 0.001),
+        ("M760 L", 0.0, SEGMENT.max, 0.049),
+        // Machine-limited: Z within the travel, X/Y inside it, F within the X/Y limits.
+        ("M760 Z", PAUSE_LIFT.min, 250.0, 251.0),
+        ("M760 X", 0.0, 235.0, 236.0),
+        ("M760 F", per_min(PARK_FEED).0, 500.0 * 60.0, 500.0 * 60.0 + 60.0),
+    ];
+    for (code, lo, hi, bad) in cases {
+        for v in [lo, hi] {
+            let mut b = Bench::new();
+            let out = b.send(&format!("{code}{v}"));
+            assert!(!out.contains("refused"), "{code}{v}: {out}");
+            let set = b.settings();
+            let out = b.send("M500");
+            assert!(out.contains("Settings Stored"), "{code}{v}: {out}");
+            let b = Bench::with_store(b.power_off());
+            assert_eq!(b.settings(), set, "{code}{v} after a reboot");
+        }
+        let mut b = Bench::new();
+        let before = b.settings();
+        let out = b.send(&format!("{code}{bad}"));
+        assert!(out.contains("echo:refused:"), "{code}{bad}: {out}");
+        assert_eq!(b.settings(), before, "{code}{bad}");
+    }
+}
+
+/// Areas a store cannot use (issue 24): every byte 0 (zeroed, or another firmware's), random
+/// bytes, a half-erased first sector over zeros.
+fn foreign_areas() -> Vec<(&'static str, Vec<u8>)> {
+    let mut seed = 0x2024_0024u32;
+    let random: Vec<u8> = (0..8192)
+        .map(|_| {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            seed as u8
+        })
+        .collect();
+    let mut half = vec![0u8; 8192];
+    half[..1024].fill(0xFF);
+    vec![("zeros", vec![0; 8192]), ("random bytes", random), ("half-erased", half)]
+}
+
+#[test]
+fn a_foreign_settings_area_loads_defaults_and_the_next_m500_reclaims_it() {
+    let factory = Printer::new(MachineConfig::ENDER3).settings();
+    for (what, bytes) in foreign_areas() {
+        let mut b = Bench::with_store(SettingsStore::new(Flash::new(bytes), 0..8192).unwrap());
+        let mut boot = String::new();
+        b.p.write_output(&mut boot).unwrap();
+        assert_eq!(b.settings(), factory, "{what}: {boot}");
+        no_error(&boot);
+        b.send("M92 E97");
+        let out = b.send("M500");
+        assert!(out.contains("Settings Stored"), "{what}: {out}");
+        no_error(&out);
+        let saved = b.settings();
+        // A new boot has them; the area works as any other from then on.
+        let mut b = Bench::with_store(b.power_off());
+        assert_eq!(b.settings(), saved, "{what}");
+        b.send("M92 E98");
+        let out = b.send("M500");
+        assert!(
+            out.contains("Settings Stored") && !out.contains("erased first"),
+            "{what}: {out}"
+        );
+        let b = Bench::with_store(b.power_off());
+        assert_eq!(b.settings().steps_per_mm[3], 98.0, "{what}");
+    }
+    // What the first boot and the M500 say on the zeroed area.
+    let mut b = Bench::with_store(SettingsStore::new(Flash::new(vec![0; 8192]), 0..8192).unwrap());
+    let mut boot = String::new();
+    b.p.write_output(&mut boot).unwrap();
+    assert!(
+        boot.contains("echo:saved settings unusable (settings area")
+            && boot.contains("factory defaults loaded (M500 erases the area and saves)"),
+        "{boot}"
+    );
+    let out = b.send("M500");
+    assert!(
+        out.contains("; the unreadable settings area was erased first)"),
+        "{out}"
+    );
+}
+
+/// A layer pause says the job is kept only once its record is in flash: on a foreign area
+/// the record's write reclaims it (and says so); on a flash that refuses every write, the
+/// message says the job was not kept (issue 24: it said "keeping job" and then "record not
+/// written").
+#[test]
+fn the_kept_job_is_announced_only_when_written() {
+    let job = |b: &mut Bench| {
+        b.send("M302 P1");
+        b.send("G28");
+        b.send("M400");
+        b.send("M110 N1");
+        let lines = [";LAYER:0", "G1 Z0.2 F600", "G1 X50 Y50 E1 F3000", ";LAYER:1", "G1 Z0.4", "G1 X10 Y10 E2"];
+        let mut out = String::new();
+        for (k, l) in lines.iter().enumerate() {
+            let n = k + 2;
+            let body = format!("N{n} {l}");
+            let cs = body.bytes().fold(0u8, |a, b| a ^ b);
+            if k == 2 {
+                // The pause request in layer 0.
+                assert_eq!(b.p.receive(b"M601\n", b.now_us), 5);
+            }
+            out.push_str(&b.send(&format!("{body}*{cs}")));
+        }
+        for _ in 0..30_000 {
+            out.push_str(&b.tick());
+            if out.contains("//action:paused") && !b.p.store_request_pending() {
+                break;
+            }
+        }
+        out.push_str(&b.tick());
+        out
+    };
+    // A foreign area: the record is written (the area reclaimed) and only then announced.
+    let mut b = Bench::with_store(SettingsStore::new(Flash::new(vec![0; 8192]), 0..8192).unwrap());
+    let out = job(&mut b);
+    assert!(out.contains("//action:paused"), "{out}");
+    let kept = out
+        .lines()
+        .find(|l| l.contains("power-cut resume: keeping job at layer 1, host line"))
+        .unwrap_or_else(|| panic!("{out}"));
+    assert!(kept.contains("erased first"), "{kept}");
+    assert!(!out.contains("not kept"), "{out}");
+    assert!(b.power_off().load_job().unwrap().is_some());
+    // A flash whose writes all fail (a worn part): nothing claims the job was kept.
+    let mut flash = Flash::erased(vec![0; 8192]);
+    flash.cut_power(0, firmware::storage::Cut::Before);
+    let mut b = Bench::with_store(SettingsStore::new(flash, 0..8192).unwrap());
+    let out = job(&mut b);
+    assert!(out.contains("//action:paused"), "{out}");
+    assert!(!out.contains("keeping job"), "{out}");
+    assert!(
+        out.contains("echo:power-cut resume: job at layer 1 not kept: flash error"),
+        "{out}"
+    );
+}
+
 /// CRC-32 (ISO-HDLC), bit by bit: an implementation independent of the firmware's.
 fn crc32(bytes: &[u8]) -> u32 {
     let mut c = !0u32;

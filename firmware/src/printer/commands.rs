@@ -67,18 +67,30 @@ impl Printer {
                 travel,
                 s,
             } => {
-                let ok = |v: &Option<f32>| v.filter(|a| a.is_finite() && *a > 0.0);
-                if let Some(a) = ok(s) {
+                // The settings store's range (one table): all or nothing.
+                let b = crate::ranges::ACCEL;
+                let given = [('S', s), ('P', print), ('R', retract), ('T', travel)];
+                if let Some((l, Some(v))) = given
+                    .iter()
+                    .find(|(_, v)| v.is_some_and(|v| !b.contains(v)))
+                {
+                    self.say(format_args!(
+                        "refused: M204 {l}{v}: {} out of range ({}..{} {}); nothing changed",
+                        b.name, b.min, b.max, b.unit
+                    ));
+                    return false;
+                }
+                if let Some(a) = *s {
                     self.cfg.accel_print_mm_s2 = a;
                     self.cfg.accel_travel_mm_s2 = a;
                 }
-                if let Some(a) = ok(print) {
+                if let Some(a) = *print {
                     self.cfg.accel_print_mm_s2 = a;
                 }
-                if let Some(a) = ok(retract) {
+                if let Some(a) = *retract {
                     self.cfg.accel_retract_mm_s2 = a;
                 }
-                if let Some(a) = ok(travel) {
+                if let Some(a) = *travel {
                     self.cfg.accel_travel_mm_s2 = a;
                 }
             }

@@ -32,11 +32,6 @@ pub const EXTRUDE_MINTEMP_C: f32 = 170.0;
 /// Marlin's `EXTRUDE_MAXLENGTH` in its Ender-3 example configurations, mm.
 pub const EXTRUDE_MAXLENGTH_MM: f32 = 200.0;
 
-/// Longest pause retract (M760 R), mm.
-pub const MAX_PAUSE_RETRACT_MM: f32 = 20.0;
-
-/// Shortest planner segment (M760 L other than 0), mm: shorter ones would flood the ring.
-pub const MIN_SEGMENT_MM: f32 = 0.05;
 
 /// Cold- and long-extrusion protection settings (M302).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -152,38 +147,63 @@ impl fmt::Display for Refusal {
     }
 }
 
-/// Check every M760 value against the machine's limits; all or nothing.
+/// Check every M760 value against the ranges table ([`crate::ranges`], what M500 saves) and
+/// the machine (park inside the travel, lift within the Z travel, park feed within the X/Y
+/// limits); all or nothing. The settings loaded from flash are checked the same way.
 pub fn check_pause_params(p: &PauseParams, cfg: &MachineConfig) -> Result<(), Refusal> {
+    use crate::ranges::{PARK_FEED, PARK_XY, PAUSE_LIFT, PAUSE_RETRACT, SEGMENT, SPEEDUP, VOLUMETRIC};
     let x = cfg.axis(Axis::X);
     let y = cfg.axis(Axis::Y);
     let z = cfg.axis(Axis::Z);
     let xy_feed_mm_min = x.max_feed_mm_s.min(y.max_feed_mm_s) * 60.0;
-    let checks: [(char, Option<f32>, f32, f32); 8] = [
-        ('R', p.retract_mm, 0.0, MAX_PAUSE_RETRACT_MM),
-        ('Z', p.lift_z_mm, 0.0, z.max_mm - z.min_mm),
-        ('X', p.park_x_mm, x.min_mm, x.max_mm),
-        ('Y', p.park_y_mm, y.min_mm, y.max_mm),
-        ('F', p.park_feed_mm_min, f32::MIN_POSITIVE, xy_feed_mm_min),
-        ('S', p.speedup_factor, 1.0, 10.0),
-        ('V', p.max_volumetric_mm3_s, f32::MIN_POSITIVE, 1000.0),
-        ('L', p.segment_len_mm, 0.0, 1000.0),
+    // (letter, value, its range in the table (in M760's unit), the machine's own limits).
+    let per_min = |b: crate::ranges::Bound| crate::ranges::Bound {
+        min: b.min * 60.0,
+        max: b.max * 60.0,
+        ..b
+    };
+    let checks: [(char, Option<f32>, crate::ranges::Bound, f32, f32); 8] = [
+        ('R', p.retract_mm, PAUSE_RETRACT, f32::MIN, f32::MAX),
+        ('Z', p.lift_z_mm, PAUSE_LIFT, f32::MIN, z.max_mm - z.min_mm),
+        ('X', p.park_x_mm, PARK_XY, x.min_mm, x.max_mm),
+        ('Y', p.park_y_mm, PARK_XY, y.min_mm, y.max_mm),
+        ('F', p.park_feed_mm_min, per_min(PARK_FEED), f32::MIN, xy_feed_mm_min),
+        ('S', p.speedup_factor, SPEEDUP, f32::MIN, f32::MAX),
+        ('V', p.max_volumetric_mm3_s, VOLUMETRIC, f32::MIN, f32::MAX),
+        ('L', p.segment_len_mm, SEGMENT, f32::MIN, f32::MAX),
     ];
-    for (letter, value, min, max) in checks {
+    for (letter, value, bound, lo, hi) in checks {
         if let Some(v) = value {
             // `!(..)` so NaN is refused too.
-            let bad_segment = letter == 'L' && v > 0.0 && v < MIN_SEGMENT_MM;
-            if !(v >= min && v <= max) || bad_segment {
-                let min = if bad_segment { MIN_SEGMENT_MM } else { min };
+            if !bound.contains(v) || !(v >= lo && v <= hi) {
                 return Err(Refusal::PauseValue {
                     letter,
                     value: v,
-                    min,
-                    max,
+                    min: bound.min.max(lo),
+                    max: bound.max.min(hi),
                 });
             }
         }
     }
     Ok(())
+}
+
+/// The saved pause values against the same checks as M760's (park inside this machine's
+/// travel and so on): settings loaded from flash run as if set by M760.
+pub fn check_pause_config(p: &crate::config::PauseConfig, cfg: &MachineConfig) -> Result<(), Refusal> {
+    check_pause_params(
+        &PauseParams {
+            retract_mm: Some(p.retract_mm),
+            lift_z_mm: Some(p.lift_z_mm),
+            park_x_mm: Some(p.park_x_mm),
+            park_y_mm: Some(p.park_y_mm),
+            park_feed_mm_min: Some(p.park_feed_mm_s * 60.0),
+            speedup_factor: Some(p.speedup_factor),
+            max_volumetric_mm3_s: Some(p.max_volumetric_mm3_s),
+            segment_len_mm: Some(p.segment_len_mm),
+        },
+        cfg,
+    )
 }
 
 /// `mm` on `axis`, moved inside the axis's travel (for positions from the configuration,

@@ -181,16 +181,7 @@ impl Printer {
         }
         match self.paused_job() {
             Some(j) => {
-                let mut t = PlaceText::new();
-                let _ = core::fmt::Write::write_fmt(
-                    &mut t,
-                    format_args!(
-                        "power-cut resume: keeping job at layer {}, {}",
-                        j.layer,
-                        Where(&j.source)
-                    ),
-                );
-                self.link.respond(crate::link::Response::Echo(&t));
+                // Announced once it is in flash (`job_saved`).
                 self.job.request = Some(JobRequest::Save(j));
                 self.job.saved = true;
             }
@@ -198,6 +189,35 @@ impl Printer {
                 "power-cut resume: not kept (no numbered host line or SD file at this boundary)"
             )),
         }
+    }
+
+    /// The driver's store has written `j` (or failed to): say which (`service_store`). Only
+    /// a record in flash is announced as kept.
+    pub(super) fn job_saved(
+        &mut self,
+        j: &PausedJob,
+        saved: Result<crate::storage::Stored, crate::storage::StoreError>,
+    ) {
+        let mut t = PlaceText::new();
+        let _ = match saved {
+            Ok(how) => core::fmt::Write::write_fmt(
+                &mut t,
+                format_args!(
+                    "power-cut resume: keeping job at layer {}, {}{}",
+                    j.layer,
+                    Where(&j.source),
+                    super::settings::Reclaim(how)
+                ),
+            ),
+            Err(e) => core::fmt::Write::write_fmt(
+                &mut t,
+                format_args!(
+                    "power-cut resume: job at layer {} not kept: {e}",
+                    j.layer
+                ),
+            ),
+        };
+        self.link.respond(crate::link::Response::Echo(&t));
     }
 
     /// The job continues or ends (resume, cancel; hook in `pause.rs`): forget its record.
@@ -217,7 +237,7 @@ impl Printer {
 /// A message that names where a kept job continues: a line's room, an SD path's, and room for
 /// the widest numbers.
 pub(super) type PlaceText =
-    heapless::String<{ super::LINE_LEN + crate::storage::JOB_PATH_CAP + 32 }>;
+    heapless::String<{ super::LINE_LEN + crate::storage::JOB_PATH_CAP + 96 }>;
 
 /// Where a kept job continues, as the messages say it: `host line N` or `SD file NAME byte N`.
 pub(super) struct Where<'a>(pub(super) &'a JobSource);

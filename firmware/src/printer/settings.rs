@@ -15,7 +15,7 @@ use crate::gcode::{self, AxisWords, Heater, PauseParams, SettingsCommand};
 use crate::link::Response;
 use crate::motion::{Axis, AXES};
 use crate::storage::{
-    Bound, Settings, SettingsStore, StoreError, ACCEL, DRIVER_CURRENT, HOME_OFFSET,
+    Bound, Settings, SettingsStore, StoreError, Stored, ACCEL, DRIVER_CURRENT, HOME_OFFSET,
     JUNCTION_DEVIATION, MAX_FEED, STEPS_PER_MM,
 };
 use crate::thermal::HeaterId;
@@ -44,6 +44,18 @@ impl SettingsLink {
         Self {
             factory: None,
             request: None,
+        }
+    }
+}
+
+/// What a store says when it had to reclaim the area (nothing when it appended).
+pub(super) struct Reclaim(pub(super) Stored);
+
+impl core::fmt::Display for Reclaim {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self.0 {
+            Stored::Appended => Ok(()),
+            Stored::Reclaimed => f.write_str("; the unreadable settings area was erased first"),
         }
     }
 }
@@ -84,6 +96,9 @@ impl Printer {
     /// queued, or when a value is out of range.
     pub fn apply_settings(&mut self, s: &Settings) -> Result<(), &'static str> {
         s.validate().map_err(|_| "settings out of range")?;
+        // The pause values as M760 would take them on this machine (park inside the travel).
+        super::guards::check_pause_config(&s.pause, &self.cfg)
+            .map_err(|_| "pause values outside this machine's limits")?;
         let steps_change = self
             .cfg
             .axes
@@ -165,7 +180,12 @@ impl Printer {
         let f = self.factory_settings();
         match self.apply_settings(&f) {
             Ok(()) => self.say(format_args!(
-                "saved settings unusable ({e}): factory defaults loaded"
+                "saved settings unusable ({e}): factory defaults loaded{}",
+                if matches!(e, StoreError::Corrupted | StoreError::Full) {
+                    " (M500 erases the area and saves)"
+                } else {
+                    ""
+                }
             )),
             Err(why) => self.say(format_args!(
                 "saved settings unusable ({e}); factory defaults not applied: {why}"
@@ -182,23 +202,30 @@ impl Printer {
         }
         match self.settings.request.take() {
             Some(StoreRequest::Save(s)) => match store.save(&s) {
-                Ok(()) => self.say(format_args!(
-                    "Settings Stored ({} bytes, format {})",
+                Ok(how) => self.say(format_args!(
+                    "Settings Stored ({} bytes, format {}{})",
                     crate::storage::RECORD_LEN,
-                    crate::storage::FORMAT_VERSION
+                    crate::storage::FORMAT_VERSION,
+                    Reclaim(how)
                 )),
                 Err(e) => self.say(format_args!("settings not saved: {e}")),
             },
             Some(StoreRequest::Load) => self.load_and_apply(store, true),
             None => {}
         }
-        let done = match self.job.request.take() {
-            Some(super::job::JobRequest::Save(j)) => store.save_job(&j),
-            Some(super::job::JobRequest::Clear) => store.clear_job(),
-            None => Ok(()),
-        };
-        if let Err(e) = done {
-            self.say(format_args!("power-cut resume: record not written: {e}"));
+        match self.job.request.take() {
+            Some(super::job::JobRequest::Save(j)) => {
+                let saved = store.save_job(&j);
+                self.job_saved(&j, saved);
+            }
+            Some(super::job::JobRequest::Clear) => {
+                if let Err(e) = store.clear_job() {
+                    self.say(format_args!(
+                        "power-cut resume: the kept job was not cleared: {e}"
+                    ));
+                }
+            }
+            None => {}
         }
     }
 

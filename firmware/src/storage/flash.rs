@@ -9,7 +9,8 @@
 //! aligned to `WRITE` bytes, are errors. Power cuts: [`NorFlashModel::cut_power_at`] makes the
 //! n-th write or erase from now fail half-way (a write programs the first half of its words and
 //! some bits of the next; an erase sets the first half of the sector to `0xFF` and leaves the
-//! rest as it was), and every operation after it fail, until [`NorFlashModel::restore_power`].
+//! rest as it was, or with [`Cut::PartialTail`] the second half), and every operation after it
+//! fail, until [`NorFlashModel::restore_power`].
 
 use core::future::Future;
 use core::pin::pin;
@@ -105,6 +106,10 @@ pub enum Cut {
     /// None of it: the power fails just before the operation starts (after the one before it
     /// completed).
     Before,
+    /// Half of it, the other half of an erase: a write as [`Cut::Partial`]; an erase sets the
+    /// *second* half of the sector to `0xFF` and leaves the first as it was (an interrupted
+    /// erase leaves a pattern nobody can predict: both halves are tried).
+    PartialTail,
 }
 
 /// A NOR flash of `mem.len()` bytes in sectors of `ERASE` bytes, programmed in words of `WRITE`
@@ -274,8 +279,10 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>, const WRITE: usize, const ERASE: usize> NorFl
             self.erases = self.erases.saturating_add(1);
             let mem = &mut self.mem.as_mut()[sector..sector + ERASE];
             if cut {
-                if self.cut_kind == Cut::Partial {
-                    mem[..ERASE / 2].fill(0xFF);
+                match self.cut_kind {
+                    Cut::Partial => mem[..ERASE / 2].fill(0xFF),
+                    Cut::PartialTail => mem[ERASE / 2..].fill(0xFF),
+                    Cut::Before => {}
                 }
                 return Err(ModelError::PowerCut);
             }

@@ -20,12 +20,12 @@ pub use job::{
     JobSource, ModalState, PausedJob, JOB_BODY_LEN, JOB_FORMAT_VERSION, JOB_PATH_CAP,
     JOB_RECORD_LEN,
 };
-pub use record::{
-    Bound, RecordError, Settings, ACCEL, BODY_LEN, DEFAULT_DRIVER_CURRENT_MA, DRIVER_CURRENT,
-    FORMAT_VERSION, HOME_OFFSET, JUNCTION_DEVIATION, MAX_FEED, PAUSE_VALUE, PID_GAIN, RECORD_LEN,
-    STEPS_PER_MM,
+pub use record::{RecordError, Settings, BODY_LEN, DEFAULT_DRIVER_CURRENT_MA, FORMAT_VERSION, RECORD_LEN};
+// The ranges every saved value is checked against: the table the commands use too.
+pub use crate::ranges::{
+    Bound, ACCEL, DRIVER_CURRENT, HOME_OFFSET, JUNCTION_DEVIATION, MAX_FEED, PID_GAIN, STEPS_PER_MM,
 };
-pub use store::{SettingsStore, StoreError, BUF_LEN, JOB_KEY, SETTINGS_KEY};
+pub use store::{SettingsStore, StoreError, Stored, BUF_LEN, JOB_KEY, SETTINGS_KEY};
 
 /// Where the settings live on the SKR 2: absolute addresses of the area in the STM32F407's
 /// flash, and its sector size.

@@ -37,82 +37,9 @@ pub const BODY_LEN: usize = BODY_LEN_V1 + 2 * AXES + 1;
 /// Bytes of a whole record (header, body, CRC).
 pub const RECORD_LEN: usize = 4 + BODY_LEN + 4;
 
-/// The valid range of one kind of value, with its name and unit for messages.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Bound {
-    /// What the value is (for `echo:` messages).
-    pub name: &'static str,
-    /// Its unit.
-    pub unit: &'static str,
-    /// Smallest allowed value.
-    pub min: f32,
-    /// Largest allowed value.
-    pub max: f32,
-}
-
-impl Bound {
-    /// True when `v` is finite and within `min..=max`.
-    pub fn contains(&self, v: f32) -> bool {
-        v.is_finite() && v >= self.min && v <= self.max
-    }
-}
-
-/// M92: steps per mm (0.1 to 10 000: keeps every position of the build volume in `i32` steps).
-pub const STEPS_PER_MM: Bound = Bound {
-    name: "steps/mm",
-    unit: "steps/mm",
-    min: 0.1,
-    max: 10_000.0,
-};
-/// M203: an axis's maximum feed rate.
-pub const MAX_FEED: Bound = Bound {
-    name: "max feed",
-    unit: "mm/s",
-    min: 0.1,
-    max: 2_000.0,
-};
-/// M201 and M204: accelerations.
-pub const ACCEL: Bound = Bound {
-    name: "acceleration",
-    unit: "mm/s²",
-    min: 1.0,
-    max: 100_000.0,
-};
-/// M205 J: junction deviation, Marlin's range (`0.01 to 0.3`, `M205` in Marlin's
-/// `gcode/config/M200-M205.cpp`).
-pub const JUNCTION_DEVIATION: Bound = Bound {
-    name: "junction deviation",
-    unit: "mm",
-    min: 0.01,
-    max: 0.3,
-};
-/// M206: home offset of an axis.
-pub const HOME_OFFSET: Bound = Bound {
-    name: "home offset",
-    unit: "mm",
-    min: -1_000.0,
-    max: 1_000.0,
-};
-/// M301/M304: a PID gain.
-pub const PID_GAIN: Bound = Bound {
-    name: "PID gain",
-    unit: "",
-    min: 0.0,
-    max: 100_000.0,
-};
-/// M906: stepper driver RMS current (the SKR 2's TMC2209: up to 2 A RMS).
-pub const DRIVER_CURRENT: Bound = Bound {
-    name: "driver current",
-    unit: "mA",
-    min: 100.0,
-    max: 2_000.0,
-};
-/// M760 values (all non-negative; M760's own rules clamp them further when set by G-code).
-pub const PAUSE_VALUE: Bound = Bound {
-    name: "pause parameter",
-    unit: "",
-    min: 0.0,
-    max: 1_000_000.0,
+use crate::ranges::{
+    Bound, ACCEL, DRIVER_CURRENT, HOME_OFFSET, JUNCTION_DEVIATION, MAX_FEED, PARK_FEED, PARK_XY,
+    PAUSE_LIFT, PAUSE_RETRACT, PID_GAIN, RETRACT_FEED, SEGMENT, SPEEDUP, STEPS_PER_MM, VOLUMETRIC,
 };
 
 /// Factory default RMS current of every driver, mA (Marlin's `X_CURRENT` default, 800 mA).
@@ -252,20 +179,14 @@ impl Settings {
             check(&PID_GAIN, &[g.kp, g.ki, g.kd])?;
         }
         let p = &self.pause;
-        check(
-            &PAUSE_VALUE,
-            &[
-                p.retract_mm,
-                p.retract_feed_mm_s,
-                p.lift_z_mm,
-                p.park_x_mm,
-                p.park_y_mm,
-                p.park_feed_mm_s,
-                p.speedup_factor,
-                p.max_volumetric_mm3_s,
-                p.segment_len_mm,
-            ],
-        )?;
+        check(&PAUSE_RETRACT, &[p.retract_mm])?;
+        check(&RETRACT_FEED, &[p.retract_feed_mm_s])?;
+        check(&PAUSE_LIFT, &[p.lift_z_mm])?;
+        check(&PARK_XY, &[p.park_x_mm, p.park_y_mm])?;
+        check(&PARK_FEED, &[p.park_feed_mm_s])?;
+        check(&SPEEDUP, &[p.speedup_factor])?;
+        check(&VOLUMETRIC, &[p.max_volumetric_mm3_s])?;
+        check(&SEGMENT, &[p.segment_len_mm])?;
         let currents = self.driver_current_ma.map(f32::from);
         check(&DRIVER_CURRENT, &currents)?;
         if self

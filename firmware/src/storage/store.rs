@@ -5,6 +5,17 @@
 //!
 //! The store is generic over the blocking [`NorFlash`] traits: the board passes its flash
 //! sectors, the sim a file-backed model, the tests [`super::NorFlashModel`].
+//!
+//! **An area it cannot use is reclaimed by the next write**: sectors left by another firmware,
+//! zeros, random bytes or a half-erased sector make sequential-storage answer `Corrupted` or
+//! `FullStorage` even after its own repair, for ever, and no command would erase them. Loading
+//! then falls back to the factory values (the executive says so); the next store keeps aside
+//! the other record if it can still be read, erases the whole area, writes that record back
+//! and then the new one ([`Stored::Reclaimed`]). A power cut during the reclaim leaves the area
+//! unreadable or erased (the factory values load, as before the reclaim) or the new record, and
+//! the next store reclaims again if needed; a record kept aside is lost if the power goes
+//! between the erase and its rewrite (the record was in an area nothing else could be written
+//! to).
 
 use super::flash::{block_on, Blocking};
 use super::job::{PausedJob, JOB_RECORD_LEN};
@@ -70,6 +81,16 @@ fn store_error<E>(e: sequential_storage::Error<E>) -> StoreError {
     }
 }
 
+/// How a record was stored.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stored {
+    /// Appended to the area (the usual way).
+    Appended,
+    /// The area held data the store could not use: it was erased first (see the module
+    /// documentation).
+    Reclaimed,
+}
+
 /// A 4-byte-aligned work buffer (some internal flash drivers need aligned sources).
 #[repr(align(4))]
 struct Buf([u8; BUF_LEN]);
@@ -115,10 +136,42 @@ impl<F: NorFlash> SettingsStore<F> {
         }
     }
 
-    /// Store `bytes` under `key` (the previous value stays current until this one is whole).
-    pub fn store(&mut self, key: u8, bytes: &[u8]) -> Result<(), StoreError> {
+    /// Store `bytes` under `key` (the previous value stays current until this one is whole);
+    /// an area sequential-storage cannot use is reclaimed first (module documentation).
+    pub fn store(&mut self, key: u8, bytes: &[u8]) -> Result<Stored, StoreError> {
         self.used = true;
-        block_on(self.map.store_item(&mut self.buf.0, &key, &bytes)).map_err(store_error)
+        match block_on(self.map.store_item(&mut self.buf.0, &key, &bytes)) {
+            Ok(()) => Ok(Stored::Appended),
+            Err(
+                sequential_storage::Error::Corrupted { .. }
+                | sequential_storage::Error::FullStorage,
+            ) => self.reclaim(key, bytes),
+            Err(e) => Err(store_error(e)),
+        }
+    }
+
+    /// Erase the whole area and store `bytes` under `key`, keeping the other record if it
+    /// can be read.
+    fn reclaim(&mut self, key: u8, bytes: &[u8]) -> Result<Stored, StoreError> {
+        let other = if key == SETTINGS_KEY {
+            JOB_KEY
+        } else {
+            SETTINGS_KEY
+        };
+        let mut kept = [0u8; BUF_LEN];
+        let kept_len = match block_on(self.map.fetch_item::<&[u8]>(&mut self.buf.0, &other)) {
+            Ok(Some(b)) => kept.get_mut(..b.len()).map(|k| {
+                k.copy_from_slice(b);
+                b.len()
+            }),
+            _ => None,
+        };
+        block_on(self.map.erase_all()).map_err(store_error)?;
+        if let Some(k) = kept_len.and_then(|n| kept.get(..n)) {
+            block_on(self.map.store_item(&mut self.buf.0, &other, &k)).map_err(store_error)?;
+        }
+        block_on(self.map.store_item(&mut self.buf.0, &key, &bytes)).map_err(store_error)?;
+        Ok(Stored::Reclaimed)
     }
 
     /// True when some record (of any key) can be read.
@@ -140,7 +193,7 @@ impl<F: NorFlash> SettingsStore<F> {
     }
 
     /// Save `s` (checked first: out-of-range settings are never written).
-    pub fn save(&mut self, s: &Settings) -> Result<(), StoreError> {
+    pub fn save(&mut self, s: &Settings) -> Result<Stored, StoreError> {
         s.validate().map_err(StoreError::Record)?;
         self.store(SETTINGS_KEY, &s.encode())
     }
@@ -158,12 +211,12 @@ impl<F: NorFlash> SettingsStore<F> {
     }
 
     /// Keep `job` for a power-cut resume (replaces the previous one only once whole).
-    pub fn save_job(&mut self, job: &PausedJob) -> Result<(), StoreError> {
+    pub fn save_job(&mut self, job: &PausedJob) -> Result<Stored, StoreError> {
         self.store(JOB_KEY, &job.encode())
     }
 
     /// Forget the paused job (it resumed, or was cancelled).
-    pub fn clear_job(&mut self) -> Result<(), StoreError> {
+    pub fn clear_job(&mut self) -> Result<Stored, StoreError> {
         self.store(JOB_KEY, &NO_JOB)
     }
 }
@@ -189,7 +242,7 @@ fn is_erased<F: NorFlash>(flash: &mut F, range: core::ops::Range<u32>) -> bool {
 mod tests {
     use super::*;
     use crate::config::MachineConfig;
-    use crate::storage::{Cut, FlashOp, NorFlashModel};
+    use crate::storage::{Cut, FlashOp, NorFlashModel, Stored};
     use crate::thermal::pid::PidGains;
 
     /// Small sectors so a few dozen saves wrap around the area.
@@ -292,11 +345,106 @@ mod tests {
             .collect();
         let mut st = small_store(garbage);
         assert!(!matches!(st.load(), Ok(Some(_))));
-        // And the store can be used again after that (sequential-storage repairs or erases).
-        match st.save(&nth(1)) {
-            Ok(()) => assert_eq!(st.load(), Ok(Some(nth(1)))),
-            Err(e) => assert_eq!(e, StoreError::Corrupted),
+        // And the store can be used again after that (sequential-storage repairs it, or the
+        // save reclaims the area).
+        assert!(st.save(&nth(1)).is_ok());
+        assert_eq!(st.load(), Ok(Some(nth(1))));
+    }
+
+    /// Areas sequential-storage cannot use: zeros, random bytes, a half-erased sector over
+    /// zeros, zeros with the last sector erased.
+    fn foreign() -> Vec<(&'static str, Vec<u8>)> {
+        let mut seed = 0x0bad_f1a5u32;
+        let random = (0..3 * 1024)
+            .map(|_| {
+                seed ^= seed << 13;
+                seed ^= seed >> 17;
+                seed ^= seed << 5;
+                seed as u8
+            })
+            .collect();
+        let mut half = vec![0u8; 3 * 1024];
+        half[..512].fill(0xFF);
+        let mut last = vec![0u8; 3 * 1024];
+        last[2048..].fill(0xFF);
+        vec![
+            ("zeros", vec![0; 3 * 1024]),
+            ("random", random),
+            ("half-erased", half),
+            ("zeros, last sector erased", last),
+        ]
+    }
+
+    /// Issue 24: a foreign area answered `Corrupted` or `FullStorage` to every save, for ever.
+    /// Now the save reclaims it; and a power cut at any write or erase of that reclaim (every
+    /// kind of cut) leaves either no readable settings (the factory values load, as before
+    /// the reclaim) or the new ones, never anything else; the next save then works, even if
+    /// it is cut too at any of its operations and done again.
+    #[test]
+    fn a_foreign_area_is_reclaimed_and_a_power_cut_in_the_reclaim_keeps_none_or_new() {
+        let mut cuts = 0;
+        let mut twice = 0;
+        let mut reclaimed = 0;
+        for (what, bytes) in foreign() {
+            let mut st = small_store(bytes.clone());
+            assert!(!matches!(st.load(), Ok(Some(_))), "{what}");
+            // sequential-storage's own repair handles some patterns (random bytes here); the
+            // rest is reclaimed.
+            let how = st.save(&nth(1));
+            assert!(how.is_ok(), "{what}: {how:?}");
+            if what == "zeros" {
+                // Every sector looks closed and full: only a reclaim makes room.
+                assert_eq!(how, Ok(Stored::Reclaimed), "{what}");
+            }
+            reclaimed += usize::from(how == Ok(Stored::Reclaimed));
+            assert_eq!(st.load(), Ok(Some(nth(1))), "{what}");
+            assert_eq!(st.save(&nth(2)), Ok(Stored::Appended), "{what}");
+            for kind in [Cut::Partial, Cut::PartialTail, Cut::Before] {
+                for n in 0.. {
+                    let mut flash = Small::new(bytes.clone());
+                    flash.cut_power(n, kind);
+                    let mut st = SettingsStore::new(flash, SMALL_RANGE).unwrap();
+                    if st.save(&nth(1)).is_ok() {
+                        break;
+                    }
+                    cuts += 1;
+                    let mut flash = st.into_flash();
+                    flash.restore_power();
+                    let after_cut = flash.into_inner();
+                    let mut st = small_store(after_cut.clone());
+                    let got = st.load();
+                    let ctx = format!("{what}, {kind:?} cut at op {n}: {got:?}");
+                    // Old (nothing readable: the factory values) or new.
+                    if let Ok(Some(s)) = got {
+                        assert_eq!(s, nth(1), "{ctx}");
+                    }
+                    // The next save is cut too, at each of its operations in turn; the one
+                    // after it works.
+                    for m in 0.. {
+                        let mut flash = Small::new(after_cut.clone());
+                        flash.cut_power(m, kind);
+                        let mut st = SettingsStore::new(flash, SMALL_RANGE).unwrap();
+                        if st.save(&nth(3)).is_ok() {
+                            break;
+                        }
+                        twice += 1;
+                        let mut flash = st.into_flash();
+                        flash.restore_power();
+                        let mut st = SettingsStore::new(flash, SMALL_RANGE).unwrap();
+                        if let Ok(Some(s)) = st.load() {
+                            assert!(s == nth(1) || s == nth(3), "{ctx}, then cut at {m}");
+                        }
+                        assert!(st.save(&nth(4)).is_ok(), "{ctx}, then cut at {m}");
+                        assert_eq!(st.load(), Ok(Some(nth(4))), "{ctx}, then cut at {m}");
+                    }
+                }
+            }
         }
+        assert!(cuts > 20, "{cuts}");
+        assert!(reclaimed >= 1, "{reclaimed} of 4 areas reclaimed");
+        println!(
+            "reclaim power-fail sweep: {reclaimed} of 4 foreign areas reclaimed, {cuts} cuts, {twice} second cuts"
+        );
     }
 
     /// Settings and a paused job side by side: a cut during a job save or clear keeps the

@@ -26,11 +26,12 @@ pub struct PidGains {
 }
 
 impl PidGains {
-    /// True when every gain is finite and not negative.
+    /// True when every gain is within [`crate::ranges::PID_GAIN`] (finite, not negative, not
+    /// absurd): the range M500 saves.
     pub fn is_valid(&self) -> bool {
         [self.kp, self.ki, self.kd]
             .iter()
-            .all(|g| g.is_finite() && *g >= 0.0)
+            .all(|g| crate::ranges::PID_GAIN.contains(*g))
     }
 }
 
