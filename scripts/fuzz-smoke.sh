@@ -10,11 +10,17 @@
 # debug assertions, overflow checks; no AddressSanitizer: the firmware library is safe Rust, a
 # panic is the finding), so cargo-fuzz itself is not needed. `cargo +nightly fuzz run <target>`
 # from firmware/fuzz works too when cargo-fuzz is installed.
+#
+# Depth (issue 24: inputs stayed at ~22 bytes): each target has a maximum input length
+# (`-max_len`, FUZZ_MAX_LEN to override for all) fitting what it reads — a whole slicer layer
+# for the G-code targets, a card image's first blocks for `card_image` — and libFuzzer starts
+# at that length (`-len_control=0`) instead of growing inputs slowly from a few bytes; the
+# committed seeds include whole slicer layers and FAT16 images (tests/tests/fuzz_seeds.rs).
 set -euo pipefail
 cd "$(dirname "$0")/../firmware/fuzz"
 secs="${FUZZ_SECONDS:-20}"
 # FUZZ_TARGETS to choose.
-read -r -a targets <<< "${FUZZ_TARGETS:-parse_stream executive host_stream}"
+read -r -a targets <<< "${FUZZ_TARGETS:-parse_stream executive host_stream card_image}"
 if ! rustup toolchain list | grep -q '^nightly'; then
   rustup toolchain install nightly --profile minimal
 fi
@@ -25,12 +31,24 @@ export RUSTFLAGS="-Cpasses=sancov-module -Cllvm-args=-sanitizer-coverage-level=4
 triple=x86_64-unknown-linux-gnu
 tdir="${CARGO_TARGET_DIR:-target}"
 cargo +nightly build --release --target "$triple" --bins
+# Longest input per target, bytes.
+max_len_of() {
+  case "$1" in
+    parse_stream) echo 16384 ;;   # a slicer layer of a few hundred lines
+    executive) echo 16384 ;;      # a layer as raw USB chunks, with time and buttons
+    host_stream) echo 1024 ;;     # chunk sizes and noise records
+    card_image) echo 65536 ;;     # MBR, boot sector, FAT, directories, file data (128 blocks)
+    *) echo 4096 ;;
+  esac
+}
 for t in "${targets[@]}"; do
   mkdir -p "corpus/$t" "artifacts/$t"
   seeds=()
   [ -d "seeds/$t" ] && seeds+=("seeds/$t")
   [ -d "finds/$t" ] && seeds+=("finds/$t")
-  echo "== fuzz $t (${secs} s)"
-  "$tdir/$triple/release/$t" -max_total_time="$secs" -timeout=10 -rss_limit_mb=1024 \
+  max_len="${FUZZ_MAX_LEN:-$(max_len_of "$t")}"
+  echo "== fuzz $t (${secs} s, inputs up to ${max_len} bytes)"
+  "$tdir/$triple/release/$t" -max_total_time="$secs" -timeout=20 -rss_limit_mb=1024 \
+    -max_len="$max_len" -len_control=0 \
     -print_final_stats=1 -artifact_prefix="artifacts/$t/" "corpus/$t" "${seeds[@]}"
 done

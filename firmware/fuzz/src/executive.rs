@@ -1,0 +1,128 @@
+//! The `executive` target: a little program of host bytes, time and buttons against the real
+//! executive, in every policy, with heater sensor faults.
+
+use super::{Harness, Sensor, TICK_US};
+use firmware::link::PortId;
+use firmware::motion::{PauseMode, Realtime};
+use firmware::printer::{PausedLines, Policy};
+
+/// Lines a host or a slicer file sends, so the fuzzer reaches deep states quickly.
+pub const DICT: [&str; 32] = [
+    "G28",
+    "G1 X100 Y100 F6000",
+    "G1 X10 Y200 E2 F3000",
+    "G1 Z0.3 F600",
+    "G1 Z5",
+    "G1 X220 Y220 Z2 F12000",
+    "M400",
+    "M601",
+    "M601 S1",
+    "M602",
+    "M524",
+    "M25",
+    "M24",
+    "M108",
+    "M410",
+    "M109 S200",
+    "M190 S60",
+    "G4 P200",
+    ";LAYER_CHANGE",
+    ";Z:0.6",
+    "G1 X50 Y50 E1.5 F1800",
+    "G91",
+    "G90",
+    "M83",
+    "G2 X60 Y60 I5 J5",
+    "M761 L1",
+    "M220 S300",
+    "M105",
+    "G92 E0",
+    "M84",
+    "M0",
+    "M114",
+];
+
+/// The policies the `executive` target runs, by the low 2 bits of its first byte: ours, the
+/// conventional-firmware model `sim --policy fifo` runs (16 moves queued, the pause at the
+/// tail), ours with every line while paused a manual command (`PausedLines::Manual`), ours
+/// without segmentation.
+pub const POLICIES: [&str; 4] = ["firmware", "fifo", "manual", "unsegmented"];
+
+/// The policy named `POLICIES[k % 4]`.
+pub fn policy_of(k: u8) -> Policy {
+    match k % 4 {
+        0 => Policy::FIRMWARE,
+        1 => Policy::FIFO.with_queue_limit(16),
+        2 => Policy {
+            paused_lines: PausedLines::Manual,
+            ..Policy::FIRMWARE
+        },
+        _ => Policy {
+            segment: false,
+            ..Policy::FIRMWARE
+        },
+    }
+}
+
+/// The `executive` target. Byte 0 chooses the policy ([`POLICIES`], low 2 bits; the other
+/// bits are free). The rest is a little program, each byte an op (top 3 bits) and an argument
+/// (low 5 bits): raw bytes to the USB (0, 1) or TFT (2) port, a dictionary line to the USB (3)
+/// or TFT (4) port, time passing (5, 6), a button request (7, argument 0–23) or a sensor fault
+/// (7, argument 24–31: bit 0 the bed, bits 1–2 NaN, +∞, −∞, detached; it lasts to the end).
+/// Panics on a finding.
+pub fn run_executive(data: &[u8]) {
+    let Some((&config, data)) = data.split_first() else {
+        return;
+    };
+    let mut h = Harness::with_policy(policy_of(config));
+    let mut i = 0;
+    while let Some(&b) = data.get(i) {
+        i += 1;
+        let (op, arg) = (b >> 5, usize::from(b & 31));
+        match op {
+            0..=2 => {
+                let port = if op == 2 { PortId::Tft } else { PortId::Usb };
+                let end = (i + arg + 1).min(data.len());
+                let raw = data.get(i..end).unwrap_or(&[]).to_vec();
+                i = end;
+                h.write(port, &raw);
+            }
+            3 | 4 => {
+                let line = format!("{}\n", DICT[arg]);
+                let port = if op == 4 { PortId::Tft } else { PortId::Usb };
+                h.write(port, line.as_bytes());
+            }
+            5 => {
+                for _ in 0..=arg * 4 {
+                    h.tick(TICK_US);
+                }
+            }
+            6 => {
+                for _ in 0..=arg {
+                    h.tick(100 * TICK_US);
+                }
+            }
+            _ if arg >= 24 => {
+                let k = arg - 24;
+                h.sensors[k & 1] = match k >> 1 {
+                    0 => Sensor::Marker(f32::NAN),
+                    1 => Sensor::Marker(f32::INFINITY),
+                    2 => Sensor::Marker(f32::NEG_INFINITY),
+                    _ => Sensor::Detached,
+                };
+            }
+            _ => {
+                let r = match arg % 6 {
+                    0 => Realtime::Pause(PauseMode::Layer),
+                    1 => Realtime::Pause(PauseMode::Now),
+                    2 => Realtime::Resume,
+                    3 => Realtime::Cancel,
+                    4 => Realtime::BreakWait,
+                    _ => Realtime::QuickStop,
+                };
+                h.request(r);
+            }
+        }
+    }
+    h.finish();
+}
