@@ -115,6 +115,8 @@ pub fn run_demo(out: &Path) -> anyhow::Result<()> {
         sc.pause = Some(when);
         sc.resume_after_us = Some(5_000_000);
         sc.measure_segmentation_cost = *p == Policy::Firmware && *m == Mode::Layer;
+        // The built-in part models motion only (no heating lines): as M302 P1 allows.
+        sc.allow_cold = true;
         let o = run::run(&PrinterFactory, &sc, &job)?;
         if i == 0 {
             first_timeline = o.timeline.clone();

@@ -21,9 +21,14 @@ pub enum Stop {
     /// Everything is finished: the host has sent and had acknowledged every line, the wire is
     /// quiet and the firmware has no more steps and is idle.
     Finished,
-    /// Nothing moved and no byte travelled for `stall_limit_us` (waiting forever).
+    /// Nothing moved and the host sent nothing for `stall_limit_us` (waiting forever).
     Stalled,
 }
+
+/// Virtual time without a step and without a byte from the host after which a run has
+/// stalled (a wedge: the printer only answers `busy:` or reports): 3 h, longer than the
+/// longest dwell the firmware accepts (G4 P1e7 = 2.8 h) and any heat-up.
+pub const STALL_LIMIT_US: u64 = 3 * 3600 * 1_000_000;
 
 /// The simulator's event loop around one executive.
 pub struct Engine<E: Executive> {
@@ -39,9 +44,13 @@ pub struct Engine<E: Executive> {
     pub heaters: Option<Heaters>,
     /// Main-loop tick while busy, µs.
     pub poll_tick_us: u64,
-    /// Give up waiting after this long without a step or a byte, µs.
+    /// Give up waiting after this long without a step or a host byte, µs
+    /// ([`STALL_LIMIT_US`]).
     pub stall_limit_us: u64,
+    /// Last step or host byte (the stall's clock).
     last_progress_us: u64,
+    /// Last event other than a main-loop tick (the poll rate's clock).
+    last_event_us: u64,
     next_poll_us: u64,
     out: String,
     /// Events handled (steps, byte chunks, ticks).
@@ -122,8 +131,9 @@ impl<E: Executive> Engine<E> {
             rec: Recorder::new(),
             heaters: Some(Heaters::ender3()),
             poll_tick_us: 1_000,
-            stall_limit_us: 3_600_000_000,
+            stall_limit_us: STALL_LIMIT_US,
             last_progress_us: 0,
+            last_event_us: 0,
             next_poll_us: 0,
             out: String::new(),
             events: 0,
@@ -199,12 +209,13 @@ impl<E: Executive> Engine<E> {
             let t_step = self.fw.next_step_us(self.now_us);
             let t_tx = self.host.tx.next_arrival_us();
             let t_rx = self.host.rx.next_arrival_us();
+            let state = self.fw.status().state;
             let busy = t_step.is_some()
                 || t_tx.is_some()
                 || t_rx.is_some()
                 || !self.host.done()
                 || !self.rx_pending.is_empty()
-                || self.fw.status().state != RunState::Idle;
+                || state != RunState::Idle;
             if !busy {
                 return Stop::Finished;
             }
@@ -220,6 +231,12 @@ impl<E: Executive> Engine<E> {
             self.now_us = self.now_us.max(t);
             self.events += 1;
             if t != t_poll {
+                self.last_event_us = self.now_us;
+            }
+            // Progress: a step, or bytes from the host. What the printer writes is not: a
+            // wedged printer keeps answering `busy:`. (A host that means to act later — a
+            // resume after a long pause — calls `reset_stall`.)
+            if t_step == Some(t) || t_tx == Some(t) {
                 self.last_progress_us = self.now_us;
             } else if self.now_us.saturating_sub(self.last_progress_us) > self.stall_limit_us {
                 return Stop::Stalled;
@@ -259,8 +276,24 @@ impl<E: Executive> Engine<E> {
             }
             self.poll_fw();
             // Waiting (heaters, dwell, paused): tick ten times slower after a second of calm.
-            let calm = self.now_us.saturating_sub(self.last_progress_us) > 1_000_000;
+            let calm = self.now_us.saturating_sub(self.last_event_us) > 1_000_000;
             self.next_poll_us = self.now_us + self.poll_tick_us * if calm { 10 } else { 1 };
+        }
+    }
+
+    /// Start the stall's clock again (the host means to act later: waiting is not a stall).
+    pub fn reset_stall(&mut self) {
+        self.last_progress_us = self.now_us;
+    }
+
+    /// Advance to `deadline_us` however long nothing happens before it (a host that acts at
+    /// that time: a resume after a long pause); stops early only when finished.
+    pub fn wait_until(&mut self, deadline_us: u64) -> Stop {
+        loop {
+            match self.advance(deadline_us, false) {
+                Stop::Stalled => self.reset_stall(),
+                other => return other,
+            }
         }
     }
 

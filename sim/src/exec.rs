@@ -221,9 +221,8 @@ impl Factory for PrinterFactory {
             cfg.pause.speedup_factor = s;
         }
         let mut printer = Printer::with_policy(cfg, Self::policy(knobs));
-        // The sim's generated jobs extrude without heating first: allow it, as M302 P1 would
-        // (the protection itself is tested in firmware/tests/guards.rs).
-        printer.extrusion_guard_mut().allow_cold = true;
+        // The guard stays on (as on the board) unless asked for, as M302 P1 would.
+        printer.extrusion_guard_mut().allow_cold = knobs.allow_cold;
         PrinterExec::new(printer)
     }
 }

@@ -11,7 +11,7 @@
 //! line, a line the host inserted for its own pause sequence, a realtime request) is kept in
 //! [`Origin`] so the recorder can tell job moves from service moves.
 
-use crate::job::JobLines;
+use crate::job::{JobLines, JobReader};
 use std::collections::VecDeque;
 
 /// Wire and protocol settings of the host.
@@ -171,12 +171,47 @@ impl Wire {
     }
 }
 
+/// A job line the printer refused (`echo:refused: …`).
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct RefusedLine {
+    /// Index of the line in the job as sent (0-based).
+    pub index: usize,
+    /// The line as sent, without its number and checksum.
+    pub text: String,
+    /// What the printer said.
+    pub reply: String,
+}
+
+/// The job lines the printer refused: how many, and the first [`REFUSALS_KEPT`].
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Refusals {
+    /// Job lines refused.
+    pub count: u64,
+    /// The first ones, in order.
+    pub first: Vec<RefusedLine>,
+}
+
+/// Refused lines kept with their text ([`Refusals::first`]).
+pub const REFUSALS_KEPT: usize = 10;
+
 /// The host: a job to stream with `ok` flow control, plus lines it inserts itself.
-#[derive(Clone, Debug)]
+#[derive(Debug)]
 pub struct Host {
     cfg: LinkConfig,
     /// Lines of the job as loaded (comments included; stripping happens when sending).
     job: JobLines,
+    /// Reads the job in order (`None` once it has ended or failed).
+    reader: Option<JobReader>,
+    /// Index of the line the reader gives next.
+    read_at: usize,
+    /// The next job line with something to send: its index and text (comments stripped).
+    next: Option<(usize, String)>,
+    /// Job lines longer than the reader's cap, cut ([`crate::job::MAX_LINE_BYTES`]).
+    pub cut_lines: u64,
+    /// The line whose `ok` is awaited (a refusal is about it).
+    in_flight: Option<(Origin, String)>,
+    /// Job lines the printer refused.
+    pub refused: Refusals,
     cursor: usize,
     /// Lines the host sends before continuing the job (its own pause/resume sequences).
     inserts: VecDeque<(String, Origin)>,
@@ -238,12 +273,24 @@ fn trim_log<T>(log: &mut Vec<T>) -> usize {
 pub const MAX_RESENDS_OF_ONE_LINE: u32 = 8;
 
 impl Host {
-    /// A host about to stream `job` (one entry per line of the file).
+    /// A host about to stream `job` (one entry per line of the file). A job file that cannot
+    /// be read ends the host at once ([`Self::aborted`] says why).
     pub fn new(cfg: LinkConfig, job: impl Into<JobLines>) -> Self {
         let byte_ns = cfg.byte_ns();
-        Self {
+        let job = job.into();
+        let (reader, aborted) = match job.reader() {
+            Ok(r) => (Some(r), None),
+            Err(e) => (None, Some(format!("reading the job: {e}"))),
+        };
+        let mut h = Self {
             cfg,
-            job: job.into(),
+            job,
+            reader,
+            read_at: 0,
+            next: None,
+            cut_lines: 0,
+            in_flight: None,
+            refused: Refusals::default(),
             cursor: 0,
             inserts: VecDeque::new(),
             hold: false,
@@ -267,8 +314,47 @@ impl Host {
             awaiting_ok: false,
             realtime_oks: 0,
             last_resend: None,
-            aborted: None,
+            aborted,
+        };
+        h.fill_next();
+        h
+    }
+
+    /// Read ahead to the next job line with something to send (comments and blank lines are
+    /// skipped as printcore and OctoPrint skip them).
+    fn fill_next(&mut self) {
+        if self.next.is_some() {
+            return;
         }
+        let Some(r) = self.reader.as_mut() else {
+            return;
+        };
+        loop {
+            match r.next_line() {
+                Ok(true) => {
+                    let i = self.read_at;
+                    self.read_at += 1;
+                    let line = r.line();
+                    let text = if self.cfg.strip_comments {
+                        strip_comment(line)
+                    } else {
+                        line.trim()
+                    };
+                    if !text.is_empty() {
+                        self.next = Some((i, text.to_string()));
+                        self.cut_lines = r.cut_lines();
+                        return;
+                    }
+                }
+                Ok(false) => break,
+                Err(e) => {
+                    self.aborted = Some(format!("reading the job: {e}"));
+                    break;
+                }
+            }
+        }
+        self.cut_lines = r.cut_lines();
+        self.reader = None;
     }
 
     /// The link settings.
@@ -381,20 +467,7 @@ impl Host {
     }
 
     fn next_job_line(&self) -> Option<usize> {
-        let mut i = self.cursor;
-        while i < self.job.len() {
-            let line = self.job.line(i);
-            let text = if self.cfg.strip_comments {
-                strip_comment(line)
-            } else {
-                line.trim()
-            };
-            if !text.is_empty() {
-                return Some(i);
-            }
-            i += 1;
-        }
-        None
+        self.next.as_ref().map(|(i, _)| *i)
     }
 
     fn write_line(&mut self, text: &str, origin: Origin, numbered: bool, now_us: u64) {
@@ -414,6 +487,9 @@ impl Host {
             origin,
             t_us: now_us,
         };
+        if origin != Origin::Realtime {
+            self.in_flight = Some((origin, text.to_string()));
+        }
         if n.is_some() {
             self.numbered.push(sent.clone());
             self.first_n += trim_log(&mut self.numbered) as i64;
@@ -449,6 +525,13 @@ impl Host {
                     bytes.push(b'\n');
                     self.tx.write(&bytes, now_us);
                     self.resends += 1;
+                    // `N<n> <command>*<checksum>`: the command is what a refusal is about.
+                    let command = line
+                        .wire
+                        .split_once(' ')
+                        .and_then(|(_, c)| c.rsplit_once('*'))
+                        .map_or("", |(c, _)| c);
+                    self.in_flight = Some((line.origin, command.to_string()));
                     let next = n + 1;
                     self.resend_from = if next < self.next_n { Some(next) } else { None };
                     self.sent_log.push(SentLine {
@@ -484,16 +567,12 @@ impl Host {
         if self.hold {
             return;
         }
-        if let Some(i) = self.next_job_line() {
-            let text = if self.cfg.strip_comments {
-                strip_comment(self.job.line(i)).to_string()
-            } else {
-                self.job.line(i).trim().to_string()
-            };
+        if let Some((i, text)) = self.next.take() {
             self.cursor = i + 1;
             self.write_line(&text, Origin::Job(i), numbered, now_us);
             self.clear = false;
             self.awaiting_ok = true;
+            self.fill_next();
         } else {
             self.cursor = self.job.len();
         }
@@ -574,6 +653,18 @@ impl Host {
                     ));
                 } else {
                     self.resend_from = Some(n);
+                }
+            }
+        } else if lower.starts_with("echo:refused:") {
+            // About the line in flight (one at a time with `ok` flow control).
+            if let Some((Origin::Job(index), line)) = &self.in_flight {
+                self.refused.count += 1;
+                if self.refused.first.len() < REFUSALS_KEPT {
+                    self.refused.first.push(RefusedLine {
+                        index: *index,
+                        text: line.clone(),
+                        reply: text.clone(),
+                    });
                 }
             }
         } else if lower.starts_with("ok") {

@@ -139,30 +139,30 @@ impl JobInfo {
         Self::parse_lines(lines.iter().map(AsRef::as_ref), lines.len())
     }
 
-    /// [`JobInfo::parse`] of a [`JobLines`].
-    pub fn parse_job(job: &JobLines) -> Self {
-        Self::parse_lines(job.iter(), job.len())
+    /// [`JobInfo::parse`] of a [`JobLines`] (its lines held for the parse: host-split's jobs).
+    pub fn parse_job(job: &JobLines) -> std::io::Result<Self> {
+        Ok(Self::parse(&job.to_vec()?))
     }
 
     /// Only what the pause metrics read — which lines extrude, where layers start — in about
     /// one byte per line ([`JobInfo::lines`] stays empty, [`JobInfo::state_before`] answers the
     /// default state): what `sim run` keeps of a long job.
-    pub fn parse_layers(job: &JobLines) -> Self {
+    pub fn parse_layers(job: &JobLines) -> std::io::Result<Self> {
         let mut an = crate::layers::Analyser::new();
         let mut layer_starts = Vec::new();
         let mut extruding = Vec::with_capacity(job.len());
-        for (i, text) in job.iter().enumerate() {
+        job.for_each(|i, text| {
             let f = an.feed(text);
             if let Some(l) = f.mark {
                 layer_starts.push((l, i));
             }
             extruding.push(f.extrudes);
-        }
-        Self {
+        })?;
+        Ok(Self {
             lines: Vec::new(),
             layer_starts,
             extruding,
-        }
+        })
     }
 
     /// Line `i` moves X or Y while E advances by at least one step.
@@ -245,18 +245,28 @@ impl JobInfo {
     }
 }
 
-/// The lines of a job held in one text buffer with the start of each line (4 bytes per line
-/// instead of a `String` each, ≈ 40 bytes): a 42 MB slicer file takes 42 MB + 6.5 MB, shared by
-/// every engine of a run ([`JobLines`] is a cheap `Arc` clone). Lines as [`str::lines`] splits
-/// them (`\n`, one trailing `\r` dropped).
+/// The lines of a job, read in order by each engine of a run ([`JobLines::reader`]): either
+/// one text buffer with the start of each line (generated jobs, tests: 4 bytes per line), or
+/// a file streamed from disk (`sim run`: [`JobLines::open`]), so a job of any size costs one
+/// read buffer per engine, never the whole file (issue 24: a 2 GB file was read whole). Lines
+/// as [`str::lines`] splits them (`\n`, one trailing `\r` dropped); a line longer than
+/// [`MAX_LINE_BYTES`] is cut there (the firmware takes 128 bytes of a command and drops long
+/// comments, so what is cut is never read by it either; [`JobReader::cut_lines`] counts them).
+/// [`JobLines`] is a cheap `Arc` clone.
 #[derive(Clone, Debug, Default)]
 pub struct JobLines(std::sync::Arc<JobText>);
 
+/// Longest line a [`JobReader`] hands out, bytes (the rest of a longer line is skipped).
+pub const MAX_LINE_BYTES: usize = 4096;
+
 #[derive(Debug, Default)]
 struct JobText {
+    /// The text (empty for a file).
     text: String,
     /// Byte offset of each line's start; the line ends before the next start's `\n`.
     starts: Vec<u32>,
+    /// The file the lines are read from, and their count.
+    file: Option<(std::path::PathBuf, usize)>,
 }
 
 impl JobLines {
@@ -276,7 +286,27 @@ impl JobLines {
             };
         }
         starts.shrink_to_fit();
-        Ok(Self(std::sync::Arc::new(JobText { text, starts })))
+        Ok(Self(std::sync::Arc::new(JobText {
+            text,
+            starts,
+            file: None,
+        })))
+    }
+
+    /// The lines of the file at `path`, streamed from it whenever they are read (one pass here
+    /// counts them). The file must not change during the run.
+    pub fn open(path: &std::path::Path) -> anyhow::Result<Self> {
+        use anyhow::Context;
+        let mut r = JobReader::from_file(path)?;
+        let mut n = 0usize;
+        while r.next_line().with_context(|| format!("reading {}", path.display()))? {
+            n += 1;
+        }
+        Ok(Self(std::sync::Arc::new(JobText {
+            text: String::new(),
+            starts: Vec::new(),
+            file: Some((path.to_path_buf(), n)),
+        })))
     }
 
     /// From separate lines (each must not contain `\n`).
@@ -292,16 +322,37 @@ impl JobLines {
 
     /// Number of lines.
     pub fn len(&self) -> usize {
-        self.0.starts.len()
+        match &self.0.file {
+            Some((_, n)) => *n,
+            None => self.0.starts.len(),
+        }
     }
 
     /// True when the job has no line.
     pub fn is_empty(&self) -> bool {
-        self.0.starts.is_empty()
+        self.len() == 0
     }
 
-    /// Line `i` without its line end, or `None` past the end.
-    pub fn get(&self, i: usize) -> Option<&str> {
+    /// Whether the lines are streamed from a file (not held in memory).
+    pub fn is_streamed(&self) -> bool {
+        self.0.file.is_some()
+    }
+
+    /// A reader of the lines from the first (each engine has its own).
+    pub fn reader(&self) -> std::io::Result<JobReader> {
+        match &self.0.file {
+            Some((p, _)) => JobReader::from_file(p),
+            None => Ok(JobReader {
+                src: ReaderSource::Text(self.clone(), 0),
+                line: String::new(),
+                raw: Vec::new(),
+                cut_lines: 0,
+            }),
+        }
+    }
+
+    /// Line `i` of a job held in memory (`None` past the end or for a streamed job).
+    fn text_line(&self, i: usize) -> Option<&str> {
         let t = &self.0;
         let start = *t.starts.get(i)? as usize;
         let end = match t.starts.get(i + 1) {
@@ -313,20 +364,133 @@ impl JobLines {
         Some(line.strip_suffix('\r').unwrap_or(line))
     }
 
-    /// Line `i` (empty past the end).
-    pub fn line(&self, i: usize) -> &str {
-        self.get(i).unwrap_or("")
+    /// Every line in order, each call to `f` with its index (streamed jobs are read from the
+    /// file once more). Stops at the first read error.
+    pub fn for_each(&self, mut f: impl FnMut(usize, &str)) -> std::io::Result<()> {
+        let mut r = self.reader()?;
+        let mut i = 0;
+        while r.next_line()? {
+            f(i, r.line());
+            i += 1;
+        }
+        Ok(())
     }
 
-    /// Every line in order.
-    pub fn iter(&self) -> impl Iterator<Item = &str> + Clone + '_ {
-        (0..self.len()).map(|i| self.line(i))
+    /// The lines as owned strings (for callers that edit the job: host-split; small jobs).
+    pub fn to_vec(&self) -> std::io::Result<Vec<String>> {
+        let mut v = Vec::with_capacity(self.len());
+        self.for_each(|_, l| v.push(l.to_string()))?;
+        Ok(v)
+    }
+}
+
+enum ReaderSource {
+    /// A job in memory and the next line's index.
+    Text(JobLines, usize),
+    File(std::io::BufReader<std::fs::File>),
+}
+
+/// The lines of a [`JobLines`] one after the other ([`JobLines::reader`]): [`JobReader::next_line`]
+/// moves to the next one, [`JobReader::line`] is it.
+pub struct JobReader {
+    src: ReaderSource,
+    line: String,
+    /// Bytes of the current line read from a file (at most [`MAX_LINE_BYTES`]).
+    raw: Vec<u8>,
+    cut_lines: u64,
+}
+
+impl std::fmt::Debug for JobReader {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("JobReader")
+            .field("line", &self.line)
+            .field("cut_lines", &self.cut_lines)
+            .finish()
+    }
+}
+
+impl JobReader {
+    fn from_file(path: &std::path::Path) -> std::io::Result<Self> {
+        Ok(Self {
+            src: ReaderSource::File(std::io::BufReader::with_capacity(
+                64 * 1024,
+                std::fs::File::open(path)?,
+            )),
+            line: String::new(),
+            raw: Vec::new(),
+            cut_lines: 0,
+        })
     }
 
-    /// The lines as owned strings (for callers that edit the job).
-    pub fn to_vec(&self) -> Vec<String> {
-        self.iter().map(str::to_string).collect()
+    /// Move to the next line; false at the end.
+    pub fn next_line(&mut self) -> std::io::Result<bool> {
+        self.line.clear();
+        match &mut self.src {
+            ReaderSource::Text(job, i) => match job.text_line(*i) {
+                Some(l) => {
+                    let cut = floor_char_boundary(l, MAX_LINE_BYTES);
+                    if cut < l.len() {
+                        self.cut_lines += 1;
+                    }
+                    self.line.push_str(&l[..cut]);
+                    *i += 1;
+                    Ok(true)
+                }
+                None => Ok(false),
+            },
+            ReaderSource::File(r) => {
+                use std::io::BufRead;
+                self.raw.clear();
+                let mut any = false;
+                let mut cut = false;
+                loop {
+                    let buf = r.fill_buf()?;
+                    if buf.is_empty() {
+                        break;
+                    }
+                    any = true;
+                    let (take, end) = match buf.iter().position(|&b| b == b'\n') {
+                        Some(k) => (k, true),
+                        None => (buf.len(), false),
+                    };
+                    let room = MAX_LINE_BYTES.saturating_sub(self.raw.len());
+                    cut |= take > room;
+                    self.raw.extend_from_slice(&buf[..take.min(room)]);
+                    r.consume(take + usize::from(end));
+                    if end {
+                        break;
+                    }
+                }
+                if !any {
+                    return Ok(false);
+                }
+                self.cut_lines += u64::from(cut);
+                if self.raw.last() == Some(&b'\r') {
+                    self.raw.pop();
+                }
+                self.line.push_str(&String::from_utf8_lossy(&self.raw));
+                Ok(true)
+            }
+        }
     }
+
+    /// The current line (after [`Self::next_line`] returned true).
+    pub fn line(&self) -> &str {
+        &self.line
+    }
+
+    /// Lines longer than [`MAX_LINE_BYTES`] read so far (cut there).
+    pub fn cut_lines(&self) -> u64 {
+        self.cut_lines
+    }
+}
+
+/// The largest index ≤ `at` that is a char boundary of `s`.
+fn floor_char_boundary(s: &str, at: usize) -> usize {
+    if at >= s.len() {
+        return s.len();
+    }
+    (0..=at).rev().find(|&i| s.is_char_boundary(i)).unwrap_or(0)
 }
 
 impl From<Vec<String>> for JobLines {
@@ -343,18 +507,52 @@ impl From<&[String]> for JobLines {
 
 #[cfg(test)]
 mod job_lines_tests {
-    use super::JobLines;
+    use super::{JobLines, MAX_LINE_BYTES};
+
+    fn lines(j: &JobLines) -> Vec<String> {
+        j.to_vec().unwrap()
+    }
 
     #[test]
-    fn splits_like_str_lines() {
-        for text in ["", "a", "a\n", "a\r\nb", "\n\nx\r\n", "G1 X1\nG1 X2\n\n;c"] {
-            let j = JobLines::from_text(text.to_string()).unwrap();
+    fn splits_like_str_lines_in_memory_and_from_a_file() {
+        let dir = std::env::temp_dir().join(format!("joblines-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        for (k, text) in ["", "a", "a\n", "a\r\nb", "\n\nx\r\n", "G1 X1\nG1 X2\n\n;c"]
+            .into_iter()
+            .enumerate()
+        {
             let want: Vec<&str> = text.lines().collect();
-            let got: Vec<&str> = j.iter().collect();
-            assert_eq!(got, want, "{text:?}");
-            assert_eq!(j.get(want.len()), None);
+            let j = JobLines::from_text(text.to_string()).unwrap();
+            assert_eq!(lines(&j), want, "{text:?}");
+            assert_eq!(j.len(), want.len());
+            let p = dir.join(format!("{k}.gcode"));
+            std::fs::write(&p, text).unwrap();
+            let f = JobLines::open(&p).unwrap();
+            assert!(f.is_streamed());
+            assert_eq!(f.len(), want.len(), "{text:?}");
+            assert_eq!(lines(&f), want, "{text:?}");
         }
         let j = JobLines::from_lines(&["G28".to_string(), String::new(), "G1 X1".into()]);
-        assert_eq!(j.to_vec(), vec!["G28", "", "G1 X1"]);
+        assert_eq!(lines(&j), vec!["G28", "", "G1 X1"]);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn a_huge_line_is_cut_and_never_held_whole() {
+        // 3 MB without a line end, then a short line: the reader holds MAX_LINE_BYTES of it.
+        let p = std::env::temp_dir().join(format!("joblines-long-{}", std::process::id()));
+        let mut text = vec![b'x'; 3 << 20];
+        text.extend_from_slice(b"\nG1 X1\n");
+        std::fs::write(&p, &text).unwrap();
+        let j = JobLines::open(&p).unwrap();
+        assert_eq!(j.len(), 2);
+        let mut r = j.reader().unwrap();
+        assert!(r.next_line().unwrap());
+        assert_eq!(r.line().len(), MAX_LINE_BYTES);
+        assert!(r.next_line().unwrap());
+        assert_eq!(r.line(), "G1 X1");
+        assert!(!r.next_line().unwrap());
+        assert_eq!(r.cut_lines(), 1);
+        let _ = std::fs::remove_file(&p);
     }
 }

@@ -125,6 +125,8 @@ pub fn run_cell(
     sc.segment_len_mm = segment_mm;
     sc.split_mm = g.split_mm;
     sc.measure_segmentation_cost = policy == Policy::Firmware;
+    // The zigzag models motion only (no heating lines): extrude cold, as M302 P1 allows.
+    sc.allow_cold = true;
     let out = run::run(&PrinterFactory, &sc, &lines)?;
     Ok(Row {
         len_mm,

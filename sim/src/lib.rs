@@ -18,6 +18,7 @@ pub mod port;
 pub mod powercut;
 pub mod recorder;
 pub mod run;
+pub mod scenario;
 pub mod sd;
 pub mod serve;
 pub mod session;

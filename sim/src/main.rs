@@ -84,6 +84,17 @@ struct RunArgs {
     /// by Z rise instead of the slicer's markers).
     #[arg(long)]
     keep_comments: bool,
+    /// Let E move below the minimum hotend temperature, as `M302 P1` does (by default the
+    /// cold-extrusion guard is on, as on the board: the file must heat first).
+    #[arg(long)]
+    allow_cold_extrusion: bool,
+    /// Exit 0 even when the printer refused lines (they are still reported).
+    #[arg(long)]
+    allow_refused: bool,
+    /// Give up after this many hours of virtual time (default: no limit; a job that stops
+    /// moving and taking lines ends the run after 3 virtual hours, see docs/sim.md).
+    #[arg(long)]
+    max_hours: Option<f64>,
 }
 
 #[derive(clap::Args)]
@@ -141,37 +152,114 @@ fn main() {
     }
 }
 
-fn cmd_run(a: RunArgs) -> anyhow::Result<()> {
-    let text = std::fs::read(&a.file).with_context(|| format!("reading {}", a.file.display()))?;
-    // One buffer for the whole file (no copy when it is valid UTF-8): memory stays flat with
-    // job length (docs/sim.md).
-    let text = String::from_utf8(text)
-        .unwrap_or_else(|e| String::from_utf8_lossy(e.as_bytes()).into_owned());
-    let lines = sim::job::JobLines::from_text(text)?;
+/// A number from the command line inside `range`, or an error naming the option.
+fn in_range<T: PartialOrd + std::fmt::Display + Copy>(
+    name: &str,
+    v: T,
+    range: std::ops::RangeInclusive<T>,
+) -> anyhow::Result<T> {
+    if range.contains(&v) {
+        Ok(v)
+    } else {
+        anyhow::bail!(
+            "--{name} {v}: outside {}..={}",
+            range.start(),
+            range.end()
+        )
+    }
+}
+
+/// A finite number from the command line inside `range` (NaN is outside every range).
+fn finite_in(name: &str, v: f64, range: std::ops::RangeInclusive<f64>) -> anyhow::Result<f64> {
+    in_range(name, v, range)
+}
+
+/// Longest virtual time an option may name, s (ten years: every sum of times stays far
+/// inside the µs clock's `u64`).
+const MAX_TIME_S: f64 = 10.0 * 365.0 * 86_400.0;
+
+/// Seconds from the command line as µs (finite, `0..=MAX_TIME_S`).
+fn seconds_us(name: &str, s: f64) -> anyhow::Result<u64> {
+    if !s.is_finite() {
+        anyhow::bail!("--{name} {s}: not a number of seconds");
+    }
+    Ok((in_range(name, s, 0.0..=MAX_TIME_S)? * 1e6) as u64)
+}
+
+/// The scenario `sim run` runs: every number checked against what the firmware and the host
+/// model accept (never a panic, never a run the firmware would not make).
+fn run_scenario(a: &RunArgs) -> anyhow::Result<Scenario> {
     let mut sc = Scenario::new(a.policy, a.mode);
     sc.pause = match (a.pause_at, a.pause_at_layer) {
-        (Some(t), _) => {
-            if !(t.is_finite() && t >= 0.0) {
-                anyhow::bail!("--pause-at must be a time ≥ 0 in seconds");
-            }
-            Some(PauseWhen::AtUs((t * 1e6) as u64))
-        }
+        (Some(t), _) => Some(PauseWhen::AtUs(seconds_us("pause-at", t)?)),
         (None, Some(n)) => Some(PauseWhen::AtLayer(n)),
         _ => None,
     };
-    sc.resume_after_us = if a.resume_after >= 0.0 && a.resume_after.is_finite() {
-        Some((a.resume_after * 1e6) as u64)
+    sc.resume_after_us = if a.resume_after.is_nan() {
+        anyhow::bail!("--resume-after NaN: not a number of seconds");
+    } else if a.resume_after >= 0.0 {
+        Some(seconds_us("resume-after", a.resume_after)?)
     } else {
         None
     };
-    sc.link.baud = a.baud.max(300);
+    sc.link.baud = in_range("baud", a.baud, 300..=4_000_000)?;
     sc.link.strip_comments = !a.keep_comments;
-    sc.queue_limit = a.buffer.max(2);
-    sc.segment_len_mm = a.segment;
-    sc.split_mm = a.split;
+    // A conventional firmware's queue: 2 moves up to what the firmware's queues hold.
+    let most = firmware::planner::RING_CAPACITY + 1;
+    sc.queue_limit = in_range("buffer", a.buffer, 2..=most)?;
+    // What M760 L accepts (the firmware's range table): shorter segments flood the ring.
+    sc.segment_len_mm = match a.segment {
+        Some(l) => {
+            let b = firmware::ranges::SEGMENT;
+            Some(in_range("segment", l, b.min..=b.max)?)
+        }
+        None => None,
+    };
+    sc.split_mm = in_range("split", a.split, 0.01..=1000.0)?;
     sc.measure_segmentation_cost = a.seg_cost;
+    sc.allow_cold = a.allow_cold_extrusion;
+    if let Some(h) = a.max_hours {
+        if !h.is_finite() {
+            anyhow::bail!("--max-hours {h}: not a number");
+        }
+        sc.max_time_us = seconds_us("max-hours", in_range("max-hours", h, 0.001..=87_600.0)? * 3600.0)?;
+    }
     // Without a pause nothing reads the executed-block record: do not keep it.
     sc.keep_records = false;
+    Ok(sc)
+}
+
+/// The refused lines as `sim run` reports them (JSON field `refused_lines`).
+#[derive(serde::Serialize)]
+struct RefusedLines {
+    /// Job lines the printer refused.
+    count: u64,
+    /// The first ones: line number in the file (1-based), the line, the printer's reply.
+    first: Vec<RefusedJson>,
+}
+
+#[derive(serde::Serialize)]
+struct RefusedJson {
+    line: usize,
+    text: String,
+    reply: String,
+}
+
+/// `sim run --json`: the pause report and the refused lines.
+#[derive(serde::Serialize)]
+struct RunJson<'a> {
+    #[serde(flatten)]
+    report: &'a sim::metrics::PauseReport,
+    refused_lines: RefusedLines,
+    /// Lines longer than the host model reads (`sim::job::MAX_LINE_BYTES`), sent cut.
+    cut_lines: u64,
+}
+
+fn cmd_run(a: RunArgs) -> anyhow::Result<()> {
+    let sc = run_scenario(&a)?;
+    // The file is streamed (read again by each engine), never held whole (docs/sim.md).
+    let lines = sim::job::JobLines::open(&a.file)
+        .with_context(|| format!("reading {}", a.file.display()))?;
     let pb = indicatif::ProgressBar::new_spinner();
     if !a.json {
         pb.set_message(format!(
@@ -184,13 +272,40 @@ fn cmd_run(a: RunArgs) -> anyhow::Result<()> {
     let out = sim::run::run_job(&PrinterFactory, &sc, lines)?;
     pb.finish_and_clear();
     // A job that should have finished and did not is a failure (exit status 1), after the
-    // report is printed.
+    // report is printed; so are refused lines (unless --allow-refused).
     let unfinished = sim::run::unfinished(&sc, &out);
+    let refused = RefusedLines {
+        count: out.refused.count,
+        first: out
+            .refused
+            .first
+            .iter()
+            .map(|r| RefusedJson {
+                line: r.index + 1,
+                text: r.text.clone(),
+                reply: r.reply.clone(),
+            })
+            .collect(),
+    };
+    let failure = match (unfinished, refused.count) {
+        (Some(why), _) => Some(why),
+        (None, 0) => None,
+        (None, _) if a.allow_refused => None,
+        (None, n) => Some(format!(
+            "the printer refused {n} line{} of the job (--allow-refused to accept that)",
+            if n == 1 { "" } else { "s" }
+        )),
+    };
     let mut o = stdout();
     if a.json {
-        writeln!(o, "{}", serde_json::to_string_pretty(&out.report)?).context(STDOUT)?;
+        let j = RunJson {
+            report: &out.report,
+            refused_lines: refused,
+            cut_lines: out.cut_lines,
+        };
+        writeln!(o, "{}", serde_json::to_string_pretty(&j)?).context(STDOUT)?;
         o.flush().context(STDOUT)?;
-        return unfinished.map_or(Ok(()), |why| Err(anyhow::anyhow!(why)));
+        return failure.map_or(Ok(()), |why| Err(anyhow::anyhow!(why)));
     }
     let r = &out.report;
     writeln!(
@@ -205,8 +320,27 @@ fn cmd_run(a: RunArgs) -> anyhow::Result<()> {
         writeln!(o, "  {:>10.3} s  {}", ev.t_s, ev.what).context(STDOUT)?;
     }
     writeln!(o, "{}", sim::demo::summary(r)).context(STDOUT)?;
+    if refused.count > 0 {
+        writeln!(o, "refused lines: {}", refused.count).context(STDOUT)?;
+        for f in &refused.first {
+            writeln!(o, "  line {}: {}  →  {}", f.line, f.text, f.reply).context(STDOUT)?;
+        }
+        if refused.count > refused.first.len() as u64 {
+            writeln!(o, "  … ({} more)", refused.count - refused.first.len() as u64)
+                .context(STDOUT)?;
+        }
+    }
+    if out.cut_lines > 0 {
+        writeln!(
+            o,
+            "{} line(s) longer than {} bytes were sent cut",
+            out.cut_lines,
+            sim::job::MAX_LINE_BYTES
+        )
+        .context(STDOUT)?;
+    }
     o.flush().context(STDOUT)?;
-    unfinished.map_or(Ok(()), |why| Err(anyhow::anyhow!(why)))
+    failure.map_or(Ok(()), |why| Err(anyhow::anyhow!(why)))
 }
 
 /// What a failed write to standard output says (a closed pipe, a full disk).
@@ -220,6 +354,19 @@ fn stdout() -> std::io::BufWriter<std::io::StdoutLock<'static>> {
 }
 
 fn cmd_lab(a: LabArgs) -> anyhow::Result<()> {
+    for &l in &a.lengths {
+        finite_in("lengths", l, 0.01..=10_000.0)?;
+    }
+    for &f in &a.feeds {
+        finite_in("feeds", f, 0.1..=2_000.0)?;
+    }
+    for &b in &a.buffers {
+        in_range("buffers", b, 2..=firmware::planner::RING_CAPACITY + 1)?;
+    }
+    let seg = firmware::ranges::SEGMENT;
+    for &s in &a.segments {
+        in_range("segments", s, seg.min..=seg.max)?;
+    }
     let grid = sim::lab::Grid {
         lengths_mm: a.lengths,
         feeds_mm_s: a.feeds,
@@ -264,9 +411,8 @@ fn cmd_lab(a: LabArgs) -> anyhow::Result<()> {
 fn cmd_pattern(a: PatternArgs) -> anyhow::Result<()> {
     let lines = match a.name.as_str() {
         "zigzag" => {
-            if !(a.len.is_finite() && a.len > 0.0 && a.feed.is_finite() && a.feed > 0.0) {
-                anyhow::bail!("--len and --feed must be positive");
-            }
+            finite_in("len", a.len, 0.01..=10_000.0)?;
+            finite_in("feed", a.feed, 0.1..=2_000.0)?;
             let mut z = sim::patterns::Zigzag::paper(a.len);
             z.feed_mm_s = a.feed;
             z.gcode().0

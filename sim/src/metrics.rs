@@ -25,7 +25,7 @@ use crate::engine::Engine;
 use crate::job::JobInfo;
 use crate::port::Executive;
 use crate::recorder::{Scale, SegRecord};
-use crate::run::{Mode, PauseWhen, Scenario};
+use crate::scenario::{Mode, PauseWhen, Scenario};
 use crate::stream::{Comparison, Key, LineEnds};
 use firmware::motion::StepPos;
 

@@ -90,6 +90,9 @@ pub struct FirmwareKnobs {
     pub queue_limit: Option<usize>,
     /// Speed-up factor after a `layer` request (1.0 = off); `None` = the firmware default.
     pub speedup: Option<f32>,
+    /// Extrude below the minimum hotend temperature, as `M302 P1` allows (off: the printer's
+    /// cold-extrusion guard, as on the board).
+    pub allow_cold: bool,
 }
 
 /// What the simulator drives. Implemented for the real executive in [`crate::exec`].

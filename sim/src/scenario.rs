@@ -68,6 +68,11 @@ pub enum PauseWhen {
     },
 }
 
+/// No limit on a run's virtual time (`sim run --max-hours` sets one): a quarter of the µs
+/// clock's range, so sums of deadlines never overflow. A run still ends: when its job has, or
+/// when it stalls ([`crate::engine::STALL_LIMIT_US`] without a step or a line sent).
+pub const NO_TIME_LIMIT_US: u64 = u64::MAX / 4;
+
 /// Everything that defines one run.
 #[derive(Clone, Debug)]
 pub struct Scenario {
@@ -89,10 +94,15 @@ pub struct Scenario {
     pub segment_len_mm: Option<f32>,
     /// Host-split piece length, mm (paper: 0.1–0.2).
     pub split_mm: f64,
-    /// Give up after this much virtual time, µs.
+    /// Give up after this much virtual time, µs ([`NO_TIME_LIMIT_US`] by default: a run ends
+    /// when its job does, or when it stalls — see [`crate::engine::STALL_LIMIT_US`]).
     pub max_time_us: u64,
     /// Also run the job with segmentation off to measure segmentation's print-time cost.
     pub measure_segmentation_cost: bool,
+    /// Extrude cold, as `M302 P1` allows (default off: the cold-extrusion guard is on, as on
+    /// the board; the built-in patterns of `lab` and `demo`, which model motion without
+    /// heating, turn it on).
+    pub allow_cold: bool,
     /// Keep the executed-block record of a run without a pause (`Outcome::run.rec.records`).
     /// A pause always keeps both runs' records (the metrics compare them); without one only
     /// callers that inspect the records need them (`sim run` does not: memory then stays
@@ -113,8 +123,9 @@ impl Scenario {
             queue_limit: 16,
             segment_len_mm: None,
             split_mm: 0.2,
-            max_time_us: 48 * 3600 * 1_000_000,
+            max_time_us: NO_TIME_LIMIT_US,
             measure_segmentation_cost: false,
+            allow_cold: false,
             keep_records: true,
         }
     }
@@ -127,6 +138,7 @@ impl Scenario {
                 pause_at_tail: true,
                 queue_limit: Some(self.queue_limit),
                 speedup: Some(1.0),
+                allow_cold: self.allow_cold,
             },
             Policy::Firmware => FirmwareKnobs {
                 segment_len_mm: Some(
@@ -136,6 +148,7 @@ impl Scenario {
                 pause_at_tail: false,
                 queue_limit: None,
                 speedup: None,
+                allow_cold: self.allow_cold,
             },
         }
     }

@@ -75,6 +75,10 @@ pub struct ServeArgs {
     /// image file (MBR + FAT16/32); see `sim::sd` and docs/sd.md.
     #[arg(long)]
     pub sd: Option<PathBuf>,
+    /// Let E move below the minimum hotend temperature, as `M302 P1` does (by default the
+    /// cold-extrusion guard is on, as on the board: heat first, M104/M109).
+    #[arg(long)]
+    pub allow_cold_extrusion: bool,
 }
 
 /// Run the virtual printer until the session ends; prints the device path on stdout.
@@ -92,8 +96,15 @@ pub fn serve_with(
     a: ServeArgs,
     ready: impl FnOnce(&std::path::Path),
 ) -> anyhow::Result<ServeRecord> {
-    if !(a.speed.is_finite() && a.speed > 0.0) {
-        anyhow::bail!("--speed must be a positive number");
+    if !(a.speed.is_finite() && a.speed > 0.0 && a.speed <= 1e6) {
+        anyhow::bail!("--speed {}: outside 0..=1000000 (virtual seconds per second)", a.speed);
+    }
+    // A Duration of at most ten years (Duration::from_secs_f64 panics past u64 seconds).
+    if !(a.exit_after_idle.is_finite() && (0.0..=3.2e8).contains(&a.exit_after_idle)) {
+        anyhow::bail!(
+            "--exit-after-idle {}: outside 0..=320000000 seconds",
+            a.exit_after_idle
+        );
     }
     let mut flash = a
         .flash
@@ -126,7 +137,8 @@ pub fn serve_with(
         a.speed
     );
 
-    let sc = Scenario::new(a.policy, Mode::Layer);
+    let mut sc = Scenario::new(a.policy, Mode::Layer);
+    sc.allow_cold = a.allow_cold_extrusion;
     let mut fw: PrinterExec = PrinterFactory.make(&sc.machine, &sc.knobs());
     fw.keep_executed = true;
     let mut rec = Recorder::new();

@@ -63,6 +63,7 @@ fn octoprint_reads_the_nested_listing_and_its_selection_opens_each_file() {
             sd: Some(sd),
             machine: None,
             trace: None,
+            allow_cold_extrusion: false,
         },
         Duration::from_secs(20),
     );

@@ -23,6 +23,8 @@ fn a_host_prints_pauses_and_resumes_over_the_pseudo_terminal() {
             machine: None,
             trace: None,
             sd: None,
+            // The job extrudes without heating (no heater lines): as M302 P1 allows.
+            allow_cold_extrusion: true,
         },
         Duration::from_secs(10),
     );

@@ -28,6 +28,8 @@ fn session_with(flash: &Path, lines: &[&str], pause_after: Option<usize>) -> Vec
             machine: None,
             trace: None,
             sd: None,
+            // The job extrudes without heating (no heater lines): as M302 P1 allows.
+            allow_cold_extrusion: true,
         },
         Duration::from_secs(10),
     );

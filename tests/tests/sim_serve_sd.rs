@@ -39,6 +39,7 @@ fn a_host_prints_a_sliced_file_from_the_card_with_a_layer_pause() {
             sd: Some(sd),
             machine: None,
             trace: None,
+            allow_cold_extrusion: false,
         },
         Duration::from_secs(20),
     );

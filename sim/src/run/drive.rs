@@ -59,15 +59,17 @@ pub(super) fn first_job_after_service<E: Executive>(a: &Engine<E>) -> Option<usi
 
 /// Run A and B to the end in turns (B catching up with A's number of executed blocks after
 /// each chunk of A), comparing their records as they complete. Returns whether each finished.
+/// `a_stays`: A is not run further (a pause that is never resumed).
 pub(super) fn run_in_turns<E: Executive>(
     a: &mut Engine<E>,
     b: &mut Engine<E>,
     max_us: u64,
+    a_stays: bool,
     cmp: &mut Compare,
     ends: &mut LineEnds,
 ) -> (bool, bool) {
     // None while running; Some(finished) once it finished, stalled or ran out of time.
-    let mut a_end: Option<bool> = None;
+    let mut a_end: Option<bool> = a_stays.then_some(false);
     let mut b_end: Option<bool> = None;
     let step = |e: &mut Engine<E>| -> Option<bool> {
         let deadline = (e.now_us + STREAM_CHUNK_US).min(max_us);
