@@ -148,6 +148,18 @@ fn executive_heater_sensor_faults_halt_with_the_heaters_off() {
     }
 }
 
+/// `card_image` crash-7ff11c… (the target's first seconds): two entries whose short names
+/// differ only in bytes beyond ASCII are both listed as `CO????N{.]{]` (`?` for each such
+/// byte), and opening that name opens the first. The harness compared the second's size with
+/// the file that opened: a harness fault (an ambiguous name cannot say which file it means;
+/// Marlin's 8.3 listing has the same limit). It now compares only names listed once.
+#[test]
+fn card_image_ambiguous_short_names() {
+    let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("fuzz/finds/card_image/ambiguous-short-names-7ff11cc6");
+    run_card_image(&std::fs::read(p).unwrap());
+}
+
 /// A card image made of nothing (every block zero) and of one byte: no card, no crash.
 #[test]
 fn card_image_empty_and_tiny() {

@@ -83,7 +83,11 @@ pub fn run_card_image(data: &[u8]) {
             let (opened, n) = reads_of(&reads, || card.open(&e.short));
             assert!(n <= budget, "open read {n} blocks");
             let Ok(f) = opened else { continue };
-            assert_eq!(f.size, e.size, "{e:?}");
+            // A name shown with `?` for bytes beyond ASCII can stand for several entries:
+            // the first one opens. A unique name opens its own file.
+            if listed.iter().filter(|o| o.short == e.short).count() == 1 {
+                assert_eq!(f.size, e.size, "{e:?}");
+            }
             let mut buf = [0u8; 512];
             let mut at = 0u32;
             let want = f.size.min(16 * 1024);
