@@ -401,3 +401,28 @@ fn schedule_due_during_a_pause_stops_at_its_layer_after_the_resume() {
     // Up to the scheduled stop the run matches the unpaused one (which stopped there too).
     assert_eq!(r.executed, base.executed);
 }
+
+/// Issue 24's `executive` find (`finds/executive/marks-without-motion-f14bcec1`): more layer
+/// markers in a row than the planner keeps marks (16), with no motion between them (empty
+/// layers, a file of only markers). The 17th waited for room only a block behind it could
+/// make, and every later line (the host's M400 too) waited for ever. Consecutive marks with no
+/// block between them stand at one place: the newer replaces the older. The M400 is answered,
+/// the move after them runs, and the printer reports the last marker's layer.
+#[test]
+fn layer_markers_without_motion_between_never_wedge_the_queue() {
+    let mut p = Printer::new(MachineConfig::ENDER3);
+    let mut lines: Vec<String> = vec!["G28".into(), "G1 X10 Y10 Z0.2 F3000".into()];
+    for n in 1..=50 {
+        lines.push(format!(";LAYER:{n}"));
+    }
+    lines.push("M400".into());
+    lines.push("G1 X50 Y50 F3000".into());
+    lines.push("M400".into());
+    lines.push("M114".into());
+    let refs: Vec<&str> = lines.iter().map(String::as_str).collect();
+    let r = run_gcode(&mut p, &refs, &[], 60_000_000);
+    let oks = r.out.lines().filter(|l| l.starts_with("ok")).count();
+    assert_eq!(oks, lines.len(), "{}", r.out);
+    assert!(r.out.contains("X:50.00 Y:50.00"), "{}", r.out);
+    assert_eq!(p.status().layer, Some(50), "{}", r.out);
+}

@@ -399,15 +399,27 @@ impl Planner {
     }
 
     /// Queue a layer mark before the next block. Becomes the barrier if one is waiting for
-    /// the next mark (returns `Ok(true)` then).
+    /// the next mark (returns `Ok(true)` then). A mark right after another one, with no block
+    /// between them (a layer without motion), stands at the same place: it replaces the
+    /// earlier one, so marks never pile up where no block can ever consume them (issue 24's
+    /// executive find: 50 layer markers in a row filled the marks, and the next one waited for
+    /// room that only a block behind it could make — every later line waited for ever).
     pub fn push_mark(&mut self, mark: LayerMark) -> Result<bool, PlanError> {
         if self.pending.is_some() {
             return Err(PlanError::Busy);
         }
+        let id = self.next_id;
+        if let Some(last) = self.marks.back_mut().filter(|m| m.id == id) {
+            last.mark = mark;
+            if self.barrier == Barrier::NextMark {
+                self.set_barrier(id);
+                return Ok(true);
+            }
+            return Ok(false);
+        }
         if self.marks.is_full() {
             return Err(PlanError::Full);
         }
-        let id = self.next_id;
         // Cannot fail: checked is_full above.
         let _ = self.marks.push_back(QueuedMark { id, mark });
         if self.policy.stop_at_marks {
