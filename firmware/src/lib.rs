@@ -15,9 +15,9 @@
 
 pub mod config;
 // The valid range of every setting (commands and the settings store).
-pub mod ranges;
 pub mod drivers;
 pub mod motion;
+pub mod ranges;
 
 // Front end: host link, G-code parsing, modal machine state, layer detection.
 pub mod gcode;

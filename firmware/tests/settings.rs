@@ -330,19 +330,44 @@ fn what_a_command_takes_m500_saves_and_what_it_refuses_changes_nothing() {
     use firmware::ranges::*;
     let per_min = |b: Bound| (b.min * 60.0, b.max * 60.0);
     let cases: Vec<(&str, f32, f32, f32)> = vec![
-        ("M92 E", STEPS_PER_MM.min, STEPS_PER_MM.max, STEPS_PER_MM.max * 2.0),
+        (
+            "M92 E",
+            STEPS_PER_MM.min,
+            STEPS_PER_MM.max,
+            STEPS_PER_MM.max * 2.0,
+        ),
         ("M201 X", ACCEL.min, ACCEL.max, ACCEL.min / 2.0),
         ("M203 Y", MAX_FEED.min, MAX_FEED.max, MAX_FEED.max * 2.0),
         ("M204 S", ACCEL.min, ACCEL.max, 0.000001),
         ("M204 P", ACCEL.min, ACCEL.max, ACCEL.max * 2.0),
         ("M204 R", ACCEL.min, ACCEL.max, -1.0),
         ("M204 T", ACCEL.min, ACCEL.max, 1e30),
-        ("M205 J", JUNCTION_DEVIATION.min, JUNCTION_DEVIATION.max, 0.5),
-        ("M206 Z", HOME_OFFSET.min, HOME_OFFSET.max, HOME_OFFSET.max * 2.0),
+        (
+            "M205 J",
+            JUNCTION_DEVIATION.min,
+            JUNCTION_DEVIATION.max,
+            0.5,
+        ),
+        (
+            "M206 Z",
+            HOME_OFFSET.min,
+            HOME_OFFSET.max,
+            HOME_OFFSET.max * 2.0,
+        ),
         ("M301 P", PID_GAIN.min, PID_GAIN.max, 1e30),
         ("M304 D", PID_GAIN.min, PID_GAIN.max, -0.5),
-        ("M906 X", DRIVER_CURRENT.min, DRIVER_CURRENT.max, DRIVER_CURRENT.max + 100.0),
-        ("M760 R", PAUSE_RETRACT.min, PAUSE_RETRACT.max, PAUSE_RETRACT.max + 1.0),
+        (
+            "M906 X",
+            DRIVER_CURRENT.min,
+            DRIVER_CURRENT.max,
+            DRIVER_CURRENT.max + 100.0,
+        ),
+        (
+            "M760 R",
+            PAUSE_RETRACT.min,
+            PAUSE_RETRACT.max,
+            PAUSE_RETRACT.max + 1.0,
+        ),
         ("M760 S", SPEEDUP.min, SPEEDUP.max, 0.5),
         ("M760 V", VOLUMETRIC.min, VOLUMETRIC.max, 0.0),
         ("M760 L", SEGMENT.min, SEGMENT.max, 0.001),
@@ -350,7 +375,12 @@ fn what_a_command_takes_m500_saves_and_what_it_refuses_changes_nothing() {
         // Machine-limited: Z within the travel, X/Y inside it, F within the X/Y limits.
         ("M760 Z", PAUSE_LIFT.min, 250.0, 251.0),
         ("M760 X", 0.0, 235.0, 236.0),
-        ("M760 F", per_min(PARK_FEED).0, 500.0 * 60.0, 500.0 * 60.0 + 60.0),
+        (
+            "M760 F",
+            per_min(PARK_FEED).0,
+            500.0 * 60.0,
+            500.0 * 60.0 + 60.0,
+        ),
     ];
     for (code, lo, hi, bad) in cases {
         for v in [lo, hi] {
@@ -385,7 +415,11 @@ fn foreign_areas() -> Vec<(&'static str, Vec<u8>)> {
         .collect();
     let mut half = vec![0u8; 8192];
     half[..1024].fill(0xFF);
-    vec![("zeros", vec![0; 8192]), ("random bytes", random), ("half-erased", half)]
+    vec![
+        ("zeros", vec![0; 8192]),
+        ("random bytes", random),
+        ("half-erased", half),
+    ]
 }
 
 #[test]
@@ -441,7 +475,14 @@ fn the_kept_job_is_announced_only_when_written() {
         b.send("G28");
         b.send("M400");
         b.send("M110 N1");
-        let lines = [";LAYER:0", "G1 Z0.2 F600", "G1 X50 Y50 E1 F3000", ";LAYER:1", "G1 Z0.4", "G1 X10 Y10 E2"];
+        let lines = [
+            ";LAYER:0",
+            "G1 Z0.2 F600",
+            "G1 X50 Y50 E1 F3000",
+            ";LAYER:1",
+            "G1 Z0.4",
+            "G1 X10 Y10 E2",
+        ];
         let mut out = String::new();
         for (k, l) in lines.iter().enumerate() {
             let n = k + 2;

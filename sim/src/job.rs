@@ -299,7 +299,10 @@ impl JobLines {
         use anyhow::Context;
         let mut r = JobReader::from_file(path)?;
         let mut n = 0usize;
-        while r.next_line().with_context(|| format!("reading {}", path.display()))? {
+        while r
+            .next_line()
+            .with_context(|| format!("reading {}", path.display()))?
+        {
             n += 1;
         }
         Ok(Self(std::sync::Arc::new(JobText {

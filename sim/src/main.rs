@@ -161,11 +161,7 @@ fn in_range<T: PartialOrd + std::fmt::Display + Copy>(
     if range.contains(&v) {
         Ok(v)
     } else {
-        anyhow::bail!(
-            "--{name} {v}: outside {}..={}",
-            range.start(),
-            range.end()
-        )
+        anyhow::bail!("--{name} {v}: outside {}..={}", range.start(), range.end())
     }
 }
 
@@ -222,7 +218,10 @@ fn run_scenario(a: &RunArgs) -> anyhow::Result<Scenario> {
         if !h.is_finite() {
             anyhow::bail!("--max-hours {h}: not a number");
         }
-        sc.max_time_us = seconds_us("max-hours", in_range("max-hours", h, 0.001..=87_600.0)? * 3600.0)?;
+        sc.max_time_us = seconds_us(
+            "max-hours",
+            in_range("max-hours", h, 0.001..=87_600.0)? * 3600.0,
+        )?;
     }
     // Without a pause nothing reads the executed-block record: do not keep it.
     sc.keep_records = false;
@@ -326,8 +325,12 @@ fn cmd_run(a: RunArgs) -> anyhow::Result<()> {
             writeln!(o, "  line {}: {}  →  {}", f.line, f.text, f.reply).context(STDOUT)?;
         }
         if refused.count > refused.first.len() as u64 {
-            writeln!(o, "  … ({} more)", refused.count - refused.first.len() as u64)
-                .context(STDOUT)?;
+            writeln!(
+                o,
+                "  … ({} more)",
+                refused.count - refused.first.len() as u64
+            )
+            .context(STDOUT)?;
         }
     }
     if out.cut_lines > 0 {

@@ -384,9 +384,8 @@ impl<'s, E: Executive> Run<'s, E> {
         let sc = self.sc;
         let mut view = RunView::default();
         // A pause that is never resumed: A stays parked (nothing more to run), B runs on.
-        let a_stays = sc.pause.is_some()
-            && sc.resume_after_us.is_none()
-            && self.facts.t_parked_us.is_some();
+        let a_stays =
+            sc.pause.is_some() && sc.resume_after_us.is_none() && self.facts.t_parked_us.is_some();
         let (a_done, b_done) = if self.streaming {
             // Keep A's records from the request until it prints again after the resume (the
             // window the pause figures read), then run A and B to the end in turns.

@@ -97,7 +97,10 @@ pub fn serve_with(
     ready: impl FnOnce(&std::path::Path),
 ) -> anyhow::Result<ServeRecord> {
     if !(a.speed.is_finite() && a.speed > 0.0 && a.speed <= 1e6) {
-        anyhow::bail!("--speed {}: outside 0..=1000000 (virtual seconds per second)", a.speed);
+        anyhow::bail!(
+            "--speed {}: outside 0..=1000000 (virtual seconds per second)",
+            a.speed
+        );
     }
     // A Duration of at most ten years (Duration::from_secs_f64 panics past u64 seconds).
     if !(a.exit_after_idle.is_finite() && (0.0..=3.2e8).contains(&a.exit_after_idle)) {

@@ -132,7 +132,10 @@ fn out_of_range_numbers_are_refused_without_a_panic() {
 #[test]
 fn the_shortest_segment_keeps_feed_and_acceleration() {
     for seg in ["0.05", "0.2"] {
-        let (ok, text) = sim_run("G92 X0 Y0 Z0\nG1 X100 F7800\n", &["--segment", seg, "--json"]);
+        let (ok, text) = sim_run(
+            "G92 X0 Y0 Z0\nG1 X100 F7800\n",
+            &["--segment", seg, "--json"],
+        );
         assert!(ok, "{text}");
         let v: serde_json::Value = serde_json::from_str(&text).expect("json");
         // From the first byte: the move and the two lines' wire time.

@@ -45,9 +45,15 @@ fn layer(file: &str, mark: &str, n: usize) -> Vec<String> {
     let lines: Vec<&str> = text.lines().collect();
     if mark.is_empty() {
         // No markers (Slic3r 1.3): 400 lines.
-        return lines[n * 400..(n + 1) * 400].iter().map(|l| l.to_string()).collect();
+        return lines[n * 400..(n + 1) * 400]
+            .iter()
+            .map(|l| l.to_string())
+            .collect();
     }
-    lines[marks[n]..marks[n + 1]].iter().map(|l| l.to_string()).collect()
+    lines[marks[n]..marks[n + 1]]
+        .iter()
+        .map(|l| l.to_string())
+        .collect()
 }
 
 /// `executive` input: policy byte, then the lines as raw USB chunks of at most 32 bytes with
@@ -82,9 +88,27 @@ fn write_fuzz_seeds() {
         std::fs::write(&p, img).unwrap();
     }
     for (name, file, mark, n, policy) in [
-        ("prusa", "tests/fixtures/corpus/prusa-zhop.gcode", ";LAYER_CHANGE", 3, 0u8),
-        ("cura", "tests/fixtures/corpus/cura-support.gcode", ";LAYER:", 2, 1),
-        ("slic3r", "tests/fixtures/corpus/slic3r-zhop-support.gcode", "", 2, 3),
+        (
+            "prusa",
+            "tests/fixtures/corpus/prusa-zhop.gcode",
+            ";LAYER_CHANGE",
+            3,
+            0u8,
+        ),
+        (
+            "cura",
+            "tests/fixtures/corpus/cura-support.gcode",
+            ";LAYER:",
+            2,
+            1,
+        ),
+        (
+            "slic3r",
+            "tests/fixtures/corpus/slic3r-zhop-support.gcode",
+            "",
+            2,
+            3,
+        ),
     ] {
         let l = layer(file, mark, n);
         let mut raw = vec![64u8];
@@ -139,7 +163,12 @@ fn the_committed_seeds_are_what_they_were_made_from() {
         for (path, contents) in files {
             let e = listed
                 .iter()
-                .find(|e| e.long.as_deref().unwrap_or(&e.short).eq_ignore_ascii_case(path))
+                .find(|e| {
+                    e.long
+                        .as_deref()
+                        .unwrap_or(&e.short)
+                        .eq_ignore_ascii_case(path)
+                })
                 .unwrap_or_else(|| panic!("{path} not in {listed:?}"));
             assert_eq!(e.size as usize, contents.len());
         }

@@ -25,10 +25,7 @@ struct Image(PathBuf);
 
 impl Image {
     fn new(tag: &str, fat32: bool) -> Self {
-        let p = std::env::temp_dir().join(format!(
-            "sd-faults-{}-{tag}.img",
-            std::process::id()
-        ));
+        let p = std::env::temp_dir().join(format!("sd-faults-{}-{tag}.img", std::process::id()));
         let files: Vec<(String, Vec<u8>)> = vec![
             ("A.GCO".into(), gcode(1500, 1)),
             ("Long file name.gcode".into(), gcode(700, 2)),
@@ -274,10 +271,19 @@ fn exercise(card: &mut Card<Overlay>, reads: &Rc<Cell<u64>>) -> Result<usize, Ca
                 }
             }
             // One block per 512 bytes, plus the FAT blocks of the chain.
-            assert!(reads.get() - before <= 2 * 129 + 8, "{}", reads.get() - before);
+            assert!(
+                reads.get() - before <= 2 * 129 + 8,
+                "{}",
+                reads.get() - before
+            );
         }
     }
-    for p in ["NOPE.GCO", "DIR/NOPE.GCO", "A/B/C/D/E/F/G.GCO", "DIR/SUB.GCO/X"] {
+    for p in [
+        "NOPE.GCO",
+        "DIR/NOPE.GCO",
+        "A/B/C/D/E/F/G.GCO",
+        "DIR/SUB.GCO/X",
+    ] {
         let before = reads.get();
         let _ = card.open(p);
         assert!(reads.get() - before <= u64::from(CARD_READ_BUDGET));
@@ -337,27 +343,91 @@ fn every_boot_sector_field_zero_huge_or_inconsistent_is_refused_or_harmless() {
     let g = o.geometry();
     assert!(!g.fat32);
     let total = g.total;
-    assert_eq!(u64::from(o.u16_at(PART * 512 + 19)), total, "a 16-bit block count");
+    assert_eq!(
+        u64::from(o.u16_at(PART * 512 + 19)),
+        total,
+        "a 16-bit block count"
+    );
     let fat = u64::from(o.u16_at(PART * 512 + 22));
     let fields: Vec<Field> = vec![
         // 512 is the only block size read; a FAT sized for 512-byte blocks is too small
         // for larger ones.
-        ("bytes per block", 11, 2, vec![(0, Refused), (0xFFFF, Refused), (4096, Refused)]),
+        (
+            "bytes per block",
+            11,
+            2,
+            vec![(0, Refused), (0xFFFF, Refused), (4096, Refused)],
+        ),
         // 0 divided by zero before the patch; not a power of two; 128 leaves < 4085 clusters.
-        ("blocks per cluster", 13, 1, vec![(0, Refused), (0xFF, Refused), (3, Refused), (128, Refused)]),
-        ("reserved blocks", 14, 2, vec![(0, Refused), (0xFFFF, Refused), (total, Refused), (2, NoCrash)]),
-        ("number of FATs", 16, 1, vec![(0, Refused), (0xFF, Refused), (1, NoCrash)]),
+        (
+            "blocks per cluster",
+            13,
+            1,
+            vec![(0, Refused), (0xFF, Refused), (3, Refused), (128, Refused)],
+        ),
+        (
+            "reserved blocks",
+            14,
+            2,
+            vec![
+                (0, Refused),
+                (0xFFFF, Refused),
+                (total, Refused),
+                (2, NoCrash),
+            ],
+        ),
+        (
+            "number of FATs",
+            16,
+            1,
+            vec![(0, Refused), (0xFF, Refused), (1, NoCrash)],
+        ),
         // FAT16 needs a root directory area; 65535 entries are not whole blocks of entries;
         // 65520 (4095 blocks) and 16 (one) move the data.
-        ("root entries", 17, 2, vec![(0, Refused), (0xFFFF, Refused), (0xFFF0, NoCrash), (16, NoCrash)]),
+        (
+            "root entries",
+            17,
+            2,
+            vec![
+                (0, Refused),
+                (0xFFFF, Refused),
+                (0xFFF0, NoCrash),
+                (16, NoCrash),
+            ],
+        ),
         // 0: the 32-bit count (0 here) is used; more blocks than the partition; too few
         // blocks for the FATs.
-        ("total blocks (16-bit)", 19, 2, vec![(0, Refused), (0xFFFF, Refused), (fat, Refused), (total - 1000, NoCrash)]),
+        (
+            "total blocks (16-bit)",
+            19,
+            2,
+            vec![
+                (0, Refused),
+                (0xFFFF, Refused),
+                (fat, Refused),
+                (total - 1000, NoCrash),
+            ],
+        ),
         // 0: FAT16 keeps its FAT size there; 8 times larger still fits: the root directory
         // moves (garbage read as entries).
-        ("FAT size (16-bit)", 22, 2, vec![(0, Refused), (0xFFFF, Refused), (1, Refused), (fat * 8, NoCrash)]),
+        (
+            "FAT size (16-bit)",
+            22,
+            2,
+            vec![
+                (0, Refused),
+                (0xFFFF, Refused),
+                (1, Refused),
+                (fat * 8, NoCrash),
+            ],
+        ),
         // Used only when the 16-bit count is 0: harmless here.
-        ("total blocks (32-bit)", 32, 4, vec![(0, NoCrash), (0xFFFF_FFFF, NoCrash)]),
+        (
+            "total blocks (32-bit)",
+            32,
+            4,
+            vec![(0, NoCrash), (0xFFFF_FFFF, NoCrash)],
+        ),
         // The boot signature.
         ("footer", 510, 2, vec![(0, Refused), (0xFFFF, Refused)]),
     ];
@@ -378,21 +448,86 @@ fn every_fat32_boot_sector_field_zero_huge_or_inconsistent_is_refused_or_harmles
     let reserved = u64::from(o.u16_at(PART * 512 + 14));
     let clusters = u64::from(g.clusters);
     let fields: Vec<Field> = vec![
-        ("bytes per block", 11, 2, vec![(0, Refused), (0xFFFF, Refused), (1024, Refused)]),
-        ("blocks per cluster", 13, 1, vec![(0, Refused), (0xFF, Refused), (64, Refused)]),
-        ("reserved blocks", 14, 2, vec![(0, Refused), (0xFFFF, NoCrash), (1, Refused)]),
-        ("number of FATs", 16, 1, vec![(0, Refused), (0xFF, Refused), (1, NoCrash)]),
+        (
+            "bytes per block",
+            11,
+            2,
+            vec![(0, Refused), (0xFFFF, Refused), (1024, Refused)],
+        ),
+        (
+            "blocks per cluster",
+            13,
+            1,
+            vec![(0, Refused), (0xFF, Refused), (64, Refused)],
+        ),
+        (
+            "reserved blocks",
+            14,
+            2,
+            vec![(0, Refused), (0xFFFF, NoCrash), (1, Refused)],
+        ),
+        (
+            "number of FATs",
+            16,
+            1,
+            vec![(0, Refused), (0xFF, Refused), (1, NoCrash)],
+        ),
         // FAT32 has no root directory area; 65535 entries leave a FAT16 cluster count with no
         // 16-bit FAT size.
-        ("root entries", 17, 2, vec![(0xFFFF, Refused), (512, Refused)]),
-        ("FAT size (16-bit)", 22, 2, vec![(1, Refused), (0xFFFF, Refused)]),
-        ("total blocks (32-bit)", 32, 4, vec![(0, Refused), (0xFFFF_FFFF, Refused), (2 * fat, Refused), (total - 5000, NoCrash)]),
-        ("FAT size (32-bit)", 36, 4, vec![(0, Refused), (0xFFFF_FFFF, Refused), (1, Refused)]),
-        ("FAT32 version", 42, 2, vec![(0xFFFF, Refused), (1, Refused)]),
+        (
+            "root entries",
+            17,
+            2,
+            vec![(0xFFFF, Refused), (512, Refused)],
+        ),
+        (
+            "FAT size (16-bit)",
+            22,
+            2,
+            vec![(1, Refused), (0xFFFF, Refused)],
+        ),
+        (
+            "total blocks (32-bit)",
+            32,
+            4,
+            vec![
+                (0, Refused),
+                (0xFFFF_FFFF, Refused),
+                (2 * fat, Refused),
+                (total - 5000, NoCrash),
+            ],
+        ),
+        (
+            "FAT size (32-bit)",
+            36,
+            4,
+            vec![(0, Refused), (0xFFFF_FFFF, Refused), (1, Refused)],
+        ),
+        (
+            "FAT32 version",
+            42,
+            2,
+            vec![(0xFFFF, Refused), (1, Refused)],
+        ),
         // Cluster 0 and 1 are reserved; past the last cluster; another valid cluster.
-        ("root cluster", 44, 4, vec![(0, Refused), (0xFFFF_FFFF, Refused), (clusters + 2, Refused), (3, NoCrash)]),
+        (
+            "root cluster",
+            44,
+            4,
+            vec![
+                (0, Refused),
+                (0xFFFF_FFFF, Refused),
+                (clusters + 2, Refused),
+                (3, NoCrash),
+            ],
+        ),
         // The info sector must be in the reserved area (0 is the boot sector itself).
-        ("info sector", 48, 2, vec![(0, Refused), (0xFFFF, Refused), (reserved, Refused)]),
+        (
+            "info sector",
+            48,
+            2,
+            vec![(0, Refused), (0xFFFF, Refused), (reserved, Refused)],
+        ),
         ("footer", 510, 2, vec![(0, Refused)]),
     ];
     let n = check_fields(&img, &fields);
@@ -436,7 +571,9 @@ fn random_boot_sectors_never_crash() {
             mounted += 1;
         }
     }
-    println!("600 damaged boot sectors: {mounted} mounted and read without a crash, the rest refused");
+    println!(
+        "600 damaged boot sectors: {mounted} mounted and read without a crash, the rest refused"
+    );
 }
 
 #[test]
@@ -455,19 +592,57 @@ fn fat_chains_that_loop_leave_the_volume_or_run_into_free_space_are_errors() {
         let outside = g.clusters + 10;
         let bad = if fat32 { 0x0FFF_FFF7 } else { 0xFFF7 };
         let cases: Vec<(&str, Box<dyn Fn(&Overlay)>)> = vec![
-            ("directory chain loops onto itself", Box::new(move |o: &Overlay| o.set_fat(&o.geometry(), dir_cluster, dir_cluster))),
+            (
+                "directory chain loops onto itself",
+                Box::new(move |o: &Overlay| o.set_fat(&o.geometry(), dir_cluster, dir_cluster)),
+            ),
             // The directory's only cluster is full of entries, so the walk follows the chain.
-            ("directory chain leaves the volume", Box::new(move |o: &Overlay| o.set_fat(&o.geometry(), dir_cluster, outside))),
-            ("directory chain reaches a cluster marked bad", Box::new(move |o: &Overlay| o.set_fat(&o.geometry(), dir_cluster, bad))),
-            ("directory chain into free space", Box::new(move |o: &Overlay| o.set_fat(&o.geometry(), dir_cluster, 0))),
-            ("file chain loops", Box::new(move |o: &Overlay| o.set_fat(&o.geometry(), file_cluster + 1, file_cluster))),
-            ("file chain leaves the volume", Box::new(move |o: &Overlay| o.set_fat(&o.geometry(), file_cluster, outside))),
-            ("file chain into free space", Box::new(move |o: &Overlay| o.set_fat(&o.geometry(), file_cluster, 0))),
-            ("file chain ends early", Box::new(move |o: &Overlay| o.set_fat(&o.geometry(), file_cluster, last))),
-            ("file starts outside the volume", Box::new(move |o: &Overlay| o.set_entry_cluster(file, outside))),
-            ("file starts in cluster 0", Box::new(move |o: &Overlay| o.set_entry_cluster(file, 0))),
-            ("directory starts outside the volume", Box::new(move |o: &Overlay| o.set_entry_cluster(dir, outside))),
-            ("directory cluster 1", Box::new(move |o: &Overlay| o.set_entry_cluster(dir, 1))),
+            (
+                "directory chain leaves the volume",
+                Box::new(move |o: &Overlay| o.set_fat(&o.geometry(), dir_cluster, outside)),
+            ),
+            (
+                "directory chain reaches a cluster marked bad",
+                Box::new(move |o: &Overlay| o.set_fat(&o.geometry(), dir_cluster, bad)),
+            ),
+            (
+                "directory chain into free space",
+                Box::new(move |o: &Overlay| o.set_fat(&o.geometry(), dir_cluster, 0)),
+            ),
+            (
+                "file chain loops",
+                Box::new(move |o: &Overlay| {
+                    o.set_fat(&o.geometry(), file_cluster + 1, file_cluster)
+                }),
+            ),
+            (
+                "file chain leaves the volume",
+                Box::new(move |o: &Overlay| o.set_fat(&o.geometry(), file_cluster, outside)),
+            ),
+            (
+                "file chain into free space",
+                Box::new(move |o: &Overlay| o.set_fat(&o.geometry(), file_cluster, 0)),
+            ),
+            (
+                "file chain ends early",
+                Box::new(move |o: &Overlay| o.set_fat(&o.geometry(), file_cluster, last)),
+            ),
+            (
+                "file starts outside the volume",
+                Box::new(move |o: &Overlay| o.set_entry_cluster(file, outside)),
+            ),
+            (
+                "file starts in cluster 0",
+                Box::new(move |o: &Overlay| o.set_entry_cluster(file, 0)),
+            ),
+            (
+                "directory starts outside the volume",
+                Box::new(move |o: &Overlay| o.set_entry_cluster(dir, outside)),
+            ),
+            (
+                "directory cluster 1",
+                Box::new(move |o: &Overlay| o.set_entry_cluster(dir, 1)),
+            ),
         ];
         for (what, damage) in &cases {
             // A directory whose chain is followed: fill DIR's first cluster with entries so the
@@ -482,7 +657,8 @@ fn fat_chains_that_loop_leave_the_volume_or_run_into_free_space_are_errors() {
             damage(&o);
             let reads = o.reads.clone();
             let mut card = Card::new(o);
-            card.mount().expect("mounts: the damage is past the boot sector");
+            card.mount()
+                .expect("mounts: the damage is past the boot sector");
             let listing = exercise(&mut card, &reads);
             // Opening and reading A.GCO: the damage shows as an error, never as a crash.
             let opened = card.open("A.GCO");
@@ -558,7 +734,11 @@ fn garbage_and_self_containing_directories_end_within_the_read_budget() {
     card.mount().unwrap();
     let t = std::time::Instant::now();
     assert_eq!(exercise(&mut card, &reads), Err(CardError::TooLarge));
-    println!("self-containing directory: refused after {} block reads in {:?}", reads.get(), t.elapsed());
+    println!(
+        "self-containing directory: refused after {} block reads in {:?}",
+        reads.get(),
+        t.elapsed()
+    );
     // The card still works for what is not damaged.
     assert_eq!(card.open("A.GCO").map(|e| e.size), Ok(1500));
 }
@@ -573,7 +753,11 @@ fn a_long_name_with_a_line_end_is_listed_by_its_short_name() {
     let root = o.root_at(&g);
     let lfn = (0..512u64)
         .map(|k| root + k * 32)
-        .find(|&at| o.get(at + 11, 1)[0] == 0x0F && o.get(at, 1)[0] & 0x1F == 1 && o.get(at + 1, 2) == [b'L', 0])
+        .find(|&at| {
+            o.get(at + 11, 1)[0] == 0x0F
+                && o.get(at, 1)[0] & 0x1F == 1
+                && o.get(at + 1, 2) == [b'L', 0]
+        })
         .expect("long-name entry");
     o.set(lfn + 9, &[b'\n', 0]);
     let reads = o.reads.clone();
@@ -597,7 +781,12 @@ fn a_long_name_with_a_line_end_is_listed_by_its_short_name() {
         .take_while(|l| *l != "End file list")
         .collect();
     assert_eq!(files.len(), 4, "{out}");
-    assert!(files.iter().any(|l| l.starts_with("LONGFI~") && l.ends_with(" 700")), "{out}");
+    assert!(
+        files
+            .iter()
+            .any(|l| l.starts_with("LONGFI~") && l.ends_with(" 700")),
+        "{out}"
+    );
 }
 
 /// The printer with a card, served as the board serves it.

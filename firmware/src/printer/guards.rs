@@ -32,7 +32,6 @@ pub const EXTRUDE_MINTEMP_C: f32 = 170.0;
 /// Marlin's `EXTRUDE_MAXLENGTH` in its Ender-3 example configurations, mm.
 pub const EXTRUDE_MAXLENGTH_MM: f32 = 200.0;
 
-
 /// Cold- and long-extrusion protection settings (M302).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ExtrusionGuard {
@@ -151,7 +150,9 @@ impl fmt::Display for Refusal {
 /// the machine (park inside the travel, lift within the Z travel, park feed within the X/Y
 /// limits); all or nothing. The settings loaded from flash are checked the same way.
 pub fn check_pause_params(p: &PauseParams, cfg: &MachineConfig) -> Result<(), Refusal> {
-    use crate::ranges::{PARK_FEED, PARK_XY, PAUSE_LIFT, PAUSE_RETRACT, SEGMENT, SPEEDUP, VOLUMETRIC};
+    use crate::ranges::{
+        PARK_FEED, PARK_XY, PAUSE_LIFT, PAUSE_RETRACT, SEGMENT, SPEEDUP, VOLUMETRIC,
+    };
     let x = cfg.axis(Axis::X);
     let y = cfg.axis(Axis::Y);
     let z = cfg.axis(Axis::Z);
@@ -167,7 +168,13 @@ pub fn check_pause_params(p: &PauseParams, cfg: &MachineConfig) -> Result<(), Re
         ('Z', p.lift_z_mm, PAUSE_LIFT, f32::MIN, z.max_mm - z.min_mm),
         ('X', p.park_x_mm, PARK_XY, x.min_mm, x.max_mm),
         ('Y', p.park_y_mm, PARK_XY, y.min_mm, y.max_mm),
-        ('F', p.park_feed_mm_min, per_min(PARK_FEED), f32::MIN, xy_feed_mm_min),
+        (
+            'F',
+            p.park_feed_mm_min,
+            per_min(PARK_FEED),
+            f32::MIN,
+            xy_feed_mm_min,
+        ),
         ('S', p.speedup_factor, SPEEDUP, f32::MIN, f32::MAX),
         ('V', p.max_volumetric_mm3_s, VOLUMETRIC, f32::MIN, f32::MAX),
         ('L', p.segment_len_mm, SEGMENT, f32::MIN, f32::MAX),
@@ -190,7 +197,10 @@ pub fn check_pause_params(p: &PauseParams, cfg: &MachineConfig) -> Result<(), Re
 
 /// The saved pause values against the same checks as M760's (park inside this machine's
 /// travel and so on): settings loaded from flash run as if set by M760.
-pub fn check_pause_config(p: &crate::config::PauseConfig, cfg: &MachineConfig) -> Result<(), Refusal> {
+pub fn check_pause_config(
+    p: &crate::config::PauseConfig,
+    cfg: &MachineConfig,
+) -> Result<(), Refusal> {
     check_pause_params(
         &PauseParams {
             retract_mm: Some(p.retract_mm),

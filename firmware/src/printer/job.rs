@@ -211,10 +211,7 @@ impl Printer {
             ),
             Err(e) => core::fmt::Write::write_fmt(
                 &mut t,
-                format_args!(
-                    "power-cut resume: job at layer {} not kept: {e}",
-                    j.layer
-                ),
+                format_args!("power-cut resume: job at layer {} not kept: {e}", j.layer),
             ),
         };
         self.link.respond(crate::link::Response::Echo(&t));

@@ -20,7 +20,9 @@ pub use job::{
     JobSource, ModalState, PausedJob, JOB_BODY_LEN, JOB_FORMAT_VERSION, JOB_PATH_CAP,
     JOB_RECORD_LEN,
 };
-pub use record::{RecordError, Settings, BODY_LEN, DEFAULT_DRIVER_CURRENT_MA, FORMAT_VERSION, RECORD_LEN};
+pub use record::{
+    RecordError, Settings, BODY_LEN, DEFAULT_DRIVER_CURRENT_MA, FORMAT_VERSION, RECORD_LEN,
+};
 // The ranges every saved value is checked against: the table the commands use too.
 pub use crate::ranges::{
     Bound, ACCEL, DRIVER_CURRENT, HOME_OFFSET, JUNCTION_DEVIATION, MAX_FEED, PID_GAIN, STEPS_PER_MM,

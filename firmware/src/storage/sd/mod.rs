@@ -148,7 +148,9 @@ impl<D: BlockDevice> BlockDevice for Budgeted<D> {
     }
 
     fn write(&self, blocks: &[Block], start: BlockIdx) -> Result<(), Self::Error> {
-        self.device.write(blocks, start).map_err(BudgetError::Device)
+        self.device
+            .write(blocks, start)
+            .map_err(BudgetError::Device)
     }
 
     fn num_blocks(&self) -> Result<BlockCount, Self::Error> {
