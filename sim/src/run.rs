@@ -116,7 +116,7 @@ pub fn run<F: Factory>(
 /// runs). The phases, in order: the request's moment ([`Run::request_time`]), A and B up to
 /// it ([`Run::until_request`]), the request and the lock-step to the reaction
 /// ([`Run::request`]), the park and the resume ([`Run::park_and_resume`]), the rest of the job
-/// ([`Run::to_the_end`]), the figures ([`Run::report`]).
+/// ([`Run::run_to_the_end`]), the figures ([`Run::report`]).
 pub fn run_job<F: Factory>(
     f: &F,
     sc: &Scenario,
@@ -134,7 +134,7 @@ pub fn run_job<F: Factory>(
     if sc.pause.is_some() {
         r.park_and_resume();
     }
-    let view = r.to_the_end()?;
+    let view = r.run_to_the_end()?;
     r.facts.wall_s = wall.elapsed().as_secs_f64();
     Ok(r.report(f, view))
 }
@@ -380,7 +380,7 @@ impl<'s, E: Executive> Run<'s, E> {
     }
 
     /// The rest of the job, A and B to their ends; what the figures read of the records.
-    fn to_the_end(&mut self) -> anyhow::Result<RunView> {
+    fn run_to_the_end(&mut self) -> anyhow::Result<RunView> {
         let sc = self.sc;
         let mut view = RunView::default();
         // A pause that is never resumed: A stays parked (nothing more to run), B runs on.

@@ -576,6 +576,9 @@ fn random_boot_sectors_never_crash() {
     );
 }
 
+/// A change made to an image.
+type Damage = Box<dyn Fn(&Overlay)>;
+
 #[test]
 fn fat_chains_that_loop_leave_the_volume_or_run_into_free_space_are_errors() {
     for fat32 in [false, true] {
@@ -591,7 +594,7 @@ fn fat_chains_that_loop_leave_the_volume_or_run_into_free_space_are_errors() {
         let last = 0x0FFF_FFFF;
         let outside = g.clusters + 10;
         let bad = if fat32 { 0x0FFF_FFF7 } else { 0xFFF7 };
-        let cases: Vec<(&str, Box<dyn Fn(&Overlay)>)> = vec![
+        let cases: Vec<(&str, Damage)> = vec![
             (
                 "directory chain loops onto itself",
                 Box::new(move |o: &Overlay| o.set_fat(&o.geometry(), dir_cluster, dir_cluster)),

@@ -182,7 +182,7 @@ pub fn check_pause_params(p: &PauseParams, cfg: &MachineConfig) -> Result<(), Re
     for (letter, value, bound, lo, hi) in checks {
         if let Some(v) = value {
             // `!(..)` so NaN is refused too.
-            if !bound.contains(v) || !(v >= lo && v <= hi) {
+            if !(bound.contains(v) && v >= lo && v <= hi) {
                 return Err(Refusal::PauseValue {
                     letter,
                     value: v,
