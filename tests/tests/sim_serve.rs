@@ -80,3 +80,46 @@ fn a_host_prints_pauses_and_resumes_over_the_pseudo_terminal() {
     assert_eq!(r.lost_moves + r.duplicated_moves, 0, "{r:#?}");
     assert!(r.finished, "{r:#?}");
 }
+
+/// Issue 24 over the pty: the conventional-firmware model (`--policy fifo`), `G1 X1` and
+/// `G1 X2` in one write, then `M25 S1` as soon as both are taken. It used to stand at X1 for ever (never parked,
+/// M24 "pause withdrawn", M400 `busy: processing`); now the pause runs the queued moves, parks,
+/// resumes, and M400/M114 answer with the head at X2.
+#[test]
+fn the_fifo_model_parks_and_resumes_a_pause_now_behind_two_moves() {
+    let (server, mut host) = serve_in_thread(
+        ServeArgs {
+            speed: 20.0,
+            record: None,
+            policy: Policy::Fifo,
+            exit_after_idle: 1.0,
+            link: None,
+            flash: None,
+            machine: None,
+            trace: None,
+            sd: None,
+            allow_cold_extrusion: false,
+        },
+        Duration::from_secs(10),
+    );
+    // As the issue's user typed them: both lines taken, then the request at once, while the
+    // first move runs (1 s virtual at 1 mm/s, 50 ms real at --speed 20; the two join at
+    // speed, as the issue's did).
+    host.write("G1 X1 F60\nG1 X2");
+    host.ok(WAIT);
+    host.ok(WAIT);
+    host.write("M25 S1");
+    host.until("//action:paused", WAIT, |l| l.contains("//action:paused"));
+    host.write("M24");
+    host.until("//action:resumed", WAIT, |l| l.contains("//action:resumed"));
+    host.write("M400");
+    host.write("M114");
+    let pos = host.until("M114's answer", WAIT, |l| l.starts_with("X:"));
+    assert!(pos.contains("X:2.00"), "{pos}");
+    assert!(
+        !host.seen.iter().any(|l| l.contains("pause withdrawn")),
+        "{:?}",
+        host.seen
+    );
+    server.record().expect("session record");
+}
