@@ -185,16 +185,22 @@ function matrices() {
 }
 
 const COARSE_ABOVE = 250000, COARSE_DRAGGING_ABOVE = 60000, COARSE_BELOW_PX = 4;
-const SLOW_FRAME_MS = 150;
+const SLOW_FRAME_MS = 150, SLOW_FIRST_FRAME_MS = 1000;
 // The median bead width, mm (sampled).
 const beadMm = (() => {
   const step = Math.max(1, Math.floor(NT / 10000)), w = [];
   for (let j = 0; j < NT; j += step) w.push(mv.w[tubeMove[j]]);
   return w.length ? Float64Array.from(w).sort()[w.length >> 1] : 0.4;
 })();
-// Set for the session once a frame asked for while turning came more than SLOW_FRAME_MS late
-// (the renderer was still busy with the one before).
-let slowTurning = false;
+// Set for the session when the first frame (shaders compiled, data uploaded) took over
+// SLOW_FIRST_FRAME_MS, or a frame drawn while turning over SLOW_FRAME_MS (software WebGL, a big
+// job). Then the view turns with the printing moves as lines, picks on lines when the beads
+// are thin on screen, and does not redraw to highlight the move pointed at.
+let slowRenderer = false;
+function setSlow() {
+  slowRenderer = true;
+  document.body.dataset.slowRenderer = "1";
+}
 let dragging = false, hoverId = -1, lastFrame = null;
 function frame() {
   const [l0, l1] = layerRange();
@@ -210,9 +216,8 @@ function frame() {
     // when a typical bead is under COARSE_BELOW_PX wide on screen at the view's centre.
     coarse: visible > COARSE_ABOVE || (dragging && visible > COARSE_DRAGGING_ABOVE) ||
             beadMm * m.pxPerMm < COARSE_BELOW_PX,
-    // A renderer too slow to turn the tubes smoothly (software WebGL, a big job) turns the
-    // view with the printing moves as lines; the tubes come back when the mouse is let go.
-    lines: dragging && slowTurning,
+    // A slow renderer turns the view with lines; the tubes come back when the mouse is let go.
+    lines: dragging && slowRenderer,
   });
 }
 
@@ -232,10 +237,16 @@ let pending = false;
 function requestDraw() {
   if (pending) return;
   pending = true;
-  const asked = performance.now();
   requestAnimationFrame(() => {
     pending = false;
-    if (dragging && performance.now() - asked > SLOW_FRAME_MS) slowTurning = true;
+    if (dragging && !slowRenderer) {
+      // Time a turning frame to its end (a real GPU waits a few ms once).
+      const t = performance.now();
+      drawNow();
+      gfx.finish();
+      if (performance.now() - t > SLOW_FRAME_MS) setSlow();
+      else return;
+    }
     drawNow();
   });
 }
@@ -275,14 +286,15 @@ function placeNotes(f, dpr) {
   });
 }
 
-// Hover readout of the move drawn under device pixel (x, y).
-function hoverAt(x, y) {
+// Hover readout of the move drawn under device pixel (x, y). A slow renderer picks among
+// lines when the beads are thin on screen, unless `exact` (the URL's hover).
+function hoverAt(x, y, exact) {
   const f = lastFrame || frame();
-  const id = gfx.pick(f, x, y);
+  const id = gfx.pick(Object.assign({}, f, { lines: !exact && slowRenderer && f.coarse }), x, y);
   const i = id < 0 ? -1 : id < NT ? tubeMove[id] : travelMove[id - NT];
   hoverId = i === undefined ? -1 : id;
   showReadout(i === undefined ? -1 : i);
-  requestDraw();
+  if (!slowRenderer) requestDraw();
 }
 function showReadout(i) {
   const box = $("readout");
@@ -335,6 +347,7 @@ function start() {
   drawNow();
   gfx.finish();
   const firstMs = performance.now() - t0;
+  if (firstMs > SLOW_FIRST_FRAME_MS) setSlow();
   document.body.dataset.loadMs = performance.now().toFixed(0);
   document.body.dataset.firstFrameMs = firstMs.toFixed(0);
   const hv = q.get("hover");
@@ -355,24 +368,28 @@ function start() {
       const dpr = window.devicePixelRatio || 1;
       [x, y] = hv.split(",").map(v => +v * dpr);
     }
-    if (isFinite(x) && isFinite(y)) { hoverAt(x, y); drawNow(); }
+    if (isFinite(x) && isFinite(y)) { hoverAt(x, y, true); drawNow(); }
   }
   const bench = +q.get("bench") || 0;
   let info = NT + " printing moves · " + NTR + " travels · " + LAYERS.length + " layers · " +
     fmtTime(META.time) + " · " + NOTES.length + " notes · profile " + META.profile;
   if (bench > 0) {
-    // Frame times, waiting for the GPU after each: the still view, then turning (dragging).
+    // Frame times, waiting for the GPU after each: the still view, then turning (dragging)
+    // with tubes and with lines.
     const time = () => {
       const t = performance.now();
       for (let k = 0; k < bench; k++) { cam.yaw += 0.05; drawNow(); gfx.finish(); }
       return (performance.now() - t) / bench;
     };
+    const slow = slowRenderer;
     const still = time();
     dragging = true;
+    slowRenderer = false;
     const turning = time();
-    slowTurning = true;
+    slowRenderer = true;
     const turningLines = time();
-    dragging = slowTurning = false;
+    dragging = false;
+    slowRenderer = slow;
     drawNow();
     $("info").dataset.frameMs = still.toFixed(1);
     info += " · load " + document.body.dataset.loadMs + " ms (first frame " + firstMs.toFixed(0) +
@@ -413,7 +430,7 @@ window.addEventListener("mousemove", e => {
 });
 canvas.addEventListener("mouseleave", () => {
   clearTimeout(hoverTimer);
-  if (hoverId >= 0) { hoverId = -1; showReadout(-1); requestDraw(); }
+  if (hoverId >= 0) { hoverId = -1; showReadout(-1); if (!slowRenderer) requestDraw(); }
 });
 canvas.addEventListener("wheel", e => {
   e.preventDefault();
