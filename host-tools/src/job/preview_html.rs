@@ -36,6 +36,9 @@ pub struct HtmlSummary {
     pub time_s: f64,
     /// Annotations shown (placed at a move).
     pub annotations: usize,
+    /// Annotations beyond [`crate::job::preview_moves::MAX_ANNOTATIONS`], left out (the page
+    /// says how many).
+    pub annotations_dropped: usize,
 }
 
 /// Most moves embedded (about 50–70 bytes each: a page of about 100 MB at most). Longer jobs
@@ -48,7 +51,7 @@ pub fn html(input: &[u8], profile: &Profile, title: &str) -> Result<(String, Htm
     let limits = MotionLimits::from_profile(profile);
     let area = profile.filament_area_mm2();
     let nozzle = profile.nozzle_diameter_mm;
-    let (mut notes, _dropped) = scan_annotations(input);
+    let (mut notes, dropped) = scan_annotations(input);
     let data = RefCell::new(PageData::with_capacity(input.len() / 2 + 4096));
     let mut too_many = false;
     let mut sink = |s: Segment| {
@@ -73,7 +76,7 @@ pub fn html(input: &[u8], profile: &Profile, title: &str) -> Result<(String, Htm
     d.finish_notes(&mut notes);
     let b = &profile.bed;
     let meta = format!(
-        "{{\"title\":{},\"bed\":[{},{},{},{}],\"profile\":{},\"time\":{:.1},\"nozzle\":{}}}",
+        "{{\"title\":{},\"bed\":[{},{},{},{}],\"profile\":{},\"time\":{:.1},\"notes_dropped\":{}}}",
         script_json(title),
         b.x_min_mm,
         b.y_min_mm,
@@ -81,7 +84,7 @@ pub fn html(input: &[u8], profile: &Profile, title: &str) -> Result<(String, Htm
         b.y_max_mm,
         script_json(&profile.name),
         totals.time_s,
-        nozzle
+        dropped
     );
     // Layer index k (k ≥ 1) is the k-th mark: [firmware number, Z or null].
     let mut layers = String::from("[");
@@ -142,6 +145,7 @@ pub fn html(input: &[u8], profile: &Profile, title: &str) -> Result<(String, Htm
             layers: totals.layer_marks,
             time_s: totals.time_s,
             annotations: shown,
+            annotations_dropped: dropped,
         },
     ))
 }
@@ -212,6 +216,48 @@ mod tests {
         // commanded; the annotation sits at the end of the travel before it (10, 10, 0.2).
         assert!(page.contains(",1,1,8,20,10,0.2,"), "{page}");
         assert!(page.contains(",7,10,10,0.2,1]"), "{page}");
+    }
+
+    /// The page's moves as rows of numbers.
+    fn moves(page: &str) -> Vec<Vec<f64>> {
+        let at = page.find("const MOVES = [").expect("moves") + 15;
+        let end = at + page[at..].find(']').expect("end");
+        let v: Vec<f64> = page[at..end]
+            .split(',')
+            .map(|x| x.parse().expect("number"))
+            .collect();
+        v.chunks(crate::job::preview_moves::MOVE_FIELDS)
+            .map(<[f64]>::to_vec)
+            .collect()
+    }
+
+    #[test]
+    fn bead_height_is_the_rise_over_the_last_printed_layer() {
+        // Layers at Z 0.2 (on the bed), 0.5, 0.8 (travel only), 1.0; E for 0.2 mm² beads.
+        let area = Profile::ender3().filament_area_mm2();
+        let e = |mm: f64| 0.2 * mm / area;
+        let g = format!(
+            "G90\nM82\nG92 E0\n;LAYER_CHANGE\n;Z:0.2\nG0 X10 Y10 Z0.2 F6000\nG1 X20 E{:.5} F1200\n\
+             ;LAYER_CHANGE\n;Z:0.5\nG0 Z0.5\nG1 X10 E{:.5}\n;LAYER_CHANGE\n;Z:0.8\nG0 Z0.8\n\
+             G0 X20\n;LAYER_CHANGE\n;Z:1.0\nG0 Z1.0\nG1 X10 E{:.5}\n",
+            e(10.0),
+            e(20.0),
+            e(30.0)
+        );
+        let (page, s) = html(g.as_bytes(), &Profile::ender3(), "h").expect("page");
+        assert_eq!(s.print_moves, 3);
+        let printed: Vec<(f64, f64)> = moves(&page)
+            .iter()
+            .filter(|m| m[0] as u32 & 1 == 1)
+            .map(|m| (m[10], m[11]))
+            .collect();
+        let heights: Vec<f64> = printed.iter().map(|p| p.1).collect();
+        assert_eq!(heights, vec![0.2, 0.3, 0.5]);
+        // Width: the stadium of 0.2 mm² at that height (to the page's 3 decimals).
+        for (w, h) in printed {
+            let expected = 0.2 / h + h * (1.0 - std::f64::consts::FRAC_PI_4);
+            assert!((w - expected).abs() < 2e-3, "{w} vs {expected} at h {h}");
+        }
     }
 
     #[test]

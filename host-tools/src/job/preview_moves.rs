@@ -110,8 +110,9 @@ pub struct PageData {
     pub travels: usize,
     /// The firmware's number and Z of each layer mark, in order (mark k starts index k + 1).
     pub marks: Vec<(u32, Option<f64>)>,
-    /// Z of each layer index: the mark's, else the first printing move's.
-    layer_z: Vec<Option<f64>>,
+    /// The layer index printed last, its Z (the mark's, else its first printing move's) and
+    /// its rise over the layer printed before it (the bed for the first).
+    printing: Option<(u32, f64, f64)>,
     last_end: Option<[f64; 3]>,
     last_layer: u32,
     next_note: usize,
@@ -180,19 +181,20 @@ impl PageData {
         let layer = s.layer as usize;
         let de = s.end[3] - s.start[3];
         let (w, h) = if print {
-            if self.layer_z.len() <= layer {
-                self.layer_z.resize(layer + 1, None);
-            }
-            if self.layer_z[layer].is_none() {
-                let from_mark = layer
-                    .checked_sub(1)
-                    .and_then(|k| self.marks.get(k))
-                    .and_then(|m| m.1);
-                self.layer_z[layer] = Some(from_mark.unwrap_or(start[2].min(end[2])));
-            }
-            let z = self.layer_z[layer].unwrap_or(end[2]);
-            let below = self.layer_z[..layer].iter().rev().flatten().next();
-            let rise = z - below.copied().unwrap_or(0.0);
+            let rise = match self.printing {
+                Some((l, _, rise)) if l == s.layer => rise,
+                below => {
+                    // The first printing move of a layer (layers only grow along the file).
+                    let from_mark = layer
+                        .checked_sub(1)
+                        .and_then(|k| self.marks.get(k))
+                        .and_then(|m| m.1);
+                    let z = from_mark.unwrap_or(start[2].min(end[2]));
+                    let rise = z - below.map_or(0.0, |b| b.1);
+                    self.printing = Some((s.layer, z, rise));
+                    rise
+                }
+            };
             let cross = if s.len_mm > 0.0 {
                 de * area_mm2 / s.len_mm
             } else {
@@ -309,6 +311,9 @@ mod tests {
         assert_eq!(dropped, 0);
         let got: Vec<(u32, &str)> = notes.iter().map(|n| (n.line, n.text.as_str())).collect();
         assert_eq!(got, vec![(2, "seam here"), (3, "after a move")]);
+        let many = ";ANNOTATION: n\n".repeat(MAX_ANNOTATIONS + 2);
+        let (notes, dropped) = scan_annotations(many.as_bytes());
+        assert_eq!((notes.len(), dropped), (MAX_ANNOTATIONS, 2));
         let long = format!(";ANNOTATION: {}\n", "é".repeat(500));
         let (notes, _) = scan_annotations(long.as_bytes());
         assert_eq!(notes[0].text.chars().count(), MAX_ANNOTATION_CHARS);

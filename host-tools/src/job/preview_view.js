@@ -98,7 +98,10 @@ const cam = { yaw: -0.6, pitch: 0.75, dist: radius * 3.2, pan: [0, 0] };
 const canvas = document.getElementById("view");
 const $ = id => document.getElementById(id);
 const ui = { mode: $("mode"), travel: $("travel"), notes: $("show-notes"), lo: $("lo"), hi: $("hi") };
-const gfx = makeRenderer(canvas);
+// null without WebGL 2 (or if its shaders do not compile there): the page says so.
+const gfx = (() => {
+  try { return makeRenderer(canvas); } catch (e) { console.error(e); return null; }
+})();
 
 const COLOUR = {
   speed: { name: "speed (peak)", unit: "mm/s", dec: 1, of: i => mv.speed[i] },
@@ -132,8 +135,10 @@ function visibleRange(l0, l1) {
   return [a, b];
 }
 
+// h:mm:ss.s or m:ss.s.
 function fmtTime(s) {
-  const h = Math.floor(s / 3600), m = Math.floor((s % 3600) / 60), sec = s % 60;
+  const tenths = Math.round(s * 10), h = Math.floor(tenths / 36000);
+  const m = Math.floor((tenths % 36000) / 600), sec = (tenths % 600) / 10;
   const ss = (sec < 10 ? "0" : "") + sec.toFixed(1);
   return h > 0 ? h + ":" + (m < 10 ? "0" : "") + m + ":" + ss : m + ":" + ss;
 }
@@ -372,7 +377,9 @@ function start() {
   }
   const bench = +q.get("bench") || 0;
   let info = NT + " printing moves · " + NTR + " travels · " + LAYERS.length + " layers · " +
-    fmtTime(META.time) + " · " + NOTES.length + " notes · profile " + META.profile;
+    fmtTime(META.time) + " · " + NOTES.length + " notes" +
+    (META.notes_dropped > 0 ? " (" + META.notes_dropped + " more left out)" : "") +
+    " · profile " + META.profile;
   if (bench > 0) {
     // Frame times, waiting for the GPU after each: the still view, then turning (dragging)
     // with tubes and with lines.
@@ -412,6 +419,7 @@ window.addEventListener("mousemove", e => {
   if (!drag) {
     // Point at a line: pick once the pointer rests (a pick draws the visible layers once).
     clearTimeout(hoverTimer);
+    if (e.target !== canvas) return;
     const dpr = window.devicePixelRatio || 1, r = canvas.getBoundingClientRect();
     const x = (e.clientX - r.left) * dpr, y = (e.clientY - r.top) * dpr;
     hoverTimer = setTimeout(() => hoverAt(x, y), 40);
