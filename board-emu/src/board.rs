@@ -122,6 +122,12 @@ pub struct Board {
     pub notes: Vec<String>,
     /// Timing of the last edge per pin (for EN/PC13 reports).
     pub last_level: BTreeMap<Pin, (Cyc, bool)>,
+    /// When SAFE_POWER (PC13) first went high.
+    pub safe_power_first_high: Option<Cyc>,
+    /// Heaters powered and drivers enabled, each time either changes.
+    pub outputs_log: Vec<(Cyc, [bool; 2], [bool; 4])>,
+    /// The stack pointer after each active exception's frame was pushed, innermost last.
+    pub frame_sp: Vec<u32>,
     /// The current slice ends at this time.
     pub deadline: Cyc,
     /// The last read of a timer counter: (address, instruction count).
@@ -168,6 +174,9 @@ impl Board {
             thread_hold_until: None,
             notes: Vec::new(),
             last_level: BTreeMap::new(),
+            frame_sp: Vec::new(),
+            outputs_log: Vec::new(),
+            safe_power_first_high: None,
             deadline: 0,
             last_cnt_read: (0, 0),
             last_write_insn: 0,
@@ -210,6 +219,7 @@ impl Board {
         self.regs.clear();
         self.event_reg = false;
         self.thread_hold_until = None;
+        self.frame_sp.clear();
         self.resets.push((now, kind));
         self.pins_changed(now);
     }
@@ -232,12 +242,20 @@ impl Board {
     }
 
     fn dispatch_edges(&mut self) {
+        let mut any = false;
         while !self.edges.is_empty() {
             let edges = std::mem::take(&mut self.edges);
             for e in edges {
+                let t = e.t;
                 self.on_edge(e);
+                any = true;
+                let state = (self.heaters_powered(), self.drivers_enabled());
+                if self.outputs_log.last().map(|(_, h, d)| (*h, *d)) != Some(state) {
+                    self.outputs_log.push((t, state.0, state.1));
+                }
             }
         }
+        let _ = any;
     }
 
     fn powered(&self) -> bool {
@@ -269,6 +287,9 @@ impl Board {
             self.heaters.set_powered(i, on, e.t);
         }
         if e.pin == SAFE_POWER {
+            if e.high && self.safe_power_first_high.is_none() {
+                self.safe_power_first_high = Some(e.t);
+            }
             for (i, p) in HEATER_PINS.iter().enumerate() {
                 let on = e.high && self.gpio.level(*p);
                 self.heaters.set_powered(i, on, e.t);
@@ -556,6 +577,11 @@ impl Board {
             self.stop = Some(Stop::Resched);
         }
         let _ = STORE_LEN;
+    }
+
+    /// When `pin` first went high (SAFE_POWER only is tracked).
+    pub fn trace_first_high(&self, pin: Pin) -> Option<Cyc> {
+        (pin == SAFE_POWER).then_some(self.safe_power_first_high).flatten()
     }
 
     /// Heater pins' power state, for reports.

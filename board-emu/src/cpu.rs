@@ -57,6 +57,8 @@ pub struct Emulator<'a> {
     pub image: Vec<u8>,
     /// Faults taken (HardFault entries), with time and cause.
     pub faults: Vec<(Cyc, String)>,
+    /// Where slices start, counted (`BOARD_EMU_PROFILE=1`: a coarse profile for debugging).
+    pub profile: Option<std::collections::BTreeMap<u32, u64>>,
 }
 
 /// The bootloader stub: a vector table (initial SP, reset vector) and five instructions that
@@ -248,6 +250,7 @@ impl<'a> Emulator<'a> {
             uc,
             image,
             faults: Vec::new(),
+            profile: std::env::var_os("BOARD_EMU_PROFILE").map(|_| Default::default()),
         };
         emu.power_on(ResetKind::PowerOn)?;
         Ok(emu)
@@ -398,6 +401,7 @@ impl<'a> Emulator<'a> {
         let handler = self.vector(e);
         let b = self.board_mut();
         b.nvic.activate(e);
+        b.frame_sp.push(new_sp);
         b.event_reg = true;
         self.uc.reg_write(RegisterARM::PC, u64::from(handler | 1))
             .map_err(uc_err)?;
@@ -408,6 +412,7 @@ impl<'a> Emulator<'a> {
     fn exc_return(&mut self, ret: u32) -> Result<()> {
         let b = self.board_mut();
         let done = b.nvic.deactivate();
+        b.frame_sp.pop();
         b.event_reg = true;
         let _ = done;
         let to_thread = ret & 8 != 0;
@@ -554,6 +559,9 @@ impl<'a> Emulator<'a> {
                 b.deadline = now + slice;
             }
             let pc = self.uc.reg_read(RegisterARM::PC).map_err(uc_err)?;
+            if let Some(p) = &mut self.profile {
+                *p.entry(pc as u32).or_insert(0) += 1;
+            }
             let r = self.uc.emu_start(pc | 1, 0, 0, 0);
             if let Err(e) = r {
                 let pc = self.uc.reg_read(RegisterARM::PC).unwrap_or(0);
