@@ -63,8 +63,13 @@ pub struct Report {
     /// `pause_point_steps` counts from the same origin when the carriage starts at the
     /// switches' home): where the park sequence (E retract, Z lift, XY travel) began.
     pub pause_point_steps: Option<[i64; 4]>,
-    /// Where the head was parked.
+    /// The pause point in the `net_steps` frame (from the carriage's power-on position).
+    pub pause_point_net_steps: Option<[i64; 4]>,
+    /// Where the head was parked (`net_steps` frame).
     pub parked_steps: Option<[i64; 4]>,
+    /// The first runs of steps in one direction per axis (a homing's approach, bump, slow
+    /// approach), with their rates.
+    pub runs: PerAxis<Vec<crate::axes::Run>>,
     /// Shortest STEP high time, ns.
     pub min_step_high_ns: PerAxis<Option<u64>>,
     /// Shortest DIR change to STEP rise, ns.
@@ -247,7 +252,20 @@ pub fn make(
         m115: host.find("FIRMWARE_NAME").map(|(_, l)| l.clone()),
         lines: host.received.iter().map(|(_, l)| l.clone()).collect(),
         net_steps: per_axis(|i| b.axes.axis[i].net_steps),
-        pause_point_steps: r.parked.and_then(|t| pause_point(&b.axes, t)),
+        pause_point_steps: r.parked.and_then(|t| pause_point(&b.axes, t)).map(|p| {
+            // The firmware's frame: the switches are at 0 (min_mm of the Ender-3), and the
+            // carriage started `start_mm` from them.
+            let mut q = p;
+            for (i, a) in [firmware::motion::Axis::X, firmware::motion::Axis::Y, firmware::motion::Axis::Z]
+                .into_iter()
+                .enumerate()
+            {
+                q[i] += (o.start_mm[i] * cfg.axis(a).steps_per_mm).round() as i64;
+            }
+            q
+        }),
+        pause_point_net_steps: r.parked.and_then(|t| pause_point(&b.axes, t)),
+        runs: per_axis(|i| b.axes.axis[i].runs.iter().take(12).copied().collect()),
         parked_steps: b
             .axes
             .marks

@@ -29,8 +29,8 @@ pub struct Options {
     pub elf: Option<PathBuf>,
     /// The F429 (192 KiB of SRAM mapped).
     pub f429: bool,
-    /// Lines sent after `M115` and before the job; `@reset` resets the board (NRST) once
-    /// everything before it is answered, `@wait <ms>` waits.
+    /// Lines sent before the job, each after the previous one is answered; `@reset` resets
+    /// the board (NRST), `@wait <ms>` waits, `@until <text>` waits for a line containing it.
     pub commands: Vec<String>,
     /// The job (G-code lines).
     pub job: Vec<String>,
@@ -155,7 +155,7 @@ pub fn run(o: &Options) -> Result<Report> {
         None => None,
     };
     let cfg = MachineConfig::ENDER3;
-    let mut axes = Axes::new(&cfg, o.start_mm);
+    let axes = Axes::new(&cfg, o.start_mm);
     let board = Board::new(
         flash,
         Iwdg::new(o.lsi_hz),
@@ -175,7 +175,6 @@ pub fn run(o: &Options) -> Result<Report> {
     let mut host = Host::new();
     // M115 goes last: its ~700-byte reply stalls the TFT port of today's image for good
     // (docs/board-emu.md, "Found by the emulated board"), so nothing could follow it.
-    let mut m115_sent = false;
     let mut script: std::collections::VecDeque<String> = o.commands.iter().cloned().collect();
     let mut job_sent = false;
     let mut r = Reaction::default();
@@ -183,9 +182,7 @@ pub fn run(o: &Options) -> Result<Report> {
     let end = loop {
         let end = emu.run_until(until, |emu| {
             host.poll(&mut emu.board_mut().usart1);
-            if job_sent {
-                react(emu, &mut host, o, &mut r);
-            }
+            react(emu, &mut host, o, &mut r);
             // A pause waits for its resume before the job counts as done.
             let pausing = o.pause_at_layer.is_some() && job_sent && !r.resumed;
             !pausing && host.idle()
@@ -198,9 +195,22 @@ pub fn run(o: &Options) -> Result<Report> {
         if let Some(cmd) = script.pop_front() {
             if cmd == "@reset" {
                 emu.power_on(ResetKind::Pin)?;
+            } else if let Some(text) = cmd.strip_prefix("@until ") {
+                let text = text.trim().to_string();
+                let from = host.received.len();
+                emu.run_until(until, |emu| {
+                    host.poll(&mut emu.board_mut().usart1);
+                    react(emu, &mut host, o, &mut r);
+                    host.received[from..].iter().any(|(_, l)| l.contains(&text))
+                })?;
             } else if let Some(ms) = cmd.strip_prefix("@wait ") {
                 let ms: u64 = ms.trim().parse().unwrap_or(0);
-                run_plain(&mut emu, &mut host, now + cyc_from_ms(ms))?;
+                let t = now + cyc_from_ms(ms);
+                emu.run_until(t.min(until), |emu| {
+                    host.poll(&mut emu.board_mut().usart1);
+                    react(emu, &mut host, o, &mut r);
+                    false
+                })?;
             } else {
                 host.send_lines([cmd.as_str()]);
             }
@@ -209,6 +219,7 @@ pub fn run(o: &Options) -> Result<Report> {
         if !job_sent {
             job_sent = true;
             r.oks_before_job = host.oks;
+            r.job_started = true;
             if let Some(n) = o.pause_at_layer {
                 host.send_lines([format!("M761 L{n}").as_str()]);
             }
@@ -216,16 +227,13 @@ pub fn run(o: &Options) -> Result<Report> {
             host.send_lines(["M400"]);
             continue;
         }
-        if !m115_sent {
-            m115_sent = true;
-            host.send_lines(["M115"]);
-            // Wait for the reply line (its `ok` may never come), then settle.
-            let limit = emu.now() + cyc_from_ms(2_000);
-            emu.run_until(limit.min(until), |emu| {
-                host.poll(&mut emu.board_mut().usart1);
-                host.idle() || host.find("FIRMWARE_NAME").is_some()
-            })?;
-        }
+        host.send_lines(["M115"]);
+        // Wait for the reply line (its `ok` may never come), then settle.
+        let limit = emu.now() + cyc_from_ms(2_000);
+        emu.run_until(limit.min(until), |emu| {
+            host.poll(&mut emu.board_mut().usart1);
+            host.idle() || host.find("FIRMWARE_NAME").is_some()
+        })?;
         // Done: watch a little longer (what the board does after the job or the fault).
         let t = emu.now() + (o.settle_s * 168e6) as Cyc;
         break run_plain(&mut emu, &mut host, t)?;
@@ -294,7 +302,7 @@ pub fn react(emu: &mut Emulator, host: &mut Host, o: &Options, r: &mut Reaction)
     }
     // Inject the fault once the job has moved for a while.
     let Some(f) = o.fault else { return };
-    if r.injected.is_some() {
+    if r.injected.is_some() || !r.job_started {
         return;
     }
     let Some(t0) = r.job_first_ok else {
@@ -351,6 +359,8 @@ pub struct Reaction {
     pub parked: Option<Cyc>,
     /// M24 sent.
     pub resumed: bool,
+    /// The job's lines were queued.
+    pub job_started: bool,
     /// `ok`s before the job's lines.
     pub oks_before_job: u64,
     /// The job's first line answered.
