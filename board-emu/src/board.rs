@@ -187,8 +187,7 @@ impl Board {
         for p in HEATER_PINS.into_iter().chain([SAFE_POWER]) {
             b.gpio.board_pull[usize::from(p.port)][usize::from(p.n)] = Some(false);
         }
-        b.gpio.board_pull[usize::from(PAUSE_BUTTON.port)][usize::from(PAUSE_BUTTON.n)] =
-            Some(true);
+        b.gpio.board_pull[usize::from(PAUSE_BUTTON.port)][usize::from(PAUSE_BUTTON.n)] = Some(true);
         b.wire_inputs();
         b
     }
@@ -430,8 +429,14 @@ impl Board {
         if last_a != a || self.insns - last_i > 8 || self.last_write_insn > last_i {
             return now;
         }
-        let tim = if a == 0x4000_0024 { &self.tim2 } else { &self.tim5 };
-        let Some(t) = tim.next_tick(now) else { return now };
+        let tim = if a == 0x4000_0024 {
+            &self.tim2
+        } else {
+            &self.tim5
+        };
+        let Some(t) = tim.next_tick(now) else {
+            return now;
+        };
         let t = t.min(self.deadline);
         if t <= now {
             return now;
@@ -514,9 +519,7 @@ impl Board {
             0x4000_3000..=0x4000_33FF => self.iwdg.write(a - 0x4000_3000, v, now),
             0x4000_7000..=0x4000_73FF => self.rcc.pwr_write(a - 0x4000_7000, v),
             0x4001_1000..=0x4001_13FF => self.usart1.write(a - 0x4001_1000, v, now),
-            0x4001_2000..=0x4001_23FF => {
-                self.adc.write(a - 0x4001_2000, v, now, &mut self.heaters)
-            }
+            0x4001_2000..=0x4001_23FF => self.adc.write(a - 0x4001_2000, v, now, &mut self.heaters),
             0x4001_2C00..=0x4001_2FFF => self.sdio.write(a - 0x4001_2C00, v, now),
             0x4002_6400..=0x4002_67FF => self.sdio.dma_write(a - 0x4002_6400, v, now),
             0x4002_0000..=0x4002_13FF => {
@@ -527,8 +530,7 @@ impl Board {
             }
             0x4002_3800..=0x4002_3BFF => self.rcc.write(a - 0x4002_3800, v),
             0x4002_3C00..=0x4002_3FFF => {
-                if let Some(FlashOp::Erased { n, .. }) = self.flash.write(a - 0x4002_3C00, v, now)
-                {
+                if let Some(FlashOp::Erased { n, .. }) = self.flash.write(a - 0x4002_3C00, v, now) {
                     self.notes.push(format!(
                         "flash sector {n} erase at t = {:.4} s",
                         crate::time::s_from_cyc(now)
@@ -557,7 +559,8 @@ impl Board {
     pub fn store_read(&mut self, off: u64, size: usize) -> u64 {
         let addr = STORE_BASE + off as u32;
         if self.flash.stalled(self.now()) {
-            self.notes.push("read of the settings area while flash busy".into());
+            self.notes
+                .push("read of the settings area while flash busy".into());
         }
         self.flash.read_store(addr, size)
     }
@@ -581,7 +584,9 @@ impl Board {
 
     /// When `pin` first went high (SAFE_POWER only is tracked).
     pub fn trace_first_high(&self, pin: Pin) -> Option<Cyc> {
-        (pin == SAFE_POWER).then_some(self.safe_power_first_high).flatten()
+        (pin == SAFE_POWER)
+            .then_some(self.safe_power_first_high)
+            .flatten()
     }
 
     /// Heater pins' power state, for reports.

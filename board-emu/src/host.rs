@@ -84,7 +84,9 @@ impl Host {
         self.rx_cursor = uart.tx_log.len();
         for (t, b) in new {
             if b == b'\n' {
-                let line = String::from_utf8_lossy(&self.partial).trim_end().to_string();
+                let line = String::from_utf8_lossy(&self.partial)
+                    .trim_end()
+                    .to_string();
                 self.partial.clear();
                 self.on_line(t, line);
             } else {
@@ -131,7 +133,11 @@ impl Host {
             // Re-queue every numbered line from `n` on (the `ok` that follows is counted).
             self.resends += 1;
             let from = n.saturating_sub(1) as usize;
-            let again: Vec<Out> = self.sent.drain(from.min(self.sent.len())..).map(Out::Line).collect();
+            let again: Vec<Out> = self
+                .sent
+                .drain(from.min(self.sent.len())..)
+                .map(Out::Line)
+                .collect();
             self.next_n = from as u64;
             for o in again.into_iter().rev() {
                 self.queue.push_front(o);

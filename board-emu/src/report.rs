@@ -139,7 +139,12 @@ pub struct Report {
 fn pause_point(axes: &Axes, parked: Cyc) -> Option<[i64; 4]> {
     let mut steps: Vec<(Cyc, usize, i8)> = Vec::new();
     for (i, a) in axes.axis.iter().enumerate() {
-        steps.extend(a.rises.iter().filter(|(t, _)| *t <= parked).map(|(t, d)| (*t, i, *d)));
+        steps.extend(
+            a.rises
+                .iter()
+                .filter(|(t, _)| *t <= parked)
+                .map(|(t, d)| (*t, i, *d)),
+        );
     }
     steps.sort();
     let mut pos: [i64; 4] = [0, 1, 2, 3].map(|i| {
@@ -244,9 +249,8 @@ pub fn make(
         }
     });
     let safe_power = crate::axes::SAFE_POWER;
-    let stack_hw = stack.and_then(|(lo, hi)| {
-        emu.lowest_touched(lo, hi, 0xC5C5_C5C5).map(|a| hi - a)
-    });
+    let stack_hw =
+        stack.and_then(|(lo, hi)| emu.lowest_touched(lo, hi, 0xC5C5_C5C5).map(|a| hi - a));
     let skipped = b.skipped;
     Report {
         m115: host.find("FIRMWARE_NAME").map(|(_, l)| l.clone()),
@@ -256,9 +260,13 @@ pub fn make(
             // The firmware's frame: the switches are at 0 (min_mm of the Ender-3), and the
             // carriage started `start_mm` from them.
             let mut q = p;
-            for (i, a) in [firmware::motion::Axis::X, firmware::motion::Axis::Y, firmware::motion::Axis::Z]
-                .into_iter()
-                .enumerate()
+            for (i, a) in [
+                firmware::motion::Axis::X,
+                firmware::motion::Axis::Y,
+                firmware::motion::Axis::Z,
+            ]
+            .into_iter()
+            .enumerate()
             {
                 q[i] += (o.start_mm[i] * cfg.axis(a).steps_per_mm).round() as i64;
             }
@@ -309,9 +317,7 @@ pub fn make(
         heaters_powered_at_end: b.heaters_powered(),
         drivers_enabled_at_end: b.drivers_enabled(),
         safe_power_at_end: b.gpio.level(safe_power),
-        safe_power_first_high_s: b
-            .trace_first_high(safe_power)
-            .map(s_from_cyc),
+        safe_power_first_high_s: b.trace_first_high(safe_power).map(s_from_cyc),
         max_temp_c: b.heaters.max_c,
         flash_erases: b
             .flash

@@ -116,7 +116,12 @@ fn initial_store(o: &Options) -> Result<Vec<u8>> {
     if let Some(f) = &o.flash_file {
         if f.exists() {
             let d = std::fs::read(f)?;
-            anyhow::ensure!(d.len() == STORE_LEN, "{} is not {} bytes", f.display(), STORE_LEN);
+            anyhow::ensure!(
+                d.len() == STORE_LEN,
+                "{} is not {} bytes",
+                f.display(),
+                STORE_LEN
+            );
             return Ok(d);
         }
     }
@@ -143,7 +148,8 @@ const PAINT: u32 = 0xC5C5_C5C5;
 /// Runs `o` and reports.
 pub fn run(o: &Options) -> Result<Report> {
     let wall0 = std::time::Instant::now();
-    let image = std::fs::read(&o.image).with_context(|| format!("reading {}", o.image.display()))?;
+    let image =
+        std::fs::read(&o.image).with_context(|| format!("reading {}", o.image.display()))?;
     let mut flash = Flash::new(o.flash_timing);
     flash.store = initial_store(o)?;
     let mut seating = [Seating::Correct; 4];
@@ -258,8 +264,14 @@ pub fn run(o: &Options) -> Result<Report> {
     }
     if std::env::var_os("BOARD_EMU_DEBUG").is_some() {
         let b = emu.board();
-        eprintln!("ccr1 {:?}", &b.tim5.ccr1_writes[..b.tim5.ccr1_writes.len().min(8)]);
-        eprintln!("rises X {:?}", &b.axes.axis[0].rises[..b.axes.axis[0].rises.len().min(8)]);
+        eprintln!(
+            "ccr1 {:?}",
+            &b.tim5.ccr1_writes[..b.tim5.ccr1_writes.len().min(8)]
+        );
+        eprintln!(
+            "rises X {:?}",
+            &b.axes.axis[0].rises[..b.axes.axis[0].rises.len().min(8)]
+        );
     }
     if let Some(p) = &emu.profile {
         let mut v: Vec<_> = p.iter().collect();
@@ -272,7 +284,14 @@ pub fn run(o: &Options) -> Result<Report> {
         std::fs::write(f, &emu.board().flash.store)
             .with_context(|| format!("writing {}", f.display()))?;
     }
-    Ok(report::make(&emu, &host, o, &r, stack, wall0.elapsed().as_secs_f64()))
+    Ok(report::make(
+        &emu,
+        &host,
+        o,
+        &r,
+        stack,
+        wall0.elapsed().as_secs_f64(),
+    ))
 }
 
 /// Runs to `t` while the host keeps talking.

@@ -98,8 +98,7 @@ impl Timer {
 
     /// When the counter next changes after `t` (None: stopped).
     pub fn next_tick(&self, t: Cyc) -> Option<Cyc> {
-        self.running()
-            .then(|| self.time_of(self.lin(t) + 1))
+        self.running().then(|| self.time_of(self.lin(t) + 1))
     }
 
     /// The counter value at `t`.

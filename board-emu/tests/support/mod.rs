@@ -168,9 +168,11 @@ pub fn expected_net_steps(job: &[&str], start_mm: [f32; 3]) -> [i64; 4] {
         let start = f64::from(start_mm[i]);
         // Before the first G28 the firmware believes it is at 0; after it, the carriage
         // is where its position says, the switch being 0.
-        out[i] = (pos[i] * STEPS_PER_MM[i]).round() as i64 - (start * STEPS_PER_MM[i]).round() as i64;
+        out[i] =
+            (pos[i] * STEPS_PER_MM[i]).round() as i64 - (start * STEPS_PER_MM[i]).round() as i64;
     }
-    out[3] = e_done_steps + ((pos[3] * STEPS_PER_MM[3]).round() - (e_base * STEPS_PER_MM[3]).round()) as i64;
+    out[3] = e_done_steps
+        + ((pos[3] * STEPS_PER_MM[3]).round() - (e_base * STEPS_PER_MM[3]).round()) as i64;
     out
 }
 
