@@ -15,6 +15,7 @@ pub mod adc;
 pub mod axes;
 pub mod board;
 pub mod cpu;
+mod exception;
 pub mod fault;
 pub mod flash;
 pub mod gpio;
