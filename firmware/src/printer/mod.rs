@@ -54,6 +54,9 @@ mod report;
 // SD-card printing: the SD M-codes and the card as a job source.
 mod sd;
 pub use sd::{SD_CHUNK, SD_LINES_PER_SERVICE};
+// The parked intake's spill to the SD card.
+mod spill;
+pub use spill::{SPILL_CHUNK, SPILL_FLUSH, SPILL_STAGE};
 
 pub use service::ServiceMove;
 
@@ -142,6 +145,8 @@ pub struct Printer {
     job: job::JobLink,
     /// The SD card's job and the commands waiting for the card (see `sd.rs`).
     sd: sd::SdLink,
+    /// Job lines of a parked printer kept on the card (see `spill.rs`).
+    spill: spill::Spill,
 }
 
 fn steps(cfg: &MachineConfig, axis: Axis, mm: f32) -> i32 {
@@ -198,6 +203,7 @@ impl Printer {
             reports: report::Reports::new(),
             job: job::JobLink::new(),
             sd: sd::SdLink::new(),
+            spill: spill::Spill::new(),
         };
         p.set_policy(policy);
         p.set_factory_settings();
@@ -434,7 +440,10 @@ impl Printer {
     }
 
     fn has_work(&self) -> bool {
-        !self.cmds.is_empty() || !self.planner.is_empty() || self.stepgen.current().is_some()
+        !self.cmds.is_empty()
+            || !self.planner.is_empty()
+            || self.stepgen.current().is_some()
+            || self.spill.pending() > 0
     }
 
     /// Realtime request (pause button, sim, or parsed from the byte stream).

@@ -166,6 +166,7 @@ impl Printer {
         let pos = self.stepgen.position();
         let (blocks, segs, marks) = self.planner.clear(pos);
         self.cmds.clear();
+        self.spill_drop();
         self.pay_sync_ok();
         self.arc = None;
         self.schedule = None;
