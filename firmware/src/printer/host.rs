@@ -72,6 +72,13 @@ pub(super) struct HostLines {
     pub(super) last_busy_us: u64,
     /// When `held_line` started to wait, µs (the parked intake's pace counts from it).
     pub(super) held_since_us: u64,
+    /// The port `held_line` came from.
+    pub(super) held_port: Option<crate::link::PortId>,
+    /// The port of the last job line taken (whose host streams the job).
+    pub(super) job_port: Option<crate::link::PortId>,
+    /// The job's host went away while the job ran or was paused (`session.rs`): it cannot be
+    /// resumed, only cancelled.
+    pub(super) orphaned: bool,
 }
 
 impl Printer {
@@ -128,7 +135,8 @@ impl Printer {
     fn intake_due(&self, line: &ReceivedLine) -> Option<Intake> {
         let backlog = self.parked_excess() > 0 || self.spill.pending() > 0;
         let on = match self.pause {
-            Pause::Parked { .. } => true,
+            // A job whose host went away takes no new session's lines behind it.
+            Pause::Parked { .. } => !self.lines.orphaned,
             Pause::Run => backlog,
             _ => false,
         };
@@ -252,6 +260,7 @@ impl Printer {
                 }
                 self.lines.held_line = Some(line);
                 self.lines.held_since_us = self.now_us;
+                self.lines.held_port = Some(self.link.reply_port());
                 if self.host_kept_waiting() {
                     // A pause holds the queue: keep the host from timing out.
                     self.keep_alive();
@@ -261,6 +270,9 @@ impl Printer {
             if line.number().is_some() {
                 self.lines.host_numbers = true;
                 self.lines.last_line_no = line.number();
+            }
+            if !manual {
+                self.lines.job_port = Some(self.link.reply_port());
             }
             self.last_activity_us = self.now_us;
             if manual {

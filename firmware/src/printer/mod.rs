@@ -56,6 +56,8 @@ mod sd;
 pub use sd::{SD_CHUNK, SD_LINES_PER_SERVICE};
 // The parked intake's spill to the SD card.
 mod spill;
+// Host sessions that end and begin (USB DTR, the sim's pty).
+mod session;
 pub use spill::{SPILL_CHUNK, SPILL_FLUSH, SPILL_STAGE};
 
 pub use service::ServiceMove;
@@ -299,7 +301,6 @@ impl Printer {
     }
 
     /// An `echo:` line to every port (a notification, not an answer: pause state changes).
-    #[allow(dead_code)]
     fn notice(&mut self, args: core::fmt::Arguments) {
         let mut t: String<LINE_LEN> = String::new();
         let _ = t.write_fmt(args);

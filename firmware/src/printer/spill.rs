@@ -125,6 +125,7 @@ impl Printer {
             self.lines.host_numbers = true;
             self.lines.last_line_no = line.number();
         }
+        self.lines.job_port = Some(self.link.reply_port());
         self.last_activity_us = self.now_us;
         self.link.respond(Response::Ok);
     }
