@@ -61,6 +61,7 @@ fn octoprint_reads_the_nested_listing_and_its_selection_opens_each_file() {
             link: None,
             flash: None,
             sd: Some(sd),
+            tft: false,
             machine: None,
             trace: None,
         },

@@ -23,6 +23,7 @@ fn a_host_prints_pauses_and_resumes_over_the_pseudo_terminal() {
             machine: None,
             trace: None,
             sd: None,
+            tft: false,
         },
         Duration::from_secs(10),
     );

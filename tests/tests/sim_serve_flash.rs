@@ -28,6 +28,7 @@ fn session_with(flash: &Path, lines: &[&str], pause_after: Option<usize>) -> Vec
             machine: None,
             trace: None,
             sd: None,
+            tft: false,
         },
         Duration::from_secs(10),
     );
