@@ -111,10 +111,7 @@ pub fn serve_with(
 /// Run the virtual printer until the session ends, calling `ready` with the device paths
 /// (USB, then TFT with `--tft`) once they can be opened. Returns the pause records (also
 /// written to `--record` if given).
-pub fn serve_ports(
-    a: ServeArgs,
-    ready: impl FnOnce(&[PathBuf]),
-) -> anyhow::Result<ServeRecord> {
+pub fn serve_ports(a: ServeArgs, ready: impl FnOnce(&[PathBuf])) -> anyhow::Result<ServeRecord> {
     if !(a.speed.is_finite() && a.speed > 0.0) {
         anyhow::bail!("--speed must be a positive number");
     }
@@ -250,7 +247,7 @@ impl SessionLoop {
             {
                 break;
             }
-            wire::wait(ports, m.wait_ms(now_us, a.speed));
+            wire::wait(ports, m.wait_us(now_us, a.speed));
         }
         Ok(())
     }

@@ -334,7 +334,10 @@ impl Printer {
                 let n = self.spill.pending();
                 self.sd.request = None;
                 let mut t: String<LINE_LEN> = String::new();
-                let _ = write!(t, "refused: the SD card holds {n} job lines of the paused job");
+                let _ = write!(
+                    t,
+                    "refused: the SD card holds {n} job lines of the paused job"
+                );
                 self.answer_to(Some(port), Response::Echo(&t));
                 self.answer_to(Some(port), Response::Ok);
                 return;

@@ -134,7 +134,9 @@ impl Printer {
     pub(super) fn spill_drop(&mut self) {
         let n = self.spill.drop_all();
         if n > 0 {
-            self.say(format_args!("cancelled: dropped {n} job lines kept on the SD card"));
+            self.say(format_args!(
+                "cancelled: dropped {n} job lines kept on the SD card"
+            ));
         }
     }
 
@@ -228,14 +230,19 @@ impl Printer {
         }
         if self.spill.pending() == 0 && self.spill.lines_in > 0 {
             let n = self.spill.lines_in;
-            self.say(format_args!("resume: {n} job lines kept on the SD card have run"));
+            self.say(format_args!(
+                "resume: {n} job lines kept on the SD card have run"
+            ));
             self.spill = Spill::new();
         }
     }
 
     /// The next spilled line: from the card up to what was written, then from the stage.
     /// `Ok(None)`: nothing readable now; `Err`: the file is unreadable or not ours.
-    fn next_spilled<D: BlockDevice>(&mut self, card: &mut Card<D>) -> Result<Option<ReceivedLine>, ()>
+    fn next_spilled<D: BlockDevice>(
+        &mut self,
+        card: &mut Card<D>,
+    ) -> Result<Option<ReceivedLine>, ()>
     where
         D::Error: core::fmt::Debug,
     {

@@ -129,14 +129,15 @@ impl Machine {
         Ok(())
     }
 
-    /// Real milliseconds to sleep before the next step is due (at most 2).
-    pub(super) fn wait_ms(&mut self, now_us: u64, speed: f64) -> u16 {
+    /// Real microseconds to sleep before the next step is due: at most 2 ms, and at most
+    /// 0.2 s of virtual time (so a fast session still polls the firmware often enough for its
+    /// 1 s pace of the parked intake and its keep-alives).
+    pub(super) fn wait_us(&mut self, now_us: u64, speed: f64) -> u64 {
+        let cap_us = (200_000.0 / speed).min(2000.0);
         match self.fw.next_step_us(now_us) {
-            Some(t) if t > now_us => {
-                (((t - now_us) as f64 / speed) / 1000.0).clamp(0.0, 2.0) as u16
-            }
+            Some(t) if t > now_us => ((t - now_us) as f64 / speed).min(cap_us) as u64,
             Some(_) => 0,
-            None => 2,
+            None => cap_us as u64,
         }
     }
 }

@@ -149,11 +149,12 @@ impl PtyPort {
     }
 }
 
-/// Sleep until a byte arrives on any port or `wait_ms` pass.
-pub(super) fn wait(ports: &[PtyPort], wait_ms: u16) {
-    if wait_ms == 0 {
+/// Sleep until a byte arrives on any port or `wait_us` pass.
+pub(super) fn wait(ports: &[PtyPort], wait_us: u64) {
+    if wait_us == 0 {
         return;
     }
+    let d = std::time::Duration::from_micros(wait_us);
     // A port nobody holds reports a hang-up at once: only the held ones are waited on.
     let mut fds: Vec<PollFd> = ports
         .iter()
@@ -161,8 +162,12 @@ pub(super) fn wait(ports: &[PtyPort], wait_ms: u16) {
         .map(|p| PollFd::new(p.master.as_fd(), PollFlags::POLLIN))
         .collect();
     if fds.is_empty() {
-        std::thread::sleep(std::time::Duration::from_millis(u64::from(wait_ms)));
+        std::thread::sleep(d);
         return;
     }
-    let _ = poll(&mut fds, PollTimeout::from(wait_ms));
+    let _ = nix::poll::ppoll(
+        &mut fds,
+        Some(nix::sys::time::TimeSpec::from_duration(d)),
+        None,
+    );
 }

@@ -68,10 +68,16 @@ pub struct Sim {
 impl Sim {
     /// Start `sim serve --speed <speed> --exit-after-idle <idle_s> --record …`.
     pub fn start(tag: &str, speed: &str, idle_s: &str) -> Sim {
+        Self::start_with(tag, speed, idle_s, &[])
+    }
+
+    /// [`Sim::start`] with more `sim serve` arguments (`--sd DIR`, ...).
+    pub fn start_with(tag: &str, speed: &str, idle_s: &str, more: &[&str]) -> Sim {
         let record = std::env::temp_dir().join(format!("hosts_{tag}_{}.json", std::process::id()));
         let _ = std::fs::remove_file(&record);
         let mut child = Command::new(bin("sim", "sim"))
             .args(["serve", "--speed", speed, "--exit-after-idle", idle_s])
+            .args(more)
             .arg("--record")
             .arg(&record)
             .stdout(Stdio::piped())

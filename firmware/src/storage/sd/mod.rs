@@ -534,7 +534,9 @@ where
             if offset >= len {
                 return Ok(0);
             }
-            self.vm.file_seek_from_start(f, offset).map_err(card_error)?;
+            self.vm
+                .file_seek_from_start(f, offset)
+                .map_err(card_error)?;
             self.vm.read(f, buf).map_err(card_error)
         })();
         let _ = self.vm.close_file(f);
