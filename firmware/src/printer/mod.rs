@@ -547,8 +547,16 @@ impl Printer {
         self.set_now(now_us);
         let had_fault = self.thermal.fault().is_some();
         let tune = self.thermal.autotune_status(id);
+        let was_lowered = self.thermal.idle_lowered();
         let duty = self.thermal.update(id, measured_c, now_us);
         self.report_autotune(id, tune);
+        if !was_lowered && self.thermal.idle_lowered() {
+            let s = self.thermal.idle_config().map_or(0, |i| i.timeout_s);
+            self.notice(format_args!(
+                "pause: nozzle heater off after {s} s parked (M760 T); the resume heats it \
+                 again and waits before the head moves"
+            ));
+        }
         if !had_fault {
             if let Some(f) = self.thermal.fault() {
                 let mut t: String<LINE_LEN> = String::new();

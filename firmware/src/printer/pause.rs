@@ -240,7 +240,8 @@ impl Printer {
         self.planner.clear(pos);
         self.planner.exec_done();
         self.machine.set_position_steps(&pos, &self.cfg);
-        self.thermal.pause_idle_end();
+        // A nozzle the timeout turned off stays off: a cancel never heats.
+        self.thermal.pause_idle_forget();
     }
 
     pub(super) fn emergency_stop(&mut self) {
