@@ -21,13 +21,14 @@
 //! card, power-cut body), `track` (requests and pauses followed as the session runs), `report`
 //! (the session judged when it ends).
 
+mod clock;
 mod machine;
 mod pty;
 mod report;
 mod track;
 mod wire;
 
-pub use report::{ServeRecord, HOST_LIFT_MIN_MM, HOST_PARK_TOL_MM, HOST_STOP_MIN_US};
+pub use report::{PortReport, ServeRecord, HOST_LIFT_MIN_MM, HOST_PARK_TOL_MM, HOST_STOP_MIN_US};
 
 use crate::run::{Mode, Policy, Scenario};
 use anyhow::Context;
@@ -82,6 +83,11 @@ pub struct ServeArgs {
     /// second line).
     #[arg(long)]
     pub tft: bool,
+    /// The virtual clock waits for the hosts: at most 10× real time while a host owes its
+    /// reply to an `ok`, and no jump when the sim stalls (see `sim::serve::clock`). For tests
+    /// that judge virtual delays at a high `--speed`.
+    #[arg(long)]
+    pub host_paced: bool,
 }
 
 /// Run the virtual printer until the session ends; prints the device path on stdout (and the
@@ -133,12 +139,12 @@ pub fn serve_ports(a: ServeArgs, ready: impl FnOnce(&[PathBuf])) -> anyhow::Resu
     );
     let mut seen = SessionLoop::default();
     let start = Instant::now();
-    seen.run(&a, &mut m, &mut ports, start)?;
+    seen.run(&a, &mut m, &mut ports)?;
     m.keep()?;
     let lines = ports.iter().fold((0, 0), |acc, p| {
         (acc.0 + p.sniff.lines, acc.1 + p.sniff.numbered)
     });
-    let record = session_record(
+    let mut record = session_record(
         &mut m.fw,
         &m.rec,
         &sc,
@@ -150,6 +156,16 @@ pub fn serve_ports(a: ServeArgs, ready: impl FnOnce(&[PathBuf])) -> anyhow::Resu
             wall_s: start.elapsed().as_secs_f64(),
         },
     );
+    record.ports = ports
+        .iter()
+        .map(|p| PortReport {
+            port: p.id.name().into(),
+            lines_received: p.sniff.lines,
+            numbered_lines_received: p.sniff.numbered,
+            parked_host_waits: p.sniff.parked_waits,
+            parked_host_wait_max_s: p.sniff.parked_wait_max_us as f64 * 1e-6,
+        })
+        .collect();
     if let Some(p) = &a.record {
         std::fs::write(p, serde_json::to_string_pretty(&record)?)
             .with_context(|| format!("writing {}", p.display()))?;
@@ -201,20 +217,16 @@ impl SessionLoop {
     /// Until a signal or the idle exit: storage, host bytes (flow control: what the firmware
     /// does not take stays pending and the device is not read meanwhile, so the host's writes
     /// block in the pty as they would on a USB port that NAKs), steps, output.
-    fn run(
-        &mut self,
-        a: &ServeArgs,
-        m: &mut Machine,
-        ports: &mut [PtyPort],
-        start: Instant,
-    ) -> anyhow::Result<()> {
+    fn run(&mut self, a: &ServeArgs, m: &mut Machine, ports: &mut [PtyPort]) -> anyhow::Result<()> {
         let mut last_rx = Instant::now();
         // When answers last went out: the session does not end right after an answer (closing
         // the master hangs the terminal up, and Linux then discards what the host had not
         // read).
         let mut last_tx = Instant::now();
+        let mut clock = clock::Clock::new(a.speed, a.host_paced);
         while !STOP.load(Ordering::SeqCst) {
-            let now_us = (start.elapsed().as_secs_f64() * a.speed * 1e6) as u64;
+            let owes = ports.iter().any(|p| p.owes_reply(clock::HOST_TURN_GRACE));
+            let now_us = clock.now_us(owes);
             m.service_storage(now_us);
             for p in ports.iter_mut() {
                 p.watch_session(&mut m.fw, now_us);

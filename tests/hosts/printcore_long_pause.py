@@ -2,10 +2,12 @@
 """Printrun's printcore through a long firmware pause (issue 22): it streams a slicer file,
 send_now("M601") pauses it at the layer, and while printcore keeps streaming into the parked
 printer (it ignores //action:paused) console lines (M105, M114, a jog) are sent with send_now at
-seeded random moments over --pause-virtual-s of virtual time; each must be answered. Then
-send_now("M602") and the end marker (M400 + M118). `--speed` is the sim's, to convert.
+seeded random moments over --pause-virtual-s of virtual time (counted by the printer's
+M155 temperature auto-reports); each must be answered. Then send_now("M602") and the end
+marker (M400 + M118). The virtual delivery bound is the sim's record (`ports`), not measured
+here: real time is no measure of virtual time under `sim serve --host-paced`.
 
-Prints one JSON object: per console line its wall and virtual delivery time, and the rest.
+Prints one JSON object: per console line its wall delivery time, and the rest.
 """
 
 import argparse
@@ -33,15 +35,21 @@ def main():
     ap.add_argument("--console-lines", type=int, default=24)
     ap.add_argument("--seed", type=int, default=22)
     ap.add_argument("--wait", type=float, default=20.0)
+    ap.add_argument("--report-s", type=int, default=60)
+    ap.add_argument("--wall-limit", type=float, default=240.0)
     a = ap.parse_args()
     rnd = random.Random(a.seed)
     t0 = time.monotonic()
     received = []
     cond = threading.Condition()
 
+    reports = [0]
+
     def on_recv(line):
         with cond:
             received.append(line.strip())
+            if line.strip().startswith("T:"):
+                reports[0] += 1
             cond.notify_all()
 
     def wait_for(pred, secs, start):
@@ -77,34 +85,50 @@ def main():
     p.send_now("M601")
     out["paused"] = wait_for(lambda l: l.startswith("//action:paused"), a.wait, mark) is not None
     t_paused = time.monotonic()
-    pause_wall = a.pause_virtual_s / a.speed
-    moments = sorted(rnd.uniform(0.02, 0.98) * pause_wall for _ in range(a.console_lines))
+    # Virtual time, counted by the printer's own temperature auto-reports (one per
+    # --report-s virtual seconds): with `sim serve --host-paced` virtual time is not a fixed
+    # multiple of real time.
+    reports_wanted = int(a.pause_virtual_s / a.report_s)
+    mark = reports[0]
+    p.send_now("M155 S%d" % a.report_s)
+    moments = sorted(rnd.sample(range(2, reports_wanted - 1), a.console_lines))
     kinds = [("M105", lambda l: l.startswith("ok T:")), ("M114", lambda l: l.startswith("X:"))]
     console = []
-    for k, at in enumerate(moments):
-        while time.monotonic() < t_paused + at:
-            time.sleep(0.002)
-        cmd, pred = kinds[k % 2]
-        mark = len(received)
-        t = time.monotonic()
-        if k % 5 == 4:
-            for l in ("G91", "G1 Z1 F600", "G1 Z-1 F600", "G90"):
-                p.send_now(l)
-        p.send_now(cmd)
-        got = wait_for(pred, a.wait, mark)
-        dt = time.monotonic() - t
-        console.append({"cmd": cmd, "at_virtual_s": round(at * a.speed, 1),
-                        "answered": got is not None, "wall_s": round(dt, 4),
-                        "virtual_s": round(dt * a.speed, 3),
-                        "printcore_streaming": bool(p.printing)})
-    while time.monotonic() < t_paused + pause_wall:
+
+    def reports_since(start):
+        return reports[0] - start
+
+    k = 0
+    deadline = time.monotonic() + a.wall_limit
+    while time.monotonic() < deadline:
+        n = reports_since(mark)
+        if k < len(moments) and n >= moments[k]:
+            cmd, pred = kinds[k % 2]
+            m2 = len(received)
+            t = time.monotonic()
+            if k % 5 == 4:
+                for l in ("G91", "G1 Z1 F600", "G1 Z-1 F600", "G90"):
+                    p.send_now(l)
+            p.send_now(cmd)
+            got = wait_for(pred, a.wait, m2)
+            console.append({"cmd": cmd, "at_virtual_s": n * a.report_s,
+                            "answered": got is not None,
+                            "wall_s": round(time.monotonic() - t, 4),
+                            "printcore_streaming": bool(p.printing)})
+            k += 1
+            continue
+        if n >= reports_wanted:
+            break
         time.sleep(0.01)
+    out["pause_virtual_s"] = reports_since(mark) * a.report_s
+    out["pause_wall_s"] = round(time.monotonic() - t_paused, 1)
     out["console"] = console
     mark = len(received)
     t = time.monotonic()
     p.send_now("M602")
     out["resumed"] = wait_for(lambda l: l.startswith("//action:resumed"), a.wait, mark) is not None
-    out["resume_virtual_s"] = round((time.monotonic() - t) * a.speed, 3)
+    out["resume_wall_s"] = round(time.monotonic() - t, 3)
+    p.send_now("M155 S0")
     end = time.monotonic() + 600
     while p.printing and time.monotonic() < end:
         time.sleep(0.05)

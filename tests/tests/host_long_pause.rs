@@ -4,7 +4,13 @@
 //! printcore gets an `ok` every second and its `send_now` console lines (M105, M114, jogs),
 //! sent at seeded random moments of the pause, get out. After M602 the job — held, in RAM and
 //! on the card — runs to its end: nothing lost or duplicated (the sim's record, from the
-//! executed steps). `sim serve --speed 500`: 8 h of virtual pause in ≈ 58 s of wall time.
+//! executed steps).
+//!
+//! The 2 s rule is judged in virtual time by the sim's record: the longest wait of the
+//! streaming host, from a job line it sent while parked to its next line (a console line
+//! queued at any moment goes out with that next line). `sim serve --host-paced` keeps a real
+//! host's reaction and the loaded machine's stalls from becoming virtual seconds (see
+//! `sim::serve::clock`), so the bound holds on a loaded CI machine as it would at 1×.
 //! Needs `bash scripts/setup-hosts.sh`.
 
 mod hosts_common;
@@ -13,7 +19,7 @@ use hosts_common::{host_python, run_bounded, Sim};
 use std::process::Command;
 use std::time::Duration;
 
-const SPEED: &str = "500";
+const SPEED: &str = "1000";
 
 #[test]
 fn printcore_console_lines_get_out_during_an_eight_hour_pause() {
@@ -21,7 +27,12 @@ fn printcore_console_lines_get_out_during_an_eight_hour_pause() {
     let card = std::env::temp_dir().join(format!("long_pause_sd_{}", std::process::id()));
     std::fs::create_dir_all(&card).expect("card dir");
     std::fs::write(card.join("README.TXT"), b"card for the spill\n").expect("card file");
-    let sim = Sim::start_with("longpause", SPEED, "5", &["--sd", card.to_str().unwrap()]);
+    let sim = Sim::start_with(
+        "longpause",
+        SPEED,
+        "5",
+        &["--sd", card.to_str().unwrap(), "--host-paced"],
+    );
     let mut cmd = Command::new(py);
     cmd.args([
         "tests/hosts/printcore_long_pause.py",
@@ -34,6 +45,7 @@ fn printcore_console_lines_get_out_during_an_eight_hour_pause() {
         "--speed",
         SPEED,
     ]);
+    let t0 = std::time::Instant::now();
     let (ok, out, err) = run_bounded(cmd, Duration::from_secs(400));
     let r = sim.finish();
     let _ = std::fs::remove_dir_all(&card);
@@ -44,15 +56,25 @@ fn printcore_console_lines_get_out_during_an_eight_hour_pause() {
     let console = d["console"].as_array().expect("console");
     assert_eq!(console.len(), 24, "{d}");
     for c in console {
-        // Answered, every one (the 2 s virtual target is reported, not asserted: at 500× a
-        // 4 ms stall of the loaded machine is 2 s of virtual time).
         assert_eq!(c["answered"], true, "{c}");
     }
-    let worst = console
-        .iter()
-        .filter_map(|c| c["virtual_s"].as_f64())
-        .fold(0.0, f64::max);
-    eprintln!("worst console delivery: {worst:.2} s virtual");
+    assert!(
+        d["pause_virtual_s"].as_f64().unwrap_or(0.0) >= 8.0 * 3600.0,
+        "the pause lasted 8 h of virtual time: {d}"
+    );
+    let usb = &r["ports"][0];
+    let wait = usb["parked_host_wait_max_s"].as_f64().expect("ports");
+    eprintln!(
+        "wall {:.0} s; longest wait of the streaming host while parked: {wait:.3} s virtual over {} waits",
+        t0.elapsed().as_secs_f64(),
+        usb["parked_host_waits"]
+    );
+    // printcore streams the fixture's rest into the parked printer (thousands of lines).
+    assert!(
+        usb["parked_host_waits"].as_u64().unwrap_or(0) > 1000,
+        "{usb}"
+    );
+    assert!(wait <= 2.0, "a console line could wait {wait} s: {usb}");
     assert!(
         d["spill_notes"].as_array().is_some_and(|n| n
             .iter()

@@ -62,6 +62,7 @@ fn octoprint_reads_the_nested_listing_and_its_selection_opens_each_file() {
             flash: None,
             sd: Some(sd),
             tft: false,
+            host_paced: false,
             machine: None,
             trace: None,
         },

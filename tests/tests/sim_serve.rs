@@ -24,6 +24,7 @@ fn a_host_prints_pauses_and_resumes_over_the_pseudo_terminal() {
             trace: None,
             sd: None,
             tft: false,
+            host_paced: false,
         },
         Duration::from_secs(10),
     );

@@ -29,6 +29,7 @@ fn session_with(flash: &Path, lines: &[&str], pause_after: Option<usize>) -> Vec
             trace: None,
             sd: None,
             tft: false,
+            host_paced: false,
         },
         Duration::from_secs(10),
     );

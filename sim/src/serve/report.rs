@@ -18,6 +18,27 @@ pub struct ServeRecord {
     pub session: SessionReport,
     /// One object per pause (the fields of `sim run --json`).
     pub pauses: Vec<PauseReport>,
+    /// One object per port (USB, and TFT with `--tft`).
+    pub ports: Vec<PortReport>,
+    /// Where the head was when the session ended (the sim's steps, X Y Z E).
+    pub end_position_steps: [i32; 4],
+}
+
+/// What one port's host did.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct PortReport {
+    /// `USB` or `TFT`.
+    pub port: String,
+    /// Complete lines received.
+    pub lines_received: u64,
+    /// Of those, the numbered ones.
+    pub numbered_lines_received: u64,
+    /// A host streaming into the parked printer (printcore: one numbered line per `ok`): how
+    /// many times it waited from a numbered line it sent while parked to its next line.
+    pub parked_host_waits: u64,
+    /// The longest such wait, virtual seconds. A console line the host queues at any moment
+    /// goes out with its next line, so this bounds its delivery.
+    pub parked_host_wait_max_s: f64,
 }
 
 pub(super) fn reports(
@@ -302,5 +323,7 @@ pub(super) fn session_record(
             print_time_s: end_us.saturating_sub(t0_us) as f64 * 1e-6,
         },
         pauses,
+        ports: Vec::new(),
+        end_position_steps: rec.pos,
     }
 }

@@ -12,6 +12,7 @@
 use super::pty::open_pty;
 use super::track::{note_request, PauseTrack, Sniffer};
 use crate::exec::PrinterExec;
+use crate::port::Executive as _;
 use crate::recorder::Recorder;
 use anyhow::Context;
 use firmware::link::PortId;
@@ -36,6 +37,9 @@ pub(super) struct PtyPort {
     ever_open: bool,
     /// Lines seen on this port (for the record).
     pub(super) sniff: Sniffer,
+    /// Since when (real time) the host owes its reply to an `ok` written to it: no byte
+    /// from it since (see [`super::clock`]).
+    owed_since: Option<std::time::Instant>,
 }
 
 impl PtyPort {
@@ -52,7 +56,14 @@ impl PtyPort {
             open: false,
             ever_open: false,
             sniff: Sniffer::default(),
+            owed_since: None,
         })
+    }
+
+    /// Whether the host owes its reply to an `ok` and has not had `grace` of real time yet
+    /// (a host with nothing more to send never replies: after `grace` it owes nothing).
+    pub(super) fn owes_reply(&self, grace: std::time::Duration) -> bool {
+        self.open && self.owed_since.is_some_and(|t| t.elapsed() < grace)
     }
 
     /// Whether nothing is pending in either direction.
@@ -97,7 +108,9 @@ impl PtyPort {
             if !self.rx_pending.is_empty() {
                 let n = fw.receive_on(self.id, &self.rx_pending, now_us);
                 let mut reqs = Vec::new();
-                self.sniff.feed(&self.rx_pending[..n], &mut reqs);
+                let parked = fw.status().state == crate::port::RunState::Paused;
+                self.sniff
+                    .feed(&self.rx_pending[..n], &mut reqs, now_us, parked);
                 self.rx_pending.drain(..n);
                 for r in reqs {
                     note_request(pauses, r, now_us, rec, fw);
@@ -110,6 +123,7 @@ impl PtyPort {
                 Ok(0) => return Ok(got),
                 Ok(n) => {
                     got = true;
+                    self.owed_since = None;
                     self.rx_pending.extend_from_slice(&buf[..n]);
                 }
                 // EIO: nobody holds the device (see the module documentation).
@@ -139,6 +153,12 @@ impl PtyPort {
         if !self.tx_pending.is_empty() {
             match nix::unistd::write(&self.master, &self.tx_pending) {
                 Ok(w) => {
+                    let oks = self.tx_pending[..w]
+                        .split(|&b| b == b'\n')
+                        .any(|l| l.starts_with(b"ok"));
+                    if oks && self.owed_since.is_none() {
+                        self.owed_since = Some(std::time::Instant::now());
+                    }
                     self.tx_pending.drain(..w);
                 }
                 Err(nix::errno::Errno::EAGAIN | nix::errno::Errno::EIO) => {}

@@ -62,6 +62,9 @@ pub struct Sim {
     child: Child,
     /// The device path it printed.
     pub device: String,
+    /// The TFT port's device path (`--tft`).
+    #[allow(dead_code)]
+    pub tft: Option<String>,
     record: PathBuf,
 }
 
@@ -86,14 +89,21 @@ impl Sim {
             .expect("start sim serve");
         let mut line = String::new();
         let out = child.stdout.take().expect("stdout");
-        BufReader::new(out)
-            .read_line(&mut line)
-            .expect("device path");
+        let mut out = BufReader::new(out);
+        out.read_line(&mut line).expect("device path");
         let device = line.trim().to_string();
         assert!(device.starts_with("/dev/"), "sim printed {device:?}");
+        let tft = more.contains(&"--tft").then(|| {
+            line.clear();
+            out.read_line(&mut line).expect("TFT device path");
+            let tft = line.trim().to_string();
+            assert!(tft.starts_with("/dev/"), "sim printed {tft:?}");
+            tft
+        });
         Sim {
             child,
             device,
+            tft,
             record,
         }
     }
