@@ -1,4 +1,4 @@
-//! An 8-hour pause with the real printcore (issue 22): printcore streams PrusaSlicer's fixture
+//! A long pause (one hour in CI, eight on request) with the real printcore (issue 22): printcore streams PrusaSlicer's fixture
 //! and keeps streaming into the parked printer; the firmware's parked intake takes one job
 //! line a second, into RAM and then into the SD card's spill file (`sim serve --sd`), so
 //! printcore gets an `ok` every second and its `send_now` console lines (M105, M114, jogs),
@@ -21,8 +21,19 @@ use std::time::Duration;
 
 const SPEED: &str = "1000";
 
+/// Virtual seconds of pause: one hour in CI (the spill's behaviour does not change with the
+/// length once the RAM slots are full: one line a second, ≈ 35 bytes of card each; on the
+/// loaded 2-core machine an hour costs ≈ 1 min of wall time with `--host-paced`, eight ≈ 8
+/// min). `LAYERPAUSE_PAUSE_S=28800` runs the full eight hours.
+fn pause_s() -> u64 {
+    std::env::var("LAYERPAUSE_PAUSE_S")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(3600)
+}
+
 #[test]
-fn printcore_console_lines_get_out_during_an_eight_hour_pause() {
+fn printcore_console_lines_get_out_during_a_long_pause() {
     let py = host_python("printrun");
     let card = std::env::temp_dir().join(format!("long_pause_sd_{}", std::process::id()));
     std::fs::create_dir_all(&card).expect("card dir");
@@ -44,9 +55,15 @@ fn printcore_console_lines_get_out_during_an_eight_hour_pause() {
         "99",
         "--speed",
         SPEED,
+        "--pause-virtual-s",
+        &pause_s().to_string(),
+        "--console-lines",
+        "12",
+        "--wall-limit",
+        "1200",
     ]);
     let t0 = std::time::Instant::now();
-    let (ok, out, err) = run_bounded(cmd, Duration::from_secs(400));
+    let (ok, out, err) = run_bounded(cmd, Duration::from_secs(300 + pause_s() / 20));
     let r = sim.finish();
     let _ = std::fs::remove_dir_all(&card);
     assert!(ok, "driver failed: {out}\n{err}");
@@ -54,13 +71,14 @@ fn printcore_console_lines_get_out_during_an_eight_hour_pause() {
     eprintln!("driver: {d}\nsession: {}", r["session"]);
     assert_eq!(d["paused"], true, "{d}");
     let console = d["console"].as_array().expect("console");
-    assert_eq!(console.len(), 24, "{d}");
+    assert_eq!(console.len(), 12, "{d}");
     for c in console {
         assert_eq!(c["answered"], true, "{c}");
     }
     assert!(
-        d["pause_virtual_s"].as_f64().unwrap_or(0.0) >= 8.0 * 3600.0,
-        "the pause lasted 8 h of virtual time: {d}"
+        d["pause_virtual_s"].as_u64().unwrap_or(0) >= pause_s(),
+        "the pause lasted {} s of virtual time: {d}",
+        pause_s()
     );
     let usb = &r["ports"][0];
     let wait = usb["parked_host_wait_max_s"].as_f64().expect("ports");
@@ -69,11 +87,9 @@ fn printcore_console_lines_get_out_during_an_eight_hour_pause() {
         t0.elapsed().as_secs_f64(),
         usb["parked_host_waits"]
     );
-    // printcore streams the fixture's rest into the parked printer (thousands of lines).
-    assert!(
-        usb["parked_host_waits"].as_u64().unwrap_or(0) > 1000,
-        "{usb}"
-    );
+    // printcore streams the fixture's rest into the parked printer (a line a second).
+    let waits = usb["parked_host_waits"].as_u64().unwrap_or(0);
+    assert!(waits > pause_s().min(7000) * 9 / 10, "{usb}");
     assert!(wait <= 2.0, "a console line could wait {wait} s: {usb}");
     assert!(
         d["spill_notes"].as_array().is_some_and(|n| n

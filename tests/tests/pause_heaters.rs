@@ -36,7 +36,9 @@ impl Rig {
         let l = format!("{line}\n");
         let mut at = 0;
         while at < l.len() {
-            at += self.fw.receive_on(PortId::Usb, &l.as_bytes()[at..], self.now);
+            at += self
+                .fw
+                .receive_on(PortId::Usb, &l.as_bytes()[at..], self.now);
             if at < l.len() {
                 self.run(1_000, |_, _| {});
             }
