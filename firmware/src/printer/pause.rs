@@ -133,8 +133,8 @@ impl Printer {
     pub(super) fn request_resume(&mut self) {
         match &mut self.pause {
             Pause::Parked { .. } if self.lines.orphaned => self.say(format_args!(
-                "refused: resume: the host that streamed this job went away, the rest of it \
-                 will not come; M524 ends it (the head stays parked)"
+                "refused: resume: the host that streamed this job went away; M524 ends it (the \
+                 head stays parked)"
             )),
             Pause::Parked { .. } => self.start_resume(),
             Pause::Parking { then, .. } => {
