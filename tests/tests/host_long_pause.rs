@@ -22,9 +22,9 @@ use std::time::Duration;
 const SPEED: &str = "1000";
 
 /// Virtual seconds of pause: one hour in CI (the spill's behaviour does not change with the
-/// length once the RAM slots are full: one line a second, ≈ 35 bytes of card each; on the
-/// loaded 2-core machine an hour costs ≈ 1 min of wall time with `--host-paced`, eight ≈ 8
-/// min). `LAYERPAUSE_PAUSE_S=28800` runs the full eight hours.
+/// length once the RAM slots are full: one line a second, ≈ 35 bytes of card each). On the
+/// loaded 2-core machine the hour took 11.8 s of wall time with `--host-paced`, the driver
+/// 32 s, the test 54 s. `LAYERPAUSE_PAUSE_S=28800` runs the full eight hours.
 fn pause_s() -> u64 {
     std::env::var("LAYERPAUSE_PAUSE_S")
         .ok()
@@ -87,9 +87,10 @@ fn printcore_console_lines_get_out_during_a_long_pause() {
         t0.elapsed().as_secs_f64(),
         usb["parked_host_waits"]
     );
-    // printcore streams the fixture's rest into the parked printer (a line a second).
+    // printcore streams the fixture's rest into the parked printer: a line per pace (1 s)
+    // plus its own reaction, until the fixture's end (≈ 7 000 lines).
     let waits = usb["parked_host_waits"].as_u64().unwrap_or(0);
-    assert!(waits > pause_s().min(7000) * 9 / 10, "{usb}");
+    assert!(waits > pause_s().min(7000) * 2 / 3, "{usb}");
     assert!(wait <= 2.0, "a console line could wait {wait} s: {usb}");
     assert!(
         d["spill_notes"].as_array().is_some_and(|n| n
