@@ -63,7 +63,6 @@ fn octoprint_reconnecting_to_a_paused_printer_cancels_with_the_head_parked() {
     let pauses = r["pauses"].as_array().expect("pauses");
     let fw: Vec<_> = pauses.iter().filter(|p| p["mode"] == "layer").collect();
     assert_eq!(fw.len(), 1, "{r}");
-    assert!(fw[0]["resumed_s"].is_null(), "{}", fw[0]);
     let cfg = firmware::config::MachineConfig::ENDER3;
     let spm_z = cfg.axes[2].steps_per_mm as f64;
     let stop_z_mm = fw[0]["pause_point_steps"][2].as_f64().expect("pause point") / spm_z;
