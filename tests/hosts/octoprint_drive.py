@@ -159,7 +159,6 @@ def serial_lines(base):
 
 def other_scenarios(o, a, out, printing_on, job_cmd, terminal, base):
     sc = {}
-    sc["printing_on"] = printing_on(60)
     if a.two_hosts:
         # The other host (TFT) pauses: OctoPrint sees it (the plugin follows //action:paused).
         st, ok = o.wait_state(lambda s: s == "Paused", 90)
@@ -185,6 +184,7 @@ def other_scenarios(o, a, out, printing_on, job_cmd, terminal, base):
         sc["recv_actions"] = [t for t in recv if t.startswith("//action:")]
         out["scenarios"]["twohosts"] = sc
     else:
+        sc["printing_on"] = printing_on(60)
         job_cmd("pause")()
         st, ok = o.wait_state(lambda s: s == "Paused", a.wait)
         sc["paused"] = ok

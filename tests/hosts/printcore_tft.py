@@ -57,13 +57,17 @@ def main():
     mark = len(received)
     p.send_now("M118 tft-asks")
     out["reply_here"] = wait_for(lambda l: "tft-asks" in l, 20, mark)
-    # Until the job OctoPrint streams prints its first layers (M27: the firmware's layer).
+    # Until the job OctoPrint streams prints its third layer (M27: the firmware's layer).
+    def at_layer_2(l):
+        w = l.split()
+        return "state printing" in l and len(w) > 1 and w[0].endswith("layer") and w[1].isdigit() and int(w[1]) >= 2
+
     end = time.monotonic() + a.wait
     out["printing_seen"] = False
     while time.monotonic() < end:
         mark = len(received)
         p.send_now("M27")
-        l = wait_for(lambda l: "state printing" in l and "layer" in l, 2, mark)
+        l = wait_for(at_layer_2, 2, mark)
         if l is not None:
             out["printing_seen"] = l
             break

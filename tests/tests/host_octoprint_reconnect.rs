@@ -28,7 +28,7 @@ fn octoprint_reconnecting_to_a_paused_printer_cancels_with_the_head_parked() {
         "--file",
         "tests/fixtures/slicer/prusaslicer.gcode",
         "--layers",
-        "8",
+        "99",
         "--wait",
         "20",
     ])

@@ -35,7 +35,7 @@ fn octoprint_on_usb_and_printcore_on_the_tft_port_share_one_print() {
         "--file",
         "tests/fixtures/slicer/prusaslicer.gcode",
         "--layers",
-        "30",
+        "99",
         "--wait",
         "20",
     ])
