@@ -102,8 +102,8 @@ def main():
     out["end"] = second.ask("M118 reconnect-end", lambda l: "reconnect-end" in l and not l.startswith("M118"), 300) is not None
     out["errors"] = [l for l in second.received if l.startswith("Error")]
     out["second_first_lines"] = second.received[:6]
-    # Leave once the job is over for the firmware (a host leaving within 2 s of its last
-    # line is leaving during its job: the firmware would park the head).
+    # Leave once the printer has run everything (a host leaving while moves are queued
+    # leaves during its job: the firmware would park the head).
     time.sleep(1.0)
     second.p.disconnect()
     print(json.dumps(out))

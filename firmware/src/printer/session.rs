@@ -6,9 +6,9 @@
 //! unplug ends it too), in the simulator the pseudo-terminal (a host has it open or not).
 //! The TFT UART has no such signal: a TFT is always connected.
 //!
-//! * **The job's host goes away** (the port that streamed the job being printed, paused or
-//!   not; a job read from the SD card has no host and goes on): the rest of the job will not
-//!   come. The job is *orphaned*: a running one gets a layer pause, which stops at the next
+//! * **The job's host goes away** (the port that streamed the job being printed: paused, or
+//!   moves queued or moving; a job read from the SD card has no host and goes on): the rest
+//!   of the job will not come. The job is *orphaned*: a running one gets a layer pause, which stops at the next
 //!   boundary it holds or where the held lines end, and parks; a paused one stays parked. A
 //!   resume of an orphaned job is refused (it would print the held lines and stop on the
 //!   part); M524 cancels it, the head stays parked. No job line of a new session is taken
@@ -47,7 +47,10 @@ impl Printer {
             self.lines.held_port = None;
         }
         let host_job = self.lines.job_port == Some(port) && !self.sd_printing();
-        let in_job = !matches!(self.pause, Pause::Run) || self.in_job();
+        // Paused, or moves queued or moving: a host that leaves an idle printer (its job
+        // ended, or only status lines since) leaves nothing behind to park for. Not
+        // `in_job()`'s 2 s window: that counts a status line (M114) as a job's line.
+        let in_job = !matches!(self.pause, Pause::Run) || self.has_work();
         if !host_job || !in_job || self.is_halted() || self.lines.after_cancel.is_some() {
             return;
         }
