@@ -260,7 +260,7 @@ fn long_pause(job: &[String], card: bool, pause_s: u64, cancel: bool) -> (Rig, H
                 && since % 37_000_000 >= 1_000_000
                 && last_slot != Some(k)
             {
-                let (cmd, want) = if k % 2 == 0 {
+                let (cmd, want) = if k.is_multiple_of(2) {
                     ("M105", "ok T:")
                 } else {
                     ("M114", "X:")
@@ -277,10 +277,8 @@ fn long_pause(job: &[String], card: bool, pause_s: u64, cancel: bool) -> (Rig, H
                 }
             }
         }
-        if ended && (h.done() || cancel) && rig.idle() && h.pri.is_empty() && !h.in_flight {
-            if !cancel || h.done() {
-                break;
-            }
+        if ended && h.done() && rig.idle() && h.pri.is_empty() && !h.in_flight {
+            break;
         }
     }
     (rig, h, worst)
