@@ -69,6 +69,8 @@ pub const PARK_FEED: Bound = Bound::new("park feed", "mm/s", 0.1, 2_000.0);
 pub const SPEEDUP: Bound = Bound::new("speed-up", "×", 1.0, 10.0);
 /// M760 V: the extruder's volumetric flow limit during the speed-up.
 pub const VOLUMETRIC: Bound = Bound::new("max flow", "mm³/s", 0.1, 1_000.0);
+/// M760 T: the pause's nozzle timeout, s (0: off; at most a day). Not saved by M500.
+pub const NOZZLE_TIMEOUT: Bound = Bound::new("nozzle timeout", "s", 0.0, 86_400.0);
 /// M760 L: the planner's segment length (0: no segmentation; shorter than 0.05 mm would
 /// flood the ring).
 pub const SEGMENT: Bound = Bound {

@@ -25,6 +25,8 @@ fn a_host_prints_pauses_and_resumes_over_the_pseudo_terminal() {
             sd: None,
             // The job extrudes without heating (no heater lines): as M302 P1 allows.
             allow_cold_extrusion: true,
+            tft: false,
+            host_paced: false,
         },
         Duration::from_secs(10),
     );
@@ -99,6 +101,8 @@ fn the_fifo_model_parks_and_resumes_a_pause_now_behind_two_moves() {
             trace: None,
             sd: None,
             allow_cold_extrusion: false,
+            tft: false,
+            host_paced: false,
         },
         Duration::from_secs(10),
     );

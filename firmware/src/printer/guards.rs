@@ -151,7 +151,8 @@ impl fmt::Display for Refusal {
 /// limits); all or nothing. The settings loaded from flash are checked the same way.
 pub fn check_pause_params(p: &PauseParams, cfg: &MachineConfig) -> Result<(), Refusal> {
     use crate::ranges::{
-        PARK_FEED, PARK_XY, PAUSE_LIFT, PAUSE_RETRACT, SEGMENT, SPEEDUP, VOLUMETRIC,
+        NOZZLE_TIMEOUT, PARK_FEED, PARK_XY, PAUSE_LIFT, PAUSE_RETRACT, SEGMENT, SPEEDUP,
+        VOLUMETRIC,
     };
     let x = cfg.axis(Axis::X);
     let y = cfg.axis(Axis::Y);
@@ -163,7 +164,7 @@ pub fn check_pause_params(p: &PauseParams, cfg: &MachineConfig) -> Result<(), Re
         max: b.max * 60.0,
         ..b
     };
-    let checks: [(char, Option<f32>, crate::ranges::Bound, f32, f32); 8] = [
+    let checks: [(char, Option<f32>, crate::ranges::Bound, f32, f32); 9] = [
         ('R', p.retract_mm, PAUSE_RETRACT, f32::MIN, f32::MAX),
         ('Z', p.lift_z_mm, PAUSE_LIFT, f32::MIN, z.max_mm - z.min_mm),
         ('X', p.park_x_mm, PARK_XY, x.min_mm, x.max_mm),
@@ -178,6 +179,7 @@ pub fn check_pause_params(p: &PauseParams, cfg: &MachineConfig) -> Result<(), Re
         ('S', p.speedup_factor, SPEEDUP, f32::MIN, f32::MAX),
         ('V', p.max_volumetric_mm3_s, VOLUMETRIC, f32::MIN, f32::MAX),
         ('L', p.segment_len_mm, SEGMENT, f32::MIN, f32::MAX),
+        ('T', p.nozzle_timeout_s, NOZZLE_TIMEOUT, f32::MIN, f32::MAX),
     ];
     for (letter, value, bound, lo, hi) in checks {
         if let Some(v) = value {
@@ -211,6 +213,8 @@ pub fn check_pause_config(
             speedup_factor: Some(p.speedup_factor),
             max_volumetric_mm3_s: Some(p.max_volumetric_mm3_s),
             segment_len_mm: Some(p.segment_len_mm),
+            // Not saved by M500 (the timeout is Marlin's configuration, set per session).
+            nozzle_timeout_s: None,
         },
         cfg,
     )
