@@ -576,6 +576,67 @@ fn random_boot_sectors_never_crash() {
     );
 }
 
+/// The MBR's first partition entry (block 0, bytes 446..462), field by field: zero, largest,
+/// inconsistent. Each is refused at mount with a format error (a partition that starts past
+/// the card's end too: the card answers for its first block, so it is there) or read without
+/// a crash.
+#[test]
+fn every_partition_entry_field_zero_huge_or_inconsistent_is_refused_or_harmless() {
+    let img = Image::new("mbr", false);
+    let o = img.overlay();
+    let blocks = o.num_blocks().expect("size").0 as u64;
+    let g = o.geometry();
+    let part_len = u64::from(u32::from_le_bytes(
+        o.get(446 + 12, 4).try_into().expect("4 bytes"),
+    ));
+    assert!(part_len >= g.total, "{part_len} < {}", g.total);
+    // (field, offset, width, [(value, refused?)]); refused: any error at mount.
+    let fields: [(&str, u64, usize, Vec<(u64, bool)>); 5] = [
+        // Only 0x00 and 0x80 are valid.
+        ("status", 446, 1, vec![(0x7F, true), (0xFF, true), (0x80, false)]),
+        // 0: empty; 0xFF: not FAT; 0x0B (FAT32) on a FAT16 volume: the count of clusters
+        // decides, as the FAT specification says.
+        ("type", 450, 1, vec![(0, true), (0xFF, true), (0x0B, false)]),
+        // 0 and 1: the MBR or an empty block read as the boot sector; past the card's end;
+        // one block into the volume (its second reserved block).
+        (
+            "first block",
+            454,
+            4,
+            vec![
+                (0, true),
+                (1, true),
+                (0xFFFF_FFFF, true),
+                (blocks, true),
+                (PART + 1, true),
+            ],
+        ),
+        // 0 and one block short of the volume: the volume does not fit; the largest value:
+        // the volume fits (its own count is used).
+        (
+            "block count",
+            458,
+            4,
+            vec![(0, true), (g.total - 1, true), (0xFFFF_FFFF, false)],
+        ),
+        ("signature", 510, 2, vec![(0, true), (0xFFFF, true)]),
+    ];
+    let mut cases = 0;
+    for (name, off, width, values) in fields {
+        for (v, refused) in values {
+            let r = mount_damaged(&img, |o| o.set(off, &v.to_le_bytes()[..width]));
+            let ctx = format!("partition {name} = {v:#x}: {r:?}");
+            if refused {
+                assert!(matches!(r, Err(CardError::Format(_))), "{ctx}");
+            } else {
+                assert_eq!(r, Ok(4), "{ctx}");
+            }
+            cases += 1;
+        }
+    }
+    println!("MBR partition entry: {cases} damaged fields, none crashed");
+}
+
 /// A change made to an image.
 type Damage = Box<dyn Fn(&Overlay)>;
 

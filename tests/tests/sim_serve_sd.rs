@@ -147,3 +147,55 @@ fn a_host_prints_a_sliced_file_from_the_card_with_a_layer_pause() {
         "stop at marker {k}: fed {fed} mm after the request, the layer feeds {layer_e} mm: {r:#?}"
     );
 }
+
+/// Issue 24: `sim serve --sd broken.img` (a boot sector with 0 sectors per cluster) died at
+/// start with a division by zero inside embedded-sdmmc. Now it serves: the card is refused
+/// with its reason, M23 answers `No media`, and the printer moves.
+#[test]
+fn a_broken_card_image_is_refused_and_the_printer_serves() {
+    let dir = std::env::temp_dir().join(format!("sim-serve-sd-broken-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let img = dir.join("broken.img");
+    sim::sd::write_image(&img, &[("A.GCO".into(), b"G28\n".to_vec())]).expect("card image");
+    let mut card = std::fs::read(&img).expect("image");
+    // The partition's boot sector: BPB_SecPerClus (byte 13) := 0.
+    card[sim::sd::PARTITION_START_BLOCK as usize * 512 + 13] = 0;
+    std::fs::write(&img, &card).expect("write");
+    let (server, mut host) = serve_in_thread(
+        ServeArgs {
+            speed: 20.0,
+            record: None,
+            policy: Policy::Firmware,
+            exit_after_idle: 1.0,
+            link: None,
+            flash: None,
+            sd: Some(img),
+            tft: false,
+            host_paced: false,
+            machine: None,
+            trace: None,
+            allow_cold_extrusion: false,
+        },
+        Duration::from_secs(20),
+    );
+    host.write("M21");
+    host.until("SD init fail", OK_WAIT, |l| {
+        l == "echo:SD init fail (no FAT volume: Invalid number of blocks per cluster)"
+    });
+    host.ok(OK_WAIT);
+    host.write("M23 A.GCO");
+    host.until("No media", OK_WAIT, |l| l.contains("No media"));
+    host.ok(OK_WAIT);
+    host.write("G28");
+    host.ok(OK_WAIT);
+    host.write("G1 X10 F3000");
+    host.ok(OK_WAIT);
+    host.write("M400");
+    host.ok(OK_WAIT);
+    host.write("M114");
+    host.until("the position", OK_WAIT, |l| l.starts_with("X:10.00"));
+    drop(host);
+    let record = server.record().expect("serve session");
+    let _ = std::fs::remove_dir_all(&dir);
+    assert_eq!(record.session.lost_moves, 0, "{:#?}", record.session);
+}

@@ -365,6 +365,17 @@ where
         });
     }
 
+    /// Whether the card answers a read of its first block (the MBR): a card is in the slot.
+    fn answers(&self) -> bool {
+        let ok = core::cell::Cell::new(false);
+        self.vm.device(|d| {
+            let mut b = [Block::new()];
+            ok.set(d.device.read(&mut b, BlockIdx(0)).is_ok());
+            NoClock
+        });
+        ok.get()
+    }
+
     /// Open the card's first FAT volume and its root directory (M21). A card already
     /// mounted is released first (the card may have been swapped). Every field of the boot
     /// sector is checked first (the patched embedded-sdmmc, `vendor/embedded-sdmmc`): a
@@ -373,6 +384,11 @@ where
         self.release();
         self.budget(Some(CARD_READ_BUDGET));
         let volume = self.vm.open_raw_volume(VolumeIdx(0)).map_err(|e| match e {
+            // A card that answers for its first block but not for its partition's: the
+            // partition table points past its end.
+            Error::DeviceError(BudgetError::Device(_)) if self.answers() => {
+                CardError::Format("partition outside the card")
+            }
             Error::DeviceError(BudgetError::Device(_)) => CardError::NoCard,
             e => card_error(e),
         })?;
