@@ -381,7 +381,9 @@ fn boots_with_a_card_whose_boot_sector_has_zero_sectors_per_cluster() {
     let refused = r
         .lines
         .iter()
-        .filter(|l| l.contains("SD init fail (no FAT volume: Invalid number of blocks per cluster)"))
+        .filter(|l| {
+            l.contains("SD init fail (no FAT volume: Invalid number of blocks per cluster)")
+        })
         .count();
     assert!(refused >= 1, "{:?}", r.lines);
 }

@@ -590,10 +590,15 @@ fn every_partition_entry_field_zero_huge_or_inconsistent_is_refused_or_harmless(
         o.get(446 + 12, 4).try_into().expect("4 bytes"),
     ));
     assert!(part_len >= g.total, "{part_len} < {}", g.total);
-    // (field, offset, width, [(value, refused?)]); refused: any error at mount.
+    // (field, offset, width, [(value, refused?)]); refused: a format error at mount.
     let fields: [(&str, u64, usize, Vec<(u64, bool)>); 5] = [
         // Only 0x00 and 0x80 are valid.
-        ("status", 446, 1, vec![(0x7F, true), (0xFF, true), (0x80, false)]),
+        (
+            "status",
+            446,
+            1,
+            vec![(0x7F, true), (0xFF, true), (0x80, false)],
+        ),
         // 0: empty; 0xFF: not FAT; 0x0B (FAT32) on a FAT16 volume: the count of clusters
         // decides, as the FAT specification says.
         ("type", 450, 1, vec![(0, true), (0xFF, true), (0x0B, false)]),

@@ -151,8 +151,7 @@ impl fmt::Display for Refusal {
 /// limits); all or nothing. The settings loaded from flash are checked the same way.
 pub fn check_pause_params(p: &PauseParams, cfg: &MachineConfig) -> Result<(), Refusal> {
     use crate::ranges::{
-        NOZZLE_TIMEOUT, PARK_FEED, PARK_XY, PAUSE_LIFT, PAUSE_RETRACT, SEGMENT, SPEEDUP,
-        VOLUMETRIC,
+        NOZZLE_TIMEOUT, PARK_FEED, PARK_XY, PAUSE_LIFT, PAUSE_RETRACT, SEGMENT, SPEEDUP, VOLUMETRIC,
     };
     let x = cfg.axis(Axis::X);
     let y = cfg.axis(Axis::Y);
