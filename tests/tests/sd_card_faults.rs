@@ -576,6 +576,9 @@ fn random_boot_sectors_never_crash() {
     );
 }
 
+/// (field, byte offset in block 0, width, [(value, refused with a format error?)]).
+type EntryField = (&'static str, u64, usize, Vec<(u64, bool)>);
+
 /// The MBR's first partition entry (block 0, bytes 446..462), field by field: zero, largest,
 /// inconsistent. Each is refused at mount with a format error (a partition that starts past
 /// the card's end too: the card answers for its first block, so it is there) or read without
@@ -590,8 +593,7 @@ fn every_partition_entry_field_zero_huge_or_inconsistent_is_refused_or_harmless(
         o.get(446 + 12, 4).try_into().expect("4 bytes"),
     ));
     assert!(part_len >= g.total, "{part_len} < {}", g.total);
-    // (field, offset, width, [(value, refused?)]); refused: a format error at mount.
-    let fields: [(&str, u64, usize, Vec<(u64, bool)>); 5] = [
+    let fields: [EntryField; 5] = [
         // Only 0x00 and 0x80 are valid.
         (
             "status",
