@@ -1,0 +1,295 @@
+//! Step re-timing in the step interrupt: what keeps a late step event from firing in a burst.
+//!
+//! The board's motion loop queues step events a few milliseconds ahead, each with its planned
+//! time. If that loop stalls for longer than the queue covers (a blocking SD read, USB, a flash
+//! operation), the queue runs dry and the motors stop abruptly; when the loop resumes, the
+//! events it queues are already late. Fired as soon as possible they would run back to back at
+//! the interrupt's own speed (~200 kHz) — a burst far above any axis limit, a layer shift.
+//!
+//! [`Retimer`] gives each event the earliest time it may fire ([`Retimer::due`]):
+//!
+//! * **shift, never compress**: event i fires no earlier than `t_i + shift`; when an event
+//!   fires more than [`RetimeConfig::late_tolerance_ticks`] late, the shift grows to its
+//!   lateness, so the rest of the schedule moves with it and every step keeps its planned
+//!   spacing (no axis ever goes faster than planned after a stall);
+//! * **per-axis floor**: an axis is never due sooner than [`RetimeConfig::min_period_ticks`]
+//!   after its previous step (its limit: steps/mm × max feed, and never below the minimum step
+//!   period), whatever the schedule says (an event held back by the floor shifts the rest
+//!   too). The floor counts from when the previous step was due, or fired if that was more
+//!   than the tolerance late, so the steps as fired keep it to within the interrupt's latency
+//!   (the same latency every step interrupt has, Marlin's included);
+//! * **the shift shrinks only at rest**: where the plan itself leaves a gap longer than
+//!   [`RetimeConfig::rest_gap_ticks`] between two events (every axis nearly at rest: the end of
+//!   a move, a dwell, a pause), the shift shrinks by what the gap exceeds that, so the next
+//!   motion starts on time again, while two events are never closer than `rest_gap_ticks` (or
+//!   their planned gap, if shorter).
+//!
+//! Small lateness (interrupt latency, a few events due at once) below the tolerance fires at
+//! once without shifting, so latency never accumulates into a drift.
+//!
+//! What re-timing cannot undo: during the stall the axes stopped abruptly, and after it they
+//! resume at the speed the plan had there (the same speed step as the stop). Keeping stalls
+//! shorter than the queue's look-ahead avoids both; every re-timed event is counted
+//! ([`RetimeStats`]) and the board reports them.
+//!
+//! Times are in ticks of the board's time base (`u64`, monotonic). Pure state machine: no pins,
+//! no clock; host-tested below and by `firmware/tests/retime.rs`.
+
+use crate::motion::AXES;
+
+/// The limits the re-timer enforces.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RetimeConfig {
+    /// Per axis: the shortest time between two of its steps, ticks.
+    pub min_period_ticks: [u32; AXES],
+    /// An event fired more than this late shifts the rest of the schedule, ticks.
+    pub late_tolerance_ticks: u32,
+    /// A planned gap at least this long between two consecutive events counts as rest: the
+    /// shift may shrink by what the gap exceeds it, ticks.
+    pub rest_gap_ticks: u32,
+}
+
+/// What the re-timer did, since it was made (the board takes and reports these).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RetimeStats {
+    /// Events that fired more than the tolerance late (each shifted the schedule).
+    pub late: u32,
+    /// Events held back by an axis's floor (the schedule itself was too fast for the axis).
+    pub capped: u32,
+    /// The worst lateness seen, ticks past the event's due time.
+    pub worst_late_ticks: u64,
+}
+
+/// The re-timer's state. See the module documentation.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Retimer {
+    cfg: RetimeConfig,
+    /// How far behind the plan the schedule runs now, ticks.
+    shift: u64,
+    /// Planned time of the previous event.
+    prev_t: Option<u64>,
+    /// When each axis last stepped (actual fire time).
+    last_step: [Option<u64>; AXES],
+    stats: RetimeStats,
+}
+
+impl Retimer {
+    /// A re-timer with no history.
+    pub const fn new(cfg: RetimeConfig) -> Self {
+        Retimer {
+            cfg,
+            shift: 0,
+            prev_t: None,
+            last_step: [None; AXES],
+            stats: RetimeStats {
+                late: 0,
+                capped: 0,
+                worst_late_ticks: 0,
+            },
+        }
+    }
+
+    /// The limits in force.
+    pub fn config(&self) -> RetimeConfig {
+        self.cfg
+    }
+
+    /// New limits (M92/M203 changed an axis): they apply from the next event.
+    pub fn set_config(&mut self, cfg: RetimeConfig) {
+        self.cfg = cfg;
+    }
+
+    /// How far behind the plan the schedule runs, ticks.
+    pub fn shift_ticks(&self) -> u64 {
+        self.shift
+    }
+
+    /// The counts so far.
+    pub fn stats(&self) -> RetimeStats {
+        self.stats
+    }
+
+    /// Forget the schedule (the queue was flushed: halt, quick stop). The per-axis floors
+    /// keep their last steps.
+    pub fn restart(&mut self) {
+        self.shift = 0;
+        self.prev_t = None;
+    }
+
+    /// The shift event at planned time `t` starts from (shrunk across a rest gap).
+    fn base_shift(&self, t: u64) -> u64 {
+        match self.prev_t {
+            Some(p) => {
+                let gap = t.saturating_sub(p);
+                let rest = u64::from(self.cfg.rest_gap_ticks);
+                if gap > rest {
+                    self.shift.saturating_sub(gap - rest)
+                } else {
+                    self.shift
+                }
+            }
+            None => 0,
+        }
+    }
+
+    /// The earliest time the event planned at `t` for the axes in `axis_mask` may fire.
+    pub fn due(&self, t: u64, axis_mask: u8) -> u64 {
+        let mut due = t.saturating_add(self.base_shift(t));
+        for (axis, last) in self.last_step.iter().enumerate() {
+            if axis_mask & (1 << axis) != 0 {
+                if let (Some(last), Some(p)) = (last, self.cfg.min_period_ticks.get(axis)) {
+                    due = due.max(last.saturating_add(u64::from(*p)));
+                }
+            }
+        }
+        due
+    }
+
+    /// The event planned at `t` fired at `at` (never before [`Retimer::due`]); `stepped` are
+    /// the axes that really stepped (refused steps do not count for the floors).
+    pub fn fired(&mut self, t: u64, axis_mask: u8, stepped: u8, at: u64) {
+        let base = self.base_shift(t);
+        let due = self.due(t, axis_mask);
+        let tol = u64::from(self.cfg.late_tolerance_ticks);
+        let late = at.saturating_sub(due);
+        // How long a floor held the event back beyond the (shifted) plan.
+        let held = due.saturating_sub(t.saturating_add(base));
+        if held > 0 {
+            self.stats.capped = self.stats.capped.saturating_add(1);
+        }
+        // Lateness or a hold within the tolerance (interrupt latency, an axis running at its
+        // limit whose previous step came a little late) does not shift the rest: the floors
+        // hold in fired time anyway, and no latency accumulates into a drift.
+        self.shift = if late > tol {
+            self.stats.late = self.stats.late.saturating_add(1);
+            self.stats.worst_late_ticks = self.stats.worst_late_ticks.max(late);
+            at.saturating_sub(t)
+        } else if held > tol {
+            due - t
+        } else {
+            base
+        };
+        self.prev_t = Some(t);
+        // The floors count from when a step was due, not from when the interrupt got to it:
+        // a latency within the tolerance must not drag every later step of an axis running
+        // at its limit (it would add up over a long move). A step later than that counts
+        // from when it fired.
+        let from = if late > tol { at } else { due };
+        for (axis, last) in self.last_step.iter_mut().enumerate() {
+            if stepped & (1 << axis) != 0 {
+                *last = Some(from);
+            }
+        }
+    }
+}
+
+/// The floor of one axis: the period of its fastest allowed rate, `steps_per_mm ×
+/// max_feed_mm_s` steps/s, in ticks of `tick_hz`, rounded down and less one tick (event times
+/// are rounded down to the tick, so two steps planned exactly at the limit can come one tick
+/// closer: such a plan is never held back), and never below `min_step_period_ticks`.
+pub fn axis_floor_ticks(
+    steps_per_mm: f32,
+    max_feed_mm_s: f32,
+    tick_hz: u32,
+    min_step_period_ticks: u32,
+) -> u32 {
+    let rate = steps_per_mm * max_feed_mm_s;
+    let ticks = if rate.is_finite() && rate > 0.0 {
+        let t = tick_hz as f32 / rate;
+        if t.is_finite() {
+            t.clamp(0.0, u32::MAX as f32) as u32
+        } else {
+            0
+        }
+    } else {
+        0
+    };
+    ticks.saturating_sub(1).max(min_step_period_ticks)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const CFG: RetimeConfig = RetimeConfig {
+        // X 40 kHz (25 µs), Y 40 kHz, Z 2 kHz, E 2.3 kHz at 4 MHz ticks.
+        min_period_ticks: [99, 99, 1999, 1719],
+        late_tolerance_ticks: 80,
+        rest_gap_ticks: 80_000,
+    };
+
+    #[test]
+    fn on_time_events_keep_their_times() {
+        let mut r = Retimer::new(CFG);
+        for i in 0..100u64 {
+            let t = 1_000 + i * 400;
+            assert_eq!(r.due(t, 1), t);
+            r.fired(t, 1, 1, t + 3); // interrupt latency
+        }
+        assert_eq!(r.shift_ticks(), 0);
+        assert_eq!(r.stats(), RetimeStats::default());
+    }
+
+    #[test]
+    fn a_late_event_shifts_the_rest_and_keeps_the_spacing() {
+        let mut r = Retimer::new(CFG);
+        r.fired(0, 1, 1, 0);
+        r.fired(400, 1, 1, 400);
+        // The queue ran dry; the next events arrive 5 ms (20 000 ticks) late.
+        let late_at = 800 + 20_000;
+        r.fired(800, 1, 1, late_at);
+        assert_eq!(r.shift_ticks(), 20_000);
+        // The following ones keep the planned 400-tick spacing from there.
+        assert_eq!(r.due(1_200, 1), late_at + 400);
+        assert_eq!(r.due(1_600, 1), late_at + 800);
+        let s = r.stats();
+        assert_eq!((s.late, s.capped, s.worst_late_ticks), (1, 0, 20_000));
+    }
+
+    #[test]
+    fn the_floor_holds_an_axis_to_its_limit() {
+        let mut r = Retimer::new(CFG);
+        r.fired(0, 1, 1, 0);
+        // Planned 10 ticks later: faster than X's 99-tick floor.
+        assert_eq!(r.due(10, 1), 99);
+        r.fired(10, 1, 1, 99);
+        assert_eq!(r.stats().capped, 1);
+        // Held 89 ticks, over the 80-tick tolerance: the rest shifts by it, another axis too.
+        assert_eq!(r.due(20, 0b1000), 109);
+        // A hold within the tolerance fires late but does not shift the rest.
+        let mut r = Retimer::new(CFG);
+        r.fired(0, 1, 1, 0);
+        assert_eq!(r.due(60, 1), 99);
+        r.fired(60, 1, 1, 99);
+        assert_eq!(r.shift_ticks(), 0);
+        assert_eq!(r.due(70, 0b1000), 70);
+    }
+
+    #[test]
+    fn the_shift_shrinks_across_a_rest_gap() {
+        let mut r = Retimer::new(CFG);
+        r.fired(0, 1, 1, 30_000); // 30 000 late
+        assert_eq!(r.shift_ticks(), 30_000);
+        // A planned gap of 100 000 (25 ms) > the 80 000 rest gap: the shift shrinks by 20 000.
+        assert_eq!(r.due(100_000, 1), 100_000 + 10_000);
+        // A longer rest: back on time.
+        r.fired(100_000, 1, 1, 110_000);
+        assert_eq!(r.due(400_000, 1), 400_000);
+    }
+
+    #[test]
+    fn floors_from_the_machine_limits() {
+        // Ender-3 X: 80 steps/mm × 500 mm/s = 40 kHz → 100 ticks at 4 MHz, less one.
+        assert_eq!(axis_floor_ticks(80.0, 500.0, 4_000_000, 8), 99);
+        // Never below the minimum step period.
+        assert_eq!(axis_floor_ticks(1280.0, 500.0, 4_000_000, 8), 8);
+        // Nonsense limits fall back to the minimum step period.
+        assert_eq!(axis_floor_ticks(0.0, 500.0, 4_000_000, 8), 8);
+        assert_eq!(axis_floor_ticks(f32::NAN, 5.0, 4_000_000, 8), 8);
+        assert_eq!(
+            axis_floor_ticks(1e-3, 1e-3, 4_000_000, 8),
+            u32::MAX - 1,
+            "absurdly slow: clamped"
+        );
+    }
+}
