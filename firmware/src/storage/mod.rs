@@ -11,6 +11,8 @@
 mod flash;
 mod job;
 mod record;
+// Erase ahead while idle: saves during a print find erased room.
+mod reserve;
 // SD-card printing: the FAT job source (embedded-sdmmc).
 pub mod sd;
 mod store;
@@ -25,6 +27,7 @@ pub use record::{
     FORMAT_VERSION, HOME_OFFSET, JUNCTION_DEVIATION, MAX_FEED, PAUSE_VALUE, PID_GAIN, RECORD_LEN,
     STEPS_PER_MM,
 };
+pub use reserve::{EraseAhead, PAD_KEY};
 pub use store::{SettingsStore, StoreError, BUF_LEN, JOB_KEY, SETTINGS_KEY};
 
 /// Where the settings live on the SKR 2: absolute addresses of the area in the STM32F407's

@@ -76,7 +76,7 @@ struct Buf([u8; BUF_LEN]);
 
 /// Records in a NOR-flash area. See the module documentation.
 pub struct SettingsStore<F: NorFlash> {
-    map: MapStorage<u8, Blocking<F>, Cache<Uncached, Uncached, Uncached, u8>>,
+    pub(super) map: MapStorage<u8, Blocking<F>, Cache<Uncached, Uncached, Uncached, u8>>,
     buf: Buf,
     /// Some byte of the area was not erased when the store was made (or a record was stored
     /// since): a missing record then means a damaged one.
@@ -101,6 +101,11 @@ impl<F: NorFlash> SettingsStore<F> {
         self.map.destroy().0 .0
     }
 
+    /// The flash (tests count its operations; the board's wrapper reports on its erases).
+    pub fn flash_mut(&mut self) -> &mut F {
+        &mut self.map.flash().0
+    }
+
     /// The raw bytes stored under `key` (None: nothing stored), handed to `decode`.
     pub fn fetch<T>(
         &mut self,
@@ -123,7 +128,7 @@ impl<F: NorFlash> SettingsStore<F> {
 
     /// True when some record (of any key) can be read.
     fn any_record(&mut self) -> bool {
-        [SETTINGS_KEY, JOB_KEY]
+        [SETTINGS_KEY, JOB_KEY, super::reserve::PAD_KEY]
             .into_iter()
             .any(|k| matches!(self.fetch(k, |_| Ok(())), Ok(Some(()))))
     }
@@ -186,7 +191,7 @@ fn is_erased<F: NorFlash>(flash: &mut F, range: core::ops::Range<u32>) -> bool {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::config::MachineConfig;
     use crate::storage::{Cut, FlashOp, NorFlashModel};
@@ -209,7 +214,7 @@ mod tests {
     }
 
     /// The k-th distinct settings (k = 0 is the factory set).
-    fn nth(k: u32) -> Settings {
+    pub(crate) fn nth(k: u32) -> Settings {
         let mut s = factory();
         s.steps_per_mm[0] = 80.0 + k as f32 * 0.125;
         s.max_feed_mm_s[2] = 5.0 + (k % 7) as f32;
