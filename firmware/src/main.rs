@@ -123,6 +123,9 @@ mod image {
     const UART_BAUD: u32 = 115_200;
     /// Host-link bytes buffered per output port.
     const OUT_PIPE: usize = 1024;
+    /// The TFT UART driver's transmit and receive buffers, bytes.
+    const UART_TX_BUF: usize = 512;
+    const UART_RX_BUF: usize = 512;
 
     type Shared = &'static SharedPrinter;
 
@@ -256,8 +259,8 @@ mod image {
         let usb_dev = builder.build();
 
         // TFT header UART.
-        static UART_TX: StaticCell<[u8; 512]> = StaticCell::new();
-        static UART_RX: StaticCell<[u8; 512]> = StaticCell::new();
+        static UART_TX: StaticCell<[u8; UART_TX_BUF]> = StaticCell::new();
+        static UART_RX: StaticCell<[u8; UART_RX_BUF]> = StaticCell::new();
         let mut ucfg = UartConfig::default();
         ucfg.baudrate = UART_BAUD;
         let (uart_p, rx, tx) = periph.uart;
@@ -265,8 +268,8 @@ mod image {
             uart_p,
             rx,
             tx,
-            UART_TX.init([0; 512]),
-            UART_RX.init([0; 512]),
+            UART_TX.init([0; UART_TX_BUF]),
+            UART_RX.init([0; UART_RX_BUF]),
             Irqs,
             ucfg,
         );

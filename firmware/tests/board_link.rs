@@ -100,7 +100,7 @@ fn nearly_full_store() -> SettingsStore<Flash> {
     while st
         .open_sector_free()
         .unwrap()
-        .map_or(true, |f| f >= st.reserve_bytes())
+        .is_none_or(|f| f >= st.reserve_bytes())
     {
         st.save(&s).unwrap();
     }

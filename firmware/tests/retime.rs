@@ -40,6 +40,7 @@ fn config(cfg: &MachineConfig) -> RetimeConfig {
     }
     RetimeConfig {
         min_period_ticks,
+        min_step_ticks: 8,
         late_tolerance_ticks: TOL,
         rest_gap_ticks: REST,
     }
@@ -180,13 +181,9 @@ fn no_burst_after_stalls_and_every_axis_keeps_its_floor() {
     let mut r = Retimer::new(cfg);
     let new = fire_times(ev, lookahead, &stalls, Some(&mut r), &JITTER);
     let (min_gap, worst_short) = spacing(ev, &new);
-    for a in 0..AXES {
-        assert!(
-            min_gap[a] + 40 >= u64::from(cfg.min_period_ticks[a]),
-            "axis {a}: {} < {}",
-            min_gap[a],
-            cfg.min_period_ticks[a]
-        );
+    for (a, (gap, floor)) in min_gap.iter().zip(cfg.min_period_ticks).enumerate() {
+        assert!(*gap >= u64::from(cfg.min_step_ticks), "axis {a}: {gap}");
+        assert!(gap + 40 >= u64::from(floor), "axis {a}: {gap} < {floor}");
     }
     // Never faster than planned by more than the latency the model adds.
     assert!(worst_short <= 40, "{worst_short} ticks faster than planned");
@@ -283,8 +280,9 @@ proptest! {
         let mut r = Retimer::new(cfg);
         let fired = fire_times(ev, 2_000_000 / NS_PER_TICK, &stalls, Some(&mut r), &jitter);
         let (min_gap, worst_short) = spacing(ev, &fired);
-        for a in 0..AXES {
-            prop_assert!(min_gap[a] + 40 >= u64::from(cfg.min_period_ticks[a]));
+        for (gap, floor) in min_gap.iter().zip(cfg.min_period_ticks) {
+            prop_assert!(*gap >= u64::from(cfg.min_step_ticks));
+            prop_assert!(gap + 40 >= u64::from(floor));
         }
         prop_assert!(worst_short <= 40);
     }

@@ -6,7 +6,7 @@
 //! The portable store, the record, the M-codes and the erase-ahead policy are in the library
 //! (`firmware::storage`, `printer/settings.rs`); this file binds them to the chip, through
 //! [`GuardedFlash`]: a sector erase stalls the MCU for up to 2 s (128 KiB, DS8626 "Flash memory
-//! programming", x32 parallelism as embassy-stm32 programs it): every flash read waits, so
+//! programming", x32 parallelism, which `GuardedFlash` sets: [`erase_parallelism_x32`]): every flash read waits, so
 //! the code, the interrupts, the heaters' software PWM and the step interrupt all stop.
 //! Before each sector erase the heaters are switched off (their gates low: a heater left on
 //! would stay on for the whole erase) and the watchdog is fed (its shortest timeout, 2.5 s at
@@ -20,6 +20,7 @@
 use super::SharedPrinter;
 use embassy_executor::Spawner;
 use embassy_stm32::flash::{Blocking, Error as FlashError, Flash};
+use embassy_stm32::pac;
 use embassy_time::Timer;
 use embedded_storage::nor_flash::{ErrorType, NorFlash, ReadNorFlash};
 use firmware::storage::{SettingsStore, SKR2_AREA};
@@ -103,9 +104,10 @@ impl NorFlash for GuardedFlash {
         let mut at = from;
         while at < to {
             let end = (at + sector).min(to);
-            // Heaters off before the MCU stalls (their PWM cannot run during the erase), and a
-            // full watchdog period for the erase itself.
+            // Heaters off before the MCU stalls (their PWM cannot run during the erase), x32
+            // parallelism, and a full watchdog period for the erase itself.
             safety::heaters_off();
+            erase_parallelism_x32();
             self.feed();
             let t0 = clock::now_ns();
             let r = self.flash.blocking_erase(at, end);
@@ -121,6 +123,24 @@ impl NorFlash for GuardedFlash {
         }
         Ok(())
     }
+}
+
+/// Sets FLASH_CR.PSIZE to x32 for the next erase (unlocking CR first, as embassy does: KEYR
+/// 0x45670123, 0xCDEF89AB, RM0090 §3.5.1). embassy-stm32 0.6's `blocking_erase_sector` keeps
+/// whatever PSIZE CR holds (it only `modify`s SER/SNB/STRT), and its blocking write leaves
+/// PSIZE 0 behind (`disable_blocking_write` writes CR with PG alone): its erases ran at x8,
+/// 2 s typical and **4 s** maximum for a 128 KiB sector (DS8626 "Flash memory programming"),
+/// longer than any watchdog period here (found on the emulated board, which times the erase
+/// by PSIZE). x32 is valid at 2.7–3.6 V (RM0090 §3.6.2 "Program/erase parallelism"; the SKR 2
+/// runs at 3.3 V): 1 s typical, 2 s maximum. embassy locks CR again after its erase.
+fn erase_parallelism_x32() {
+    let f = pac::FLASH;
+    if f.cr().read().lock() {
+        f.keyr().write_value(0x4567_0123);
+        f.keyr().write_value(0xCDEF_89AB);
+    }
+    f.cr()
+        .modify(|w| w.set_psize(pac::flash::vals::Psize::PSIZE32));
 }
 
 /// The store on the chip's flash.

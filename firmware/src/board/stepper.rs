@@ -148,6 +148,7 @@ pub fn floors(cfg: &MachineConfig) -> RetimeConfig {
     }
     RetimeConfig {
         min_period_ticks,
+        min_step_ticks: min_step,
         late_tolerance_ticks: ticks(LATE_TOLERANCE_NS),
         rest_gap_ticks: ticks(REST_GAP_NS),
     }

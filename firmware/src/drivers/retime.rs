@@ -18,6 +18,8 @@
 //!   too). The floor counts from when the previous step was due, or fired if that was more
 //!   than the tolerance late, so the steps as fired keep it to within the interrupt's latency
 //!   (the same latency every step interrupt has, Marlin's included);
+//! * **minimum step period, in fired time**: two steps of one axis are never fired closer than
+//!   [`RetimeConfig::min_step_ticks`] (the drivers' limit), whatever the latency;
 //! * **the shift shrinks only at rest**: where the plan itself leaves a gap longer than
 //!   [`RetimeConfig::rest_gap_ticks`] between two events (every axis nearly at rest: the end of
 //!   a move, a dwell, a pause), the shift shrinks by what the gap exceeds that, so the next
@@ -40,8 +42,10 @@ use crate::motion::AXES;
 /// The limits the re-timer enforces.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct RetimeConfig {
-    /// Per axis: the shortest time between two of its steps, ticks.
+    /// Per axis: the shortest time between two of its steps as due, ticks (its limit).
     pub min_period_ticks: [u32; AXES],
+    /// The shortest time between two fired steps of one axis, ticks (the minimum step period).
+    pub min_step_ticks: u32,
     /// An event fired more than this late shifts the rest of the schedule, ticks.
     pub late_tolerance_ticks: u32,
     /// A planned gap at least this long between two consecutive events counts as rest: the
@@ -52,7 +56,8 @@ pub struct RetimeConfig {
 /// What the re-timer did, since it was made (the board takes and reports these).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct RetimeStats {
-    /// Events that fired more than the tolerance late (each shifted the schedule).
+    /// Events that fired more than the tolerance late in motion (each shifted the schedule);
+    /// the first event after a rest is not counted (a late start is no stall).
     pub late: u32,
     /// Events held back by an axis's floor (the schedule itself was too fast for the axis).
     pub capped: u32,
@@ -68,8 +73,8 @@ pub struct Retimer {
     shift: u64,
     /// Planned time of the previous event.
     prev_t: Option<u64>,
-    /// When each axis last stepped (actual fire time).
-    last_step: [Option<u64>; AXES],
+    /// When each axis's last step was due, and when it fired.
+    last_step: [Option<(u64, u64)>; AXES],
     stats: RetimeStats,
 }
 
@@ -132,13 +137,23 @@ impl Retimer {
         }
     }
 
+    /// The event planned at `t` is the first after a rest (or the first of all).
+    fn after_rest(&self, t: u64) -> bool {
+        self.prev_t
+            .is_none_or(|p| t.saturating_sub(p) > u64::from(self.cfg.rest_gap_ticks))
+    }
+
     /// The earliest time the event planned at `t` for the axes in `axis_mask` may fire.
     pub fn due(&self, t: u64, axis_mask: u8) -> u64 {
         let mut due = t.saturating_add(self.base_shift(t));
         for (axis, last) in self.last_step.iter().enumerate() {
             if axis_mask & (1 << axis) != 0 {
-                if let (Some(last), Some(p)) = (last, self.cfg.min_period_ticks.get(axis)) {
-                    due = due.max(last.saturating_add(u64::from(*p)));
+                if let (Some((was_due, fired)), Some(p)) =
+                    (last, self.cfg.min_period_ticks.get(axis))
+                {
+                    due = due
+                        .max(was_due.saturating_add(u64::from(*p)))
+                        .max(fired.saturating_add(u64::from(self.cfg.min_step_ticks)));
                 }
             }
         }
@@ -161,8 +176,13 @@ impl Retimer {
         // limit whose previous step came a little late) does not shift the rest: the floors
         // hold in fired time anyway, and no latency accumulates into a drift.
         self.shift = if late > tol {
-            self.stats.late = self.stats.late.saturating_add(1);
-            self.stats.worst_late_ticks = self.stats.worst_late_ticks.max(late);
+            // The first event after a rest is late by construction (a move from rest is
+            // planned to start when the executive is polled, and queued a little later): the
+            // move starts that much later, which is no stall; only lateness in motion counts.
+            if !self.after_rest(t) {
+                self.stats.late = self.stats.late.saturating_add(1);
+                self.stats.worst_late_ticks = self.stats.worst_late_ticks.max(late);
+            }
             at.saturating_sub(t)
         } else if held > tol {
             due - t
@@ -177,7 +197,7 @@ impl Retimer {
         let from = if late > tol { at } else { due };
         for (axis, last) in self.last_step.iter_mut().enumerate() {
             if stepped & (1 << axis) != 0 {
-                *last = Some(from);
+                *last = Some((from, at));
             }
         }
     }
@@ -214,6 +234,7 @@ mod tests {
     const CFG: RetimeConfig = RetimeConfig {
         // X 40 kHz (25 µs), Y 40 kHz, Z 2 kHz, E 2.3 kHz at 4 MHz ticks.
         min_period_ticks: [99, 99, 1999, 1719],
+        min_step_ticks: 8,
         late_tolerance_ticks: 80,
         rest_gap_ticks: 80_000,
     };
@@ -266,10 +287,25 @@ mod tests {
     }
 
     #[test]
+    fn the_minimum_step_period_holds_in_fired_time() {
+        let cfg = RetimeConfig {
+            min_period_ticks: [8, 8, 8, 8],
+            ..CFG
+        };
+        let mut r = Retimer::new(cfg);
+        r.fired(0, 1, 1, 0);
+        r.fired(8, 1, 1, 30); // 22 late: within the tolerance, no shift
+        assert_eq!(r.shift_ticks(), 0);
+        // Planned at 16 (due 16 by the floor), but never within 8 ticks of the fired 30.
+        assert_eq!(r.due(16, 1), 38);
+    }
+
+    #[test]
     fn the_shift_shrinks_across_a_rest_gap() {
         let mut r = Retimer::new(CFG);
-        r.fired(0, 1, 1, 30_000); // 30 000 late
+        r.fired(0, 1, 1, 30_000); // a start 30 000 late: shifted, not counted
         assert_eq!(r.shift_ticks(), 30_000);
+        assert_eq!(r.stats().late, 0);
         // A planned gap of 100 000 (25 ms) > the 80 000 rest gap: the shift shrinks by 20 000.
         assert_eq!(r.due(100_000, 1), 100_000 + 10_000);
         // A longer rest: back on time.

@@ -12,10 +12,14 @@ use embassy_usb::UsbDevice;
 use firmware::link::PortId;
 use firmware::printer::Printer;
 
-use super::{printer_now_us, Shared, UART_OUT, USB_OUT};
+use super::{printer_now_us, Shared, UART_OUT, UART_TX_BUF, USB_OUT};
 
 /// Pushes each port's pending host-link output to its pipe (USB, TFT UART), as far as the
 /// pipe has room; the executive keeps the rest in that port's output ring.
+///
+/// `Pipe::try_write` writes only up to the end of the pipe's ring buffer (its contiguous free
+/// part), so a chunk that straddles the wrap takes two writes; taking one and dropping the
+/// rest lost the middle of lines (seen on the emulated board: a notice cut after 12 bytes).
 pub(super) fn flush_output(p: &mut Printer) {
     let mut buf = [0u8; 128];
     for (port, pipe) in [(PortId::Usb, &USB_OUT), (PortId::Tft, &UART_OUT)] {
@@ -25,7 +29,17 @@ pub(super) fn flush_output(p: &mut Printer) {
             if n == 0 {
                 break;
             }
-            let _ = pipe.try_write(buf.get(..n).unwrap_or(&[]));
+            let mut chunk = buf.get(..n).unwrap_or(&[]);
+            while !chunk.is_empty() {
+                match pipe.try_write(chunk) {
+                    Ok(k) => chunk = chunk.get(k..).unwrap_or(&[]),
+                    Err(_) => {
+                        // Cannot happen: `room` was free.
+                        defmt::error!("host output: {=usize} bytes lost", chunk.len());
+                        break;
+                    }
+                }
+            }
         }
     }
 }
@@ -81,10 +95,39 @@ pub(super) async fn cdc_task(
     join(receive, send).await;
 }
 
+/// The TFT UART's transmit side, written so that embassy-stm32 0.6's `BufferedUartTx` never
+/// waits forever: its `write` returns `Pending` **without registering a waker** when the
+/// whole slice does not fit in the free part of its buffer (`usart/buffered.rs`,
+/// `BufferedUart::write`), and nothing wakes the task again (found on the emulated board:
+/// transmission stopped for good in the middle of M115's capability list, the driver's buffer
+/// empty, TXEIE off). Here a slice is written only when it fits in what is known to be free:
+/// after [`UART_TX_BUF`] bytes the writer waits for `flush` (which does register its waker)
+/// before writing more.
+struct TftTx {
+    tx: embassy_stm32::usart::BufferedUartTx<'static>,
+    /// Bytes written since the driver's buffer was last known empty.
+    in_flight: usize,
+}
+
+impl TftTx {
+    async fn send(&mut self, data: &[u8]) {
+        use embedded_io_async::Write;
+        for chunk in data.chunks(UART_TX_BUF) {
+            if self.in_flight + chunk.len() > UART_TX_BUF {
+                let _ = self.tx.flush().await;
+                self.in_flight = 0;
+            }
+            let _ = self.tx.write_all(chunk).await;
+            self.in_flight += chunk.len();
+        }
+    }
+}
+
 #[embassy_executor::task]
 pub(super) async fn uart_task(uart: BufferedUart<'static>, printer: Shared) {
-    use embedded_io_async::{Read, Write};
-    let (mut tx, mut rx) = uart.split();
+    use embedded_io_async::Read;
+    let (tx, mut rx) = uart.split();
+    let mut tx = TftTx { tx, in_flight: 0 };
     let mut inbuf = [0u8; 64];
     let mut outbuf = [0u8; 64];
     loop {
@@ -104,17 +147,13 @@ pub(super) async fn uart_task(uart: BufferedUart<'static>, printer: Shared) {
                         break;
                     }
                     match UART_OUT.try_read(&mut outbuf) {
-                        Ok(k) => {
-                            let _ = tx.write_all(outbuf.get(..k).unwrap_or(&[])).await;
-                        }
+                        Ok(k) => tx.send(outbuf.get(..k).unwrap_or(&[])).await,
                         Err(_) => Timer::after_millis(1).await,
                     }
                 }
             }
             Either::First(Err(_)) => {}
-            Either::Second(n) => {
-                let _ = tx.write_all(outbuf.get(..n).unwrap_or(&[])).await;
-            }
+            Either::Second(n) => tx.send(outbuf.get(..n).unwrap_or(&[])).await,
         }
     }
 }

@@ -162,7 +162,7 @@ mod tests {
 
     /// One pause/resume cycle's saves: the power-cut record, then its clearing.
     fn pause_cycle(st: &mut SettingsStore<Board>, k: u32) {
-        st.save_job(&sample(k, k % 2 == 0)).unwrap();
+        st.save_job(&sample(k, k.is_multiple_of(2))).unwrap();
         st.clear_job().unwrap();
     }
 
