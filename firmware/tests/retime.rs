@@ -109,13 +109,13 @@ fn fire_times(
                 avail = s.at + s.len;
             }
         }
-        let due = match retimer.as_deref() {
+        let due = match retimer.as_deref_mut() {
             Some(r) => r.due(t, mask),
             None => t,
         };
         let at = due.max(avail).max(prev + ISR_TICKS) + jitter[i % jitter.len()];
         if let Some(r) = retimer.as_deref_mut() {
-            r.fired(t, mask, mask, at);
+            r.fired(mask, at);
         }
         fired.push(at);
         prev = at;

@@ -22,7 +22,8 @@
 //! | hot-end thermistor (TH0) | PA2 (ADC123_IN2) | [M] `TEMP_0_PIN` |
 //! | bed thermistor (TB) | PA1 (ADC123_IN1) | [M] `TEMP_BED_PIN` |
 //! | pause button (filament-runout connector E0DET) | PC2 | [M] `FIL_RUNOUT_PIN` |
-//! | driver/heater/fan power switch (SAFE_POWER) | PC13 | [M] `SAFE_POWER_PIN`; [K] `[output_pin motor_power] pin: PC13 value: 1` ("needs pulling high to pass power to stepper drivers and most FETs") |
+//! | driver/heater/fan power switch (SAFE_POWER; low until the reversed-driver check passes) | PC13 | [M] `SAFE_POWER_PIN`; [K] `[output_pin motor_power] pin: PC13 value: 1` ("needs pulling high to pass power to stepper drivers and most FETs") |
+//! | E1 STEP / DIR / EN (socket not used, but powered by SAFE_POWER: checked, kept disabled) | PD11 / PD10 / PD13 | [M] `E1_STEP_PIN`, `E1_DIR_PIN`, `E1_ENABLE_PIN`; [K] `#[extruder1]` |
 //! | TMC2209 UART X / Y / Z / E0 (single wire, TX = RX) | PE0 / PD3 / PD0 / PC6 | [M] `X_SERIAL_TX_PIN PE0`, `Y_SERIAL_TX_PIN PD3`, `Z_SERIAL_TX_PIN PD0`, `E0_SERIAL_TX_PIN PC6`, each `*_SERIAL_RX_PIN` = its TX pin; [K] `[tmc2209 stepper_x] uart_pin: PE0` (and `PD3`, `PD0`, `PC6`) |
 //! | status LED (RGB header data pin) | PE6 | [M] `NEOPIXEL_PIN`; the SKR 2 has no user LED on a GPIO, so a plain LED on the RGB header is used |
 //! | USB (Type-B port, OTG FS) | PA11 / PA12 | [S] USB D− / D+ |

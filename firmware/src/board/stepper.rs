@@ -198,7 +198,7 @@ impl StepIsr {
                 self.exec
                     .fire(ev.axis_mask, ev.dir_mask, DIR_SETUP_NS, PULSE_NS, delay)
             };
-            self.retime.fired(ev.t_ticks, ev.axis_mask, stepped, now);
+            self.retime.fired(stepped, now);
         }
         // Many events due at once (catching up): come back right away.
         interrupt::TIM5.pend();

@@ -66,17 +66,34 @@ pub struct RetimeStats {
 }
 
 /// The re-timer's state. See the module documentation.
+///
+/// The step interrupt calls [`Retimer::due`] for the event at the head of its queue (as often
+/// as it needs: it may arm the compare and come back), then [`Retimer::fired`] once the event
+/// fired, which books that event. The per-event work runs in the step interrupt for every
+/// event, so the state is kept in 32-bit ticks and compared by wrapping differences (the
+/// 4 MHz time base wraps 32 bits every 1073 s; every difference taken here is far shorter:
+/// a shift or a gap of more than 536 s would be misread, and the watchdog ends any stall long
+/// before that). The emulated-core test measures the cost (`firmware/qemu`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Retimer {
     cfg: RetimeConfig,
     /// How far behind the plan the schedule runs now, ticks.
-    shift: u64,
-    /// Planned time of the previous event.
-    prev_t: Option<u64>,
-    /// When each axis's last step was due, and when it fired.
-    last_step: [Option<(u64, u64)>; AXES],
+    shift: u32,
+    /// Planned time of the previous event (valid once `started`), low 32 bits.
+    prev_t: u32,
+    started: bool,
+    /// Per axis: the earliest its next step may be due (its floor after its last step as
+    /// due, the minimum step period after it as fired), valid for axes in `seen`.
+    next_ok: [u32; AXES],
+    seen: u8,
+    /// The event [`Retimer::due`] last answered for: planned time (low 32 bits), base shift,
+    /// and how long after the planned time it is due.
+    head: (u32, u32, u32),
     stats: RetimeStats,
 }
+
+// The axis loops index with `& 3`.
+const _: () = assert!(AXES == 4);
 
 impl Retimer {
     /// A re-timer with no history.
@@ -84,8 +101,11 @@ impl Retimer {
         Retimer {
             cfg,
             shift: 0,
-            prev_t: None,
-            last_step: [None; AXES],
+            prev_t: 0,
+            started: false,
+            next_ok: [0; AXES],
+            seen: 0,
+            head: (0, 0, 0),
             stats: RetimeStats {
                 late: 0,
                 capped: 0,
@@ -106,7 +126,7 @@ impl Retimer {
 
     /// How far behind the plan the schedule runs, ticks.
     pub fn shift_ticks(&self) -> u64 {
-        self.shift
+        u64::from(self.shift)
     }
 
     /// The counts so far.
@@ -118,87 +138,91 @@ impl Retimer {
     /// keep their last steps.
     pub fn restart(&mut self) {
         self.shift = 0;
-        self.prev_t = None;
-    }
-
-    /// The shift event at planned time `t` starts from (shrunk across a rest gap).
-    fn base_shift(&self, t: u64) -> u64 {
-        match self.prev_t {
-            Some(p) => {
-                let gap = t.saturating_sub(p);
-                let rest = u64::from(self.cfg.rest_gap_ticks);
-                if gap > rest {
-                    self.shift.saturating_sub(gap - rest)
-                } else {
-                    self.shift
-                }
-            }
-            None => 0,
-        }
-    }
-
-    /// The event planned at `t` is the first after a rest (or the first of all).
-    fn after_rest(&self, t: u64) -> bool {
-        self.prev_t
-            .is_none_or(|p| t.saturating_sub(p) > u64::from(self.cfg.rest_gap_ticks))
+        self.started = false;
     }
 
     /// The earliest time the event planned at `t` for the axes in `axis_mask` may fire.
-    pub fn due(&self, t: u64, axis_mask: u8) -> u64 {
-        let mut due = t.saturating_add(self.base_shift(t));
-        for (axis, last) in self.last_step.iter().enumerate() {
-            if axis_mask & (1 << axis) != 0 {
-                if let (Some((was_due, fired)), Some(p)) =
-                    (last, self.cfg.min_period_ticks.get(axis))
-                {
-                    due = due
-                        .max(was_due.saturating_add(u64::from(*p)))
-                        .max(fired.saturating_add(u64::from(self.cfg.min_step_ticks)));
-                }
+    /// Remembered for [`Retimer::fired`].
+    #[inline]
+    pub fn due(&mut self, t: u64, axis_mask: u8) -> u64 {
+        let t32 = t as u32;
+        // The shift, shrunk by what a planned rest before this event exceeds the rest gap.
+        let base = if self.started {
+            let gap = t32.wrapping_sub(self.prev_t);
+            if gap > self.cfg.rest_gap_ticks {
+                self.shift.saturating_sub(gap - self.cfg.rest_gap_ticks)
+            } else {
+                self.shift
+            }
+        } else {
+            0
+        };
+        // How long after `t` it is due: the shift, or later where a floor says so.
+        let mut after = base;
+        let mut m = axis_mask & self.seen;
+        while m != 0 {
+            let a = (m.trailing_zeros() & 3) as usize;
+            m &= m - 1;
+            let need = self.next_ok[a].wrapping_sub(t32) as i32;
+            if need > after as i32 {
+                after = need as u32;
             }
         }
-        due
+        self.head = (t32, base, after);
+        t.saturating_add(u64::from(after))
     }
 
-    /// The event planned at `t` fired at `at` (never before [`Retimer::due`]); `stepped` are
-    /// the axes that really stepped (refused steps do not count for the floors).
-    pub fn fired(&mut self, t: u64, axis_mask: u8, stepped: u8, at: u64) {
-        let base = self.base_shift(t);
-        let due = self.due(t, axis_mask);
-        let tol = u64::from(self.cfg.late_tolerance_ticks);
-        let late = at.saturating_sub(due);
+    /// The event [`Retimer::due`] last answered for fired at `at` (never before its due
+    /// time); `stepped` are the axes that really stepped (refused steps do not count for the
+    /// floors).
+    #[inline]
+    pub fn fired(&mut self, stepped: u8, at: u64) {
+        let (t, base, after) = self.head;
+        let at = at as u32;
+        let due = t.wrapping_add(after);
+        let tol = self.cfg.late_tolerance_ticks;
+        let late = (at.wrapping_sub(due) as i32).max(0) as u32;
         // How long a floor held the event back beyond the (shifted) plan.
-        let held = due.saturating_sub(t.saturating_add(base));
+        let held = after - base;
         if held > 0 {
             self.stats.capped = self.stats.capped.saturating_add(1);
         }
         // Lateness or a hold within the tolerance (interrupt latency, an axis running at its
-        // limit whose previous step came a little late) does not shift the rest: the floors
-        // hold in fired time anyway, and no latency accumulates into a drift.
+        // limit) does not shift the rest, so no latency accumulates into a drift.
         self.shift = if late > tol {
             // The first event after a rest is late by construction (a move from rest is
             // planned to start when the executive is polled, and queued a little later): the
             // move starts that much later, which is no stall; only lateness in motion counts.
-            if !self.after_rest(t) {
+            let after_rest = !self.started || t.wrapping_sub(self.prev_t) > self.cfg.rest_gap_ticks;
+            if !after_rest {
                 self.stats.late = self.stats.late.saturating_add(1);
-                self.stats.worst_late_ticks = self.stats.worst_late_ticks.max(late);
+                self.stats.worst_late_ticks = self.stats.worst_late_ticks.max(u64::from(late));
             }
-            at.saturating_sub(t)
+            after + late
         } else if held > tol {
-            due - t
+            after
         } else {
             base
         };
-        self.prev_t = Some(t);
-        // The floors count from when a step was due, not from when the interrupt got to it:
-        // a latency within the tolerance must not drag every later step of an axis running
-        // at its limit (it would add up over a long move). A step later than that counts
-        // from when it fired.
+        self.prev_t = t;
+        self.started = true;
+        // The floors count from when a step was due, not from when the interrupt got to it
+        // (a latency within the tolerance must not drag every later step of an axis running
+        // at its limit: it would add up over a long move); a step later than that counts
+        // from when it fired. The minimum step period counts from when it fired, always.
         let from = if late > tol { at } else { due };
-        for (axis, last) in self.last_step.iter_mut().enumerate() {
-            if stepped & (1 << axis) != 0 {
-                *last = Some((from, at));
-            }
+        let by_step = at.wrapping_add(self.cfg.min_step_ticks);
+        let mut m = stepped & 0x0F;
+        self.seen |= m;
+        while m != 0 {
+            let a = (m.trailing_zeros() & 3) as usize;
+            m &= m - 1;
+            let by_floor = from.wrapping_add(self.cfg.min_period_ticks[a]);
+            self.next_ok[a] = if by_step.wrapping_sub(by_floor) as i32 > 0 {
+                by_step
+            } else {
+                by_floor
+            };
         }
     }
 }
@@ -245,7 +269,7 @@ mod tests {
         for i in 0..100u64 {
             let t = 1_000 + i * 400;
             assert_eq!(r.due(t, 1), t);
-            r.fired(t, 1, 1, t + 3); // interrupt latency
+            r.fired(1, t + 3); // interrupt latency
         }
         assert_eq!(r.shift_ticks(), 0);
         assert_eq!(r.stats(), RetimeStats::default());
@@ -254,11 +278,14 @@ mod tests {
     #[test]
     fn a_late_event_shifts_the_rest_and_keeps_the_spacing() {
         let mut r = Retimer::new(CFG);
-        r.fired(0, 1, 1, 0);
-        r.fired(400, 1, 1, 400);
+        r.due(0, 1);
+        r.fired(1, 0);
+        r.due(400, 1);
+        r.fired(1, 400);
         // The queue ran dry; the next events arrive 5 ms (20 000 ticks) late.
         let late_at = 800 + 20_000;
-        r.fired(800, 1, 1, late_at);
+        r.due(800, 1);
+        r.fired(1, late_at);
         assert_eq!(r.shift_ticks(), 20_000);
         // The following ones keep the planned 400-tick spacing from there.
         assert_eq!(r.due(1_200, 1), late_at + 400);
@@ -270,18 +297,20 @@ mod tests {
     #[test]
     fn the_floor_holds_an_axis_to_its_limit() {
         let mut r = Retimer::new(CFG);
-        r.fired(0, 1, 1, 0);
+        r.due(0, 1);
+        r.fired(1, 0);
         // Planned 10 ticks later: faster than X's 99-tick floor.
         assert_eq!(r.due(10, 1), 99);
-        r.fired(10, 1, 1, 99);
+        r.fired(1, 99);
         assert_eq!(r.stats().capped, 1);
         // Held 89 ticks, over the 80-tick tolerance: the rest shifts by it, another axis too.
         assert_eq!(r.due(20, 0b1000), 109);
         // A hold within the tolerance fires late but does not shift the rest.
         let mut r = Retimer::new(CFG);
-        r.fired(0, 1, 1, 0);
+        r.due(0, 1);
+        r.fired(1, 0);
         assert_eq!(r.due(60, 1), 99);
-        r.fired(60, 1, 1, 99);
+        r.fired(1, 99);
         assert_eq!(r.shift_ticks(), 0);
         assert_eq!(r.due(70, 0b1000), 70);
     }
@@ -293,8 +322,10 @@ mod tests {
             ..CFG
         };
         let mut r = Retimer::new(cfg);
-        r.fired(0, 1, 1, 0);
-        r.fired(8, 1, 1, 30); // 22 late: within the tolerance, no shift
+        r.due(0, 1);
+        r.fired(1, 0);
+        r.due(8, 1);
+        r.fired(1, 30); // 22 late: within the tolerance, no shift
         assert_eq!(r.shift_ticks(), 0);
         // Planned at 16 (due 16 by the floor), but never within 8 ticks of the fired 30.
         assert_eq!(r.due(16, 1), 38);
@@ -303,13 +334,15 @@ mod tests {
     #[test]
     fn the_shift_shrinks_across_a_rest_gap() {
         let mut r = Retimer::new(CFG);
-        r.fired(0, 1, 1, 30_000); // a start 30 000 late: shifted, not counted
+        r.due(0, 1);
+        r.fired(1, 30_000); // a start 30 000 late: shifted, not counted
         assert_eq!(r.shift_ticks(), 30_000);
         assert_eq!(r.stats().late, 0);
         // A planned gap of 100 000 (25 ms) > the 80 000 rest gap: the shift shrinks by 20 000.
         assert_eq!(r.due(100_000, 1), 100_000 + 10_000);
         // A longer rest: back on time.
-        r.fired(100_000, 1, 1, 110_000);
+        r.due(100_000, 1);
+        r.fired(1, 110_000);
         assert_eq!(r.due(400_000, 1), 400_000);
     }
 
