@@ -135,11 +135,7 @@ impl Adc {
 
     fn sample_cycles(&self, ch: u32) -> u64 {
         const SMP: [u64; 8] = [3, 15, 28, 56, 84, 112, 144, 480];
-        let (reg, slot) = if ch >= 10 {
-            (0, ch - 10)
-        } else {
-            (1, ch)
-        };
+        let (reg, slot) = if ch >= 10 { (0, ch - 10) } else { (1, ch) };
         SMP[((self.smpr[reg] >> (3 * slot)) & 7) as usize]
     }
 

@@ -114,7 +114,7 @@ impl Axes {
             axis,
             dir_positive_high: cfg.dir_high_positive_mask(),
             hit_high: cfg.endstop_hit_high_mask(),
-            record: false,
+            record: true,
             marks: Vec::new(),
         }
     }
@@ -175,6 +175,7 @@ impl Axes {
         if record {
             a.rises.push((t, d));
         }
+        let _ = record;
         let pressed = i < 3 && a.position <= 0;
         let _ = pressed_before;
         match a.runs.last_mut() {

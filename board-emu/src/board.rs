@@ -122,6 +122,12 @@ pub struct Board {
     pub notes: Vec<String>,
     /// Timing of the last edge per pin (for EN/PC13 reports).
     pub last_level: BTreeMap<Pin, (Cyc, bool)>,
+    /// When SAFE_POWER (PC13) first went high.
+    pub safe_power_first_high: Option<Cyc>,
+    /// Heaters powered and drivers enabled, each time either changes.
+    pub outputs_log: Vec<(Cyc, [bool; 2], [bool; 4])>,
+    /// The stack pointer after each active exception's frame was pushed, innermost last.
+    pub frame_sp: Vec<u32>,
     /// The current slice ends at this time.
     pub deadline: Cyc,
     /// The last read of a timer counter: (address, instruction count).
@@ -168,6 +174,9 @@ impl Board {
             thread_hold_until: None,
             notes: Vec::new(),
             last_level: BTreeMap::new(),
+            frame_sp: Vec::new(),
+            outputs_log: Vec::new(),
+            safe_power_first_high: None,
             deadline: 0,
             last_cnt_read: (0, 0),
             last_write_insn: 0,
@@ -178,8 +187,7 @@ impl Board {
         for p in HEATER_PINS.into_iter().chain([SAFE_POWER]) {
             b.gpio.board_pull[usize::from(p.port)][usize::from(p.n)] = Some(false);
         }
-        b.gpio.board_pull[usize::from(PAUSE_BUTTON.port)][usize::from(PAUSE_BUTTON.n)] =
-            Some(true);
+        b.gpio.board_pull[usize::from(PAUSE_BUTTON.port)][usize::from(PAUSE_BUTTON.n)] = Some(true);
         b.wire_inputs();
         b
     }
@@ -210,6 +218,7 @@ impl Board {
         self.regs.clear();
         self.event_reg = false;
         self.thread_hold_until = None;
+        self.frame_sp.clear();
         self.resets.push((now, kind));
         self.pins_changed(now);
     }
@@ -232,12 +241,20 @@ impl Board {
     }
 
     fn dispatch_edges(&mut self) {
+        let mut any = false;
         while !self.edges.is_empty() {
             let edges = std::mem::take(&mut self.edges);
             for e in edges {
+                let t = e.t;
                 self.on_edge(e);
+                any = true;
+                let state = (self.heaters_powered(), self.drivers_enabled());
+                if self.outputs_log.last().map(|(_, h, d)| (*h, *d)) != Some(state) {
+                    self.outputs_log.push((t, state.0, state.1));
+                }
             }
         }
+        let _ = any;
     }
 
     fn powered(&self) -> bool {
@@ -269,6 +286,9 @@ impl Board {
             self.heaters.set_powered(i, on, e.t);
         }
         if e.pin == SAFE_POWER {
+            if e.high && self.safe_power_first_high.is_none() {
+                self.safe_power_first_high = Some(e.t);
+            }
             for (i, p) in HEATER_PINS.iter().enumerate() {
                 let on = e.high && self.gpio.level(*p);
                 self.heaters.set_powered(i, on, e.t);
@@ -409,8 +429,14 @@ impl Board {
         if last_a != a || self.insns - last_i > 8 || self.last_write_insn > last_i {
             return now;
         }
-        let tim = if a == 0x4000_0024 { &self.tim2 } else { &self.tim5 };
-        let Some(t) = tim.next_tick(now) else { return now };
+        let tim = if a == 0x4000_0024 {
+            &self.tim2
+        } else {
+            &self.tim5
+        };
+        let Some(t) = tim.next_tick(now) else {
+            return now;
+        };
         let t = t.min(self.deadline);
         if t <= now {
             return now;
@@ -493,9 +519,7 @@ impl Board {
             0x4000_3000..=0x4000_33FF => self.iwdg.write(a - 0x4000_3000, v, now),
             0x4000_7000..=0x4000_73FF => self.rcc.pwr_write(a - 0x4000_7000, v),
             0x4001_1000..=0x4001_13FF => self.usart1.write(a - 0x4001_1000, v, now),
-            0x4001_2000..=0x4001_23FF => {
-                self.adc.write(a - 0x4001_2000, v, now, &mut self.heaters)
-            }
+            0x4001_2000..=0x4001_23FF => self.adc.write(a - 0x4001_2000, v, now, &mut self.heaters),
             0x4001_2C00..=0x4001_2FFF => self.sdio.write(a - 0x4001_2C00, v, now),
             0x4002_6400..=0x4002_67FF => self.sdio.dma_write(a - 0x4002_6400, v, now),
             0x4002_0000..=0x4002_13FF => {
@@ -506,8 +530,7 @@ impl Board {
             }
             0x4002_3800..=0x4002_3BFF => self.rcc.write(a - 0x4002_3800, v),
             0x4002_3C00..=0x4002_3FFF => {
-                if let Some(FlashOp::Erased { n, .. }) = self.flash.write(a - 0x4002_3C00, v, now)
-                {
+                if let Some(FlashOp::Erased { n, .. }) = self.flash.write(a - 0x4002_3C00, v, now) {
                     self.notes.push(format!(
                         "flash sector {n} erase at t = {:.4} s",
                         crate::time::s_from_cyc(now)
@@ -536,7 +559,8 @@ impl Board {
     pub fn store_read(&mut self, off: u64, size: usize) -> u64 {
         let addr = STORE_BASE + off as u32;
         if self.flash.stalled(self.now()) {
-            self.notes.push("read of the settings area while flash busy".into());
+            self.notes
+                .push("read of the settings area while flash busy".into());
         }
         self.flash.read_store(addr, size)
     }
@@ -556,6 +580,13 @@ impl Board {
             self.stop = Some(Stop::Resched);
         }
         let _ = STORE_LEN;
+    }
+
+    /// When `pin` first went high (SAFE_POWER only is tracked).
+    pub fn trace_first_high(&self, pin: Pin) -> Option<Cyc> {
+        (pin == SAFE_POWER)
+            .then_some(self.safe_power_first_high)
+            .flatten()
     }
 
     /// Heater pins' power state, for reports.

@@ -21,7 +21,6 @@
 
 use crate::board::{Board, Stop};
 use crate::flash::{STORE_BASE, STORE_LEN};
-use crate::nvic::exc;
 use crate::rcc::ResetKind;
 use crate::time::{Cyc, CPU_HZ};
 use anyhow::{anyhow, Result};
@@ -57,6 +56,8 @@ pub struct Emulator<'a> {
     pub image: Vec<u8>,
     /// Faults taken (HardFault entries), with time and cause.
     pub faults: Vec<(Cyc, String)>,
+    /// Where slices start, counted (`BOARD_EMU_PROFILE=1`: a coarse profile for debugging).
+    pub profile: Option<std::collections::BTreeMap<u32, u64>>,
 }
 
 /// The bootloader stub: a vector table (initial SP, reset vector) and five instructions that
@@ -79,6 +80,19 @@ fn stub() -> Vec<u8> {
     }
     s.extend_from_slice(&IMAGE_BASE.to_le_bytes());
     s
+}
+
+/// Thumb-2 instructions in `code`: a halfword whose top five bits are 0b11101, 0b11110 or
+/// 0b11111 starts a 32-bit instruction (ARMv7-M ARM A5.1).
+fn thumb_count(code: &[u8]) -> u64 {
+    let mut i = 0;
+    let mut n = 0;
+    while i + 1 < code.len() {
+        let hw = u16::from_le_bytes([code[i], code[i + 1]]);
+        i += if hw >> 11 >= 0b11101 { 4 } else { 2 };
+        n += 1;
+    }
+    n.max(1)
 }
 
 /// Marks WFI/WFE/SEV instructions (16-bit BF30/BF20/BF40, 32-bit F3AF 8003/8002/8004) in
@@ -105,7 +119,7 @@ fn scan_special(image: &[u8]) -> Vec<u8> {
     special
 }
 
-fn uc_err(e: uc_error) -> anyhow::Error {
+pub(crate) fn uc_err(e: uc_error) -> anyhow::Error {
     anyhow!("unicorn: {e:?}")
 }
 
@@ -120,11 +134,16 @@ impl<'a> Emulator<'a> {
         // Code flash: sectors 0-9 (the stub and the image).
         uc.mem_map(0x0800_0000, 0xC_0000, Prot::READ | Prot::EXEC)
             .map_err(|e| anyhow!("step 3: {e:?}"))?;
-        uc.mem_write(0x0800_0000, &stub()).map_err(|e| anyhow!("step 4: {e:?}"))?;
+        uc.mem_write(0x0800_0000, &stub())
+            .map_err(|e| anyhow!("step 4: {e:?}"))?;
         if image.len() > (STORE_BASE - IMAGE_BASE) as usize {
-            return Err(anyhow!("image of {} bytes overlaps the settings sectors", image.len()));
+            return Err(anyhow!(
+                "image of {} bytes overlaps the settings sectors",
+                image.len()
+            ));
         }
-        uc.mem_write(u64::from(IMAGE_BASE), &image).map_err(|e| anyhow!("step 5: {e:?}"))?;
+        uc.mem_write(u64::from(IMAGE_BASE), &image)
+            .map_err(|e| anyhow!("step 5: {e:?}"))?;
         // Settings sectors 10-11: through the flash interface model.
         uc.mmio_map(
             u64::from(STORE_BASE),
@@ -139,14 +158,20 @@ impl<'a> Emulator<'a> {
         .map_err(|e| anyhow!("step 6: {e:?}"))?;
         // System memory, OTP and the device ID: flash size 1024 KiB at 0x1FFF_7A22 (RM0090
         // §39.2 "Flash size"), a unique ID at 0x1FFF_7A10 (§39.1).
-        uc.mem_map(0x1FFF_0000, 0x8000, Prot::READ).map_err(|e| anyhow!("step 7: {e:?}"))?;
-        uc.mem_write(0x1FFF_7A10, &[0x45, 0x4D, 0x55, 0x00, 0x53, 0x4B, 0x52, 0x32, 1, 2, 3, 4])
-            .map_err(|e| anyhow!("step 8: {e:?}"))?;
+        uc.mem_map(0x1FFF_0000, 0x8000, Prot::READ)
+            .map_err(|e| anyhow!("step 7: {e:?}"))?;
+        uc.mem_write(
+            0x1FFF_7A10,
+            &[0x45, 0x4D, 0x55, 0x00, 0x53, 0x4B, 0x52, 0x32, 1, 2, 3, 4],
+        )
+        .map_err(|e| anyhow!("step 8: {e:?}"))?;
         uc.mem_write(0x1FFF_7A22, &1024u16.to_le_bytes())
             .map_err(|e| anyhow!("step 9: {e:?}"))?;
-        uc.mem_map(0x1FFF_C000, 0x1000, Prot::READ).map_err(|e| anyhow!("step 10: {e:?}"))?;
+        uc.mem_map(0x1FFF_C000, 0x1000, Prot::READ)
+            .map_err(|e| anyhow!("step 10: {e:?}"))?;
         // CCM (64 KiB) and SRAM (128 KiB; the F429 has 64 KiB more at 0x2002_0000).
-        uc.mem_map(0x1000_0000, 0x1_0000, Prot::ALL).map_err(|e| anyhow!("step 11: {e:?}"))?;
+        uc.mem_map(0x1000_0000, 0x1_0000, Prot::ALL)
+            .map_err(|e| anyhow!("step 11: {e:?}"))?;
         let sram = if chip_f429 { 0x3_0000 } else { 0x2_0000 };
         uc.mem_map(0x2000_0000, sram, Prot::READ | Prot::WRITE | Prot::EXEC)
             .map_err(|e| anyhow!("step 12: {e:?}"))?;
@@ -166,55 +191,86 @@ impl<'a> Emulator<'a> {
                     uc.get_data_mut()
                         .mmio_read((base + off) as u32, size, in_thread)
                 }),
-                Some(move |uc: &mut Unicorn<Board>, off: u64, size: usize, v: u64| {
-                    // The write asks for a stop before the next instruction (stop_at): the
-                    // code hook stops there. Stopping inside the access would restart it.
-                    uc.get_data_mut().mmio_write((base + off) as u32, size, v);
-                }),
+                Some(
+                    move |uc: &mut Unicorn<Board>, off: u64, size: usize, v: u64| {
+                        // The write asks for a stop before the next instruction (stop_at): the
+                        // code hook stops there. Stopping inside the access would restart it.
+                        uc.get_data_mut().mmio_write((base + off) as u32, size, v);
+                    },
+                ),
             )
             .map_err(|e| anyhow!("step 13: {e:?}"))?;
         }
         uc.mem_map(TRAP_PAGE, 0x1000, Prot::READ | Prot::EXEC)
             .map_err(|e| anyhow!("step 14: {e:?}"))?;
-        // Every instruction: count it, stop at the slice's end, catch WFI/WFE/SEV and
-        // EXC_RETURN branches.
-        uc.add_code_hook(1, 0, |uc: &mut Unicorn<Board>, addr: u64, size: u32| {
-            let b = uc.get_data_mut();
-            if addr >= TRAP_PAGE {
-                b.stop = Some(Stop::ExcReturn(addr as u32 | 1));
-                let _ = uc.emu_stop();
-                return;
-            }
-            if b.insns >= b.stop_at {
-                let _ = uc.emu_stop();
-                return;
-            }
-            let hw = ((addr as u32).wrapping_sub(0x0800_0000) / 2) as usize;
-            match b.special.get(hw).copied().unwrap_or(0) {
-                1 => {
-                    b.stop = Some(Stop::Sleep {
-                        wfe: false,
-                        next: addr as u32 + size,
-                    });
+        // Every translation block: count its instructions (cached per block address), stop
+        // before it when the slice is over. A block hook is called before the block's own
+        // exit check, so a stop here keeps the block from running; a block that starts
+        // before the slice's end runs whole (a slice may end a few instructions late).
+        let mut lens: std::collections::HashMap<u64, u64> = std::collections::HashMap::new();
+        uc.add_block_hook(
+            1,
+            0,
+            move |uc: &mut Unicorn<Board>, addr: u64, size: u32| {
+                let n = match lens.get(&addr) {
+                    Some(&n) => n,
+                    None => {
+                        let n = match uc.mem_read_as_vec(addr, size as usize) {
+                            Ok(code) => thumb_count(&code),
+                            Err(_) => u64::from(size / 2).max(1),
+                        };
+                        lens.insert(addr, n);
+                        n
+                    }
+                };
+                let b = uc.get_data_mut();
+                if b.insns >= b.stop_at {
                     let _ = uc.emu_stop();
                     return;
                 }
-                2 => {
-                    // QEMU's WFE raises an exception (YIELD) Unicorn treats as invalid: it is
-                    // never executed, only stepped over.
+                b.insns += n;
+            },
+        )
+        .map_err(uc_err)?;
+        // WFI/WFE/SEV, each at its address: sleep, or set the event register.
+        let special: Vec<(u64, u8)> = uc
+            .get_data()
+            .special
+            .iter()
+            .enumerate()
+            .filter(|(_, k)| **k != 0)
+            .map(|(i, k)| (0x0800_0000 + 2 * i as u64, *k))
+            .collect();
+        for (a, kind) in special {
+            uc.add_code_hook(
+                a,
+                a,
+                move |uc: &mut Unicorn<Board>, addr: u64, size: u32| {
+                    let b = uc.get_data_mut();
+                    if kind == 3 {
+                        b.event_reg = true;
+                        return;
+                    }
+                    // QEMU's WFE raises an exception (YIELD) Unicorn treats as invalid, and its
+                    // WFI halts: neither is executed, only stepped over after the sleep.
                     b.stop = Some(Stop::Sleep {
-                        wfe: true,
+                        wfe: kind == 2,
                         next: addr as u32 + size,
                     });
                     let _ = uc.emu_stop();
-                    return;
-                }
-                3 => b.event_reg = true,
-                _ => {}
-            }
-            b.insns += 1;
-        })
-        .map_err(|e| anyhow!("step 15: {e:?}"))?;
+                },
+            )
+            .map_err(uc_err)?;
+        }
+        uc.add_code_hook(
+            TRAP_PAGE,
+            TRAP_PAGE + 0xFFF,
+            |uc: &mut Unicorn<Board>, addr: u64, _size: u32| {
+                uc.get_data_mut().stop = Some(Stop::ExcReturn(addr as u32 | 1));
+                let _ = uc.emu_stop();
+            },
+        )
+        .map_err(uc_err)?;
         // Exceptions the core model raises itself: a branch to an EXC_RETURN value (the
         // default memory map makes 0xE000_0000 and up execute-never, so the fetch faults
         // there: that is the return), or a real fault (undefined instruction, ...).
@@ -239,7 +295,8 @@ impl<'a> Emulator<'a> {
                 let now = uc.get_data().now();
                 let b = uc.get_data_mut();
                 b.flash.program(addr as u32, size, 0, now);
-                b.notes.push(format!("write to code flash at {addr:#010x} refused"));
+                b.notes
+                    .push(format!("write to code flash at {addr:#010x} refused"));
                 true
             },
         )
@@ -248,6 +305,7 @@ impl<'a> Emulator<'a> {
             uc,
             image,
             faults: Vec::new(),
+            profile: std::env::var_os("BOARD_EMU_PROFILE").map(|_| Default::default()),
         };
         emu.power_on(ResetKind::PowerOn)?;
         Ok(emu)
@@ -268,15 +326,15 @@ impl<'a> Emulator<'a> {
         self.board().now()
     }
 
-    fn reg(&self, r: RegisterARM) -> u32 {
+    pub(crate) fn reg(&self, r: RegisterARM) -> u32 {
         self.uc.reg_read(r).unwrap_or(0) as u32
     }
 
-    fn set_reg(&mut self, r: RegisterARM, v: u32) {
+    pub(crate) fn set_reg(&mut self, r: RegisterARM, v: u32) {
         let _ = self.uc.reg_write(r, u64::from(v));
     }
 
-    fn read32(&self, a: u32) -> u32 {
+    pub(crate) fn read32(&self, a: u32) -> u32 {
         let mut b = [0u8; 4];
         match self.uc.mem_read(u64::from(a), &mut b) {
             Ok(()) => u32::from_le_bytes(b),
@@ -284,7 +342,7 @@ impl<'a> Emulator<'a> {
         }
     }
 
-    fn write32(&mut self, a: u32, v: u32) -> bool {
+    pub(crate) fn write32(&mut self, a: u32, v: u32) -> bool {
         self.uc.mem_write(u64::from(a), &v.to_le_bytes()).is_ok()
     }
 
@@ -310,7 +368,8 @@ impl<'a> Emulator<'a> {
         self.set_reg(RegisterARM::SP, sp);
         self.set_reg(RegisterARM::LR, 0xFFFF_FFFF);
         self.set_reg(RegisterARM::XPSR, 1 << 24);
-        self.uc.reg_write(RegisterARM::PC, u64::from(STUB_ENTRY | 1))
+        self.uc
+            .reg_write(RegisterARM::PC, u64::from(STUB_ENTRY | 1))
             .map_err(uc_err)?;
         Ok(())
     }
@@ -321,9 +380,7 @@ impl<'a> Emulator<'a> {
         let bytes: Vec<u8> = std::iter::repeat_n(pattern.to_le_bytes(), n)
             .flatten()
             .collect();
-        self.uc
-            .mem_write(u64::from(from), &bytes)
-            .map_err(uc_err)
+        self.uc.mem_write(u64::from(from), &bytes).map_err(uc_err)
     }
 
     /// The lowest address in `from..to` whose word is not `pattern` (the deepest the stack
@@ -336,145 +393,12 @@ impl<'a> Emulator<'a> {
             .map(|i| from + 4 * i as u32)
     }
 
-    fn vector(&self, e: u16) -> u32 {
+    pub(crate) fn vector(&self, e: u16) -> u32 {
         let vtor = match self.board().nvic.vtor {
             0 => 0x0800_0000,
             v => v,
         };
         self.read32(vtor + 4 * u32::from(e))
-    }
-
-    /// Takes exception `e` (ARMv7-M B1.5.6): pushes the frame, enters the handler.
-    fn enter(&mut self, e: u16) -> Result<()> {
-        let control = self.reg(RegisterARM::CONTROL);
-        let fpca = control & 4 != 0;
-        let in_thread = self.board().nvic.stack.is_empty();
-        let use_psp = in_thread && control & 2 != 0;
-        let sp_reg = if use_psp {
-            RegisterARM::PSP
-        } else {
-            RegisterARM::MSP
-        };
-        let sp = self.reg(RegisterARM::SP);
-        let frame = if fpca { 0x68 } else { 0x20 };
-        let pad = (sp - frame) & 4 != 0;
-        let new_sp = (sp - frame) & !7;
-        let pc = self.uc.reg_read(RegisterARM::PC).map_err(uc_err)? as u32;
-        let ipsr = u32::from(self.board().nvic.stack.last().copied().unwrap_or(0));
-        let xpsr = (self.reg(RegisterARM::XPSR) & !0x1FF & !(1 << 9)) | ipsr | (u32::from(pad) << 9);
-        let mut words = vec![
-            self.reg(RegisterARM::R0),
-            self.reg(RegisterARM::R1),
-            self.reg(RegisterARM::R2),
-            self.reg(RegisterARM::R3),
-            self.reg(RegisterARM::R12),
-            self.reg(RegisterARM::LR),
-            pc & !1,
-            xpsr | (1 << 24),
-        ];
-        if fpca {
-            for i in 0..16 {
-                let r = RegisterARM::S0 as i32 + i;
-                words.push(self.uc.reg_read(r).unwrap_or(0) as u32);
-            }
-            words.push(self.reg(RegisterARM::FPSCR));
-            words.push(0);
-        }
-        for (i, w) in words.iter().enumerate() {
-            if !self.write32(new_sp + 4 * i as u32, *w) {
-                return Err(anyhow!("exception {e}: stack push at {new_sp:#010x} failed"));
-            }
-        }
-        self.set_reg(sp_reg, new_sp);
-        self.set_reg(RegisterARM::CONTROL, control & !(4 | 2));
-        self.set_reg(RegisterARM::SP, new_sp);
-        let exc_return = 0xFFFF_FFE1
-            | (u32::from(!fpca) << 4)
-            | (u32::from(in_thread) << 3)
-            | (u32::from(use_psp) << 2);
-        self.set_reg(RegisterARM::LR, exc_return);
-        // A fresh EPSR: Thumb, no IT block in progress.
-        self.set_reg(RegisterARM::XPSR, (xpsr & 0xF80F_0000 & !0x0600_FC00) | (1 << 24));
-        let handler = self.vector(e);
-        let b = self.board_mut();
-        b.nvic.activate(e);
-        b.event_reg = true;
-        self.uc.reg_write(RegisterARM::PC, u64::from(handler | 1))
-            .map_err(uc_err)?;
-        Ok(())
-    }
-
-    /// Returns from the innermost exception (ARMv7-M B1.5.8) with EXC_RETURN `ret`.
-    fn exc_return(&mut self, ret: u32) -> Result<()> {
-        let b = self.board_mut();
-        let done = b.nvic.deactivate();
-        b.event_reg = true;
-        let _ = done;
-        let to_thread = ret & 8 != 0;
-        let use_psp = ret & 4 != 0;
-        let extended = ret & 0x10 == 0;
-        let sp_reg = if use_psp {
-            RegisterARM::PSP
-        } else {
-            RegisterARM::MSP
-        };
-        let sp = self.reg(sp_reg);
-        let w = |i: u32| self.read32(sp + 4 * i);
-        let regs = [
-            RegisterARM::R0,
-            RegisterARM::R1,
-            RegisterARM::R2,
-            RegisterARM::R3,
-            RegisterARM::R12,
-            RegisterARM::LR,
-        ];
-        let vals: Vec<u32> = (0..8).map(w).collect();
-        let fp: Vec<u32> = if extended {
-            (8..26).map(w).collect()
-        } else {
-            Vec::new()
-        };
-        for (r, v) in regs.iter().zip(&vals) {
-            self.set_reg(*r, *v);
-        }
-        let xpsr = vals[7];
-        let frame = if extended { 0x68 } else { 0x20 };
-        let new_sp = sp + frame + if xpsr & (1 << 9) != 0 { 4 } else { 0 };
-        self.set_reg(sp_reg, new_sp);
-        let mut control = self.reg(RegisterARM::CONTROL) & !(4 | 2);
-        if to_thread && use_psp {
-            control |= 2;
-        }
-        if extended {
-            for (i, v) in fp.iter().take(16).enumerate() {
-                let _ = self
-                    .uc
-                    .reg_write(RegisterARM::S0 as i32 + i as i32, u64::from(*v));
-            }
-            self.set_reg(RegisterARM::FPSCR, fp[16]);
-            control |= 4;
-        }
-        self.set_reg(RegisterARM::CONTROL, control);
-        self.set_reg(RegisterARM::SP, new_sp);
-        // Flags, GE and the IT state come back; IPSR stays 0 for the core model.
-        self.set_reg(RegisterARM::XPSR, xpsr & !0x1FF & !(1 << 9));
-        self.set_reg(RegisterARM::XPSR_NZCVQG, xpsr);
-        self.uc.reg_write(RegisterARM::PC, u64::from(vals[6] | 1))
-            .map_err(uc_err)?;
-        Ok(())
-    }
-
-    /// A fault the core met (unmapped access, undefined instruction): HardFault, or a lockup
-    /// when it happens in the HardFault handler.
-    fn fault(&mut self, why: String) -> Result<Option<RunEnd>> {
-        let now = self.now();
-        self.faults.push((now, why.clone()));
-        if self.board().nvic.active[usize::from(exc::HARD_FAULT)] {
-            return Ok(Some(RunEnd::Lockup(why)));
-        }
-        self.board_mut().nvic.hfsr |= 1 << 30; // FORCED
-        self.enter(exc::HARD_FAULT)?;
-        Ok(None)
     }
 
     /// Runs until virtual time `until` or until `stop_when` says so (checked between
@@ -554,6 +478,9 @@ impl<'a> Emulator<'a> {
                 b.deadline = now + slice;
             }
             let pc = self.uc.reg_read(RegisterARM::PC).map_err(uc_err)?;
+            if let Some(p) = &mut self.profile {
+                *p.entry(pc as u32).or_insert(0) += 1;
+            }
             let r = self.uc.emu_start(pc | 1, 0, 0, 0);
             if let Err(e) = r {
                 let pc = self.uc.reg_read(RegisterARM::PC).unwrap_or(0);
@@ -565,7 +492,9 @@ impl<'a> Emulator<'a> {
             }
             match self.board_mut().stop.take() {
                 Some(Stop::Sleep { wfe, next }) => {
-                    self.uc.reg_write(RegisterARM::PC, u64::from(next | 1)).map_err(uc_err)?;
+                    self.uc
+                        .reg_write(RegisterARM::PC, u64::from(next | 1))
+                        .map_err(uc_err)?;
                     if !wfe || !self.board().event_reg {
                         sleeping = true;
                     } else {
@@ -574,7 +503,9 @@ impl<'a> Emulator<'a> {
                 }
                 Some(Stop::ExcReturn(ret)) => {
                     if self.board().nvic.stack.is_empty() {
-                        if let Some(end) = self.fault(format!("EXC_RETURN {ret:#x} in thread mode"))? {
+                        if let Some(end) =
+                            self.fault(format!("EXC_RETURN {ret:#x} in thread mode"))?
+                        {
                             return Ok(end);
                         }
                     } else {
@@ -586,7 +517,9 @@ impl<'a> Emulator<'a> {
                     }
                 }
                 Some(Stop::CoreException { intno, pc }) => {
-                    if let Some(end) = self.fault(format!("core exception {intno} at pc {pc:#010x}"))? {
+                    if let Some(end) =
+                        self.fault(format!("core exception {intno} at pc {pc:#010x}"))?
+                    {
                         return Ok(end);
                     }
                 }
@@ -660,6 +593,15 @@ mod tests {
         assert_eq!(
             u32::from_le_bytes([s[o], s[o + 1], s[o + 2], s[o + 3]]),
             IMAGE_BASE
+        );
+    }
+
+    #[test]
+    fn thumb_instructions_counted() {
+        // movs r0, #1 ; ldr.w r1, [r0] ; bx lr
+        assert_eq!(
+            thumb_count(&[0x01, 0x20, 0xD0, 0xF8, 0x00, 0x10, 0x70, 0x47]),
+            3
         );
     }
 

@@ -117,8 +117,9 @@ impl Gpio {
                 match (p.pupdr >> (2 * pin.n)) & 3 {
                     1 => true,
                     2 => false,
-                    _ => self.board_pull[usize::from(pin.port)][usize::from(pin.n)]
-                        .unwrap_or(false),
+                    _ => {
+                        self.board_pull[usize::from(pin.port)][usize::from(pin.n)].unwrap_or(false)
+                    }
                 }
             })
         };
@@ -238,8 +239,16 @@ mod tests {
         assert_eq!(
             e,
             vec![
-                Edge { t: 20, pin: pe2, high: true },
-                Edge { t: 30, pin: pe2, high: false }
+                Edge {
+                    t: 20,
+                    pin: pe2,
+                    high: true
+                },
+                Edge {
+                    t: 30,
+                    pin: pe2,
+                    high: false
+                }
             ]
         );
         // PC1 input with pull-up, driven low from outside.

@@ -80,13 +80,7 @@ impl Iwdg {
         match off {
             0x04 => self.pr,
             0x08 => self.rlr,
-            0x0C => {
-                if now < self.update_busy_until {
-                    3
-                } else {
-                    0
-                }
-            }
+            0x0C if now < self.update_busy_until => 3,
             _ => 0,
         }
     }

@@ -434,11 +434,15 @@ impl Nvic {
                 self.systick.rebase(now, 0);
                 self.systick.countflag = false;
             }
-            0x100..=0x10C => Self::set_bank(&mut self.enabled, ((off - 0x100) / 4) as usize, v, true),
+            0x100..=0x10C => {
+                Self::set_bank(&mut self.enabled, ((off - 0x100) / 4) as usize, v, true)
+            }
             0x180..=0x18C => {
                 Self::set_bank(&mut self.enabled, ((off - 0x180) / 4) as usize, v, false)
             }
-            0x200..=0x20C => Self::set_bank(&mut self.pending, ((off - 0x200) / 4) as usize, v, true),
+            0x200..=0x20C => {
+                Self::set_bank(&mut self.pending, ((off - 0x200) / 4) as usize, v, true)
+            }
             0x280..=0x28C => {
                 Self::set_bank(&mut self.pending, ((off - 0x280) / 4) as usize, v, false)
             }
@@ -452,12 +456,11 @@ impl Nvic {
             }
             0xD04 => self.write_icsr(v),
             0xD08 => self.vtor = v & 0xFFFF_FE00,
-            0xD0C => {
-                if v >> 16 == 0x05FA {
-                    self.prigroup = (v >> 8) & 7;
-                    if v & 4 != 0 {
-                        self.reset_requested = true;
-                    }
+            // Writes need the key 0x05FA in VECTKEY (bits 31:16).
+            0xD0C if v >> 16 == 0x05FA => {
+                self.prigroup = (v >> 8) & 7;
+                if v & 4 != 0 {
+                    self.reset_requested = true;
                 }
             }
             0xD10 => self.scr = v & 0x16,
@@ -515,13 +518,25 @@ mod tests {
         assert_eq!(n.next_to_take(true, 0), None, "PRIMASK masks");
         n.activate(usart);
         n.pend(tim5);
-        assert_eq!(n.next_to_take(false, 0), Some(tim5), "higher priority preempts");
+        assert_eq!(
+            n.next_to_take(false, 0),
+            Some(tim5),
+            "higher priority preempts"
+        );
         n.activate(tim5);
         n.pend(usart);
-        assert_eq!(n.next_to_take(false, 0), None, "same or lower never preempts");
+        assert_eq!(
+            n.next_to_take(false, 0),
+            None,
+            "same or lower never preempts"
+        );
         assert_eq!(n.deactivate(), Some(tim5));
         assert_eq!(n.deactivate(), Some(usart));
-        assert_eq!(n.next_to_take(false, 0x10), None, "BASEPRI masks priority 0x10");
+        assert_eq!(
+            n.next_to_take(false, 0x10),
+            None,
+            "BASEPRI masks priority 0x10"
+        );
         assert_eq!(n.next_to_take(false, 0x20), Some(usart));
     }
 

@@ -30,6 +30,8 @@ pub enum ResetKind {
     Watchdog,
     /// AIRCR.SYSRESETREQ (`SCB::sys_reset`, after a fault).
     Software,
+    /// The reset button (NRST).
+    Pin,
 }
 
 /// RCC + PWR registers.
@@ -52,6 +54,7 @@ impl Rcc {
             ResetKind::PowerOn => (1 << 27) | (1 << 26) | (1 << 25),
             ResetKind::Watchdog => self.reset_flags | (1 << 29) | (1 << 26),
             ResetKind::Software => self.reset_flags | (1 << 28) | (1 << 26),
+            ResetKind::Pin => self.reset_flags | (1 << 26),
         };
         *self = Rcc {
             // HSION set at reset (§7.3.1, reset value 0x0000 XX83).

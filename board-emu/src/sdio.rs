@@ -149,7 +149,11 @@ impl Sdio {
             }
             // OCR: power-up done (31), CCS (30), 2.7-3.6 V.
             (true, 41) => (STA_CCRCFAIL, [0xC0FF_8000, 0, 0, 0], None),
-            (_, 2) if long => (STA_CMDREND, [0x0353_4445, 0x4D55_534B, 0x5232_1000, 0x0001_6A01], None),
+            (_, 2) if long => (
+                STA_CMDREND,
+                [0x0353_4445, 0x4D55_534B, 0x5232_1000, 0x0001_6A01],
+                None,
+            ),
             (_, 3) => ok(RCA << 16),
             (_, 9) if long => {
                 // CSD 2.0: C_SIZE (bits 69:48) = size / 512 KiB - 1.
@@ -167,14 +171,23 @@ impl Sdio {
                     | 1;
                 (
                     STA_CMDREND,
-                    [(csd >> 96) as u32, (csd >> 64) as u32, (csd >> 32) as u32, csd as u32],
+                    [
+                        (csd >> 96) as u32,
+                        (csd >> 64) as u32,
+                        (csd >> 32) as u32,
+                        csd as u32,
+                    ],
                     None,
                 )
             }
             (_, 7) | (false, 13) | (_, 16) | (_, 12) => ok(r1),
             (true, 6) => ok(r1),
             // SCR: structure 0, SD_SPEC 2, security SDHC, bus widths 1 and 4.
-            (true, 51) => (STA_CMDREND, [r1, 0, 0, 0], Some(vec![0x02, 0x35, 0x80, 0, 0, 0, 0, 0])),
+            (true, 51) => (
+                STA_CMDREND,
+                [r1, 0, 0, 0],
+                Some(vec![0x02, 0x35, 0x80, 0, 0, 0, 0, 0]),
+            ),
             (true, 13) => (STA_CMDREND, [r1, 0, 0, 0], Some(vec![0; 64])),
             (false, 6) => {
                 let mut d = vec![0u8; 64];
@@ -183,7 +196,11 @@ impl Sdio {
             }
             (_, 17) => {
                 self.blocks_read += 1;
-                (STA_CMDREND, [r1, 0, 0, 0], Some(block(card, u64::from(arg))))
+                (
+                    STA_CMDREND,
+                    [r1, 0, 0, 0],
+                    Some(block(card, u64::from(arg))),
+                )
             }
             (_, 18) => {
                 let dlen = self.regs.get(&0x28).copied().unwrap_or(512) as u64;
@@ -251,10 +268,13 @@ impl Sdio {
 
     /// The next completion.
     pub fn next_event(&self) -> Option<Cyc> {
-        [self.cmd.as_ref().map(|c| c.at), self.data.as_ref().map(|d| d.0)]
-            .into_iter()
-            .flatten()
-            .min()
+        [
+            self.cmd.as_ref().map(|c| c.at),
+            self.data.as_ref().map(|d| d.0),
+        ]
+        .into_iter()
+        .flatten()
+        .min()
     }
 
     /// SDIO interrupt line.

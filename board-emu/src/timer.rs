@@ -41,8 +41,9 @@ pub struct Timer {
     base_t: Cyc,
     /// Flags are up to date until here.
     last_t: Cyc,
-    /// Every write of CCR1 (time, value): the step timer's schedule as the image armed it.
-    pub ccr1_writes: Vec<(Cyc, u32)>,
+    /// Every write of CCR1: (when, when the counter reaches it): the step timer's schedule
+    /// as the image armed it.
+    pub ccr1_writes: Vec<(Cyc, Cyc)>,
     /// Keep `ccr1_writes` (the step timer only).
     pub log_ccr1: bool,
 }
@@ -97,8 +98,7 @@ impl Timer {
 
     /// When the counter next changes after `t` (None: stopped).
     pub fn next_tick(&self, t: Cyc) -> Option<Cyc> {
-        self.running()
-            .then(|| self.time_of(self.lin(t) + 1))
+        self.running().then(|| self.time_of(self.lin(t) + 1))
     }
 
     /// The counter value at `t`.
@@ -257,7 +257,15 @@ impl Timer {
                 let i = ((off - 0x34) / 4) as usize;
                 self.ccr[i] = width(v);
                 if i == 0 && self.log_ccr1 {
-                    self.ccr1_writes.push((now, v));
+                    // When the counter will reach the new value (the compare match).
+                    let m = self.modulus();
+                    let l = self.lin(now);
+                    let mut k = l - l % m + u64::from(self.ccr[0]);
+                    if k <= l {
+                        k += m;
+                    }
+                    let t = if self.running() { self.time_of(k) } else { now };
+                    self.ccr1_writes.push((now, t));
                 }
             }
             _ => {

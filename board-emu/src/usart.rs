@@ -175,7 +175,10 @@ impl Usart {
         .into_iter()
         .flatten()
         .min();
-        if self.arriving.is_none() && !self.host_tx.is_empty() && self.enabled() && self.cr1 & 4 != 0
+        if self.arriving.is_none()
+            && !self.host_tx.is_empty()
+            && self.enabled()
+            && self.cr1 & 4 != 0
         {
             t = Some(t.map_or(now, |x| x.min(now)));
         }

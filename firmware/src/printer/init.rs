@@ -72,6 +72,7 @@ impl Printer {
             addr_of_mut!((*p).job).write(job::JobLink::new());
             addr_of_mut!((*p).sd).write(sd::SdLink::new());
             addr_of_mut!((*p).board).write(board::BoardLink::new());
+            addr_of_mut!((*p).spill).write(spill::Spill::new());
             let me = &mut *p;
             me.set_policy(policy);
             me.set_factory_settings();
@@ -122,6 +123,7 @@ fn fields_listed(p: &Printer) {
         job: _,
         sd: _,
         board: _,
+        spill: _,
     } = p;
 }
 

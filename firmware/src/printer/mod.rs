@@ -60,6 +60,11 @@ mod report;
 // SD-card printing: the SD M-codes and the card as a job source.
 mod sd;
 pub use sd::{SD_CHUNK, SD_LINES_PER_SERVICE};
+// The parked intake's spill to the SD card.
+mod spill;
+// Host sessions that end and begin (USB DTR, the sim's pty).
+mod session;
+pub use spill::{SPILL_CHUNK, SPILL_FLUSH, SPILL_STAGE};
 
 pub use service::ServiceMove;
 
@@ -150,6 +155,8 @@ pub struct Printer {
     sd: sd::SdLink,
     /// The board's measurements (see `board.rs`).
     board: board::BoardLink,
+    /// Job lines of a parked printer kept on the card (see `spill.rs`).
+    spill: spill::Spill,
 }
 
 fn steps(cfg: &MachineConfig, axis: Axis, mm: f32) -> i32 {
@@ -256,7 +263,6 @@ impl Printer {
     }
 
     /// An `echo:` line to every port (a notification, not an answer: pause state changes).
-    #[allow(dead_code)]
     fn notice(&mut self, args: core::fmt::Arguments) {
         let mut t: String<LINE_LEN> = String::new();
         let _ = t.write_fmt(args);
@@ -397,7 +403,10 @@ impl Printer {
     }
 
     fn has_work(&self) -> bool {
-        !self.cmds.is_empty() || !self.planner.is_empty() || self.stepgen.current().is_some()
+        !self.cmds.is_empty()
+            || !self.planner.is_empty()
+            || self.stepgen.current().is_some()
+            || self.spill.pending() > 0
     }
 
     /// Realtime request (pause button, sim, or parsed from the byte stream).
@@ -500,8 +509,16 @@ impl Printer {
         self.set_now(now_us);
         let had_fault = self.thermal.fault().is_some();
         let tune = self.thermal.autotune_status(id);
+        let was_lowered = self.thermal.idle_lowered();
         let duty = self.thermal.update(id, measured_c, now_us);
         self.report_autotune(id, tune);
+        if !was_lowered && self.thermal.idle_lowered() {
+            let s = self.thermal.idle_config().map_or(0, |i| i.timeout_s);
+            self.notice(format_args!(
+                "pause: nozzle heater off after {s} s parked (M760 T); the resume heats it \
+                 again and waits before the head moves"
+            ));
+        }
         if !had_fault {
             if let Some(f) = self.thermal.fault() {
                 let mut t: String<LINE_LEN> = String::new();
