@@ -5,10 +5,12 @@
 //! everything from the fired times and the plan, not from the re-timer's state:
 //!
 //! * every axis keeps its floor (its limit) between two of its steps, to within the latency
-//!   the model adds (at most 40 ticks, 10 µs);
-//! * no axis ever steps faster than planned (beyond the interrupt's latency);
-//! * without stalls nothing is shifted (no drift), and the same model firing late events at
-//!   once (the board before this change) does burst, so the checks have teeth;
+//!   slack (2 ticks, 500 ns), whatever latency the model adds (up to 40 ticks, 10 µs);
+//! * no axis ever steps faster than planned beyond the interrupt's latency and a drag held
+//!   within the tolerance (an axis at its limit held back by a latency beyond the slack);
+//! * without stalls and with latencies within the slack nothing is shifted (no drift), and
+//!   the same model firing late events at once (the board before this change) does burst, so
+//!   the checks have teeth;
 //! * the delay left at the end is bounded by the stalls.
 //!
 //! Also prints what look-ahead costs in queue entries on this job (`--nocapture`).
@@ -31,6 +33,8 @@ const ISR_TICKS: u64 = 12;
 /// The latency tolerance and rest gap as on the board (20 µs, 20 ms).
 const TOL: u32 = 80;
 const REST: u32 = 80_000;
+/// The latency the floors forgive, as on the board (500 ns).
+const SLACK: u32 = 2;
 
 fn config(cfg: &MachineConfig) -> RetimeConfig {
     let mut min_period_ticks = [8; AXES];
@@ -41,6 +45,7 @@ fn config(cfg: &MachineConfig) -> RetimeConfig {
     RetimeConfig {
         min_period_ticks,
         min_step_ticks: 8,
+        latency_slack_ticks: SLACK,
         late_tolerance_ticks: TOL,
         rest_gap_ticks: REST,
     }
@@ -146,13 +151,15 @@ fn spacing(events: &[(u64, u8)], fired: &[u64]) -> ([u64; AXES], u64) {
     (min_gap, worst_short)
 }
 
+/// Latencies within the slack (a step interrupt that nothing holds back); the proptest below
+/// adds up to 40 ticks.
+const SMALL_JITTER: [u64; 5] = [0, 1, 2, 0, 1];
+
 fn events() -> &'static [(u64, u8)] {
     use std::sync::OnceLock;
     static EV: OnceLock<Vec<(u64, u8)>> = OnceLock::new();
     EV.get_or_init(|| job_events(1200))
 }
-
-const JITTER: [u64; 7] = [0, 3, 1, 17, 5, 0, 40];
 
 #[test]
 fn no_burst_after_stalls_and_every_axis_keeps_its_floor() {
@@ -171,7 +178,7 @@ fn no_burst_after_stalls_and_every_axis_keeps_its_floor() {
         .collect();
 
     // The old behaviour (late events at once) bursts: the model is not trivially safe.
-    let old = fire_times(ev, lookahead, &stalls, None, &JITTER);
+    let old = fire_times(ev, lookahead, &stalls, None, &SMALL_JITTER);
     let (old_min, _) = spacing(ev, &old);
     assert!(
         (0..AXES).any(|a| old_min[a] < u64::from(cfg.min_period_ticks[a])),
@@ -179,14 +186,23 @@ fn no_burst_after_stalls_and_every_axis_keeps_its_floor() {
     );
 
     let mut r = Retimer::new(cfg);
-    let new = fire_times(ev, lookahead, &stalls, Some(&mut r), &JITTER);
+    let new = fire_times(ev, lookahead, &stalls, Some(&mut r), &SMALL_JITTER);
     let (min_gap, worst_short) = spacing(ev, &new);
     for (a, (gap, floor)) in min_gap.iter().zip(cfg.min_period_ticks).enumerate() {
         assert!(*gap >= u64::from(cfg.min_step_ticks), "axis {a}: {gap}");
-        assert!(gap + 40 >= u64::from(floor), "axis {a}: {gap} < {floor}");
+        // The floor less the slack, by design, though the model's latencies reach 40 ticks.
+        assert!(
+            gap + u64::from(SLACK) >= u64::from(floor),
+            "axis {a}: {gap} < {floor}"
+        );
     }
-    // Never faster than planned by more than the latency the model adds.
-    assert!(worst_short <= 40, "{worst_short} ticks faster than planned");
+    // Never faster than planned by more than the latency the model adds and a drag within
+    // the tolerance (an axis at its limit held back by latencies beyond the slack, on time
+    // again once it slows down).
+    assert!(
+        worst_short <= u64::from(TOL) + 40,
+        "{worst_short} ticks faster than planned"
+    );
     // The first stall shifts the schedule; while it stays shifted the queue holds that much
     // more, so later stalls up to the shift are absorbed: fewer late events than stalls.
     let s = r.stats();
@@ -210,14 +226,15 @@ fn no_burst_after_stalls_and_every_axis_keeps_its_floor() {
 fn without_stalls_nothing_is_shifted() {
     let ev = events();
     let mut r = Retimer::new(config(&MachineConfig::ENDER3));
-    let fired = fire_times(ev, 2_000_000 / NS_PER_TICK, &[], Some(&mut r), &JITTER);
+    let fired = fire_times(ev, 2_000_000 / NS_PER_TICK, &[], Some(&mut r), &SMALL_JITTER);
     let drift = ev
         .iter()
         .zip(&fired)
         .map(|(e, f)| f - e.0)
         .max()
         .unwrap_or(0);
-    assert!(drift <= 40 + ISR_TICKS, "{drift} ticks");
+    println!("latencies within the slack: worst {drift} ticks behind the plan");
+    assert!(drift <= u64::from(TOL), "{drift} ticks");
     assert_eq!(r.stats().late, 0);
     assert_eq!(r.shift_ticks(), 0);
 }
@@ -282,8 +299,8 @@ proptest! {
         let (min_gap, worst_short) = spacing(ev, &fired);
         for (gap, floor) in min_gap.iter().zip(cfg.min_period_ticks) {
             prop_assert!(*gap >= u64::from(cfg.min_step_ticks));
-            prop_assert!(gap + 40 >= u64::from(floor));
+            prop_assert!(gap + u64::from(SLACK) >= u64::from(floor));
         }
-        prop_assert!(worst_short <= 40);
+        prop_assert!(worst_short <= u64::from(TOL) + 40);
     }
 }

@@ -391,6 +391,7 @@ pub fn isr_cost(events: u32, mut mark: impl FnMut(bool)) -> u32 {
     let mut retime = drivers::retime::Retimer::new(drivers::retime::RetimeConfig {
         min_period_ticks: floors,
         min_step_ticks: 8,
+        latency_slack_ticks: 2,
         late_tolerance_ticks: 80,
         rest_gap_ticks: 80_000,
     });

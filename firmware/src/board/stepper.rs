@@ -55,6 +55,13 @@ pub const MIN_STEP_PERIOD_NS: u32 = 2 * PULSE_NS;
 /// An event this much past its due time shifts the rest of the schedule, ns (smaller lateness
 /// is interrupt latency and a few events due at once: fired without shifting).
 pub const LATE_TOLERANCE_NS: u32 = 20_000;
+/// How much of a step's lateness its axis's floor forgives, ns (`RetimeConfig::
+/// latency_slack_ticks`): two steps of an axis come no closer than its floor less this, the
+/// time base's two ticks (the floor rounded down, an event fired a tick early) and, after a
+/// direction change, the DIR setup — 1.25 µs in all without one, however long a critical
+/// section held the interrupt back. 500 ns covers the interrupt's own entry (84 cycles at
+/// 168 MHz, to its clock read), so on-time steps of an axis at its limit are not dragged.
+pub const LATENCY_SLACK_NS: u32 = 500;
 /// A planned gap this long between two events means every axis is at rest, ns: the
 /// re-timer's shift may shrink there (20 ms: under 50 steps/s on any axis).
 pub const REST_GAP_NS: u32 = 20_000_000;
@@ -149,6 +156,7 @@ pub fn floors(cfg: &MachineConfig) -> RetimeConfig {
     RetimeConfig {
         min_period_ticks,
         min_step_ticks: min_step,
+        latency_slack_ticks: ticks(LATENCY_SLACK_NS),
         late_tolerance_ticks: ticks(LATE_TOLERANCE_NS),
         rest_gap_ticks: ticks(REST_GAP_NS),
     }

@@ -15,9 +15,12 @@
 //! * **per-axis floor**: an axis is never due sooner than [`RetimeConfig::min_period_ticks`]
 //!   after its previous step (its limit: steps/mm × max feed, and never below the minimum step
 //!   period), whatever the schedule says (an event held back by the floor shifts the rest
-//!   too). The floor counts from when the previous step was due, or fired if that was more
-//!   than the tolerance late, so the steps as fired keep it to within the interrupt's latency
-//!   (the same latency every step interrupt has, Marlin's included);
+//!   too). The floor counts from the later of when the previous step was due and when it
+//!   fired less [`RetimeConfig::latency_slack_ticks`]: two steps of an axis as fired are never
+//!   closer than its floor less that slack (and the time base's resolution), whatever the
+//!   interrupt latency — a latency up to the slack costs nothing, a longer one holds the
+//!   axis's next step back by the excess (an axis running at its limit then runs that much
+//!   behind its plan, which the shift takes up once it exceeds the tolerance);
 //! * **minimum step period, in fired time**: two steps of one axis are never fired closer than
 //!   [`RetimeConfig::min_step_ticks`] (the drivers' limit), whatever the latency;
 //! * **the shift shrinks only at rest**: where the plan itself leaves a gap longer than
@@ -46,6 +49,12 @@ pub struct RetimeConfig {
     pub min_period_ticks: [u32; AXES],
     /// The shortest time between two fired steps of one axis, ticks (the minimum step period).
     pub min_step_ticks: u32,
+    /// How much of a step's lateness its axis's floor forgives, ticks: the floor counts from
+    /// the later of when the step was due and when it fired less this. It bounds how much
+    /// shorter than its floor an axis's step interval can be (by design, not by how long
+    /// the interrupt was kept waiting); a step fired later than this drags its axis's next
+    /// step by the excess.
+    pub latency_slack_ticks: u32,
     /// An event fired more than this late shifts the rest of the schedule, ticks.
     pub late_tolerance_ticks: u32,
     /// A planned gap at least this long between two consecutive events counts as rest: the
@@ -206,11 +215,18 @@ impl Retimer {
         };
         self.prev_t = t;
         self.started = true;
-        // The floors count from when a step was due, not from when the interrupt got to it
-        // (a latency within the tolerance must not drag every later step of an axis running
-        // at its limit: it would add up over a long move); a step later than that counts
-        // from when it fired. The minimum step period counts from when it fired, always.
-        let from = if late > tol { at } else { due };
+        // The floors count from when a step was due, or from when it fired less the slack
+        // if that is later: a latency up to the slack never drags an axis running at its
+        // limit (it would add up over a long move), and no latency, however long, lets two
+        // steps of an axis come closer than its floor less the slack (a step fired 17 µs
+        // late followed by one on time would otherwise be 17 µs short of the floor). The
+        // minimum step period counts from when it fired, always.
+        let by_fire = at.wrapping_sub(self.cfg.latency_slack_ticks);
+        let from = if by_fire.wrapping_sub(due) as i32 > 0 {
+            by_fire
+        } else {
+            due
+        };
         let by_step = at.wrapping_add(self.cfg.min_step_ticks);
         let mut m = stepped & 0x0F;
         self.seen |= m;
@@ -259,6 +275,7 @@ mod tests {
         // X 40 kHz (25 µs), Y 40 kHz, Z 2 kHz, E 2.3 kHz at 4 MHz ticks.
         min_period_ticks: [99, 99, 1999, 1719],
         min_step_ticks: 8,
+        latency_slack_ticks: 2,
         late_tolerance_ticks: 80,
         rest_gap_ticks: 80_000,
     };
@@ -313,6 +330,27 @@ mod tests {
         r.fired(1, 99);
         assert_eq!(r.shift_ticks(), 0);
         assert_eq!(r.due(70, 0b1000), 70);
+    }
+
+    #[test]
+    fn a_late_step_shortens_the_next_interval_by_the_slack_at_most() {
+        let mut r = Retimer::new(CFG);
+        // Z (floor 1999 ticks) at its limit: planned 2000 ticks apart.
+        r.due(0, 0b100);
+        r.fired(0b100, 0);
+        assert_eq!(r.due(2_000, 0b100), 2_000);
+        // 17 µs (68 ticks) late: within the tolerance, nothing shifts...
+        r.fired(0b100, 2_068);
+        assert_eq!(r.shift_ticks(), 0);
+        // ...but Z's next step waits for its floor after the late one, less the slack.
+        assert_eq!(r.due(4_000, 0b100), 2_068 - 2 + 1_999);
+        // Another axis is not held.
+        assert_eq!(r.due(4_000, 0b001), 4_000);
+        // A latency within the slack costs nothing.
+        let mut r = Retimer::new(CFG);
+        r.due(0, 0b100);
+        r.fired(0b100, 2);
+        assert_eq!(r.due(2_000, 0b100), 2_000);
     }
 
     #[test]
