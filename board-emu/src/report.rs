@@ -106,6 +106,8 @@ pub struct Report {
     pub max_temp_c: [f32; 2],
     /// Flash sector erases: (start s, sector, duration s).
     pub flash_erases: Vec<(f64, u32, f64)>,
+    /// Hot end and bed powered during each of those erases.
+    pub heaters_powered_during_erases: Vec<[bool; 2]>,
     /// The watchdog's timeout at this LSI, s (0 when never started).
     pub watchdog_timeout_s: f64,
     /// LSI frequency used, Hz.
@@ -249,8 +251,12 @@ pub fn make(
         }
     });
     let safe_power = crate::axes::SAFE_POWER;
-    let stack_hw =
-        stack.and_then(|(lo, hi)| emu.lowest_touched(lo, hi, 0xC5C5_C5C5).map(|a| hi - a));
+    // The emulator's paint, or cortex-m-rt's `paint-stack` pattern: an image built with that
+    // feature repaints its stack in the reset handler, over the emulator's.
+    let stack_hw = stack.and_then(|(lo, hi)| {
+        emu.lowest_touched(lo, hi, &[0xC5C5_C5C5, 0xCCCC_CCCC])
+            .map(|a| hi - a)
+    });
     let skipped = b.skipped;
     Report {
         m115: host.find("FIRMWARE_NAME").map(|(_, l)| l.clone()),
@@ -325,6 +331,7 @@ pub fn make(
             .iter()
             .map(|(t, n, d)| (s_from_cyc(*t), *n, s_from_cyc(*d)))
             .collect(),
+        heaters_powered_during_erases: b.heaters_at_erase.clone(),
         watchdog_timeout_s: b.iwdg.timeout_s(),
         lsi_hz: o.lsi_hz,
         sd_blocks_read: b.sdio.blocks_read,

@@ -226,7 +226,13 @@ fn no_burst_after_stalls_and_every_axis_keeps_its_floor() {
 fn without_stalls_nothing_is_shifted() {
     let ev = events();
     let mut r = Retimer::new(config(&MachineConfig::ENDER3));
-    let fired = fire_times(ev, 2_000_000 / NS_PER_TICK, &[], Some(&mut r), &SMALL_JITTER);
+    let fired = fire_times(
+        ev,
+        2_000_000 / NS_PER_TICK,
+        &[],
+        Some(&mut r),
+        &SMALL_JITTER,
+    );
     let drift = ev
         .iter()
         .zip(&fired)

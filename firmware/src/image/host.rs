@@ -117,27 +117,41 @@ pub(super) async fn cdc_task(
 /// The TFT UART's transmit side, written so that embassy-stm32 0.6's `BufferedUartTx` never
 /// waits forever: its `write` returns `Pending` **without registering a waker** when the
 /// whole slice does not fit in the free part of its buffer (`usart/buffered.rs`,
-/// `BufferedUart::write`), and nothing wakes the task again (found on the emulated board:
+/// `BufferedUartTx::write`), and nothing wakes the task again (found on the emulated board:
 /// transmission stopped for good in the middle of M115's capability list, the driver's buffer
-/// empty, TXEIE off). Here a slice is written only when it fits in what is known to be free:
-/// after [`UART_TX_BUF`] bytes the writer waits for `flush` (which does register its waker)
-/// before writing more.
+/// empty, TXEIE off). Its `flush` is no reliable way to know the buffer empty either: it
+/// waits for `tx_done`, which the interrupt also sets on a transmission-complete flag seen
+/// between two bytes while more are queued (the port stopped again at start-up on the
+/// emulated board after a 0.6 s settings load). So each write is given [`TX_RETRY_MS`]: a
+/// write still pending then is dropped and made again, and the new one looks at the free
+/// room afresh (the driver keeps nothing of a pending write: it copies only once the whole
+/// slice fits). Chunks are at most [`TX_CHUNK`] bytes, so one fits as soon as the interrupt
+/// has sent that much.
 struct TftTx {
     tx: embassy_stm32::usart::BufferedUartTx<'static>,
-    /// Bytes written since the driver's buffer was last known empty.
-    in_flight: usize,
 }
+
+/// Largest slice handed to the driver at once (an eighth of its buffer: 5.6 ms of line time
+/// at 115200 Bd).
+const TX_CHUNK: usize = UART_TX_BUF / 8;
+/// How long a write may stay pending before it is made again, ms (a chunk's line time).
+const TX_RETRY_MS: u64 = 6;
 
 impl TftTx {
     async fn send(&mut self, data: &[u8]) {
+        use embassy_time::{with_timeout, Duration};
         use embedded_io_async::Write;
-        for chunk in data.chunks(UART_TX_BUF) {
-            if self.in_flight + chunk.len() > UART_TX_BUF {
-                let _ = self.tx.flush().await;
-                self.in_flight = 0;
+        let mut rest = data;
+        while !rest.is_empty() {
+            let n = rest.len().min(TX_CHUNK);
+            let chunk = rest.get(..n).unwrap_or(&[]);
+            match with_timeout(Duration::from_millis(TX_RETRY_MS), self.tx.write(chunk)).await {
+                Ok(Ok(k)) => rest = rest.get(k..).unwrap_or(&[]),
+                // A driver error (none on transmit today): the rest of the answer is lost.
+                Ok(Err(_)) => return,
+                // Pending without a waker, or the line is slow: ask again.
+                Err(_) => {}
             }
-            let _ = self.tx.write_all(chunk).await;
-            self.in_flight += chunk.len();
         }
     }
 }
@@ -146,7 +160,7 @@ impl TftTx {
 pub(super) async fn uart_task(uart: BufferedUart<'static>, printer: Shared) {
     use embedded_io_async::Read;
     let (tx, mut rx) = uart.split();
-    let mut tx = TftTx { tx, in_flight: 0 };
+    let mut tx = TftTx { tx };
     let mut inbuf = [0u8; 64];
     let mut outbuf = [0u8; 64];
     loop {
