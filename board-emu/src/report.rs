@@ -57,6 +57,8 @@ pub struct Report {
     pub m115: Option<String>,
     /// Every line the printer sent on USART1.
     pub lines: Vec<String>,
+    /// When each of those lines was received, s.
+    pub line_times_s: Vec<f64>,
     /// Signed steps per axis, from the DIR level at each rising STEP edge, from power-on.
     pub net_steps: PerAxis<i64>,
     /// The pause point (X Y Z E steps, the frame of `net_steps`; `sim run --json`'s
@@ -261,6 +263,7 @@ pub fn make(
     Report {
         m115: host.find("FIRMWARE_NAME").map(|(_, l)| l.clone()),
         lines: host.received.iter().map(|(_, l)| l.clone()).collect(),
+        line_times_s: host.received.iter().map(|(t, _)| s_from_cyc(*t)).collect(),
         net_steps: per_axis(|i| b.axes.axis[i].net_steps),
         pause_point_steps: r.parked.and_then(|t| pause_point(&b.axes, t)).map(|p| {
             // The firmware's frame: the switches are at 0 (min_mm of the Ender-3), and the
