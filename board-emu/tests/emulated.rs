@@ -8,10 +8,13 @@ use board_emu::rcc::ResetKind;
 use std::path::PathBuf;
 use support::*;
 
-/// No axis steps faster than its limit (max feed × steps/mm). An edge interval may be shorter
-/// than the scheduled one by a tick of the 4 MHz step timer (250 ns) and by the step
-/// interrupt's entry jitter (a critical section in thread mode delays one entry more than
-/// the next): 2 µs are allowed for both. A burst after a stall is ~100 times the limit.
+/// No axis steps faster than its limit (max feed × steps/mm). The image's re-timer bounds how
+/// much shorter than that an interval can be, whatever the step interrupt's latency
+/// (`board::stepper::LATENCY_SLACK_NS`): the 500 ns slack, three 250 ns ticks of its 4 MHz
+/// time base (the floor rounded down, an event fired a tick early, the clock read's
+/// resolution) and, after a direction change, the 650 ns DIR setup: 1.9 µs at most, so 2 µs
+/// are allowed. (Before that bound, a step 17 µs late followed by one on time failed this on
+/// main's CI: `Z: 2073 Hz`.) A burst after a stall is ~100 times the limit.
 fn assert_rates_within_limits(r: &board_emu::report::Report) {
     for (axis, limit) in &r.step_rate_limit_hz {
         if let Some(rate) = r.max_step_rate_hz[axis] {

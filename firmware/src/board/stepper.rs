@@ -56,10 +56,10 @@ pub const MIN_STEP_PERIOD_NS: u32 = 2 * PULSE_NS;
 /// is interrupt latency and a few events due at once: fired without shifting).
 pub const LATE_TOLERANCE_NS: u32 = 20_000;
 /// How much of a step's lateness its axis's floor forgives, ns (`RetimeConfig::
-/// latency_slack_ticks`): two steps of an axis come no closer than its floor less this, the
-/// time base's two ticks (the floor rounded down, an event fired a tick early) and, after a
-/// direction change, the DIR setup — 1.25 µs in all without one, however long a critical
-/// section held the interrupt back. 500 ns covers the interrupt's own entry (84 cycles at
+/// latency_slack_ticks`): two steps of an axis come no closer than its limit's period less
+/// this, three ticks of the time base (the floor rounded down, an event fired a tick early,
+/// the clock read's resolution) and, after a direction change, the DIR setup — 1.25 µs
+/// without one, 1.9 µs with it, however long a critical section held the interrupt back. 500 ns covers the interrupt's own entry (84 cycles at
 /// 168 MHz, to its clock read), so on-time steps of an axis at its limit are not dragged.
 pub const LATENCY_SLACK_NS: u32 = 500;
 /// A planned gap this long between two events means every axis is at rest, ns: the
