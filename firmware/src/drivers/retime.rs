@@ -30,7 +30,8 @@
 //!   their planned gap, if shorter).
 //!
 //! Small lateness (interrupt latency, a few events due at once) below the tolerance fires at
-//! once without shifting, so latency never accumulates into a drift.
+//! once without shifting the schedule, so latency never accumulates into a drift; only an axis
+//! running at its limit is held back, by what a latency exceeds the slack (its floor).
 //!
 //! What re-timing cannot undo: during the stall the axes stopped abruptly, and after it they
 //! resume at the speed the plan had there (the same speed step as the stop). Keeping stalls
