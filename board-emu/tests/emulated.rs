@@ -359,9 +359,9 @@ fn a_print_from_the_card_pauses_at_its_layer_and_finishes() {
 }
 
 /// A settings area whose open sector has less room than a paused-job record: the first save
-/// (the power-cut record written once the layer pause has parked) moves the store to the
-/// other sector and erases this one, during the pause — what the erase-ahead avoids when the
-/// printer was idle long enough before the job (not here: the job starts at once). Written
+/// (the power-cut record kept at the park, or its clearing at the resume) moves the store to
+/// the other sector and erases this one, during the pause — what the erase-ahead avoids when
+/// the printer was idle long enough before the job (not here: the job starts at once). Written
 /// with the library's own store on its NOR-flash model of the SKR 2's area, as the image's
 /// saves would leave it.
 fn nearly_full_settings_area(name: &str) -> PathBuf {
@@ -383,9 +383,10 @@ fn nearly_full_settings_area(name: &str) -> PathBuf {
     path
 }
 
-/// A print from the card with the hot end holding 35 °C, paused at layer 2, whose power-cut
-/// record needs a sector erase (2 s: the datasheet's maximum at x32) while parked, at LSI
-/// `lsi_hz` (17 kHz: the watchdog's longest timeout, 6.9 s; 47 kHz: its shortest, 2.5 s).
+/// A print from the card with the hot end holding 35 °C, paused at layer 2, whose saves while
+/// paused need a sector erase (2 s: the datasheet's maximum at x32), at LSI `lsi_hz` (17 kHz:
+/// the watchdog's longest timeout, 6.9 s; 47 kHz: its shortest, 2.5 s). The test checks the
+/// erase falls between `//action:paused` and `//action:resumed`, not which save made it.
 fn erase_during_a_pause(lsi_hz: u32) {
     let img = temp(&format!("erase-{lsi_hz}.img"));
     let job: String = THREE_LAYERS[1..].iter().map(|l| format!("{l}\n")).collect();
