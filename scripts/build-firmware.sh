@@ -4,8 +4,9 @@
 # 2021). Writes target/firmware-f407.bin and target/firmware-f429.bin for the SD-card bootloader
 # (copy the one for your chip to the card as firmware.bin; docs/board.md), keeps each ELF next to
 # it, and prints each image's flash and static RAM use against the targets (flash <= 256 KiB,
-# static RAM <= 64 KiB). Honours CARGO_TARGET_DIR. Needs arm-none-eabi-objcopy/size (Debian:
-# binutils-arm-none-eabi, installed by scripts/setup.sh).
+# static RAM <= 64 KiB), and fails if a loadable ELF segment would touch the bootloader or the
+# settings sectors. Honours CARGO_TARGET_DIR. Needs arm-none-eabi-objcopy/size and readelf
+# (Debian: binutils-arm-none-eabi and binutils, installed by scripts/setup.sh).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 target_dir="${CARGO_TARGET_DIR:-target}"
@@ -27,6 +28,35 @@ for chip in f407 f429; do
       printf "firmware image %s: flash %.1f KiB (target <= 256 KiB), static RAM %.1f KiB (target <= 64 KiB), vector table at 0x%08x\n", chip, flash/1024, ram/1024, vt
       if (flash > 256*1024 || ram > 64*1024) { print "firmware image: OVER BUDGET"; exit 1 }
       if (vt != 134250496) { print "firmware image: vector table not at 0x08008000"; exit 1 }
+    }'
+  # No loadable segment may reach into the SD bootloader (0x08000000-0x08007FFF, sectors 0-1)
+  # or the settings sectors (0x080C0000-0x080FFFFF): a tool that loads the ELF (OpenOCD,
+  # pyOCD, STM32CubeProgrammer) erases every sector a PT_LOAD touches. Both its virtual and its
+  # physical (load) address are checked, from the start to the end of its file image.
+  readelf -lW "$elf" | awk -v chip="$chip" '
+    function hex(s,   i, v) {
+      s = tolower(s); sub(/^0x/, "", s); v = 0
+      for (i = 1; i <= length(s); i++) v = v * 16 + index("0123456789abcdef", substr(s, i, 1)) - 1
+      return v
+    }
+    $1=="LOAD" {
+      n++
+      va=hex($3); pa=hex($4); fs=hex($5)
+      for (i = 0; i < 2; i++) {
+        a = (i == 0) ? va : pa
+        # (decimal: mawk has no hex constants) 0x08000000, 0x08100000, 0x08008000, 0x080C0000
+        if (a >= 134217728 && a < 135266304 && fs > 0) {
+          if (a < 134250496 || a + fs > 135004160) {
+            printf "firmware image %s: PT_LOAD at 0x%08x (%s, 0x%x bytes) outside 0x08008000-0x080BFFFF\n", chip, a, (i == 0 ? "VirtAddr" : "PhysAddr"), fs
+            bad = 1
+          }
+        }
+      }
+    }
+    END {
+      if (n == 0) { print "firmware image: no PT_LOAD segment found"; exit 1 }
+      if (bad) exit 1
+      printf "firmware image %s: %d loadable segments, all in flash within 0x08008000-0x080BFFFF or in RAM\n", chip, n
     }'
   ls -l "$bin"
 done

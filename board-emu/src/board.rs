@@ -120,6 +120,9 @@ pub struct Board {
     pub thread_hold_until: Option<Cyc>,
     /// Notes (faults seen, odd accesses).
     pub notes: Vec<String>,
+    /// Hot end and bed powered when each flash erase started (the core stalls for the whole
+    /// erase, so nothing the image does changes them before it ends).
+    pub heaters_at_erase: Vec<[bool; 2]>,
     /// Timing of the last edge per pin (for EN/PC13 reports).
     pub last_level: BTreeMap<Pin, (Cyc, bool)>,
     /// When SAFE_POWER (PC13) first went high.
@@ -173,6 +176,7 @@ impl Board {
             stall: None,
             thread_hold_until: None,
             notes: Vec::new(),
+            heaters_at_erase: Vec::new(),
             last_level: BTreeMap::new(),
             frame_sp: Vec::new(),
             outputs_log: Vec::new(),
@@ -531,6 +535,7 @@ impl Board {
             0x4002_3800..=0x4002_3BFF => self.rcc.write(a - 0x4002_3800, v),
             0x4002_3C00..=0x4002_3FFF => {
                 if let Some(FlashOp::Erased { n, .. }) = self.flash.write(a - 0x4002_3C00, v, now) {
+                    self.heaters_at_erase.push(self.heaters_powered());
                     self.notes.push(format!(
                         "flash sector {n} erase at t = {:.4} s",
                         crate::time::s_from_cyc(now)

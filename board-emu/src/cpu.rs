@@ -30,6 +30,9 @@ use unicorn_engine::{
 
 /// Longest slice of instructions between two looks at the peripherals (about 60 µs).
 const MAX_SLICE: u64 = 10_000;
+/// How long an interrupt masked by a critical section is watched block by block, so that it
+/// is taken as soon as it is unmasked (100 µs; see `run_until`).
+const MASKED_FINE: Cyc = 16_800;
 /// The bootloader stub's entry (its vector table is at 0x0800_0000).
 const STUB_ENTRY: u32 = 0x0800_0008;
 /// Where the image starts (what the SKR 2's SD bootloader jumps to).
@@ -383,13 +386,13 @@ impl<'a> Emulator<'a> {
         self.uc.mem_write(u64::from(from), &bytes).map_err(uc_err)
     }
 
-    /// The lowest address in `from..to` whose word is not `pattern` (the deepest the stack
-    /// reached).
-    pub fn lowest_touched(&self, from: u32, to: u32, pattern: u32) -> Option<u32> {
+    /// The lowest address in `from..to` whose word is none of `patterns` (the deepest the
+    /// stack reached).
+    pub fn lowest_touched(&self, from: u32, to: u32, patterns: &[u32]) -> Option<u32> {
         let len = to.saturating_sub(from) as usize;
         let mem = self.uc.mem_read_as_vec(u64::from(from), len).ok()?;
         mem.chunks_exact(4)
-            .position(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]) != pattern)
+            .position(|w| !patterns.contains(&u32::from_le_bytes([w[0], w[1], w[2], w[3]])))
             .map(|i| from + 4 * i as u32)
     }
 
@@ -409,6 +412,7 @@ impl<'a> Emulator<'a> {
         mut stop_when: impl FnMut(&mut Emulator<'a>) -> bool,
     ) -> Result<RunEnd> {
         let mut sleeping = false;
+        let mut masked_since: Option<Cyc> = None;
         loop {
             if let Some(kind) = self.board_mut().reset_request.take() {
                 self.power_on(kind)?;
@@ -470,7 +474,23 @@ impl<'a> Emulator<'a> {
                 }
             }
             let next = self.next_event_or(until, now);
-            let slice = (next - now).clamp(1, MAX_SLICE);
+            // An interrupt pending but masked by PRIMASK or BASEPRI (a critical section) is
+            // taken on the core right after the instruction that unmasks it (CPSIE, MSR;
+            // ARMv7-M B1.5.6, B5.2.3: these end the translation block in QEMU's TCG too):
+            // run one block at a time until then, else the slice would run on to the next
+            // peripheral event or MAX_SLICE (60 µs) and delay the interrupt by that much.
+            // Only for MASKED_FINE: longer than that it is no critical section but code
+            // that masks for good (a fault handler waiting for its reset), which then runs
+            // in normal slices.
+            if self.board().nvic.next_to_take(false, 0).is_some() {
+                masked_since.get_or_insert(now);
+            } else {
+                masked_since = None;
+            }
+            let slice = match masked_since {
+                Some(t) if now - t < MASKED_FINE => 1,
+                _ => (next - now).clamp(1, MAX_SLICE),
+            };
             {
                 let b = self.board_mut();
                 b.stop = None;

@@ -57,6 +57,8 @@ pub struct Report {
     pub m115: Option<String>,
     /// Every line the printer sent on USART1.
     pub lines: Vec<String>,
+    /// When each of those lines was received, s.
+    pub line_times_s: Vec<f64>,
     /// Signed steps per axis, from the DIR level at each rising STEP edge, from power-on.
     pub net_steps: PerAxis<i64>,
     /// The pause point (X Y Z E steps, the frame of `net_steps`; `sim run --json`'s
@@ -106,6 +108,8 @@ pub struct Report {
     pub max_temp_c: [f32; 2],
     /// Flash sector erases: (start s, sector, duration s).
     pub flash_erases: Vec<(f64, u32, f64)>,
+    /// Hot end and bed powered during each of those erases.
+    pub heaters_powered_during_erases: Vec<[bool; 2]>,
     /// The watchdog's timeout at this LSI, s (0 when never started).
     pub watchdog_timeout_s: f64,
     /// LSI frequency used, Hz.
@@ -249,12 +253,17 @@ pub fn make(
         }
     });
     let safe_power = crate::axes::SAFE_POWER;
-    let stack_hw =
-        stack.and_then(|(lo, hi)| emu.lowest_touched(lo, hi, 0xC5C5_C5C5).map(|a| hi - a));
+    // The emulator's paint, or cortex-m-rt's `paint-stack` pattern: an image built with that
+    // feature repaints its stack in the reset handler, over the emulator's.
+    let stack_hw = stack.and_then(|(lo, hi)| {
+        emu.lowest_touched(lo, hi, &[0xC5C5_C5C5, 0xCCCC_CCCC])
+            .map(|a| hi - a)
+    });
     let skipped = b.skipped;
     Report {
         m115: host.find("FIRMWARE_NAME").map(|(_, l)| l.clone()),
         lines: host.received.iter().map(|(_, l)| l.clone()).collect(),
+        line_times_s: host.received.iter().map(|(t, _)| s_from_cyc(*t)).collect(),
         net_steps: per_axis(|i| b.axes.axis[i].net_steps),
         pause_point_steps: r.parked.and_then(|t| pause_point(&b.axes, t)).map(|p| {
             // The firmware's frame: the switches are at 0 (min_mm of the Ender-3), and the
@@ -325,6 +334,7 @@ pub fn make(
             .iter()
             .map(|(t, n, d)| (s_from_cyc(*t), *n, s_from_cyc(*d)))
             .collect(),
+        heaters_powered_during_erases: b.heaters_at_erase.clone(),
         watchdog_timeout_s: b.iwdg.timeout_s(),
         lsi_hz: o.lsi_hz,
         sd_blocks_read: b.sdio.blocks_read,

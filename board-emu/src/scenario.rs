@@ -179,7 +179,7 @@ pub fn run(o: &Options) -> Result<Report> {
     }
 
     let mut host = Host::new();
-    // M115 goes last: its ~700-byte reply stalls the TFT port of today's image for good
+    // M115 goes last: its ~700-byte reply stalled the TFT port of main's image for good
     // (docs/board-emu.md, "Found by the emulated board"), so nothing could follow it.
     let mut script: std::collections::VecDeque<String> = o.commands.iter().cloned().collect();
     let mut job_sent = false;

@@ -5,12 +5,16 @@
 mod support;
 
 use board_emu::rcc::ResetKind;
+use std::path::PathBuf;
 use support::*;
 
-/// No axis steps faster than its limit (max feed × steps/mm). An edge interval may be shorter
-/// than the scheduled one by a tick of the 4 MHz step timer (250 ns) and by the step
-/// interrupt's entry jitter (a critical section in thread mode delays one entry more than
-/// the next): 2 µs are allowed for both. A burst after a stall is ~100 times the limit.
+/// No axis steps faster than its limit (max feed × steps/mm). The image's re-timer bounds how
+/// much shorter than that an interval can be, whatever the step interrupt's latency
+/// (`board::stepper::LATENCY_SLACK_NS`): the 500 ns slack, three 250 ns ticks of its 4 MHz
+/// time base (the floor rounded down, an event fired a tick early, the clock read's
+/// resolution) and, after a direction change, the 650 ns DIR setup: 1.9 µs at most, so 2 µs
+/// are allowed. (Before that bound, a step 17 µs late followed by one on time failed this on
+/// main's CI: `Z: 2073 Hz`.) A burst after a stall is ~100 times the limit.
 fn assert_rates_within_limits(r: &board_emu::report::Report) {
     for (axis, limit) in &r.step_rate_limit_hz {
         if let Some(rate) = r.max_step_rate_hz[axis] {
@@ -42,10 +46,13 @@ fn boots_and_answers_m115() {
         r.resets
     );
     assert!(r.safe_power_at_end);
-    // The watchdog runs with the 2 s the image asks for (at the typical 32 kHz LSI).
+    // The watchdog runs with what the image asks for: at least 2.5 s at the fastest LSI
+    // (47 kHz, the STM32F407 datasheet's LSI maximum), so 2.5 × 47/32 = 3.67 s at the
+    // typical 32 kHz this run uses.
+    let want_s = 2.5 * 47_000.0 / 32_000.0;
     assert!(
-        (r.watchdog_timeout_s - 2.0).abs() < 0.01,
-        "{}",
+        (r.watchdog_timeout_s - want_s).abs() < 0.01,
+        "{} s, want {want_s} s",
         r.watchdog_timeout_s
     );
     let (hw, size) = (
@@ -55,19 +62,30 @@ fn boots_and_answers_m115() {
     assert!(hw < size, "stack {hw} of {size} bytes");
 }
 
+/// The TFT port (USART1) keeps answering after M115's ~700-byte reply, which fills the UART's
+/// transmit ring (embassy-stm32 0.6 `BufferedUartTx::write` returns `Pending` without
+/// registering its waker when a chunk does not fit: the image's `TftTx` writes only what is
+/// known to fit). The harness sends its own M115 at the end: answered too.
 #[test]
-#[ignore = "needs image fix: the TFT port (USART1) stalls for good after M115's ~700-byte reply \
-            (embassy-stm32 0.6 BufferedUartTx::write returns Pending without registering its \
-            waker; reported to the lead)"]
 fn the_tft_port_keeps_answering_after_m115() {
     let mut o = options();
     o.commands = vec!["M115".into(), "M105".into()];
     o.max_virtual_s = 6.0;
     let r = run(&o);
-    let after = lines_after(&r, "Cap:");
+    let first_cap = r
+        .lines
+        .iter()
+        .position(|l| l.starts_with("Cap:"))
+        .expect("M115 answered");
+    let after = &r.lines[first_cap..];
     assert!(
-        after.iter().filter(|l| l.starts_with("ok")).count() >= 2,
-        "M115's ok and M105's answer: {after:?}"
+        after.iter().any(|l| l.starts_with("ok T:")),
+        "M105 answered after M115's reply: {after:?}"
+    );
+    let last = lines_after(&r, "Cap:");
+    assert!(
+        last.iter().any(|l| l.starts_with("ok")),
+        "the last M115's ok: {last:?}"
     );
 }
 
@@ -256,19 +274,25 @@ fn a_hardfault_reaches_the_safe_state_and_is_reported() {
 }
 
 #[test]
-#[ignore = "needs image fix: DefaultHandler reaching the safe state (branch image); today an \
-            unexpected interrupt hangs in cortex-m-rt's loop with the heater on until the \
-            watchdog resets the board ~2 s later"]
 fn an_unexpected_interrupt_reaches_the_safe_state_at_once() {
     let r = with_fault(board_emu::fault::Fault::UnexpectedIrq);
     let a = r.after_fault.clone().expect("injected");
     assert!(a.heater_on_at_injection);
-    assert!(a.safe_after_ms.unwrap() < 1.0, "{a:?}");
+    // The SysTick armed at the injection first fires 1 ms later; the safe state follows
+    // within 50 µs of that (measured: 0.15 µs), not at the watchdog's reset seconds later.
+    assert!(a.safe_after_ms.unwrap() < 1.05, "{a:?}");
+    // Then a reset, and the next start-up says why.
+    assert_eq!(r.resets.first().map(|x| x.kind), Some(ResetKind::Software));
+    assert!(
+        r.lines
+            .iter()
+            .any(|l| l.contains("firmware fault (unexpected interrupt")),
+        "{:?}",
+        r.lines
+    );
 }
 
 #[test]
-#[ignore = "needs image fix: no step burst after a stall (branch image); today a 5 ms \
-            executor stall fires the overdue steps back to back at ~280 kHz"]
 fn an_executor_stall_while_moving_makes_no_step_burst() {
     let r = with_fault(board_emu::fault::Fault::ExecutorStall);
     assert!(r.after_fault.is_some());
@@ -277,8 +301,6 @@ fn an_executor_stall_while_moving_makes_no_step_burst() {
 }
 
 #[test]
-#[ignore = "needs image fix: reversed-driver check before PC13 (branch image); today SAFE_POWER \
-            goes high whatever the EN pins read"]
 fn a_driver_plugged_in_backwards_is_never_powered() {
     let mut o = options();
     o.reversed_driver = Some(0);
@@ -320,8 +342,10 @@ fn a_print_from_the_card_pauses_at_its_layer_and_finishes() {
     );
     assert!(
         r.lines.iter().any(|l| l.contains("Done printing")),
-        "{:?}",
-        r.lines
+        "{:?} {:?} {:?}",
+        r.lines,
+        r.notes,
+        r.flash_erases
     );
     let want = expected_net_steps(&THREE_LAYERS[1..], o.start_mm);
     let got = [
@@ -332,6 +356,142 @@ fn a_print_from_the_card_pauses_at_its_layer_and_finishes() {
     ];
     assert_eq!(got, want);
     assert!(r.pause_point_steps.is_some());
+}
+
+/// A settings area whose open sector has less room than a paused-job record: the first save
+/// (the power-cut record kept at the park, or its clearing at the resume) moves the store to
+/// the other sector and erases this one, during the pause — what the erase-ahead avoids when
+/// the printer was idle long enough before the job (not here: the job starts at once). Written
+/// with the library's own store on its NOR-flash model of the SKR 2's area, as the image's
+/// saves would leave it.
+fn nearly_full_settings_area(name: &str) -> PathBuf {
+    use firmware::storage::{SettingsStore, Skr2FlashModel, PAD_KEY};
+    const LEN: u32 = 256 * 1024;
+    let flash = Skr2FlashModel::new(vec![0xFFu8; LEN as usize]);
+    let mut store = SettingsStore::new(flash, 0..LEN).expect("store");
+    let free = |s: &mut SettingsStore<_>| s.open_sector_free().expect("read").unwrap_or(LEN);
+    while free(&mut store) > 1024 {
+        store.store(PAD_KEY, &[0u8; 200]).expect("filler");
+    }
+    while free(&mut store) > 48 {
+        store.store(PAD_KEY, &[0u8; 4]).expect("filler");
+    }
+    let left = free(&mut store);
+    assert!(left <= 48, "{left}");
+    let path = temp(name);
+    std::fs::write(&path, store.into_flash().into_inner()).expect("write");
+    path
+}
+
+/// A print from the card with the hot end holding 35 °C, paused at layer 2, whose saves while
+/// paused need a sector erase (2 s: the datasheet's maximum at x32), at LSI `lsi_hz` (17 kHz:
+/// the watchdog's longest timeout, 6.9 s; 47 kHz: its shortest, 2.5 s). The test checks the
+/// erase falls between `//action:paused` and `//action:resumed`, not which save made it.
+fn erase_during_a_pause(lsi_hz: u32) {
+    let img = temp(&format!("erase-{lsi_hz}.img"));
+    let job: String = THREE_LAYERS[1..].iter().map(|l| format!("{l}\n")).collect();
+    sim::sd::write_image(&img, &[("JOB.GCO".into(), job.into_bytes())]).expect("card image");
+    let flash = nearly_full_settings_area(&format!("nearly-full-{lsi_hz}.bin"));
+    let mut o = options();
+    o.sd_image = Some(img.clone());
+    o.flash_file = Some(flash.clone());
+    o.lsi_hz = lsi_hz;
+    o.flash_timing = board_emu::flash::FlashTiming::Max;
+    o.commands = vec![
+        "M302 P1".into(),
+        // A target the hot end reaches before the pause (the heater model starts at 25 °C):
+        // the resume waits until it holds its target again, as Marlin's does.
+        "M104 S35".into(),
+        "M761 L2".into(),
+        "M23 JOB.GCO".into(),
+        "M24".into(),
+        "@until Done printing".into(),
+        "M400".into(),
+    ];
+    // Resume after the erase: bytes reaching the TFT UART during it are lost (the core
+    // stalls, its receive register overruns; docs/board.md). The resume then waits for the
+    // hot end to hold its target again (its residency), so the job ends near 35 virtual s.
+    o.resume_after_s = 3.0;
+    o.max_virtual_s = 40.0;
+    let r = run(&o);
+    let _ = std::fs::remove_file(&img);
+    let _ = std::fs::remove_file(&flash);
+    assert!(
+        r.lines.iter().any(|l| l.starts_with("//action:paused")),
+        "paused at layer 2: {:?} {:?}",
+        r.lines,
+        r.notes
+    );
+    // One sector erased, of at least a second (x32), for the record kept while parked.
+    assert_eq!(
+        r.flash_erases.len(),
+        1,
+        "{:?} {:?} {:?}",
+        r.flash_erases,
+        r.notes,
+        r.lines
+    );
+    let (erase_s, sector, dur_s) = r.flash_erases[0];
+    // While paused: after the park's notice, and before the first line the resumed job
+    // printed (the core stalls during the erase, so nothing moves meanwhile).
+    let at = |pat: &str| {
+        r.lines
+            .iter()
+            .position(|l| l.contains(pat))
+            .map(|i| r.line_times_s[i])
+    };
+    let paused_s = at("//action:paused").unwrap_or(f64::MAX);
+    let resumed_s = at("//action:resumed").unwrap_or(f64::MAX);
+    assert!(
+        paused_s <= erase_s && erase_s + dur_s <= resumed_s,
+        "paused {paused_s} s, erase {erase_s}+{dur_s} s, resumed {resumed_s} s: {:?}",
+        r.lines
+    );
+    assert_eq!(sector, 10, "{:?}", r.flash_erases);
+    assert!(dur_s >= 1.9, "{dur_s} s");
+    assert!(
+        r.lines
+            .iter()
+            .any(|l| l.contains("power-cut resume: keeping job")),
+        "{:?}",
+        r.lines
+    );
+    // No watchdog reset (it is fed before the erase; at 47 kHz it has 2.5 s), no reset at all,
+    // heaters off for the erase.
+    assert_eq!(r.watchdog_resets, 0, "{:?}", r.resets);
+    assert!(r.resets.is_empty() && r.faults.is_empty(), "{:?}", r.resets);
+    assert_eq!(r.heaters_powered_during_erases, vec![[false, false]]);
+    assert!(
+        r.max_temp_c[0] > 33.0,
+        "the hot end heated: {:?}",
+        r.max_temp_c
+    );
+    // The pause resumed and the print finished with every step.
+    assert!(
+        r.lines.iter().any(|l| l.contains("Done printing")),
+        "{:?} {:?} {:?}",
+        r.lines,
+        r.notes,
+        r.flash_erases
+    );
+    let want = expected_net_steps(&THREE_LAYERS[1..], o.start_mm);
+    let got = [
+        r.net_steps["X"],
+        r.net_steps["Y"],
+        r.net_steps["Z"],
+        r.net_steps["E"],
+    ];
+    assert_eq!(got, want);
+}
+
+#[test]
+fn a_flash_erase_during_a_pause_at_the_slowest_lsi() {
+    erase_during_a_pause(17_000);
+}
+
+#[test]
+fn a_flash_erase_during_a_pause_at_the_fastest_lsi() {
+    erase_during_a_pause(47_000);
 }
 
 fn boots_to_the_prompt(r: &board_emu::report::Report) {
@@ -345,9 +505,6 @@ fn boots_to_the_prompt(r: &board_emu::report::Report) {
 }
 
 #[test]
-#[ignore = "needs image fix: the TFT port stall (embassy BufferedUartTx::write) — the longer \
-            boot output with a foreign settings area fills the UART ring while the drivers \
-            are configured, and the port never sends again (M115 unanswered)"]
 fn boots_with_a_foreign_settings_area_of_zeros() {
     let mut o = options();
     o.flash_fill = Some(board_emu::scenario::FlashFill::Zeros);

@@ -4,8 +4,14 @@
 //! instantiates them with embassy-stm32's `Output`/`Input`.
 
 pub mod adc;
+// Marlin's reversed-driver check before the drivers get power.
+pub mod backward;
 pub mod homing_watch;
+// Re-timing of late step events: no burst after a stall.
+pub mod retime;
 pub mod tmc2209;
+// The independent watchdog's timing from the fastest LSI.
+pub mod watchdog;
 
 use crate::motion::{PauseMode, Realtime, AXES};
 use embedded_hal::digital::OutputPin;

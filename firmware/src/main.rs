@@ -2,28 +2,37 @@
 //! (`firmware::printer::Printer`).
 //!
 //! * `motion` (every 1 ms): `Printer::poll`, step events into the step interrupt's queue
-//!   (`board::stepper`, TIM5 compare at the highest priority), the endstops for G28 (homing
+//!   (`board::stepper`, TIM5 compare at the highest priority, re-timing late events), the endstops for G28 (homing
 //!   runs through the planner: `firmware::homing`) and M119, the pause button, the stepper
 //!   idle timeout, halt handling, host-link output to both ports;
 //! * `heaters` (every 1 ms): 10 Hz software PWM of the heaters; every 100 ms the thermistors
 //!   are sampled and fed to the executive's thermal control;
 //! * `usb` / `cdc`: USB CDC-ACM on the board's USB port; `uart`: the TFT header (USART1,
-//!   115200 Bd). Both feed `Printer::receive`; every output line goes to both.
+//!   115200 Bd). Both feed `Printer::receive_on`, each port with its own line numbers and
+//!   `ok`s: a command's answers go to the port it came from, notices (halts, `Error:` lines,
+//!   start-up messages) to both.
 //!
 //! This file brings the board up and spawns the tasks; the tasks live in `image/`: `motion.rs`,
 //! `heater.rs`, `host.rs` (USB and UART), `drivers.rs` (the TMC2209s).
 //!
-//! Bring-up, in order: VTOR is set to the image base 0x08008000 by cortex-m-rt's reset handler
-//! (`set-vtor`; the bootloader's table is never used), clocks (8 MHz HSE → 168 MHz, 48 MHz USB),
-//! pins with heaters off and drivers disabled, SAFE_POWER (PC13) driven high for the program's
-//! life, the TMC2209 drivers configured and read back over UART (a driver that does not answer
-//! halts the printer with an `Error:` line: motion stays disabled), then the tasks and the
-//! independent watchdog (2 s), fed only while both the motion and the heater loops beat
-//! (`firmware::drivers::Liveness`).
+//! Bring-up, in order: cortex-m-rt's reset handler sets SP and VTOR (`set-sp`, `set-vtor`: the
+//! image base 0x08008000, whatever the bootloader left), runs [`__pre_init`] (SysTick off,
+//! every NVIC interrupt disabled and unpended: nothing the bootloader armed can fire into this
+//! image) and paints the stack (`paint-stack`); then the stack guard (MPU, `board::stack`),
+//! clocks (8 MHz HSE → 168 MHz, 48 MHz USB), pins with heaters off and SAFE_POWER (PC13) low,
+//! Marlin's reversed-driver check (`board::pins::check_sockets`: SAFE_POWER goes high only if
+//! no driver module is plugged in backwards; otherwise `Error:X driver is backward!` and a
+//! halt), the TMC2209 drivers configured and read back over UART (a driver that does not answer
+//! halts the printer with an `Error:` line: motion stays disabled), the interrupt priorities
+//! (the step timer above everything), then the tasks and the independent watchdog (2.5 s at
+//! the fastest LSI, `board::watchdog`), fed only while both the motion and the heater loops
+//! beat (`firmware::drivers::Liveness`).
 //!
-//! defmt logs over RTT. A panic or HardFault turns every heater off, disables the drivers and
-//! cuts their power (raw register writes), and writes one line on the TFT UART (USB cannot be
-//! served any more: a USB host sees the link stop).
+//! defmt logs over RTT. A panic, a HardFault (a stack overflow included) or any interrupt this
+//! image does not use (`DefaultHandler`) turns every heater off, disables the drivers and cuts
+//! their power (raw register writes), records why, and writes one line on the TFT UART (USB
+//! cannot be served any more: a USB host sees the link stop and reads the reason after the
+//! reset).
 //!
 //! On the host this file compiles to an empty program (`cargo test --workspace` never builds
 //! embassy).
@@ -32,15 +41,50 @@
 #[cfg(target_os = "none")]
 mod board;
 
+// Runs in cortex-m-rt's reset handler before RAM is initialised (so: assembly, no Rust):
+// whatever the SD bootloader left armed must not fire into this image. SysTick off
+// (SYST_CSR = 0, PM0214 §4.5); every NVIC interrupt disabled (ICER0–7) and its pending bit
+// cleared (ICPR0–7, PM0214 §4.3; the F4 has 82/91 IRQs, 3 registers); SysTick and PendSV
+// unpended (ICSR PENDSTCLR bit 25, PENDSVCLR bit 27); then PRIMASK and FAULTMASK cleared, in
+// case the bootloader jumped here with interrupts masked (nothing is enabled to fire yet).
+#[cfg(target_os = "none")]
+core::arch::global_asm!(
+    ".section .text.__pre_init, \"ax\"",
+    ".global __pre_init",
+    ".type __pre_init,%function",
+    ".thumb_func",
+    "__pre_init:",
+    "ldr r0, =0xE000E010",
+    "movs r1, #0",
+    "str r1, [r0]",
+    "ldr r0, =0xE000E180",
+    "ldr r2, =0xE000E280",
+    "ldr r1, =0xFFFFFFFF",
+    "movs r3, #8",
+    "1:",
+    "str r1, [r0], #4",
+    "str r1, [r2], #4",
+    "subs r3, #1",
+    "bne 1b",
+    "ldr r0, =0xE000ED04",
+    "ldr r1, =0x0A000000",
+    "str r1, [r0]",
+    "dsb",
+    "isb",
+    "cpsie i",
+    "cpsie f",
+    "bx lr",
+);
+
 #[cfg(target_os = "none")]
 mod image {
     use core::cell::RefCell;
 
     use defmt_rtt as _;
     use embassy_executor::Spawner;
+    use embassy_stm32::interrupt::{self, InterruptExt, Priority};
     use embassy_stm32::usart::{BufferedUart, Config as UartConfig};
     use embassy_stm32::usb::Driver;
-    use embassy_stm32::wdg::IndependentWatchdog;
     use embassy_stm32::{bind_interrupts, peripherals, usart, usb};
     use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
     use embassy_sync::pipe::Pipe;
@@ -48,17 +92,18 @@ mod image {
     use embassy_usb::class::cdc_acm::{CdcAcmClass, State as CdcState};
     use firmware::config::MachineConfig;
     use firmware::homing::{HomingConfig, PinEndstops};
-    use firmware::printer::Printer;
+    use firmware::printer::{Policy, Printer};
     use static_cell::StaticCell;
 
     use crate::board::drivers::StepperPins;
     use crate::board::heaters::{Fans, SoftPwm};
-    use crate::board::{clock, pins, safety, stepper, tmc};
+    use crate::board::SharedPrinter;
+    use crate::board::{clock, pins, safety, stack, stepper, tmc, watchdog};
     use drivers::{configure_drivers, Drivers};
     use firmware::drivers::Liveness;
     use heater::heater_task;
     use host::{cdc_task, uart_task, usb_task};
-    use motion::{limits_steps, motion_task};
+    use motion::{halted_task, limits_steps, motion_task};
 
     // The TMC2209 drivers' configuration and reports.
     mod drivers;
@@ -78,12 +123,12 @@ mod image {
     const UART_BAUD: u32 = 115_200;
     /// Host-link bytes buffered per output port.
     const OUT_PIPE: usize = 1024;
+    /// The TFT UART driver's transmit and receive buffers, bytes.
+    const UART_TX_BUF: usize = 512;
+    const UART_RX_BUF: usize = 512;
 
-    type Shared = &'static RefCell<Printer>;
+    type Shared = &'static SharedPrinter;
 
-    /// Independent watchdog timeout, µs (Marlin's STM32 `WDT_TIMEOUT_US` is 4 s; 2 s still
-    /// covers the longest blocking section, configuring four drivers at about 120 ms each).
-    const WATCHDOG_US: u32 = 2_000_000;
     /// Each of the motion and heater loops must beat this often for the watchdog to be fed, µs.
     const LIVENESS_GAP_US: u64 = 250_000;
     /// The loops the watchdog watches.
@@ -98,7 +143,8 @@ mod image {
         critical_section::with(|cs| LIVENESS.borrow(cs).borrow_mut().beat(i, now));
     }
 
-    static PRINTER: StaticCell<RefCell<Printer>> = StaticCell::new();
+    static PRINTER: StaticCell<Printer> = StaticCell::new();
+    static SHARED: StaticCell<SharedPrinter> = StaticCell::new();
     static USB_OUT: Pipe<CriticalSectionRawMutex, OUT_PIPE> = Pipe::new();
     static UART_OUT: Pipe<CriticalSectionRawMutex, OUT_PIPE> = Pipe::new();
 
@@ -111,9 +157,25 @@ mod image {
         printer_now_ns() / 1000
     }
 
+    /// Interrupt priorities (NVIC_IPRx; the STM32F4 implements the top 4 bits: 16 levels,
+    /// RM0090 §10.1 "16 programmable priority levels", PM0214 §4.3.7; embassy's `P0`–`P15`
+    /// write them there). Lower is more urgent; an interrupt preempts only less urgent ones.
+    /// The step timer alone at the top, so step edges are late only by the other interrupts'
+    /// critical sections (`critical_section` masks all of them briefly).
+    const PRIO_STEP: Priority = Priority::P0;
+    /// The TFT UART: a byte every 87 µs at 115200 Bd, one byte of hardware buffer.
+    const PRIO_UART: Priority = Priority::P1;
+    /// embassy-time's driver (TIM2): wakes the 1 ms loops.
+    const PRIO_TIME: Priority = Priority::P2;
+    /// USB OTG FS, SDIO and its DMA stream (both have FIFOs and can wait).
+    const PRIO_BULK: Priority = Priority::P3;
+
     #[embassy_executor::main]
     async fn main(spawner: Spawner) {
+        // Before anything can overflow the stack into the statics.
+        stack::guard();
         let mut config = embassy_stm32::Config::default();
+        config.dma_interrupt_priority = PRIO_BULK;
         {
             use embassy_stm32::rcc::*;
             use embassy_stm32::time::Hertz;
@@ -137,9 +199,13 @@ mod image {
             config.rcc.mux.clk48sel = mux::Clk48sel::PLL1_Q;
         }
         let p = embassy_stm32::init(config);
-        let (pins, periph) = pins::split(p);
+        interrupt::TIM2.set_priority(PRIO_TIME);
+        let (mut pins, periph) = pins::split(p);
+        // Marlin's reversed-driver check, SAFE_POWER low until it passes.
+        let backward = pins::check_sockets(&mut pins.sockets, &mut pins.safe_power);
         // SAFE_POWER: embassy's `Output` puts the pin back to analog when dropped, which would
-        // cut the drivers' and FETs' supply; it stays driven high for the program's life.
+        // cut the drivers' and FETs' supply; it stays driven (high if the check passed, low
+        // otherwise) for the program's life.
         core::mem::forget(pins.safe_power);
         // cortex-m-rt set VTOR in its reset handler (feature `set-vtor`); check it.
         // SAFETY: a read of the SCB's VTOR register.
@@ -148,7 +214,13 @@ mod image {
         clock::start(periph.step_timer);
 
         let cfg = MachineConfig::ENDER3;
-        let printer = PRINTER.init(RefCell::new(Printer::new(cfg)));
+        // Built in place in its static: `init(Printer::new(..))` built the 35 KiB `Printer` on
+        // the stack and copied it (a 72 KiB frame for this function, over half the RAM).
+        let printer: Shared = SHARED.init(RefCell::new(Printer::init_in_place(
+            PRINTER.uninit(),
+            cfg,
+            Policy::FIRMWARE,
+        )));
         // G28 homes through the planner on the X/Y/Z minimum switches (Marlin's Ender-3 homing
         // feeds, bump and Z raise). Moves of an axis before it is homed are refused by the step
         // interrupt (Marlin's NO_MOTION_BEFORE_HOMING), G28's own moves excepted.
@@ -158,23 +230,6 @@ mod image {
         crate::board::flash::start(&spawner, printer);
         // The micro-SD slot: SD printing (M20–M32), in its own task.
         crate::board::sd::start(&spawner, printer);
-
-        let steppers = StepperPins::new(
-            pins.step,
-            pins.dir,
-            pins.enable,
-            cfg.dir_high_positive_mask(),
-        );
-        let [x_min, y_min, z_min] = pins.endstops;
-        let endstops = PinEndstops {
-            x: x_min,
-            y: y_min,
-            z: z_min,
-            // Ender-3 switches on pulled-up inputs read high when pressed.
-            pressed_high: cfg.endstop_hit_high_mask(),
-        };
-        let producer = stepper::init(steppers, endstops);
-        stepper::with(|s| s.exec.limits = limits_steps(&cfg));
 
         // USB CDC-ACM.
         static EP_OUT: StaticCell<[u8; 256]> = StaticCell::new();
@@ -204,8 +259,8 @@ mod image {
         let usb_dev = builder.build();
 
         // TFT header UART.
-        static UART_TX: StaticCell<[u8; 512]> = StaticCell::new();
-        static UART_RX: StaticCell<[u8; 512]> = StaticCell::new();
+        static UART_TX: StaticCell<[u8; UART_TX_BUF]> = StaticCell::new();
+        static UART_RX: StaticCell<[u8; UART_RX_BUF]> = StaticCell::new();
         let mut ucfg = UartConfig::default();
         ucfg.baudrate = UART_BAUD;
         let (uart_p, rx, tx) = periph.uart;
@@ -213,11 +268,17 @@ mod image {
             uart_p,
             rx,
             tx,
-            UART_TX.init([0; 512]),
-            UART_RX.init([0; 512]),
+            UART_TX.init([0; UART_TX_BUF]),
+            UART_RX.init([0; UART_RX_BUF]),
             Irqs,
             ucfg,
         );
+
+        // Every interrupt below the step timer (the drivers above enabled theirs).
+        interrupt::OTG_FS.set_priority(PRIO_BULK);
+        interrupt::USART1.set_priority(PRIO_UART);
+        interrupt::SDIO.set_priority(PRIO_BULK);
+        interrupt::DMA2_STREAM3.set_priority(PRIO_BULK);
 
         spawn(&spawner, usb_task(usb_dev));
         spawn(&spawner, cdc_task(cdc, printer));
@@ -235,6 +296,34 @@ mod image {
                 Fans::new(periph.fans.0, periph.fans.1, periph.fans.2),
             ),
         );
+        if !backward.none() {
+            // A module plugged in backwards: its drivers never get power. Report (Marlin's
+            // words, every port), halt; the sockets' pins stay undriven.
+            let mut names: heapless::Vec<&str, { pins::SOCKETS }> = heapless::Vec::new();
+            for (i, name) in pins::SOCKET_NAMES.into_iter().enumerate() {
+                if backward.socket(i) {
+                    let _ = names.push(name);
+                    defmt::error!("driver {} is backward: SAFE_POWER kept off", name);
+                }
+            }
+            printer.borrow_mut().drivers_backward(&names);
+            spawn(&spawner, halted_task(printer, pins.status_led));
+            start_watchdog(&spawner, periph.watchdog);
+            return;
+        }
+        let (step, dir, enable) = pins::stepper_outputs(pins.sockets);
+        let steppers = StepperPins::new(step, dir, enable, cfg.dir_high_positive_mask());
+        let [x_min, y_min, z_min] = pins.endstops;
+        let endstops = PinEndstops {
+            x: x_min,
+            y: y_min,
+            z: z_min,
+            // Ender-3 switches on pulled-up inputs read high when pressed.
+            pressed_high: cfg.endstop_hit_high_mask(),
+        };
+        let producer = stepper::init(steppers, endstops, PRIO_STEP);
+        stepper::with(|s| s.exec.limits = limits_steps(&cfg));
+
         // The drivers, before any motion: a driver that does not answer halts the printer.
         let [tx, ty, tz, te] = pins.tmc_uart;
         let mut drivers = Drivers {
@@ -257,18 +346,29 @@ mod image {
                 drivers,
             ),
         );
-        spawn(
-            &spawner,
-            watchdog_task(IndependentWatchdog::new(periph.watchdog, WATCHDOG_US)),
+        start_watchdog(&spawner, periph.watchdog);
+    }
+
+    /// Starts the independent watchdog and the task that feeds it.
+    fn start_watchdog(spawner: &Spawner, iwdg: embassy_stm32::Peri<'static, peripherals::IWDG>) {
+        watchdog::start(iwdg);
+        defmt::info!(
+            "watchdog: {=u64} ms at the fastest LSI, {=u64} ms at the slowest",
+            watchdog::TIMING.map_or(0, |t| t.timeout_us(firmware::drivers::watchdog::LSI_MAX_HZ)
+                / 1000),
+            watchdog::max_timeout_us() / 1000
         );
+        spawn(spawner, watchdog_task());
     }
 
     /// A fault or watchdog reset before this start-up is said on every port (queued until a
     /// host reads it), as Marlin reports a watchdog reset.
     fn announce_reset_cause(printer: Shared) {
         if let Some(cause) = safety::reset_cause() {
-            defmt::warn!("reset cause: {}", cause);
-            printer.borrow_mut().board_notice(cause);
+            let mut t: heapless::String<160> = heapless::String::new();
+            let _ = core::fmt::Write::write_fmt(&mut t, format_args!("{cause}"));
+            defmt::warn!("reset cause: {}", t.as_str());
+            printer.borrow_mut().board_notice(&t);
         }
     }
 
@@ -285,14 +385,13 @@ mod image {
 
     /// Feeds the independent watchdog every 50 ms while the motion and heater loops are alive.
     #[embassy_executor::task]
-    async fn watchdog_task(mut wdg: IndependentWatchdog<'static, peripherals::IWDG>) {
-        wdg.unleash();
+    async fn watchdog_task() {
         let mut ticker = Ticker::every(Duration::from_millis(50));
         loop {
             ticker.next().await;
             let now = printer_now_us();
             if critical_section::with(|cs| LIVENESS.borrow(cs).borrow().all_alive(now)) {
-                wdg.pet();
+                watchdog::feed();
             } else {
                 defmt::warn!("a loop is late: watchdog not fed");
             }
@@ -313,10 +412,29 @@ mod image {
         safety::reset_or_break()
     }
 
+    /// Every fault this image does not handle otherwise (MemManage, BusFault and UsageFault
+    /// are not enabled, so they escalate here), a stack overflow into the guard included:
+    /// this runs at priority −1, where the MPU is off, so its own stacking lands in the guard.
     #[cortex_m_rt::exception]
-    unsafe fn HardFault(_frame: &cortex_m_rt::ExceptionFrame) -> ! {
+    unsafe fn HardFault(frame: &cortex_m_rt::ExceptionFrame) -> ! {
         safety::all_off();
-        safety::record_fault(safety::Fault::HardFault);
+        let sp = frame as *const cortex_m_rt::ExceptionFrame as u32;
+        safety::record_fault(if stack::overflowed(sp) {
+            safety::Fault::StackOverflow
+        } else {
+            safety::Fault::HardFault
+        });
+        safety::uart_say(FATAL_LINE);
+        safety::reset_or_break()
+    }
+
+    /// Any exception or interrupt without a handler of its own (one this image never enables,
+    /// a SysTick left running by a bootloader, a spurious IRQ): the same safe state as a
+    /// HardFault instead of cortex-m-rt's endless loop (which would leave a heater on).
+    #[cortex_m_rt::exception]
+    unsafe fn DefaultHandler(irqn: i16) -> ! {
+        safety::all_off();
+        safety::record_fault(safety::Fault::Unexpected(irqn));
         safety::uart_say(FATAL_LINE);
         safety::reset_or_break()
     }

@@ -3,9 +3,9 @@
 //! plus the cost of driving the pins for one step event.
 #![cfg_attr(not(target_os = "none"), allow(dead_code))]
 
+use crate::board_homing;
 use core::cell::Cell;
 use core::convert::Infallible;
-use crate::board_homing;
 use drivers::homing_watch::{EndstopWatch, EventFlags};
 use drivers::{IdleTimeout, PauseButton, StepperPins};
 use embedded_hal::digital::{ErrorType, InputPin, OutputPin};
@@ -310,7 +310,7 @@ impl tmc2209::SingleWire for TmcModel {
 /// silent one and a corrupted reply refused.
 fn tmc() -> Result<u32, CheckFailed> {
     use firmware::drivers::tmc2209::{
-        read_request, reg, write_datagram, DriverSettings, TmcError, Tmc2209,
+        read_request, reg, write_datagram, DriverSettings, Tmc2209, TmcError,
     };
     check(
         write_datagram(0, reg::GCONF, 0x1C0) == [0x05, 0x00, 0x80, 0x00, 0x00, 0x01, 0xC0, 0xF6],
@@ -354,8 +354,10 @@ struct Ev {
 }
 
 /// The step interrupt's work per event without the busy-wait delays: the queue pop (as in
-/// `board::stepper`), the due-time comparison, and `StepExecutor::fire` (limits, DIR, STEP
-/// high/low, position) on register-writing pins. Events are queued in batches of 200 (not
+/// `board::stepper`), the re-timer's due time and its bookkeeping (`drivers::retime`, with the
+/// board's limits: 4 MHz ticks, the Ender-3 floors, 2 µs minimum step period, 20 µs
+/// tolerance, 20 ms rest gap), the due-time comparison, and `StepExecutor::fire` (limits, DIR,
+/// STEP high/low, position) on register-writing pins. Events are queued in batches of 200 (not
 /// timed: that is the motion loop's side); `mark(true/false)` brackets each consuming batch.
 pub fn isr_cost(events: u32, mut mark: impl FnMut(bool)) -> u32 {
     let reg = core::ptr::addr_of_mut!(BSRR);
@@ -377,6 +379,22 @@ pub fn isr_cost(events: u32, mut mark: impl FnMut(bool)) -> u32 {
         z: FlagInput { flag: &open },
         pressed_high: 0b111,
     };
+    let cfg = firmware::config::MachineConfig::ENDER3;
+    let mut floors = [8u32; 4];
+    for (axis, f) in firmware::motion::Axis::ALL
+        .into_iter()
+        .zip(floors.iter_mut())
+    {
+        let a = cfg.axis(axis);
+        *f = drivers::retime::axis_floor_ticks(a.steps_per_mm, a.max_feed_mm_s, 4_000_000, 8);
+    }
+    let mut retime = drivers::retime::Retimer::new(drivers::retime::RetimeConfig {
+        min_period_ticks: floors,
+        min_step_ticks: 8,
+        latency_slack_ticks: 2,
+        late_tolerance_ticks: 80,
+        rest_gap_ticks: 80_000,
+    });
     let mut queue: heapless::spsc::Queue<Ev, 256> = heapless::spsc::Queue::new();
     let (mut producer, mut consumer) = queue.split();
     let mut stepped = 0u32;
@@ -395,7 +413,8 @@ pub fn isr_cost(events: u32, mut mark: impl FnMut(bool)) -> u32 {
         mark(true);
         let now = core::hint::black_box(u64::MAX - 1);
         while let Some(ev) = consumer.peek().copied() {
-            if ev.t_ticks > now + 1 {
+            let due = retime.due(ev.t_ticks, ev.axis_mask);
+            if due > now + 1 {
                 break;
             }
             let _ = consumer.dequeue();
@@ -407,6 +426,7 @@ pub fn isr_cost(events: u32, mut mark: impl FnMut(bool)) -> u32 {
             } else {
                 exec.fire(ev.axis_mask, ev.dir_mask, 650, 1000, |_| {})
             };
+            retime.fired(m, now);
             stepped += u32::from(m != 0);
         }
         mark(false);

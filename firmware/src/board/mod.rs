@@ -8,8 +8,10 @@
 //! * [`flash`] — the settings store in flash sectors 10–11 (M500/M501);
 //! * [`stepper`] — the step interrupt and its event queue;
 //! * [`heaters`] — thermistor sampling, software PWM, hot-end fan;
-//! * [`safety`] — heaters, drivers and their power off from any context (panic, HardFault),
-//!   and the last words on the TFT UART;
+//! * [`safety`] — heaters, drivers and their power off from any context (panic, HardFault,
+//!   an unexpected interrupt), the fault record, and the last words on the TFT UART;
+//! * [`stack`] — the MPU guard below the stack and its high-water mark;
+//! * [`watchdog`] — the independent watchdog, timed from the fastest LSI;
 //! * [`tmc`] — the TMC2209 UART lines;
 //! * [`sd`] — the micro-SD slot on SDIO, for SD printing.
 
@@ -21,5 +23,11 @@ pub mod pins;
 pub mod safety;
 // The micro-SD slot (SDIO) for SD printing.
 pub mod sd;
+pub mod stack;
 pub mod stepper;
 pub mod tmc;
+pub mod watchdog;
+
+/// The executive as the tasks share it: built in place in a `static` (`Printer::init_in_place`,
+/// no 35 KiB value on the stack), borrowed by one task at a time.
+pub type SharedPrinter = core::cell::RefCell<&'static mut firmware::printer::Printer>;

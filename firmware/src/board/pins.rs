@@ -22,7 +22,8 @@
 //! | hot-end thermistor (TH0) | PA2 (ADC123_IN2) | [M] `TEMP_0_PIN` |
 //! | bed thermistor (TB) | PA1 (ADC123_IN1) | [M] `TEMP_BED_PIN` |
 //! | pause button (filament-runout connector E0DET) | PC2 | [M] `FIL_RUNOUT_PIN` |
-//! | driver/heater/fan power switch (SAFE_POWER) | PC13 | [M] `SAFE_POWER_PIN`; [K] `[output_pin motor_power] pin: PC13 value: 1` ("needs pulling high to pass power to stepper drivers and most FETs") |
+//! | driver/heater/fan power switch (SAFE_POWER; low until the reversed-driver check passes) | PC13 | [M] `SAFE_POWER_PIN`; [K] `[output_pin motor_power] pin: PC13 value: 1` ("needs pulling high to pass power to stepper drivers and most FETs") |
+//! | E1 STEP / DIR / EN (socket not used, but powered by SAFE_POWER: checked, kept disabled) | PD11 / PD10 / PD13 | [M] `E1_STEP_PIN`, `E1_DIR_PIN`, `E1_ENABLE_PIN`; [K] `#[extruder1]` |
 //! | TMC2209 UART X / Y / Z / E0 (single wire, TX = RX) | PE0 / PD3 / PD0 / PC6 | [M] `X_SERIAL_TX_PIN PE0`, `Y_SERIAL_TX_PIN PD3`, `Z_SERIAL_TX_PIN PD0`, `E0_SERIAL_TX_PIN PC6`, each `*_SERIAL_RX_PIN` = its TX pin; [K] `[tmc2209 stepper_x] uart_pin: PE0` (and `PD3`, `PD0`, `PC6`) |
 //! | status LED (RGB header data pin) | PE6 | [M] `NEOPIXEL_PIN`; the SKR 2 has no user LED on a GPIO, so a plain LED on the RGB header is used |
 //! | USB (Type-B port, OTG FS) | PA11 / PA12 | [S] USB D− / D+ |
@@ -36,18 +37,74 @@
 /// HSE crystal frequency on the SKR 2, Hz.
 pub const HSE_HZ: u32 = 8_000_000;
 
-use embassy_stm32::gpio::{Flex, Input, Level, Output, Pull, Speed};
+use embassy_stm32::gpio::{AnyPin, Flex, Input, Level, Output, Pull, Speed};
 use embassy_stm32::peripherals as P;
 use embassy_stm32::Peri;
+use firmware::drivers::backward::{self, Backward};
+
+/// The driver sockets, in the order of [`SOCKET_NAMES`].
+pub const SOCKETS: usize = 5;
+/// The sockets as Marlin names them in its reversed-driver report. E1 (STEP PD11, DIR PD10,
+/// EN PD13: [M] `E1_STEP_PIN`, `E1_DIR_PIN`, `E1_ENABLE_PIN`) is not used by this image, but
+/// SAFE_POWER feeds it too, so a module in it is checked as well.
+pub const SOCKET_NAMES: [&str; SOCKETS] = ["X", "Y", "Z", "E0", "E1"];
+
+/// The driver sockets' STEP, DIR and EN pins, not configured yet: the reversed-driver check
+/// ([`check_sockets`]) needs EN as an input first.
+pub struct Sockets {
+    /// STEP X, Y, Z, E0, E1.
+    pub step: [Peri<'static, AnyPin>; SOCKETS],
+    /// DIR X, Y, Z, E0, E1.
+    pub dir: [Peri<'static, AnyPin>; SOCKETS],
+    /// EN X, Y, Z, E0, E1 (active low).
+    pub en: [Peri<'static, AnyPin>; SOCKETS],
+}
+
+/// The stepper outputs of the four used sockets (X, Y, Z, E0): STEP, DIR, EN.
+pub type StepperOutputs = (
+    [Output<'static>; 4],
+    [Output<'static>; 4],
+    [Output<'static>; 4],
+);
+
+/// Marlin's reversed-driver check (`firmware::drivers::backward`) on every socket, with
+/// SAFE_POWER: each EN an input with the pull-up, each STEP driven low, 20 ms, EN read.
+/// SAFE_POWER goes high only if no socket holds a module the wrong way round. The pins go back
+/// to their reset state (analog, undriven) afterwards.
+pub fn check_sockets(s: &mut Sockets, safe_power: &mut Output<'static>) -> Backward {
+    let mut en = s.en.each_mut().map(|p| Input::new(p.reborrow(), Pull::Up));
+    let mut step = s
+        .step
+        .each_mut()
+        .map(|p| Output::new(p.reborrow(), Level::Low, Speed::Low));
+    backward::check(safe_power, &mut en, &mut step, &mut embassy_time::Delay)
+}
+
+/// Configures the sockets' pins for stepping, once the check passed: STEP and DIR low, every
+/// driver disabled (EN high). E1's pins are set the same way and kept for the program's life
+/// (an unused module stays disabled); the four used sockets' outputs are returned.
+pub fn stepper_outputs(s: Sockets) -> StepperOutputs {
+    let out = |pin: Peri<'static, AnyPin>, level| Output::new(pin, level, Speed::VeryHigh);
+    let [sx, sy, sz, se, s1] = s.step;
+    let [dx, dy, dz, de, d1] = s.dir;
+    let [ex, ey, ez, ee, e1] = s.en;
+    // embassy resets a dropped output to analog: E1's stay configured for good.
+    core::mem::forget([
+        out(s1, Level::Low),
+        out(d1, Level::Low),
+        out(e1, Level::High),
+    ]);
+    (
+        [sx, sy, sz, se].map(|p| out(p, Level::Low)),
+        [dx, dy, dz, de].map(|p| out(p, Level::Low)),
+        [ex, ey, ez, ee].map(|p| out(p, Level::High)),
+    )
+}
 
 /// The configured GPIO pins (see the table above).
 pub struct Pins {
-    /// STEP outputs X, Y, Z, E0.
-    pub step: [Output<'static>; 4],
-    /// DIR outputs X, Y, Z, E0.
-    pub dir: [Output<'static>; 4],
-    /// EN outputs X, Y, Z, E0 (active low).
-    pub enable: [Output<'static>; 4],
+    /// The driver sockets (configured after the reversed-driver check).
+    pub sockets: Sockets,
     /// Endstop inputs X, Y, Z (pulled up).
     pub endstops: [Input<'static>; 3],
     /// Hot-end heater MOSFET gate.
@@ -56,7 +113,8 @@ pub struct Pins {
     pub heater_bed: Output<'static>,
     /// Pause button input (pulled up; pressed = low).
     pub pause_button: Input<'static>,
-    /// Power switch of drivers, heaters and fans (high = on).
+    /// Power switch of drivers, heaters and fans (high = on); low until the reversed-driver
+    /// check passes.
     pub safe_power: Output<'static>,
     /// Status LED.
     pub status_led: Output<'static>,
@@ -98,31 +156,32 @@ pub struct Periph {
 }
 
 /// Splits the HAL's peripherals into the configured pins and the remaining peripherals.
-/// Heaters and fans start off, stepper drivers disabled.
+/// Heaters and fans start off, SAFE_POWER low; the driver sockets are not configured yet.
 pub fn split(p: embassy_stm32::Peripherals) -> (Pins, Periph) {
-    let out = |pin: Peri<'static, embassy_stm32::gpio::AnyPin>, level| {
-        Output::new(pin, level, Speed::VeryHigh)
-    };
     let pins = Pins {
-        step: [
-            out(p.PE2.into(), Level::Low),
-            out(p.PD5.into(), Level::Low),
-            out(p.PA15.into(), Level::Low),
-            out(p.PD15.into(), Level::Low),
-        ],
-        dir: [
-            out(p.PE1.into(), Level::Low),
-            out(p.PD4.into(), Level::Low),
-            out(p.PA8.into(), Level::Low),
-            out(p.PD14.into(), Level::Low),
-        ],
-        // Drivers start disabled (EN high).
-        enable: [
-            out(p.PE3.into(), Level::High),
-            out(p.PD6.into(), Level::High),
-            out(p.PD1.into(), Level::High),
-            out(p.PC7.into(), Level::High),
-        ],
+        sockets: Sockets {
+            step: [
+                p.PE2.into(),
+                p.PD5.into(),
+                p.PA15.into(),
+                p.PD15.into(),
+                p.PD11.into(),
+            ],
+            dir: [
+                p.PE1.into(),
+                p.PD4.into(),
+                p.PA8.into(),
+                p.PD14.into(),
+                p.PD10.into(),
+            ],
+            en: [
+                p.PE3.into(),
+                p.PD6.into(),
+                p.PD1.into(),
+                p.PC7.into(),
+                p.PD13.into(),
+            ],
+        },
         endstops: [
             Input::new(p.PC1, Pull::Up),
             Input::new(p.PC3, Pull::Up),
@@ -131,7 +190,7 @@ pub fn split(p: embassy_stm32::Peripherals) -> (Pins, Periph) {
         heater_hotend: Output::new(p.PB3, Level::Low, Speed::Low),
         heater_bed: Output::new(p.PD7, Level::Low, Speed::Low),
         pause_button: Input::new(p.PC2, Pull::Up),
-        safe_power: Output::new(p.PC13, Level::High, Speed::Low),
+        safe_power: Output::new(p.PC13, Level::Low, Speed::Low),
         status_led: Output::new(p.PE6, Level::Low, Speed::Low),
         tmc_uart: [
             Flex::new(p.PE0),

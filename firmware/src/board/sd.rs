@@ -15,6 +15,7 @@
 //! runs from its own queue meanwhile. A read error marks the card lost; the next M21 (or any
 //! SD command that needs the card) brings it up again.
 
+use super::SharedPrinter;
 use core::cell::{Cell, RefCell};
 use embassy_executor::Spawner;
 use embassy_stm32::sdmmc::sd::{Addressable, Card as SdCard, CmdBlock, DataBlock, StorageDevice};
@@ -23,7 +24,6 @@ use embassy_stm32::time::Hertz;
 use embassy_stm32::{bind_interrupts, dma, peripherals};
 use embassy_time::Timer;
 use embedded_sdmmc::{Block, BlockCount, BlockDevice, BlockIdx};
-use firmware::printer::Printer;
 use firmware::storage::sd::Card;
 use static_cell::StaticCell;
 
@@ -109,7 +109,7 @@ impl BlockDevice for SdioCard {
 
 /// Take the SDIO peripheral, its pins and DMA stream, tell the executive it has a card slot,
 /// and start the card task.
-pub fn start(spawner: &Spawner, printer: &'static RefCell<Printer>) {
+pub fn start(spawner: &Spawner, printer: &'static SharedPrinter) {
     static SDMMC: StaticCell<Sdmmc<'static>> = StaticCell::new();
     static DEV: StaticCell<RefCell<Device>> = StaticCell::new();
     static UP: StaticCell<Cell<bool>> = StaticCell::new();
@@ -143,7 +143,7 @@ pub fn start(spawner: &Spawner, printer: &'static RefCell<Printer>) {
 /// card), then serve the executive's card requests and the job's lines.
 #[embassy_executor::task]
 async fn sd_task(
-    printer: &'static RefCell<Printer>,
+    printer: &'static SharedPrinter,
     dev: &'static RefCell<Device>,
     up: &'static Cell<bool>,
 ) {

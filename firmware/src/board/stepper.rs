@@ -8,6 +8,13 @@
 //! 2. STEP high on every stepping axis at once, the minimum pulse width ([`PULSE_NS`]), STEP low;
 //! 3. the next event's time into CCR1, or the compare interrupt off when the queue is empty.
 //!
+//! Before firing, each event gets its earliest time from the re-timer
+//! (`firmware::drivers::retime`): an event that comes late (the motion loop stalled longer
+//! than the queue covers) shifts the rest of the schedule instead of firing in a burst, and no
+//! axis ever steps sooner than its floor after its previous step (steps/mm × max feed, never
+//! below [`MIN_STEP_PERIOD_NS`]). The motion loop keeps the floors in step with M92/M203
+//! ([`floors`]) and reports the re-timed events ([`StepIsr::retime`]).
+//!
 //! The interrupt also keeps the position in steps and enforces the software limits of the
 //! configured volume once the axes are homed; before homing it refuses X/Y/Z steps (no motion
 //! before homing, as Marlin's `NO_MOTION_BEFORE_HOMING`), except those of G28's homing moves.
@@ -24,8 +31,11 @@ use heapless::spsc::{Consumer, Producer, Queue};
 
 use super::clock;
 use super::drivers::homing_watch::{EndstopWatch, EventFlags, Trip};
+use super::drivers::retime::{axis_floor_ticks, RetimeConfig, Retimer};
 use super::drivers::{StepExecutor, StepperPins};
+use firmware::config::MachineConfig;
 use firmware::homing::PinEndstops;
+use firmware::motion::{Axis, AXES};
 
 /// The X, Y, Z minimum endstops (PC1, PC3, PC0, pulled up).
 pub type BoardEndstops = PinEndstops<Input<'static>, Input<'static>, Input<'static>>;
@@ -38,6 +48,23 @@ pub const LOOKAHEAD_NS: u64 = 2_000_000;
 pub const DIR_SETUP_NS: u32 = 650;
 /// STEP high time, ns (TMC2209: 100 ns; A4988: 1 µs; DRV8825 needs 1.9 µs: raise it to 2000).
 pub const PULSE_NS: u32 = 1_000;
+/// The shortest time between two steps of one axis, ns: twice the STEP pulse, Marlin's
+/// `MAXIMUM_STEPPER_RATE` rule (`1e6 / (2 × MINIMUM_STEPPER_PULSE)` steps/s,
+/// `Conditionals_adv.h`).
+pub const MIN_STEP_PERIOD_NS: u32 = 2 * PULSE_NS;
+/// An event this much past its due time shifts the rest of the schedule, ns (smaller lateness
+/// is interrupt latency and a few events due at once: fired without shifting).
+pub const LATE_TOLERANCE_NS: u32 = 20_000;
+/// How much of a step's lateness its axis's floor forgives, ns (`RetimeConfig::
+/// latency_slack_ticks`): two steps of an axis come no closer than its limit's period less
+/// this, three ticks of the time base (the floor rounded down, an event fired a tick early,
+/// the clock read's resolution) and, after a direction change, the DIR setup — 1.25 µs
+/// without one, 1.9 µs with it, however long a critical section held the interrupt back. 500 ns covers the interrupt's own entry (84 cycles at
+/// 168 MHz, to its clock read), so on-time steps of an axis at its limit are not dragged.
+pub const LATENCY_SLACK_NS: u32 = 500;
+/// A planned gap this long between two events means every axis is at rest, ns: the
+/// re-timer's shift may shrink there (20 ms: under 50 steps/s on any axis).
+pub const REST_GAP_NS: u32 = 20_000_000;
 /// CPU clock, Hz (for the busy-wait delays).
 pub const CPU_HZ: u32 = 168_000_000;
 /// Most events the interrupt executes in one entry before yielding (it runs with interrupts
@@ -65,6 +92,8 @@ pub struct StepIsr {
     pub endstops: BoardEndstops,
     /// The approach's switch, watched before each of its events.
     pub watch: EndstopWatch,
+    /// Each event's earliest time: no burst after a stall, no axis above its limit.
+    pub retime: Retimer,
     consumer: Consumer<'static, PinEvent>,
     /// Drop every queued event (halt / quick stop).
     pub flush: bool,
@@ -76,10 +105,12 @@ static QUEUE: static_cell::StaticCell<Queue<PinEvent, QUEUE_LEN>> = static_cell:
 /// The interrupt's state, shared with the motion loop under a critical section.
 pub static ISR: Mutex<RefCell<Option<StepIsr>>> = Mutex::new(RefCell::new(None));
 
-/// Sets up the queue and the interrupt; returns the producer side for the motion loop.
+/// Sets up the queue and the interrupt at `priority` (the highest of the image); returns the
+/// producer side for the motion loop.
 pub fn init(
     pins: StepperPins<Output<'static>>,
     endstops: BoardEndstops,
+    priority: Priority,
 ) -> Producer<'static, PinEvent> {
     let (producer, consumer) = QUEUE.init(Queue::new()).split();
     critical_section::with(|cs| {
@@ -87,12 +118,13 @@ pub fn init(
             exec: StepExecutor::new(pins),
             endstops,
             watch: EndstopWatch::new(),
+            retime: Retimer::new(floors(&MachineConfig::ENDER3)),
             consumer,
             flush: false,
             running: false,
         }))
     });
-    interrupt::TIM5.set_priority(Priority::P0);
+    interrupt::TIM5.set_priority(priority);
     // SAFETY: the handler below only touches state behind the critical-section mutex.
     unsafe { interrupt::TIM5.enable() };
     producer
@@ -108,6 +140,28 @@ pub fn cycles(ns: u32) -> u32 {
     (ns as u64 * CPU_HZ as u64 / 1_000_000_000) as u32
 }
 
+fn ticks(ns: u32) -> u32 {
+    ns.div_ceil(clock::NS_PER_TICK as u32)
+}
+
+/// The re-timer's limits for `cfg`: each axis's floor from its steps/mm and max feed (M92,
+/// M203), never below [`MIN_STEP_PERIOD_NS`].
+pub fn floors(cfg: &MachineConfig) -> RetimeConfig {
+    let min_step = ticks(MIN_STEP_PERIOD_NS);
+    let mut min_period_ticks = [min_step; AXES];
+    for (axis, p) in Axis::ALL.into_iter().zip(min_period_ticks.iter_mut()) {
+        let a = cfg.axis(axis);
+        *p = axis_floor_ticks(a.steps_per_mm, a.max_feed_mm_s, clock::TICK_HZ, min_step);
+    }
+    RetimeConfig {
+        min_period_ticks,
+        min_step_ticks: min_step,
+        latency_slack_ticks: ticks(LATENCY_SLACK_NS),
+        late_tolerance_ticks: ticks(LATE_TOLERANCE_NS),
+        rest_gap_ticks: ticks(REST_GAP_NS),
+    }
+}
+
 impl StepIsr {
     fn run(&mut self, cs: critical_section::CriticalSection) {
         let tim = pac::TIM5;
@@ -115,6 +169,7 @@ impl StepIsr {
         if self.flush {
             while self.consumer.dequeue().is_some() {}
             self.flush = false;
+            self.retime.restart();
         }
         for _ in 0..MAX_PER_IRQ {
             let Some(ev) = self.consumer.peek().copied() else {
@@ -122,13 +177,14 @@ impl StepIsr {
                 self.running = false;
                 return;
             };
+            let due = self.retime.due(ev.t_ticks, ev.axis_mask);
             let now = clock::now_ticks_cs(cs);
-            if ev.t_ticks > now + 1 {
+            if due > now + 1 {
                 // Arm the compare for the event; if the counter passed it meanwhile, loop.
-                tim.ccr(0).write_value(ev.t_ticks as u32);
+                tim.ccr(0).write_value(due as u32);
                 tim.dier().modify(|w| w.set_ccie(0, true));
                 self.running = true;
-                if clock::now_ticks_cs(cs) < ev.t_ticks {
+                if clock::now_ticks_cs(cs) < due {
                     return;
                 }
                 continue;
@@ -143,13 +199,14 @@ impl StepIsr {
                 continue;
             }
             let delay = |ns| cortex_m::asm::delay(cycles(ns));
-            if ev.flags.homing() {
+            let stepped = if ev.flags.homing() {
                 self.exec
-                    .fire_homing(ev.axis_mask, ev.dir_mask, DIR_SETUP_NS, PULSE_NS, delay);
+                    .fire_homing(ev.axis_mask, ev.dir_mask, DIR_SETUP_NS, PULSE_NS, delay)
             } else {
                 self.exec
-                    .fire(ev.axis_mask, ev.dir_mask, DIR_SETUP_NS, PULSE_NS, delay);
-            }
+                    .fire(ev.axis_mask, ev.dir_mask, DIR_SETUP_NS, PULSE_NS, delay)
+            };
+            self.retime.fired(stepped, now);
         }
         // Many events due at once (catching up): come back right away.
         interrupt::TIM5.pend();

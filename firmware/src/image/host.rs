@@ -12,10 +12,14 @@ use embassy_usb::UsbDevice;
 use firmware::link::PortId;
 use firmware::printer::Printer;
 
-use super::{printer_now_us, Shared, UART_OUT, USB_OUT};
+use super::{printer_now_us, Shared, UART_OUT, UART_TX_BUF, USB_OUT};
 
 /// Pushes each port's pending host-link output to its pipe (USB, TFT UART), as far as the
 /// pipe has room; the executive keeps the rest in that port's output ring.
+///
+/// `Pipe::try_write` writes only up to the end of the pipe's ring buffer (its contiguous free
+/// part), so a chunk that straddles the wrap takes two writes; taking one and dropping the
+/// rest lost the middle of lines (seen on the emulated board: a notice cut after 12 bytes).
 pub(super) fn flush_output(p: &mut Printer) {
     let mut buf = [0u8; 128];
     for (port, pipe) in [(PortId::Usb, &USB_OUT), (PortId::Tft, &UART_OUT)] {
@@ -25,7 +29,17 @@ pub(super) fn flush_output(p: &mut Printer) {
             if n == 0 {
                 break;
             }
-            let _ = pipe.try_write(buf.get(..n).unwrap_or(&[]));
+            let mut chunk = buf.get(..n).unwrap_or(&[]);
+            while !chunk.is_empty() {
+                match pipe.try_write(chunk) {
+                    Ok(k) => chunk = chunk.get(k..).unwrap_or(&[]),
+                    Err(_) => {
+                        // Cannot happen: `room` was free.
+                        defmt::error!("host output: {=usize} bytes lost", chunk.len());
+                        break;
+                    }
+                }
+            }
         }
     }
 }
@@ -100,10 +114,53 @@ pub(super) async fn cdc_task(
     join3(receive, send, line_state).await;
 }
 
+/// The TFT UART's transmit side, written so that embassy-stm32 0.6's `BufferedUartTx` never
+/// waits forever: its `write` returns `Pending` **without registering a waker** when the
+/// whole slice does not fit in the free part of its buffer (`usart/buffered.rs`,
+/// `BufferedUartTx::write`), and nothing wakes the task again (found on the emulated board:
+/// transmission stopped for good in the middle of M115's capability list, the driver's buffer
+/// empty, TXEIE off). Its `flush` is no reliable way to know the buffer empty either: it
+/// waits for `tx_done`, which the interrupt also sets on a transmission-complete flag seen
+/// between two bytes while more are queued (the port stopped again at start-up on the
+/// emulated board after a 0.6 s settings load). So each write is given [`TX_RETRY_MS`]: a
+/// write still pending then is dropped and made again, and the new one looks at the free
+/// room afresh (the driver keeps nothing of a pending write: it copies only once the whole
+/// slice fits). Chunks are at most [`TX_CHUNK`] bytes, so one fits as soon as the interrupt
+/// has sent that much.
+struct TftTx {
+    tx: embassy_stm32::usart::BufferedUartTx<'static>,
+}
+
+/// Largest slice handed to the driver at once (an eighth of its buffer: 5.6 ms of line time
+/// at 115200 Bd).
+const TX_CHUNK: usize = UART_TX_BUF / 8;
+/// How long a write may stay pending before it is made again, ms (a chunk's line time).
+const TX_RETRY_MS: u64 = 6;
+
+impl TftTx {
+    async fn send(&mut self, data: &[u8]) {
+        use embassy_time::{with_timeout, Duration};
+        use embedded_io_async::Write;
+        let mut rest = data;
+        while !rest.is_empty() {
+            let n = rest.len().min(TX_CHUNK);
+            let chunk = rest.get(..n).unwrap_or(&[]);
+            match with_timeout(Duration::from_millis(TX_RETRY_MS), self.tx.write(chunk)).await {
+                Ok(Ok(k)) => rest = rest.get(k..).unwrap_or(&[]),
+                // A driver error (none on transmit today): the rest of the answer is lost.
+                Ok(Err(_)) => return,
+                // Pending without a waker, or the line is slow: ask again.
+                Err(_) => {}
+            }
+        }
+    }
+}
+
 #[embassy_executor::task]
 pub(super) async fn uart_task(uart: BufferedUart<'static>, printer: Shared) {
-    use embedded_io_async::{Read, Write};
-    let (mut tx, mut rx) = uart.split();
+    use embedded_io_async::Read;
+    let (tx, mut rx) = uart.split();
+    let mut tx = TftTx { tx };
     let mut inbuf = [0u8; 64];
     let mut outbuf = [0u8; 64];
     loop {
@@ -123,17 +180,13 @@ pub(super) async fn uart_task(uart: BufferedUart<'static>, printer: Shared) {
                         break;
                     }
                     match UART_OUT.try_read(&mut outbuf) {
-                        Ok(k) => {
-                            let _ = tx.write_all(outbuf.get(..k).unwrap_or(&[])).await;
-                        }
+                        Ok(k) => tx.send(outbuf.get(..k).unwrap_or(&[])).await,
                         Err(_) => Timer::after_millis(1).await,
                     }
                 }
             }
             Either::First(Err(_)) => {}
-            Either::Second(n) => {
-                let _ = tx.write_all(outbuf.get(..n).unwrap_or(&[])).await;
-            }
+            Either::Second(n) => tx.send(outbuf.get(..n).unwrap_or(&[])).await,
         }
     }
 }

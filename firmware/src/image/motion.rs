@@ -15,8 +15,11 @@ use super::host::flush_output;
 use super::{beat, printer_now_ns, printer_now_us, Shared, LOOP_MOTION};
 use crate::board::clock;
 use crate::board::drivers::homing_watch::EventFlags;
+use crate::board::drivers::retime::RetimeStats;
 use crate::board::drivers::{IdleTimeout, PauseButton};
+use crate::board::stack;
 use crate::board::stepper::{self, PinEvent, LOOKAHEAD_NS};
+use firmware::printer::BoardStats;
 
 /// Stepper drivers switch off after this long without motion (Marlin's default 120 s).
 const STEPPER_IDLE_S: u32 = 120;
@@ -70,6 +73,48 @@ fn feed_steps(
         stepper::with(|s| s.exec.pins.set_enabled(true));
         stepper::kick();
     }
+}
+
+/// How often the board's measurements (stack high-water mark, re-timed steps) are refreshed
+/// for M115, and new late steps reported, ms.
+const STATS_MS: u32 = 1_000;
+
+/// Refreshes the board's measurements in the executive (M115 reports them) and the step
+/// interrupt's floors (M92/M203 may have changed them); says on every port when step events
+/// came late since the last report (each one shifted the schedule instead of bursting).
+fn board_stats(p: &mut Printer, reported: &mut RetimeStats) {
+    let floors = stepper::floors(p.config());
+    let s = stepper::with(|s| {
+        if s.retime.config() != floors {
+            s.retime.set_config(floors);
+        }
+        s.retime.stats()
+    })
+    .unwrap_or_default();
+    let (used, size) = stack::high_water();
+    let us = |ticks: u64| (ticks * clock::NS_PER_TICK / 1000).min(u64::from(u32::MAX)) as u32;
+    p.set_board_stats(BoardStats {
+        stack_used_bytes: used,
+        stack_size_bytes: size,
+        steps_late: s.late,
+        steps_capped: s.capped,
+        worst_late_us: us(s.worst_late_ticks),
+    });
+    if s.late > reported.late {
+        let mut t: heapless::String<160> = heapless::String::new();
+        let _ = core::fmt::Write::write_fmt(
+            &mut t,
+            format_args!(
+                "step timing: {} step events came late after a stall (worst {} us): re-timed, \
+                 no axis faster than planned",
+                s.late - reported.late,
+                us(s.worst_late_ticks)
+            ),
+        );
+        defmt::warn!("{}", t.as_str());
+        p.board_notice(&t);
+    }
+    *reported = s;
 }
 
 /// Software limits of X, Y, Z in steps, and their home (minimum) positions.
@@ -126,9 +171,13 @@ pub(super) async fn motion_task(
     let mut halted = false;
     let mut blink: u32 = 0;
     let mut held: Option<(StepEvent, EventFlags)> = None;
+    let mut reported = RetimeStats::default();
     loop {
         ticker.next().await;
         beat(LOOP_MOTION);
+        if blink.is_multiple_of(STATS_MS) {
+            board_stats(&mut printer.borrow_mut(), &mut reported);
+        }
         let now_us = printer_now_us();
         {
             let mut p = printer.borrow_mut();
@@ -209,6 +258,32 @@ pub(super) async fn motion_task(
         blink = blink.wrapping_add(1);
         let period = if halted { 100 } else { 500 };
         if blink.is_multiple_of(period) {
+            led.toggle();
+        }
+    }
+}
+
+/// The motion loop of a printer halted before its drivers got power (a driver module plugged
+/// in backwards): no step interrupt, no drivers; the executive still answers (every line is
+/// refused: halted), its output reaches both ports, the watchdog is fed, the LED blinks fast.
+#[embassy_executor::task]
+pub(super) async fn halted_task(printer: Shared, mut led: embassy_stm32::gpio::Output<'static>) {
+    let mut ticker = Ticker::every(Duration::from_millis(1));
+    let mut blink: u32 = 0;
+    let mut reported = RetimeStats::default();
+    loop {
+        ticker.next().await;
+        beat(LOOP_MOTION);
+        {
+            let mut p = printer.borrow_mut();
+            p.poll(printer_now_us());
+            if blink.is_multiple_of(STATS_MS) {
+                board_stats(&mut p, &mut reported);
+            }
+            flush_output(&mut p);
+        }
+        blink = blink.wrapping_add(1);
+        if blink.is_multiple_of(100) {
             led.toggle();
         }
     }

@@ -57,6 +57,7 @@ impl Printer {
             }
             G::FirmwareInfo => {
                 self.link.respond(Response::FirmwareInfo);
+                self.report_board_stats();
             }
             G::Message(t) | G::Echo(t) => {
                 self.link.respond(Response::Echo(t));

@@ -22,6 +22,11 @@
 //! service lane), `settings` (M92.. M503), `types` (public types).
 
 mod autotune;
+// Building a `Printer`, in place if need be (`init.rs`).
+mod init;
+// What the board reports (reversed drivers, its measurements for M115).
+mod board;
+pub use board::BoardStats;
 mod commands;
 mod exec;
 mod guards;
@@ -46,6 +51,7 @@ mod job;
 // M1000: resume the kept job after a power cut.
 mod recovery;
 mod settings;
+pub use settings::ERASE_AHEAD_IDLE_US;
 // Stepper drivers: M569/M350/M122 and the board's TMC2209 results.
 mod drivers;
 pub use drivers::{DriverRequest, DRIVER_REQ_CAPACITY};
@@ -147,6 +153,8 @@ pub struct Printer {
     job: job::JobLink,
     /// The SD card's job and the commands waiting for the card (see `sd.rs`).
     sd: sd::SdLink,
+    /// The board's measurements (see `board.rs`).
+    board: board::BoardLink,
     /// Job lines of a parked printer kept on the card (see `spill.rs`).
     spill: spill::Spill,
 }
@@ -164,52 +172,6 @@ impl Printer {
     /// A printer with `cfg`, the [`Policy::FIRMWARE`] policy, at position 0, time 0.
     pub fn new(cfg: MachineConfig) -> Self {
         Self::with_policy(cfg, Policy::FIRMWARE)
-    }
-
-    /// A printer with a policy (use [`Policy::FIFO`] to model conventional firmware).
-    pub fn with_policy(cfg: MachineConfig, policy: Policy) -> Self {
-        let mut p = Self {
-            cfg,
-            policy,
-            planner: Planner::new(),
-            stepgen: StepGen::new(),
-            cmds: Deque::new(),
-            service: Deque::new(),
-            pause: Pause::Run,
-            lines: HostLines::default(),
-            schedule: None,
-            layer: None,
-            dwell_until_us: None,
-            break_wait: false,
-            now_us: 0,
-            last_activity_us: 0,
-            last_state: State::Idle,
-            records: Deque::new(),
-            stepper_reqs: Deque::new(),
-            driver_reqs: Deque::new(),
-            records_dropped: 0,
-            link: HostPorts::new(),
-            machine: MachineState::new(&cfg),
-            layers: LayerDetector::new().with_end_mark(),
-            arc: None,
-            thermal: Thermal::new(&ThermalConfig::ENDER3),
-            fan_pwm: 0,
-            position_lost: 0,
-            guard: ExtrusionGuard::MARLIN,
-            homing_cfg: None,
-            homing: None,
-            endstops: 0,
-            steps_in_flight: false,
-            homed: homing::HomedAxes::NONE,
-            settings: settings::SettingsLink::new(),
-            reports: report::Reports::new(),
-            job: job::JobLink::new(),
-            sd: sd::SdLink::new(),
-            spill: spill::Spill::new(),
-        };
-        p.set_policy(policy);
-        p.set_factory_settings();
-        p
     }
 
     /// Change the policy (between jobs).

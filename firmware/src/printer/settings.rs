@@ -37,6 +37,10 @@ pub(super) enum StoreRequest {
 pub(super) struct SettingsLink {
     factory: Option<Settings>,
     request: Option<StoreRequest>,
+    /// Idle since (µs), for the store's erase-ahead.
+    idle_since_us: Option<u64>,
+    /// The store's reserve was checked in this idle period (or nothing was stored since).
+    reserve_checked: bool,
 }
 
 impl SettingsLink {
@@ -44,6 +48,8 @@ impl SettingsLink {
         Self {
             factory: None,
             request: None,
+            idle_since_us: None,
+            reserve_checked: false,
         }
     }
 }
@@ -59,6 +65,10 @@ impl core::fmt::Display for Reclaim {
         }
     }
 }
+
+/// How long the printer must have been idle before the store may erase a sector ahead, µs
+/// (`storage::reserve`: the erase stalls the MCU for up to 2 s, heaters off meanwhile).
+pub const ERASE_AHEAD_IDLE_US: u64 = 10_000_000;
 
 /// Longest M503 line (`echo:  ` and a command with every number at full length).
 const REPORT_LEN: usize = 192;
@@ -196,10 +206,19 @@ impl Printer {
     /// Main loop: carry out a pending M500/M501 and paused-job save/clear with the driver's
     /// store once nothing moves (a flash erase on the STM32F4 stalls every read of the flash,
     /// so code running from it stalls too: never while stepping).
+    ///
+    /// With nothing to do, after [`ERASE_AHEAD_IDLE_US`] of idle (no job, nothing moving or
+    /// paused), once per idle period: the store's erase-ahead (`storage::reserve`), so the
+    /// saves of the next print (a power-cut record at every layer pause) find erased room.
     pub fn service_store<F: NorFlash>(&mut self, store: &mut SettingsStore<F>) {
-        if !self.store_request_pending() || !self.still() {
+        if !self.store_request_pending() {
+            self.erase_ahead_when_idle(store);
             return;
         }
+        if !self.still() {
+            return;
+        }
+        self.settings.reserve_checked = false;
         match self.settings.request.take() {
             Some(StoreRequest::Save(s)) => match store.save(&s) {
                 Ok(how) => self.say(format_args!(
@@ -226,6 +245,22 @@ impl Printer {
                 }
             }
             None => {}
+        }
+    }
+
+    fn erase_ahead_when_idle<F: NorFlash>(&mut self, store: &mut SettingsStore<F>) {
+        if self.state() != super::State::Idle {
+            self.settings.idle_since_us = None;
+            return;
+        }
+        let since = *self.settings.idle_since_us.get_or_insert(self.now_us);
+        if self.settings.reserve_checked || self.now_us.saturating_sub(since) < ERASE_AHEAD_IDLE_US
+        {
+            return;
+        }
+        self.settings.reserve_checked = true;
+        if let Err(e) = store.erase_ahead() {
+            self.say(format_args!("settings flash: erase ahead failed: {e}"));
         }
     }
 

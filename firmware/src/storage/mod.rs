@@ -11,6 +11,8 @@
 mod flash;
 mod job;
 mod record;
+// Erase ahead while idle: saves during a print find erased room.
+mod reserve;
 // SD-card printing: the FAT job source (embedded-sdmmc).
 pub mod sd;
 mod store;
@@ -27,6 +29,7 @@ pub use record::{
 pub use crate::ranges::{
     Bound, ACCEL, DRIVER_CURRENT, HOME_OFFSET, JUNCTION_DEVIATION, MAX_FEED, PID_GAIN, STEPS_PER_MM,
 };
+pub use reserve::{EraseAhead, PAD_KEY};
 pub use store::{SettingsStore, StoreError, Stored, BUF_LEN, JOB_KEY, SETTINGS_KEY};
 
 /// Where the settings live on the SKR 2: absolute addresses of the area in the STM32F407's
