@@ -67,17 +67,16 @@ impl Analyser {
         let Ok(line) = parse_line(text.as_bytes()) else {
             return LineFacts::default();
         };
-        let before = self.m.position_steps(cfg);
+        let before = self.m;
         if let Some(cmd) = &line.command {
             // A command the machine rejects changes nothing (as on the printer).
             let _ = self.m.apply(cmd, cfg);
         }
-        let after = self.m.position_steps(cfg);
-        let facts = MoveFacts::between(&before, &after, cfg);
+        let facts = MoveFacts::of(&before, &self.m, cfg);
         LineFacts {
             mark: self.d.feed(&line, facts).map(|mark| mark.layer),
             extrudes: facts.extrudes,
-            moved: before != after,
+            moved: facts.moved,
         }
     }
 }
