@@ -346,12 +346,15 @@ mod tests {
         let mut h = Heights::new();
         let n = 40;
         let xy = |k| on_circle(k, n, 20_000.0);
+        // A flat layer: the wall, then (after a travel) a line of infill.
         let flat = |h: &mut Heights, z: i32| {
             let mut s = Vec::new();
             for k in 0..n {
                 let (a, b) = (xy(k), xy(k + 1));
                 s.push(h.extrusion(&[a[0], a[1], z], &[b[0], b[1], z]));
             }
+            s.push(h.extrusion(&[45_000, 50_000, z], &[55_000, 50_000, z]));
+            s.push(h.extrusion(&[55_000, 51_000, z], &[xy(0)[0], xy(0)[1], z]));
             s
         };
         assert_eq!(flat(&mut h, 200)[0], Start::Layer);
@@ -365,5 +368,18 @@ mod tests {
             }
         }
         assert_eq!(starts, vec![0, n, 2 * n, 3 * n, 4 * n]);
+        // Cura's first spiralized layer: its wall printed once flat (one closed loop), then the
+        // spiral from where the loop closed: the first turn is the same layer.
+        let mut h = Heights::new();
+        flat(&mut h, 200);
+        let mut starts = Vec::new();
+        for k in 0..(n * 3) {
+            let z = |k: usize| if k < n { 400 } else { 400 + ((k - n) * 200 / n) as i32 };
+            let (a, b) = (xy(k), xy(k + 1));
+            if h.extrusion(&[a[0], a[1], z(k)], &[b[0], b[1], z(k + 1)]) != Start::Same {
+                starts.push(k);
+            }
+        }
+        assert_eq!(starts, vec![0, 2 * n]);
     }
 }

@@ -254,6 +254,9 @@ fn spiral_turns_are_found_from_the_path() {
             let (x, y) = pt(k);
             p.push_str(&format!("G1 X{x:.3} Y{y:.3} E{e:.5}\n"));
         }
+        // Infill after a travel, back to the seam: a bottom layer, not one loop.
+        e += 1.0;
+        p.push_str(&format!("G0 X90 Y100\nG1 X110 Y100 E{e:.5}\nG0 X120 Y100\n"));
     }
     for turn in 0..5 {
         p.push_str(";LAYER_CHANGE\n");
