@@ -2,7 +2,7 @@
 //! the letter set, flags and number ranges checked.
 
 use super::number::{self, Num};
-use super::parse::{is_space, paren};
+use super::lex::{is_space, paren};
 use super::{err, AxisFlags, AxisWords, ParseError, ParseErrorKind};
 
 /// Most distinct parameter letters one line may carry (known commands take at most 8; more is

@@ -41,7 +41,8 @@
 //! | this project's host compiler (helical prints) | `;TURN` or `;TURN:<n>`, one per helix turn | before the first motion command after the marker ([`LayerSource::Turn`]) |
 //! | none of the above | the heights and the path of the extruding moves (module `height`): Z rose (or dropped: sequential printing) before an extruding move, or a spiral came round | before that extruding move |
 //!
-//! An *extruding move* moves X or Y and advances E by at least one step.
+//! An *extruding move* moves X or Y and advances E, as commanded (a vase piece that feeds less
+//! than one E step still belongs to its turn).
 //!
 //! # The boundary
 //! For every source: every extruding move of layer k is before the mark of layer k+1 and every
@@ -97,7 +98,7 @@ pub struct MoveFacts {
     pub start_um: [i32; 3],
     /// X, Y, Z after the command, µm.
     pub end_um: [i32; 3],
-    /// The command moved X or Y and advanced E by at least one step (a printing move).
+    /// The command moved X or Y and advanced E (a printing move).
     pub extrudes: bool,
     /// The command moved any axis.
     pub moved: bool,
@@ -108,15 +109,22 @@ fn um(mm: f64) -> i32 {
 }
 
 impl MoveFacts {
-    /// Facts of the command that took the machine state from `before` to `after`: positions
-    /// as commanded (µm), motion and extrusion as steps (what the printer can do).
-    pub fn of(before: &MachineState, after: &MachineState, cfg: &MachineConfig) -> Self {
-        let (s0, s1) = (before.position_steps(cfg), after.position_steps(cfg));
+    /// Facts of the command that took the machine state from `before` to `after`, as
+    /// commanded (µm; E in mm): what the G-code says, at its own resolution. A vase piece that
+    /// feeds 0.009 mm of filament (less than one E step) still extrudes: it is part of its
+    /// turn, as the slicer wrote it.
+    pub fn of(before: &MachineState, after: &MachineState, _cfg: &MachineConfig) -> Self {
         let (m0, m1) = (before.machine_mm(), after.machine_mm());
+        let (start_um, end_um) = (
+            [um(m0[0]), um(m0[1]), um(m0[2])],
+            [um(m1[0]), um(m1[1]), um(m1[2])],
+        );
         MoveFacts {
-            start_um: [um(m0[0]), um(m0[1]), um(m0[2])],
-            end_um: [um(m1[0]), um(m1[1]), um(m1[2])],
-            ..Self::between(&s0, &s1, cfg)
+            start_um,
+            end_um,
+            extrudes: m1[3] > m0[3]
+                && (start_um[0] != end_um[0] || start_um[1] != end_um[1]),
+            moved: start_um != end_um || m1[3] != m0[3],
         }
     }
 

@@ -46,7 +46,7 @@ pub enum Event {
         /// What produced the mark (slicer comment, command, our turn marker, or a Z rise).
         source: LayerSource,
         /// The firmware's number of the layer ([`firmware::motion::LayerMark::layer`]): the
-        /// slicer's own (Cura's `;LAYER:n`, `M73 L`), else counted from 0 in file order.
+        /// n-th layer printed, from 1 (the slicers' preview numbers).
         number: u32,
     },
     /// Dwell (G4), seconds.
