@@ -139,6 +139,15 @@ pub fn stats(input: &[u8], profile: &Profile) -> Result<Stats, ReadError> {
     if marker_time.len() <= n {
         marker_time.resize(n + 1, 0.0);
     }
+    // A purge line above the first layer (Cura's Ender-3 start code) is marked as layer 1 by
+    // the height rule, then the first layer as layer 1 again: the first was a prelude, part
+    // of the time before the first layer.
+    if n >= 2 && marks[0].0 == 1 && marks[1].0 == 1 {
+        let prelude = marker_time.remove(1);
+        marker_time[0] += prelude;
+        marks.remove(0);
+    }
+    let n = marks.len();
     let before_first_layer_s = marker_time.first().copied().unwrap_or(0.0);
     let layer_times = marks
         .iter()
@@ -169,7 +178,7 @@ pub fn stats(input: &[u8], profile: &Profile) -> Result<Stats, ReadError> {
     let filament_mm = net_e.max(0.0);
     let vol = filament_mm * profile.filament_area_mm2();
     Ok(Stats {
-        layers: totals.layer_marks,
+        layers: n as u32,
         layer_source: source,
         moves: totals.moves,
         print_moves,
@@ -236,6 +245,19 @@ mod tests {
         let nums: Vec<u32> = s.layer_times.iter().map(|l| l.layer).collect();
         assert_eq!(nums, [1, 2]);
         assert!(s.before_first_layer_s > 0.0);
+    }
+
+    /// Without comments, Cura's Ender-3 purge line (at Z 0.28, above the 0.2 mm first layer)
+    /// is no layer: the count is the slicer's, its time is before the first layer.
+    #[test]
+    fn a_purge_line_above_the_first_layer_is_no_layer() {
+        let g = b"G28\nG92 E0\nG1 Z2 F3000\nG1 X0.1 Y20 Z0.28 F5000\nG1 X0.1 Y200 Z0.28 E15 F1500\n\
+                  G92 E0\nG1 Z2\nG0 X10 Y10 Z0.2\nG1 X20 E1\nG0 Z0.4\nG1 X10 E2\n";
+        let s = stats(g, &Profile::ender3()).expect("stats");
+        assert_eq!(s.layers, 2);
+        let nums: Vec<u32> = s.layer_times.iter().map(|l| l.layer).collect();
+        assert_eq!(nums, [1, 2]);
+        assert!(s.before_first_layer_s > 1.0, "{}", s.before_first_layer_s);
     }
 
     #[test]
