@@ -100,7 +100,8 @@ pub struct Stop {
     pub v_req_mm_s: f64,
 }
 
-fn job_line(o: &Outcome, seq: u32) -> Option<usize> {
+/// The job line (0-based) a block of sequence number `seq` came from, if any.
+pub fn job_line(o: &Outcome, seq: u32) -> Option<usize> {
     if seq == u32::MAX {
         // The executive's own moves (G28's homing moves) carry no job sequence number.
         return None;

@@ -21,7 +21,7 @@
 use layerref::Comments;
 use sim::exec::PrinterFactory;
 use sim::run::{self, PauseWhen};
-use tests::judge::{judge_request, judge_schedule, Job};
+use tests::judge::{job_line, judge_request, judge_schedule, stop_of, Job};
 
 /// (file, layer pauses at random times, `M761` schedules), per comment mode.
 const FILES: &[(&str, usize, usize)] = &[
@@ -52,6 +52,23 @@ fn load(name: &str, comments: Comments) -> Job {
     Job::new(text.lines().map(str::to_string).collect(), comments)
 }
 
+/// A host-tools example compiled for the Ender-3 (our writer's markers: `;LAYER_CHANGE` per
+/// layer, or per turn of a helix).
+fn compile(name: &str) -> Vec<String> {
+    use host_tools::design::profile::Profile;
+    use host_tools::design::script::ScriptRunner;
+    use host_tools::design::writer::{GcodeWriter, WriteOptions};
+    let p = Profile::ender3();
+    let path = format!("{}/../host-tools/examples/{name}", env!("CARGO_MANIFEST_DIR"));
+    let out = ScriptRunner::new(p.clone())
+        .run_file(std::path::Path::new(&path))
+        .unwrap_or_else(|e| panic!("{name}: {e}"));
+    let (g, _) = GcodeWriter::new(&p, WriteOptions::default())
+        .to_string(&out.model)
+        .unwrap_or_else(|e| panic!("{name}: {e}"));
+    g.lines().map(str::to_string).collect()
+}
+
 /// A small fixed-seed generator (xorshift64*): request times and schedules.
 struct Rng(u64);
 impl Rng {
@@ -78,10 +95,15 @@ fn window(job: &Job) -> (f64, f64) {
 
 /// Results of one file in one comment mode: (right, total, failures).
 fn check_file(name: &str, requests: usize, schedules: usize, comments: Comments, rng: &mut Rng) -> (usize, usize, Vec<String>) {
-    let job = load(name, comments);
+    check_job(name, &load(name, comments), requests, schedules, rng)
+}
+
+/// [`check_file`] of a job.
+fn check_job(name: &str, job: &Job, requests: usize, schedules: usize, rng: &mut Rng) -> (usize, usize, Vec<String>) {
+    let comments = job.comments;
     let mut failures = Vec::new();
     let mut right = 0;
-    let (t0, t1) = window(&job);
+    let (t0, t1) = window(job);
     for _ in 0..requests {
         let at = t0 + (t1 - t0) * rng.unit() * 0.97;
         let t_req = (at * 1e6) as u64;
@@ -101,7 +123,7 @@ fn check_file(name: &str, requests: usize, schedules: usize, comments: Comments,
             }
         };
         let mut ok = true;
-        if let Err(e) = judge_request(&o, t_req, &job) {
+        if let Err(e) = judge_request(&o, t_req, job) {
             failures.push(format!("{tag}: {e}"));
             ok = false;
         }
@@ -131,7 +153,7 @@ fn check_file(name: &str, requests: usize, schedules: usize, comments: Comments,
             }
         };
         let mut ok = true;
-        if let Err(e) = judge_schedule(&o, n, &job) {
+        if let Err(e) = judge_schedule(&o, n, job) {
             failures.push(format!("{tag}: {e}"));
             ok = false;
         }
@@ -165,6 +187,32 @@ fn corpus_with_comments() {
 #[test]
 fn corpus_comments_stripped() {
     run_corpus(Comments::Strip, 0x5EED_0002);
+}
+
+/// The host compiler's own markers (`;LAYER_CHANGE` per turn of its helices): host-tools'
+/// helical example, kept and stripped (then the turns come from the path).
+#[test]
+fn host_compiler_helix() {
+    let lines = compile("spiral_cylinder.rhai");
+    let mut rng = Rng(0x5EED_0003);
+    let (mut right, mut total, mut failures) = (0, 0, Vec::new());
+    for comments in [Comments::Keep, Comments::Strip] {
+        let job = Job::new(lines.clone(), comments);
+        let n = job.model.layers().iter().filter(|l| l.number > 0).count();
+        assert!(n >= 10, "{comments:?}: {n} layers");
+        let (r, t, f) = check_job("spiral_cylinder.rhai", &job, 3, 1, &mut rng);
+        right += r;
+        total += t;
+        failures.extend(f);
+    }
+    let kept = Job::new(lines.clone(), Comments::Keep);
+    let bare = Job::new(lines, Comments::Strip);
+    let starts = |j: &Job| -> Vec<(u32, usize)> {
+        j.model.layers().iter().map(|l| (l.number, l.first_line)).collect()
+    };
+    assert_eq!(starts(&kept), starts(&bare), "the same turns, kept or stripped");
+    eprintln!("layer-mode results right (host compiler): {right} of {total}");
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
 /// The reference itself, where a reader can check it: layer counts, one numbering with and
@@ -219,5 +267,47 @@ fn the_reference_model_on_the_corpus() {
         for w in windings {
             assert!((w.abs() / std::f64::consts::TAU - 1.0).abs() < 0.05, "{name}: wound {w} rad");
         }
+    }
+}
+
+/// A `layer` pause requested in the last layer stops at its end — after the last extrusion and
+/// before the end code (PrusaSlicer's: `M104 S0`, `G28 X0`, `M84`), not after it with the
+/// heater off and X homed.
+#[test]
+fn a_request_in_the_last_layer_stops_before_the_end_code() {
+    for comments in [Comments::Keep, Comments::Strip] {
+        let job = load("prusa-zhop.gcode", comments);
+        let heater_off = job
+            .lines
+            .iter()
+            .position(|l| l.starts_with("M104 S0"))
+            .expect("end code");
+        // The last extrusion's time in a run without a pause; request 1 s before it.
+        let last_ext = job.model.layers().last().expect("layers").last_line;
+        let o = run::run(&PrinterFactory, &job.scenario(), &job.lines).expect("reference run");
+        let t_last = o
+            .run
+            .rec
+            .records
+            .iter()
+            .rev()
+            .find(|r| job_line(&o, r.tag.seq) == Some(last_ext))
+            .expect("last extrusion ran")
+            .t_end_us;
+        let t_req = t_last - 1_000_000;
+        let mut sc = job.scenario();
+        sc.pause = Some(PauseWhen::AtUs(t_req));
+        sc.resume_after_us = Some(200_000);
+        let o = run::run(&PrinterFactory, &sc, &job.lines).expect("run");
+        let stop = stop_of(&o, t_req, &job).expect("paused");
+        assert!(!stop.mid_line, "{comments:?}: {stop:?}");
+        assert!(
+            stop.last_line >= last_ext && stop.last_line < heater_off,
+            "{comments:?}: stopped after line {} (last extrusion {last_ext}, heater off {heater_off})",
+            stop.last_line
+        );
+        let p = o.report.pause_point_steps.expect("pause point");
+        assert!(p[0] > 0, "{comments:?}: X homed before the stop: {p:?}");
+        assert!(o.report.finished, "{comments:?}");
     }
 }
