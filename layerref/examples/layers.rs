@@ -24,7 +24,10 @@ fn main() {
     let m = Model::of_lines(text.lines(), comments);
     let layers = m.layers();
     let numbered = layers.iter().filter(|l| l.number > 0).count();
-    println!("{path}: {numbered} layers ({} entries with preludes)", layers.len());
+    println!(
+        "{path}: {numbered} layers ({} entries with preludes)",
+        layers.len()
+    );
     let all = args.iter().any(|a| a == "--all");
     for (k, l) in layers.iter().enumerate() {
         if all || k < 5 || k + 3 > layers.len() {
@@ -36,8 +39,10 @@ fn main() {
                 l.last_line + 1,
                 l.z_mm,
                 l.source,
-                l.winding_rad
-                    .map_or(String::new(), |w| format!(" wound {:.2} turns", w / std::f64::consts::TAU))
+                l.winding_rad.map_or(String::new(), |w| format!(
+                    " wound {:.2} turns",
+                    w / std::f64::consts::TAU
+                ))
             );
         }
     }

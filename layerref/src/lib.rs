@@ -263,9 +263,7 @@ impl Builder {
     }
 
     fn feed(&mut self, raw: &str) {
-        let item = self
-            .reader
-            .line(raw, self.comments == Comments::Strip);
+        let item = self.reader.line(raw, self.comments == Comments::Strip);
         let mut here = NONE;
         match item {
             Item::Reset => self.new_job(),
@@ -485,7 +483,11 @@ impl Builder {
             Step::NextTurn(rise) => {
                 let Some(t) = j.turn else { return NONE };
                 let winding = t.centre.map(|_| t.wound);
-                let (rise, first) = if rise > 0.0 { (rise, false) } else { (-rise, t.first) };
+                let (rise, first) = if rise > 0.0 {
+                    (rise, false)
+                } else {
+                    (-rise, t.first)
+                };
                 j.turn = Some(Turn::new(
                     [a[0], a[1], z],
                     rise,

@@ -101,20 +101,22 @@ fn param(words: &[&str], letter: char) -> Option<f64> {
 }
 
 fn has_letter(words: &[&str], letter: char) -> bool {
-    words
-        .iter()
-        .skip(1)
-        .any(|w| w.chars().next().is_some_and(|l| l.eq_ignore_ascii_case(&letter)))
+    words.iter().skip(1).any(|w| {
+        w.chars()
+            .next()
+            .is_some_and(|l| l.eq_ignore_ascii_case(&letter))
+    })
 }
 
 /// The words of the code: split at spaces, and (classic G-code written without spaces,
 /// `G1X10Y5`) at each letter; an extended command (`SET_PRINT_STATS_INFO CURRENT_LAYER=3`)
 /// only at spaces.
 fn words_of(code: &str) -> Vec<&str> {
-    let extended = code
-        .split_whitespace()
-        .next()
-        .is_some_and(|w| w.chars().nth(1).is_some_and(|c| c.is_ascii_alphabetic() || c == '_'));
+    let extended = code.split_whitespace().next().is_some_and(|w| {
+        w.chars()
+            .nth(1)
+            .is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+    });
     let mut out = Vec::new();
     for w in code.split_whitespace() {
         if extended {
@@ -146,10 +148,18 @@ fn comment_item(c: &str) -> Option<Item> {
         return Some(Item::Marker(Family::Turn, None));
     }
     if let Some(n) = t.strip_prefix("TURN:") {
-        return n.trim().parse::<i64>().ok().map(|n| Item::Marker(Family::Turn, Some(n)));
+        return n
+            .trim()
+            .parse::<i64>()
+            .ok()
+            .map(|n| Item::Marker(Family::Turn, Some(n)));
     }
     if let Some(n) = t.strip_prefix("LAYER:") {
-        return n.trim().parse::<i64>().ok().map(|n| Item::Marker(Family::Cura, Some(n)));
+        return n
+            .trim()
+            .parse::<i64>()
+            .ok()
+            .map(|n| Item::Marker(Family::Cura, Some(n)));
     }
     let lower = t.to_ascii_lowercase();
     if let Some(rest) = lower.strip_prefix("layer ") {
@@ -214,8 +224,16 @@ impl Reader {
                 let from = self.pos;
                 for (k, l) in ['X', 'Y', 'Z', 'E'].into_iter().enumerate() {
                     if let Some(v) = param(w, l) {
-                        let rel = if k == 3 { self.relative_e } else { self.relative };
-                        self.pos[k] = if rel { self.pos[k] + v * unit } else { v * unit };
+                        let rel = if k == 3 {
+                            self.relative_e
+                        } else {
+                            self.relative
+                        };
+                        self.pos[k] = if rel {
+                            self.pos[k] + v * unit
+                        } else {
+                            v * unit
+                        };
                     }
                 }
                 Item::Move { from, to: self.pos }
@@ -311,16 +329,34 @@ mod tests {
     #[test]
     fn moves_modes_and_markers() {
         let mut r = Reader::default();
-        assert_eq!(r.line("G1 X10 Y5 E1 F1200", false), Item::Move { from: [0.0; 4], to: [10.0, 5.0, 0.0, 1.0] });
+        assert_eq!(
+            r.line("G1 X10 Y5 E1 F1200", false),
+            Item::Move {
+                from: [0.0; 4],
+                to: [10.0, 5.0, 0.0, 1.0]
+            }
+        );
         assert_eq!(r.line("N12 G91*99", false), Item::Other);
         assert_eq!(
             r.line("G1X1Y1E0.5", false),
-            Item::Move { from: [10.0, 5.0, 0.0, 1.0], to: [11.0, 6.0, 0.0, 1.5] }
+            Item::Move {
+                from: [10.0, 5.0, 0.0, 1.0],
+                to: [11.0, 6.0, 0.0, 1.5]
+            }
         );
-        assert_eq!(r.line(";LAYER:3", false), Item::Marker(Family::Cura, Some(3)));
+        assert_eq!(
+            r.line(";LAYER:3", false),
+            Item::Marker(Family::Cura, Some(3))
+        );
         assert_eq!(r.line(";LAYER:3", true), Item::Other);
-        assert_eq!(r.line("; layer 2, Z = 0.4", false), Item::Marker(Family::Simplify3d, Some(2)));
-        assert_eq!(r.line("M73 P10 L4", true), Item::Marker(Family::M73, Some(4)));
+        assert_eq!(
+            r.line("; layer 2, Z = 0.4", false),
+            Item::Marker(Family::Simplify3d, Some(2))
+        );
+        assert_eq!(
+            r.line("M73 P10 L4", true),
+            Item::Marker(Family::M73, Some(4))
+        );
         assert_eq!(
             r.line("SET_PRINT_STATS_INFO CURRENT_LAYER=7", true),
             Item::Marker(Family::Klipper, Some(7))

@@ -6,7 +6,10 @@ fn model(text: &str, comments: Comments) -> Model {
 
 /// (number, first line) of each layer of a job.
 fn starts(m: &Model) -> Vec<(u32, usize)> {
-    m.layers().iter().map(|l| (l.number, l.first_line)).collect()
+    m.layers()
+        .iter()
+        .map(|l| (l.number, l.first_line))
+        .collect()
 }
 
 #[test]
@@ -45,7 +48,10 @@ fn jobs_restart_the_count() {
     let got: Vec<(u32, u32)> = m.layers().iter().map(|l| (l.job, l.number)).collect();
     assert_eq!(got, vec![(0, 1), (0, 2), (1, 1), (1, 2), (2, 1), (2, 2)]);
     // The bed alone switched off is no end of the job.
-    let m = model("G1 Z0.2\nG1 X5 E1\nM140 S0\nG1 Z0.4\nG1 X6 E2", Comments::Strip);
+    let m = model(
+        "G1 Z0.2\nG1 X5 E1\nM140 S0\nG1 Z0.4\nG1 X6 E2",
+        Comments::Strip,
+    );
     assert_eq!(m.layers().last().map(|l| (l.job, l.number)), Some((0, 2)));
 }
 

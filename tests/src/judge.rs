@@ -45,7 +45,10 @@ impl Job {
             .iter()
             .map(|l| {
                 if let Item::Move { from, to } = r.line(l, comments == Comments::Strip) {
-                    path += (0..3).map(|k| (to[k] - from[k]).powi(2)).sum::<f64>().sqrt();
+                    path += (0..3)
+                        .map(|k| (to[k] - from[k]).powi(2))
+                        .sum::<f64>()
+                        .sqrt();
                 }
                 path
             })

@@ -127,7 +127,8 @@ fn same_layer_in_both_prints(d: &serde_json::Value, r: &serde_json::Value) {
     assert_eq!(sc["reprint"]["layer_when_paused"], (n - 1) as u64, "{d}");
     let pauses = r["pauses"].as_array().expect("pauses");
     let z = slicer_layer_z();
-    let stop_z = |p: &serde_json::Value| p["pause_point_steps"][2].as_f64().expect("stop Z") / 400.0;
+    let stop_z =
+        |p: &serde_json::Value| p["pause_point_steps"][2].as_f64().expect("stop Z") / 400.0;
     // The button, terminal, M25, layer and reprint pauses, in order.
     assert_eq!(pauses.len(), 5, "{r}");
     for p in &pauses[3..] {

@@ -59,7 +59,10 @@ fn compile(name: &str) -> Vec<String> {
     use host_tools::design::script::ScriptRunner;
     use host_tools::design::writer::{GcodeWriter, WriteOptions};
     let p = Profile::ender3();
-    let path = format!("{}/../host-tools/examples/{name}", env!("CARGO_MANIFEST_DIR"));
+    let path = format!(
+        "{}/../host-tools/examples/{name}",
+        env!("CARGO_MANIFEST_DIR")
+    );
     let out = ScriptRunner::new(p.clone())
         .run_file(std::path::Path::new(&path))
         .unwrap_or_else(|e| panic!("{name}: {e}"));
@@ -94,12 +97,24 @@ fn window(job: &Job) -> (f64, f64) {
 }
 
 /// Results of one file in one comment mode: (right, total, failures).
-fn check_file(name: &str, requests: usize, schedules: usize, comments: Comments, rng: &mut Rng) -> (usize, usize, Vec<String>) {
+fn check_file(
+    name: &str,
+    requests: usize,
+    schedules: usize,
+    comments: Comments,
+    rng: &mut Rng,
+) -> (usize, usize, Vec<String>) {
     check_job(name, &load(name, comments), requests, schedules, rng)
 }
 
 /// [`check_file`] of a job.
-fn check_job(name: &str, job: &Job, requests: usize, schedules: usize, rng: &mut Rng) -> (usize, usize, Vec<String>) {
+fn check_job(
+    name: &str,
+    job: &Job,
+    requests: usize,
+    schedules: usize,
+    rng: &mut Rng,
+) -> (usize, usize, Vec<String>) {
     let comments = job.comments;
     let mut failures = Vec::new();
     let mut right = 0;
@@ -136,7 +151,13 @@ fn check_job(name: &str, job: &Job, requests: usize, schedules: usize, rng: &mut
         }
         right += usize::from(ok);
     }
-    let numbered: Vec<u32> = job.model.layers().iter().map(|l| l.number).filter(|&n| n > 0).collect();
+    let numbered: Vec<u32> = job
+        .model
+        .layers()
+        .iter()
+        .map(|l| l.number)
+        .filter(|&n| n > 0)
+        .collect();
     for _ in 0..schedules {
         let Some(&n) = numbered.get(1 + (rng.unit() * (numbered.len() - 1) as f64) as usize) else {
             continue;
@@ -158,7 +179,10 @@ fn check_job(name: &str, job: &Job, requests: usize, schedules: usize, rng: &mut
             ok = false;
         }
         if !o.report.first_boundary_after_request {
-            failures.push(format!("{tag}: the sim reports first_boundary_after_request false ({:?})", o.report.stop_layer));
+            failures.push(format!(
+                "{tag}: the sim reports first_boundary_after_request false ({:?})",
+                o.report.stop_layer
+            ));
             ok = false;
         }
         right += usize::from(ok);
@@ -176,7 +200,12 @@ fn run_corpus(comments: Comments, seed: u64) {
         failures.extend(f);
     }
     eprintln!("layer-mode results right ({comments:?}): {right} of {total}");
-    assert!(failures.is_empty(), "{} failures:\n{}", failures.len(), failures.join("\n"));
+    assert!(
+        failures.is_empty(),
+        "{} failures:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
 }
 
 #[test]
@@ -208,9 +237,17 @@ fn host_compiler_helix() {
     let kept = Job::new(lines.clone(), Comments::Keep);
     let bare = Job::new(lines, Comments::Strip);
     let starts = |j: &Job| -> Vec<(u32, usize)> {
-        j.model.layers().iter().map(|l| (l.number, l.first_line)).collect()
+        j.model
+            .layers()
+            .iter()
+            .map(|l| (l.number, l.first_line))
+            .collect()
     };
-    assert_eq!(starts(&kept), starts(&bare), "the same turns, kept or stripped");
+    assert_eq!(
+        starts(&kept),
+        starts(&bare),
+        "the same turns, kept or stripped"
+    );
     eprintln!("layer-mode results right (host compiler): {right} of {total}");
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
@@ -255,17 +292,32 @@ fn the_reference_model_on_the_corpus() {
         assert_eq!(a.len(), b.len(), "{name}");
         for ((na, pa), (nb, pb)) in a.iter().zip(&b) {
             assert_eq!(na, nb, "{name}");
-            assert!((pa - pb).abs() <= 1.0, "{name}: layer {na} starts {pa:.2} / {pb:.2} mm");
+            assert!(
+                (pa - pb).abs() <= 1.0,
+                "{name}: layer {na} starts {pa:.2} / {pb:.2} mm"
+            );
         }
     }
     // Every turn the reference finds without comments in the slicers' star vases winds once
     // round the turn before it.
-    for name in ["prusa-vase-star.gcode", "cura-vase-star.gcode", "slic3r-vase-star.gcode"] {
+    for name in [
+        "prusa-vase-star.gcode",
+        "cura-vase-star.gcode",
+        "slic3r-vase-star.gcode",
+    ] {
         let job = load(name, Comments::Strip);
-        let windings: Vec<f64> = job.model.layers().iter().filter_map(|l| l.winding_rad).collect();
+        let windings: Vec<f64> = job
+            .model
+            .layers()
+            .iter()
+            .filter_map(|l| l.winding_rad)
+            .collect();
         assert!(windings.len() >= 20, "{name}: {}", windings.len());
         for w in windings {
-            assert!((w.abs() / std::f64::consts::TAU - 1.0).abs() < 0.05, "{name}: wound {w} rad");
+            assert!(
+                (w.abs() / std::f64::consts::TAU - 1.0).abs() < 0.05,
+                "{name}: wound {w} rad"
+            );
         }
     }
 }

@@ -374,7 +374,13 @@ mod tests {
         flat(&mut h, 200);
         let mut starts = Vec::new();
         for k in 0..(n * 3) {
-            let z = |k: usize| if k < n { 400 } else { 400 + ((k - n) * 200 / n) as i32 };
+            let z = |k: usize| {
+                if k < n {
+                    400
+                } else {
+                    400 + ((k - n) * 200 / n) as i32
+                }
+            };
             let (a, b) = (xy(k), xy(k + 1));
             if h.extrusion(&[a[0], a[1], z(k)], &[b[0], b[1], z(k + 1)]) != Start::Same {
                 starts.push(k);

@@ -100,14 +100,21 @@ pub(super) fn classify_comment(c: &[u8]) -> Option<CommentMarker> {
         return mm_to_um(rest).map(CommentMarker::Z);
     }
     if let Some(rest) = t.strip_prefix(b"LAYER:") {
-        return is_layer_number(trim(rest))
-            .then_some(CommentMarker::Layer(Family::Cura, false, None));
+        return is_layer_number(trim(rest)).then_some(CommentMarker::Layer(
+            Family::Cura,
+            false,
+            None,
+        ));
     }
     if t == b"TURN" {
         return Some(CommentMarker::Layer(Family::Turn, true, None));
     }
     if let Some(rest) = t.strip_prefix(b"TURN:") {
-        return is_layer_number(trim(rest)).then_some(CommentMarker::Layer(Family::Turn, true, None));
+        return is_layer_number(trim(rest)).then_some(CommentMarker::Layer(
+            Family::Turn,
+            true,
+            None,
+        ));
     }
     // Simplify3D: "; layer 12, Z = 2.600".
     if let Some(rest) = strip_prefix_ci(t, b"layer ") {

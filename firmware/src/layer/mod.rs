@@ -122,8 +122,7 @@ impl MoveFacts {
         MoveFacts {
             start_um,
             end_um,
-            extrudes: m1[3] > m0[3]
-                && (start_um[0] != end_um[0] || start_um[1] != end_um[1]),
+            extrudes: m1[3] > m0[3] && (start_um[0] != end_um[0] || start_um[1] != end_um[1]),
             moved: start_um != end_um || m1[3] != m0[3],
         }
     }

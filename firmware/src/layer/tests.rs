@@ -196,7 +196,10 @@ fn numbering_is_the_physical_layer_from_1() {
     // Klipper and M73: 1-based as written; 0 is before the first layer.
     let p = "SET_PRINT_STATS_INFO CURRENT_LAYER=0\nG1 X1 E0.5\nSET_PRINT_STATS_INFO CURRENT_LAYER=1\nG1 X5 E1\nSET_PRINT_STATS_INFO CURRENT_LAYER=2\nG1 Z1\nG1 X6 E2";
     assert_eq!(nums(p), vec![1, 2]);
-    assert_eq!(nums("M73 L1\nG1 X5 E1\nM73 L1\nM73 L2\nG1 Z1\nG1 X6 E2"), vec![1, 2]);
+    assert_eq!(
+        nums("M73 L1\nG1 X5 E1\nM73 L1\nM73 L2\nG1 Z1\nG1 X6 E2"),
+        vec![1, 2]
+    );
     // Cura's raft layers (negative numbers) are physical layers: counted in order.
     assert_eq!(
         nums(";LAYER:-2\nG1 X1 E1\n;LAYER:-1\nG1 Z1\nG1 X2 E2\n;LAYER:0\nG1 Z2\nG1 X3 E3"),
@@ -227,14 +230,23 @@ fn a_job_restarts_the_count() {
         vec![1, 2, 1, 2]
     );
     // The bed switched off part-way is no end.
-    let m = marks_with("G1 Z0.2\nG1 X5 E1\nM140 S0\nG1 Z0.4\nG1 X6 E2", LayerDetector::new());
-    assert_eq!(m.iter().map(|(_, k)| k.layer).collect::<Vec<_>>(), vec![1, 2]);
+    let m = marks_with(
+        "G1 Z0.2\nG1 X5 E1\nM140 S0\nG1 Z0.4\nG1 X6 E2",
+        LayerDetector::new(),
+    );
+    assert_eq!(
+        m.iter().map(|(_, k)| k.layer).collect::<Vec<_>>(),
+        vec![1, 2]
+    );
     // restart(): the executive's job start (M110, an SD file), or a continued job.
     let mut d = LayerDetector::new();
     d.restart(7);
     assert_eq!(d.next_layer(), 7);
     let m = marks_with("G1 Z0.2\nG1 X5 E1\nG1 Z0.4\nG1 X6 E2", d);
-    assert_eq!(m.iter().map(|(_, k)| k.layer).collect::<Vec<_>>(), vec![7, 8]);
+    assert_eq!(
+        m.iter().map(|(_, k)| k.layer).collect::<Vec<_>>(),
+        vec![7, 8]
+    );
 }
 
 #[test]
@@ -256,7 +268,9 @@ fn spiral_turns_are_found_from_the_path() {
         }
         // Infill after a travel, back to the seam: a bottom layer, not one loop.
         e += 1.0;
-        p.push_str(&format!("G0 X90 Y100\nG1 X110 Y100 E{e:.5}\nG0 X120 Y100\n"));
+        p.push_str(&format!(
+            "G0 X90 Y100\nG1 X110 Y100 E{e:.5}\nG0 X120 Y100\n"
+        ));
     }
     for turn in 0..5 {
         p.push_str(";LAYER_CHANGE\n");
@@ -281,7 +295,11 @@ fn spiral_turns_are_found_from_the_path() {
         m.iter()
             .map(|(i, k)| {
                 let line = src.lines().nth(*i).unwrap_or("");
-                let l = if line.contains('E') { line } else { src.lines().nth(i + 1).unwrap_or("") };
+                let l = if line.contains('E') {
+                    line
+                } else {
+                    src.lines().nth(i + 1).unwrap_or("")
+                };
                 (k.layer, l.to_string())
             })
             .collect::<Vec<_>>()

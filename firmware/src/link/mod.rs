@@ -185,11 +185,13 @@ impl ReceivedLine {
     }
 
     /// A line taken earlier and kept (the parked intake's spill file): its text and number
-    /// as the host sent them. `None` when the text is longer than [`LINE_CAP`].
-    pub fn kept(text: &[u8], number: Option<u32>) -> Option<Self> {
+    /// as the host sent them, and whether the host reset its line numbers before it (see
+    /// [`Self::take_reset`]). `None` when the text is longer than [`LINE_CAP`].
+    pub fn kept(text: &[u8], number: Option<u32>, after_reset: bool) -> Option<Self> {
         Some(Self {
             text: Vec::from_slice(text).ok()?,
             number,
+            after_reset,
         })
     }
 

@@ -76,6 +76,10 @@ pub(super) struct HostLines {
     pub(super) held_port: Option<crate::link::PortId>,
     /// The port of the last job line taken (whose host streams the job).
     pub(super) job_port: Option<crate::link::PortId>,
+    /// The host reset its line numbers (`M110`): a job starts at its next job line taken —
+    /// when that line goes to the spill behind lines of the job before, the reset goes with it
+    /// and the job starts when it is fed back (`spill.rs`).
+    pub(super) job_start_due: bool,
     /// The job's host went away while the job ran or was paused (`session.rs`): it cannot be
     /// resumed, only cancelled.
     pub(super) orphaned: bool,
@@ -235,11 +239,10 @@ impl Printer {
             let Some(mut line) = self.next_line() else {
                 return;
             };
-            // The host reset its line numbers before this line: a job starts here.
+            // The host reset its line numbers before this line: a job starts with the next
+            // job line.
             let reset = line.take_reset();
-            if reset {
-                self.job_start();
-            }
+            self.lines.job_start_due |= reset;
             if self.discard_after_cancel(&line, reset) {
                 self.link.respond(Response::Ok);
                 continue;
@@ -255,7 +258,10 @@ impl Printer {
                 None
             };
             if route == Some(Intake::Spill) {
-                self.spill_line(&line);
+                // A new job's first line behind spilled lines of the job before: the job
+                // starts when it is fed back, in stream order (it carries the reset).
+                let reset = core::mem::take(&mut self.lines.job_start_due);
+                self.spill_line(&line, reset);
                 continue;
             }
             if route.is_none() {
@@ -263,6 +269,7 @@ impl Printer {
                 // `SET_PRINT_STATS_INFO CURRENT_LAYER=`, a marker comment): every marker is part
                 // of the job stream and waits for room like a move.
                 if answered_without_room(&line) && !self.is_marker(&line) {
+                    self.start_due_job();
                     self.answer_report(&line);
                     continue;
                 }
@@ -288,9 +295,20 @@ impl Printer {
                 self.handle_line(&line, true);
                 self.swap_manual_machine();
             } else {
+                self.start_due_job();
                 self.handle_line(&line, false);
             }
             self.feed_planner();
+        }
+    }
+
+    /// The job start a line-number reset announced, when no line of the job before is left in
+    /// the spill (else it waits for the next job line, which goes to the spill with the
+    /// reset; docs/planner.md, "What a layer is").
+    fn start_due_job(&mut self) {
+        if self.lines.job_start_due && self.spill.pending() == 0 {
+            self.lines.job_start_due = false;
+            self.job_start();
         }
     }
 

@@ -251,7 +251,8 @@ mod tests {
     /// is no layer: the count is the slicer's, its time is before the first layer.
     #[test]
     fn a_purge_line_above_the_first_layer_is_no_layer() {
-        let g = b"G28\nG92 E0\nG1 Z2 F3000\nG1 X0.1 Y20 Z0.28 F5000\nG1 X0.1 Y200 Z0.28 E15 F1500\n\
+        let g =
+            b"G28\nG92 E0\nG1 Z2 F3000\nG1 X0.1 Y20 Z0.28 F5000\nG1 X0.1 Y200 Z0.28 E15 F1500\n\
                   G92 E0\nG1 Z2\nG0 X10 Y10 Z0.2\nG1 X20 E1\nG0 Z0.4\nG1 X10 E2\n";
         let s = stats(g, &Profile::ender3()).expect("stats");
         assert_eq!(s.layers, 2);
