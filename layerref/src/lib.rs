@@ -15,7 +15,8 @@
 //! - **Spiral turns.** Inside a spiral a turn ends at the point closest to where it began,
 //!   within 2 mm of it, after the path went 4 mm away and rose 3/5 of the last turn's rise (a
 //!   quarter of the layer height for the first turn); without such a point, every 3/2 of that
-//!   rise. Each turn's winding angle around the centre of the turn before it is kept
+//!   rise (3 times the layer height for a first turn that went 4 mm away: its rise is not
+//!   known yet). Each turn's winding angle around the centre of the turn before it is kept
 //!   ([`Layer::winding_rad`]): a check that a turn so found goes round once.
 //! - **Numbers** count from 1 in print order within a job; a job starts at the stream's start,
 //!   at `M110`, and at the first extrusion (or marker) after an end-of-job command (hotend off,
@@ -167,6 +168,14 @@ impl Turn {
     }
     fn dist(&self, p: &[f64; 4]) -> f64 {
         (p[0] - self.start[0]).hypot(p[1] - self.start[1])
+    }
+    /// Rise at which a turn without a seam is cut (the module documentation).
+    fn cut(&self) -> f64 {
+        if self.first && self.away {
+            3.0 * self.rise
+        } else {
+            1.5 * self.rise
+        }
     }
     fn centre_here(&self) -> [f64; 2] {
         [
@@ -418,7 +427,7 @@ impl Builder {
                     let rise = a[2] - t.base_z;
                     if t.away && rise >= gate - EPS_MM && da <= CLOSE_MM && t.dist(b) >= da {
                         Step::NextTurn(rise.max(0.001))
-                    } else if rise >= 1.5 * t.rise - EPS_MM {
+                    } else if rise >= t.cut() - EPS_MM {
                         Step::NextTurn(-t.rise)
                     } else {
                         Step::Same

@@ -55,8 +55,10 @@ fn jobs_restart_the_count() {
     assert_eq!(m.layers().last().map(|l| (l.job, l.number)), Some((0, 2)));
 }
 
-/// A vase: two flat layers, then a spiral of `turns` turns of an `n`-gon of radius 20 mm
-/// rising 0.2 mm per turn, with PrusaSlicer's marker at each seam.
+/// A vase: two flat layers (a loop and a line of bottom infill, as PrusaSlicer's solid bottom:
+/// not one closed loop, so the spiral does not continue the last of them as Cura's first
+/// spiralized layer does), then a spiral of `turns` turns of an `n`-gon of radius 20 mm rising
+/// 0.2 mm per turn, with PrusaSlicer's marker at each seam.
 fn vase(n: usize, turns: usize) -> String {
     let pt = |k: usize| {
         let a = std::f64::consts::TAU * (k % n) as f64 / n as f64;
@@ -71,6 +73,10 @@ fn vase(n: usize, turns: usize) -> String {
             let (x, y) = pt(k);
             g.push_str(&format!("G1 X{x:.3} Y{y:.3} E{e:.5}\n"));
         }
+        e += 0.5;
+        g.push_str(&format!(
+            "G1 X90 Y100\nG1 X110 Y100 E{e:.5}\nG1 X120 Y100\n"
+        ));
     }
     for t in 0..turns {
         g.push_str(";LAYER_CHANGE\n");

@@ -17,7 +17,8 @@
 //!   last turn's rise, or a quarter of the layer height for the first turn), which is where
 //!   the slicers put their own marker: the seam, where Z reaches the layer's height. A spiral
 //!   whose turns never come back within [`TURN_CLOSE_UM`] is cut every 3/2 of the expected
-//!   rise instead.
+//!   rise instead (a first turn that has gone away waits for its seam up to 3 times the
+//!   layer height: its rise is not known yet).
 //!
 //! The first extruding move starts the first layer. Heights and positions are the commanded
 //! ones in µm (the G-code's own resolution: a vase move that rises 1 µm rises, though it makes
@@ -73,6 +74,15 @@ impl Turn {
             rise_um: rise_um.max(1),
             first,
         }
+    }
+
+    /// Rise after which a turn without a seam is cut: 3/2 of the expected rise — or 3 times
+    /// it for a first turn that has gone away from its start (it may still come round, and
+    /// its rise is not known yet: a helix may rise more per turn than its first layer is
+    /// high, as the host compiler's 0.4 mm-pitch helix from Z 0.2 does).
+    fn cut_um(&self) -> i32 {
+        let halves = if self.first && self.away { 6 } else { 3 };
+        self.rise_um.saturating_mul(halves) / 2
     }
 
     /// Squared XY distance from the turn's start, µm².
@@ -181,7 +191,7 @@ impl Heights {
                     let rise = a[2].saturating_sub(t.base_um).max(1);
                     return self.next_turn(Turn::new(a, rise, false), a, b);
                 }
-                Some(t) if a[2].saturating_sub(t.base_um) >= t.rise_um.saturating_mul(3) / 2 => {
+                Some(t) if a[2].saturating_sub(t.base_um) >= t.cut_um() => {
                     // No seam found: cut by height, the expected rise kept.
                     return self.next_turn(Turn::new(a, t.rise_um, t.first), a, b);
                 }
