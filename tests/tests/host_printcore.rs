@@ -12,7 +12,7 @@
 
 mod hosts_common;
 
-use hosts_common::{host_python, run_bounded, Sim};
+use hosts_common::{host_python, run_bounded, same_stop_xyz, sim_run_pause_point, Sim};
 use std::process::Command;
 use std::time::Duration;
 
@@ -116,6 +116,9 @@ fn printcore_pauses_resumes_and_cancels_through_send_now_while_streaming() {
         "M761 L3 stopped at Z {stop_z_mm} mm, layer 3 is at {} mm",
         z[2]
     );
+    // ... and where `sim run --pause-at-layer 3` stops on the same file: one numbering.
+    let want = sim_run_pause_point("tests/fixtures/slicer/prusaslicer.gcode", 3);
+    same_stop_xyz(fw[1], &want, "printcore M761 L3");
     // The same point of three more prints of the file in the same session (job line 800, in
     // the slicer's layer 3): M27 says layer 3 each time — the count restarts at every print.
     let m27 = sc["repeat"]["m27"].as_array().expect("M27 answers");
@@ -132,4 +135,53 @@ fn printcore_pauses_resumes_and_cancels_through_send_now_while_streaming() {
     assert_eq!(s["cancelled"], true, "{s}");
     assert_eq!(s["finished"], false, "a cancelled job is not finished: {s}");
     assert!(s["layers_extruded"].as_u64().is_some_and(|l| l >= 4), "{s}");
+}
+
+/// A file whose layers printcore's stream still marks (`M73 L<n>`, which stays when printcore
+/// strips the comments; tests/fixtures/corpus/family-m73.gcode, PrusaSlicer's output with
+/// `M73 L` added): `M761 L4` sent in layer 2 stops where `sim run --pause-at-layer 4` stops,
+/// the first boundary before layer 4 (after an M601 pause in layer 1). One session ≈ 25 s.
+#[test]
+fn printcore_pause_at_layer_on_a_marker_file_names_the_sim_run_layer() {
+    const FILE: &str = "tests/fixtures/corpus/family-m73.gcode";
+    let py = host_python("printrun");
+    let sim = Sim::start("pc_m73", "20", "60");
+    let mut cmd = Command::new(py);
+    // Lines (the file's): layer 1 from 24, 2 from 304, 3 from 529, 4 from 752, 5 from 842.
+    cmd.args([
+        "tests/hosts/printcore_drive.py",
+        "--port",
+        &sim.device,
+        "--file",
+        FILE,
+        "--layers",
+        "6",
+        "--pause-line",
+        "100",
+        "--layer-request-line",
+        "400",
+        "--pause-layer",
+        "4",
+        "--cancel-line",
+        "900",
+        "--wait",
+        "20",
+    ]);
+    let (ok, out, err) = run_bounded(cmd, Duration::from_secs(300));
+    let r = sim.finish();
+    assert!(ok, "driver failed: {out}\n{err}");
+    let d: serde_json::Value = serde_json::from_str(out.trim()).expect("driver JSON");
+    eprintln!("driver: {d}\nrecord: {r}");
+    let sc = &d["scenarios"]["layer"];
+    assert_eq!(sc["paused"], true, "{d}");
+    assert_eq!(sc["resumed"], true, "{d}");
+    let pauses = r["pauses"].as_array().expect("pauses");
+    let fw: Vec<_> = pauses.iter().filter(|p| p["mode"] == "layer").collect();
+    assert_eq!(fw.len(), 2, "the M601 and the M761 pause: {r}");
+    assert_eq!(fw[1]["first_boundary_after_request"], true, "{}", fw[1]);
+    let want = sim_run_pause_point(FILE, 4);
+    same_stop_xyz(fw[1], &want, "printcore M761 L4 on the M73 L file");
+    let s = &r["session"];
+    assert_eq!(s["lost_moves"], 0, "{s}");
+    assert_eq!(s["duplicated_moves"], 0, "{s}");
 }
