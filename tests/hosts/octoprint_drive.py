@@ -17,7 +17,9 @@ One OctoPrint session covers several scenarios (each wait bounded):
   cancel    OctoPrint's Cancel button → "Operational".
   reprint   (--reprint) the same file printed again in the same session (OctoPrint sends
             M110 N0 at the start of every print): pause at the same layer N, scheduled during
-            the heat-up; the counter when paused; resume, cancel.
+            the heat-up; the counter when paused; resume, cancel. With --reprint-file the
+            second print is that file (e.g. one with `M73 L` markers, which stay when
+            OctoPrint strips the comments).
 
 With --two-hosts (another host on the TFT port, tests/hosts/printcore_tft.py) instead:
   twohosts  print; the other host pauses (state "Paused" seen here), OctoPrint's Resume
@@ -245,6 +247,10 @@ def main():
     ap.add_argument("--wait", type=float, default=20.0)
     ap.add_argument("--no-emergency", action="store_true")
     ap.add_argument("--reprint", action="store_true")
+    ap.add_argument(
+        "--reprint-file",
+        help="with --reprint: print this file (its first --layers layers) the second time",
+    )
     ap.add_argument("--two-hosts", action="store_true")
     ap.add_argument("--reconnect", action="store_true")
     a = ap.parse_args()
@@ -427,7 +433,20 @@ def main():
             # The same file again, in the same session: the firmware's count restarts at
             # OctoPrint's M110 N0, and the same number is the same layer.
             sc = {"pause_layer": pause_layer}
-            o.post("/api/files/local/job.gcode", {"command": "select", "print": True})
+            name = "job.gcode"
+            if a.reprint_file:
+                # Another file: upload it and print it.
+                name = "job2.gcode"
+                text = "\n".join(job_lines(a.reprint_file, a.layers)) + "\n"
+                r = o.s.post(
+                    o.url + "/api/files/local",
+                    files={"file": (name, text.encode())},
+                    data={"select": "false", "print": "false"},
+                    timeout=30,
+                )
+                r.raise_for_status()
+                sc["file"] = a.reprint_file
+            o.post("/api/files/local/" + name, {"command": "select", "print": True})
             st, started = o.wait_state(lambda s: s in ("Printing", "Starting"), a.wait)
             sc["started"] = started
             o.post("/api/plugin/layerpause", {"command": "pause_at_layer", "layer": pause_layer})
