@@ -187,9 +187,9 @@ impl Turn {
         if self.dist(p) >= AWAY_MM {
             self.away = true;
         }
-        for k in 0..2 {
-            self.min[k] = self.min[k].min(p[k]);
-            self.max[k] = self.max[k].max(p[k]);
+        for ((lo, hi), v) in self.min.iter_mut().zip(self.max.iter_mut()).zip(&p[..2]) {
+            *lo = lo.min(*v);
+            *hi = hi.max(*v);
         }
         if let Some(c) = self.centre {
             let a = (p[1] - c[1]).atan2(p[0] - c[0]);

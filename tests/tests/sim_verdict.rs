@@ -151,8 +151,8 @@ fn the_verdict_is_the_reference_s_not_the_firmware_s() {
         .layers()
         .iter()
         .find(|l| l.number == 10)
-        .expect("turn 10")
-        .clone();
+        .copied()
+        .expect("turn 10");
     assert!(turn.last_line > turn.first_line + 20, "{turn:?}");
     // A move in the middle of the turn (the forgery goes before it), and a request a quarter
     // of the way round: the first boundary after it is the end of turn 10.
