@@ -80,11 +80,13 @@ fn firmware_numbers_with(g: &str, skip_bad: bool) -> Vec<u32> {
             Err(_) if skip_bad => continue,
             Err(e) => panic!("`{text}`: {e:?}"),
         };
-        let before = m.position_steps(&cfg);
+        // As the executive feeds its detector: the commanded positions before and after
+        // (a vase move that rises 1 µm rises, though it makes no Z step).
+        let before = m.clone();
         if let Some(cmd) = &line.command {
             let _ = m.apply(cmd, &cfg);
         }
-        let facts = MoveFacts::between(&before, &m.position_steps(&cfg), &cfg);
+        let facts = MoveFacts::of(&before, &m, &cfg);
         if let Some(mark) = d.feed(&line, facts) {
             out.push(mark.layer);
         }
@@ -95,13 +97,16 @@ fn firmware_numbers_with(g: &str, skip_bad: bool) -> Vec<u32> {
     out
 }
 
-/// The layers that count: a leading prelude mark (a purge line the height rule marked before
-/// the slicer's first marker, numbered 1 again by that marker) dropped.
-fn without_prelude(marks: &[u32]) -> &[u32] {
-    match marks {
-        [1, 1, rest @ ..] => &marks[marks.len() - rest.len() - 1..],
-        _ => marks,
+/// The layers that count: leading prelude marks (purge lines the height rule marked before
+/// the slicer's first marker, the layer after each numbered 1 again) dropped.
+fn without_prelude(mut marks: &[u32]) -> &[u32] {
+    while let [1, rest @ ..] = marks {
+        if rest.first() != Some(&1) {
+            break;
+        }
+        marks = rest;
     }
+    marks
 }
 
 /// The independent checker: (number, height) of each layer, from the text alone.

@@ -141,8 +141,9 @@ pub fn stats(input: &[u8], profile: &Profile) -> Result<Stats, ReadError> {
     }
     // A purge line above the first layer (Cura's Ender-3 start code) is marked as layer 1 by
     // the height rule, then the first layer as layer 1 again: the first was a prelude, part
-    // of the time before the first layer.
-    if n >= 2 && marks[0].0 == 1 && marks[1].0 == 1 {
+    // of the time before the first layer. Start codes with two purges (the i3 Mega's, at
+    // Z 0.3 then Z 0.2, before the first marker) make two such preludes.
+    while marks.len() >= 2 && marks[0].0 == 1 && marks[1].0 == 1 {
         let prelude = marker_time.remove(1);
         marker_time[0] += prelude;
         marks.remove(0);
