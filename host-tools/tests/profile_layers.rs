@@ -82,7 +82,7 @@ fn firmware_numbers_with(g: &str, skip_bad: bool) -> Vec<u32> {
         };
         // As the executive feeds its detector: the commanded positions before and after
         // (a vase move that rises 1 µm rises, though it makes no Z step).
-        let before = m.clone();
+        let before = m;
         if let Some(cmd) = &line.command {
             let _ = m.apply(cmd, &cfg);
         }
