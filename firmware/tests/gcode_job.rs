@@ -148,7 +148,8 @@ fn layer_pause_during_start_heater_wait_then_homing() {
         r.out
     );
     let stop = r.stop().expect("stopped");
-    assert_eq!(stop.layer, Some(0), "stopped at the first layer boundary");
+    // Before the first layer (numbered 1: Cura's ;LAYER:0).
+    assert_eq!(stop.layer, Some(1), "stopped at the first layer boundary");
     // The start code ran (homing, Z up 15 mm); the job's first layer did not.
     assert_eq!(stop.pos, [0, 0, 6000, 0]);
 }
@@ -345,7 +346,7 @@ fn layer_pause_at_a_boundary_the_host_drained_with_m400_parks_there() {
         r2.stop(),
         Some(Stop {
             pos: r.end,
-            layer: Some(1),
+            layer: Some(2),
             mid_block: false
         })
     );
@@ -365,7 +366,7 @@ fn layer_pause_at_a_boundary_the_host_drained_with_m400_parks_there() {
 #[test]
 fn layer_pause_when_the_host_stops_after_a_marker_reports_that_layer() {
     // No M400: the host sent the layer's marker comments and stopped streaming. After the
-    // idle time the stop is at that boundary and is reported as layer 1.
+    // idle time the stop is at that boundary, before layer 2.
     let lines = [
         ";LAYER_CHANGE",
         ";Z:0.2",
@@ -379,7 +380,7 @@ fn layer_pause_when_the_host_stops_after_a_marker_reports_that_layer() {
     let r = run_gcode(&mut p, &lines, &[(300_000, "M25\n")], 60_000_000);
     assert!(r.out.contains("//action:paused"), "{}", r.out);
     let stop = r.stop().map(|s| (s.layer, s.mid_block));
-    assert_eq!(stop, Some((Some(1), false)));
+    assert_eq!(stop, Some((Some(2), false)));
     // The resumed job's next move gets no second mark for the same layer.
     p.request(firmware::motion::Realtime::Resume, 100_000_000);
     let r2 = run_gcode(&mut p, &["G1 X20 Y40 Z0.4 E3"], &[], 200_000_000);

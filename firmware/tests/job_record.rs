@@ -14,8 +14,9 @@ fn checksum(s: &str) -> u8 {
     s.bytes().fold(0, |a, b| a ^ b)
 }
 
-/// The job: layer 0 and 1 of squares, Cura markers. Returns (lines without numbers, index of
-/// the first motion line after `;LAYER:1`, the end of layer 0 in mm X Y Z E).
+/// The job: three layers of squares, Cura markers (`;LAYER:0` is layer 1). Returns (lines
+/// without numbers, index of the first motion line after `;LAYER:1`, the end of layer 1 in mm
+/// X Y Z E).
 fn job() -> (Vec<String>, usize, [f32; 4]) {
     let mut v: Vec<String> = ["G28", "M83", "M104 S205", "M140 S60", "M106 S128", "G92 E0"]
         .map(String::from)
@@ -72,7 +73,7 @@ fn a_layer_pause_keeps_the_job_and_a_resume_forgets_it() {
         p.write_output(&mut s).unwrap();
         s
     };
-    // Stream with ok flow; ask for a layer pause during layer 0.
+    // Stream with ok flow; ask for a layer pause during layer 1.
     for _ in 0..200_000 {
         if !waiting && next < lines.len() {
             let body = format!("N{} {}", next + 1, lines[next]);
@@ -100,18 +101,18 @@ fn a_layer_pause_keeps_the_job_and_a_resume_forgets_it() {
     }
     assert_eq!(p.status().state, State::Paused, "{out}");
     assert!(
-        out.contains("power-cut resume: keeping job at layer 1"),
+        out.contains("power-cut resume: keeping job at layer 2"),
         "{out}"
     );
     let job = store.load_job().unwrap().expect("a record");
-    // Restart from the first motion line of layer 1 (line numbers are 1-based).
+    // Restart from the first motion line of layer 2 (line numbers are 1-based).
     assert_eq!(
         job.source,
         JobSource::Host {
             line: first_after as u32 + 1
         }
     );
-    assert_eq!(job.layer, 1);
+    assert_eq!(job.layer, 2);
     let steps = |mm: f32, spm: f32| (mm * spm).round() as i32;
     let want = [
         steps(end[0], 80.0),
@@ -119,18 +120,18 @@ fn a_layer_pause_keeps_the_job_and_a_resume_forgets_it() {
         steps(end[2], 400.0),
         steps(end[3], 93.0),
     ];
-    assert_eq!(job.boundary_steps, want, "the end of layer 0");
+    assert_eq!(job.boundary_steps, want, "the end of layer 1");
     assert_eq!(
         job.boundary_z_um, 400,
-        "layer 1's height, from the marker's Z move"
+        "layer 2's height, from the marker's Z move"
     );
     assert_ne!(job.park_steps, job.boundary_steps);
     assert!(job.modal.relative_e && !job.modal.relative_xyz, "M83, G90");
-    assert_eq!(job.modal.feed_mm_s, 30.0, "F1800 of layer 0");
+    assert_eq!(job.modal.feed_mm_s, 30.0, "F1800 of layer 1");
     assert_eq!(
         job.modal.logical_e_mm,
         f64::from(end[3]),
-        "G92 E0, then layer 0's E"
+        "G92 E0, then layer 1's E"
     );
     assert_eq!((job.hotend_c, job.bed_c, job.fan_pwm), (205.0, 60.0, 128));
     assert_eq!(job.retract_mm, 2.0);
@@ -146,7 +147,7 @@ fn a_layer_pause_keeps_the_job_and_a_resume_forgets_it() {
     after.write_output(&mut boot).unwrap();
     assert!(
         boot.contains(&format!(
-            "//action:notification Paused job kept: layer 1 at Z0.400, continue from host line {}",
+            "//action:notification Paused job kept: layer 2 at Z0.400, continue from host line {}",
             first_after + 1
         )),
         "{boot}"

@@ -13,7 +13,7 @@ use firmware::config::MachineConfig;
 use firmware::homing::HomingConfig;
 use firmware::motion::{Axis, PauseMode, Realtime};
 use firmware::planner::BlockKind;
-use firmware::printer::{Policy, Printer, State};
+use firmware::printer::{Policy, Printer, Record, State};
 use firmware::storage::{NorFlashModel, SettingsStore};
 use firmware::thermal::HeaterId;
 
@@ -72,6 +72,8 @@ struct Rig {
     hot_from_us: u64,
     /// Time of the first job or service step.
     first_motion_us: Option<u64>,
+    /// The layer marks the head crossed (their numbers), in order.
+    layers: Vec<u32>,
 }
 
 impl Rig {
@@ -92,6 +94,7 @@ impl Rig {
             in_move: None,
             hot_from_us: 0,
             first_motion_us: None,
+            layers: Vec::new(),
         };
         r.switches();
         r
@@ -141,6 +144,11 @@ impl Rig {
         }
         self.p.poll(self.now_us);
         self.p.service_store(&mut self.store);
+        while let Some(r) = self.p.pop_record() {
+            if let Record::Layer { layer, .. } = r {
+                self.layers.push(layer);
+            }
+        }
         self.now_us += 1000;
         let mut s = String::new();
         self.p.write_output(&mut s).unwrap();
@@ -184,8 +192,9 @@ impl Rig {
     }
 }
 
-/// Stream the job and ask for a layer pause during layer 1; run until parked and kept.
-fn pause_in_layer_1(a: &mut Rig, lines: &[String], first: &[usize]) {
+/// Stream the job and ask for a layer pause when the host sends layer 2 (`;LAYER:1`); run
+/// until parked and kept.
+fn pause_in_layer_2(a: &mut Rig, lines: &[String], first: &[usize]) {
     let mut i = 0;
     let mut ticks = 0;
     while a.p.status().state != State::Paused {
@@ -224,12 +233,13 @@ fn a_job_paused_resumed_after_a_power_cut_runs_the_same_moves_as_an_unpaused_one
     }
     reference.run_until(Rig::idle);
 
-    // The job, layer-paused during layer 1 (stops at the boundary before layer 2).
+    // The job, layer-paused while the host sends layer 2 (the head prints layer 1).
     let mut a = Rig::boot(erased(), START);
     a.send("M110 N0");
-    pause_in_layer_1(&mut a, &lines, &first);
+    pause_in_layer_2(&mut a, &lines, &first);
     // The host runs ahead of the motion by the queue: the stop is at the first boundary the
-    // plan could still reach, layer 1 or 2. The record names that layer's first motion line.
+    // plan could still reach, before layer 2 or 3. The record names that layer (numbered from
+    // 1: `;LAYER:n` is layer n + 1) and its first motion line.
     let kept = a
         .out
         .lines()
@@ -239,9 +249,9 @@ fn a_job_paused_resumed_after_a_power_cut_runs_the_same_moves_as_an_unpaused_one
     let (layer, line) = kept.split_once(", host line ").unwrap();
     let layer: usize = layer.parse().unwrap();
     let kept_line: u32 = line.parse().unwrap();
-    assert!(layer >= 1, "{kept}");
-    assert_eq!(kept_line, first[layer] as u32 + 1, "{kept}");
-    let z = 0.2 * (layer + 1) as f32;
+    assert!(layer >= 2, "{kept}");
+    assert_eq!(kept_line, first[layer - 1] as u32 + 1, "{kept}");
+    let z = 0.2 * layer as f32;
 
     // The power goes: RAM is lost, the flash and the head's position stay.
     let bytes = a.store.into_flash().bytes().to_vec();
@@ -293,6 +303,11 @@ fn a_job_paused_resumed_after_a_power_cut_runs_the_same_moves_as_an_unpaused_one
     // The boundary: where the first session stopped is where the second one's job started.
     assert_eq!(before_cut.last().unwrap().2, b.moves[0].1);
     assert_eq!(reference.phys, b.phys, "the same end position");
+    // One numbering across the power cut: the continued job's layers go on from the kept one
+    // (the first session crossed the marks before it), as the uninterrupted run numbered them.
+    assert_eq!(reference.layers, vec![1, 2, 3, 4]);
+    let both: Vec<u32> = a.layers.iter().chain(&b.layers).copied().collect();
+    assert_eq!(both, reference.layers, "{:?} + {:?}", a.layers, b.layers);
 }
 
 /// Power-up with a kept job, then `M1000 C`: discarded and cleared; a second M1000 refuses.
@@ -301,7 +316,7 @@ fn m1000_c_discards_and_a_new_job_supersedes_the_kept_one() {
     let (lines, first) = job();
     let mut a = Rig::boot(erased(), START);
     a.send("M110 N0");
-    pause_in_layer_1(&mut a, &lines, &first);
+    pause_in_layer_2(&mut a, &lines, &first);
     let bytes = a.store.into_flash().bytes().to_vec();
 
     // M1000 C forgets it.

@@ -14,9 +14,10 @@
 //! Extruding moves (X or Y moves while E advances) are grouped into layers. A new layer starts
 //! at a marker line (the first extruding move after it), and — while no marker has been seen —
 //! when an extruding move starts higher than the previous one ended (a purge line at another
-//! height). Numbers: Cura's `n` as written; otherwise layers count from 0 in file order. A
-//! `;FLAVOR:` / `;LAYER_COUNT:` header means markers follow: no height rule before them (the
-//! purge line is no layer), as Cura files mean.
+//! height). Numbers count from 1 in file order (the slicers' preview numbers: Cura's `;LAYER:n`
+//! is layer n + 1); what prints before the first marker (a purge line) is a prelude, and the
+//! first marker's layer is layer 1. A `;FLAVOR:` / `;LAYER_COUNT:` header means markers
+//! follow: no height rule before them, as Cura files mean.
 
 use firmware::config::MachineConfig;
 use firmware::gcode::parse_line;
@@ -79,11 +80,13 @@ fn firmware_numbers_with(g: &str, skip_bad: bool) -> Vec<u32> {
             Err(_) if skip_bad => continue,
             Err(e) => panic!("`{text}`: {e:?}"),
         };
-        let before = m.position_steps(&cfg);
+        // As the executive feeds its detector: the commanded positions before and after
+        // (a vase move that rises 1 µm rises, though it makes no Z step).
+        let before = m;
         if let Some(cmd) = &line.command {
             let _ = m.apply(cmd, &cfg);
         }
-        let facts = MoveFacts::between(&before, &m.position_steps(&cfg), &cfg);
+        let facts = MoveFacts::of(&before, &m, &cfg);
         if let Some(mark) = d.feed(&line, facts) {
             out.push(mark.layer);
         }
@@ -92,6 +95,18 @@ fn firmware_numbers_with(g: &str, skip_bad: bool) -> Vec<u32> {
         out.push(mark.layer);
     }
     out
+}
+
+/// The layers that count: leading prelude marks (purge lines the height rule marked before
+/// the slicer's first marker, the layer after each numbered 1 again) dropped.
+fn without_prelude(mut marks: &[u32]) -> &[u32] {
+    while let [1, rest @ ..] = marks {
+        if rest.first() != Some(&1) {
+            break;
+        }
+        marks = rest;
+    }
+    marks
 }
 
 /// The independent checker: (number, height) of each layer, from the text alone.
@@ -103,14 +118,15 @@ fn checker_layers(g: &str) -> Vec<(u32, f64)> {
     let mut header = false;
     let mut markers_seen = false;
     let mut last_end_z: Option<f64> = None;
-    let mut next_count = 0u32;
+    let mut next_count = 1u32;
+    let mut first_marker_done = false;
     for raw in g.lines() {
         let (code, comment) = match raw.find(';') {
             Some(i) => (&raw[..i], raw[i + 1..].trim()),
             None => (raw, ""),
         };
         if comment == "LAYER_CHANGE" {
-            pending = Some(None);
+            pending = Some(Some(0));
             markers_seen = true;
         } else if let Some(n) = comment.strip_prefix("LAYER:") {
             pending = Some(n.trim().parse().ok());
@@ -160,9 +176,14 @@ fn checker_layers(g: &str) -> Vec<(u32, f64)> {
                         None => None,
                     };
                     if let Some(number) = new_layer {
-                        let n = number.unwrap_or(next_count);
-                        next_count = n + 1;
-                        layers.push((n, start_z));
+                        if number.is_some() && !first_marker_done {
+                            // The slicer's first marker: what came before was a prelude.
+                            first_marker_done = true;
+                            layers.clear();
+                            next_count = 1;
+                        }
+                        layers.push((next_count, start_z));
+                        next_count += 1;
                     }
                     last_end_z = Some(to[2]);
                 }
@@ -188,21 +209,19 @@ fn every_profile_numbers_layers_alike() {
         let st_numbers: Vec<u32> = st.layer_times.iter().map(|l| l.layer).collect();
         let checker = checker_layers(&g);
         let ck_numbers: Vec<u32> = checker.iter().map(|l| l.0).collect();
+        let fw = without_prelude(&fw);
         assert_eq!(st_numbers, fw, "{name}: stats vs firmware");
         assert_eq!(ck_numbers, fw, "{name}: checker vs firmware\n{checker:?}");
         assert_eq!(st.layers as usize, fw.len(), "{name}");
-        // The design's six layers are the last six, at their heights, numbered consecutively.
-        let design = &checker[checker.len() - LAYERS..];
-        for (k, (n, z)) in design.iter().enumerate() {
+        // Every profile, purge line or not, Cura or PrusaSlicer markers: the design's six
+        // layers are layers 1 to 6, at their heights.
+        assert_eq!(fw, (1..=LAYERS as u32).collect::<Vec<_>>(), "{name}");
+        for (k, (_, z)) in checker.iter().enumerate() {
             assert!(
                 (z - 0.2 * (k + 1) as f64).abs() < 1e-6,
-                "{name}: layer {k} at {z}"
+                "{name}: layer {} at {z}",
+                k + 1
             );
-            assert_eq!(*n, design[0].0 + k as u32, "{name}");
-        }
-        // Cura style: ;LAYER:0 is the design's first layer, the purge line is no layer.
-        if g.contains(";LAYER:0") {
-            assert_eq!(fw, (0..LAYERS as u32).collect::<Vec<_>>(), "{name}");
         }
     }
 }

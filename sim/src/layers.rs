@@ -7,7 +7,8 @@ use firmware::gcode::parse_line;
 use firmware::layer::{LayerDetector, MoveFacts};
 use firmware::machine::MachineState;
 
-/// For each line, the layer number whose mark is placed before that line (0-based), if any.
+/// For each line, the layer number whose mark is placed before that line (the n-th layer of
+/// the job, from 1: docs/planner.md, "What a layer is"), if any.
 pub fn detect<S: AsRef<str>>(lines: &[S]) -> Vec<Option<u32>> {
     analyse(lines).into_iter().map(|l| l.mark).collect()
 }
@@ -67,17 +68,16 @@ impl Analyser {
         let Ok(line) = parse_line(text.as_bytes()) else {
             return LineFacts::default();
         };
-        let before = self.m.position_steps(cfg);
+        let before = self.m;
         if let Some(cmd) = &line.command {
             // A command the machine rejects changes nothing (as on the printer).
             let _ = self.m.apply(cmd, cfg);
         }
-        let after = self.m.position_steps(cfg);
-        let facts = MoveFacts::between(&before, &after, cfg);
+        let facts = MoveFacts::of(&before, &self.m, cfg);
         LineFacts {
             mark: self.d.feed(&line, facts).map(|mark| mark.layer),
             extrudes: facts.extrudes,
-            moved: before != after,
+            moved: facts.moved,
         }
     }
 }
@@ -109,8 +109,9 @@ mod tests {
             .filter_map(|(i, m)| m.map(|m| (i, m)))
             .collect();
         assert_eq!(marks.len(), 2);
-        assert_eq!(marks[0].1, 0);
-        assert_eq!(marks[1].1, 1);
+        // Layers count from 1 (the slicer preview's numbers).
+        assert_eq!(marks[0].1, 1);
+        assert_eq!(marks[1].1, 2);
         assert!(marks[1].0 > 4 && marks[1].0 <= 7);
     }
 }

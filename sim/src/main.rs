@@ -50,8 +50,9 @@ struct RunArgs {
     /// Request a pause at this time after the start, seconds.
     #[arg(long, conflicts_with = "pause_at_layer")]
     pause_at: Option<f64>,
-    /// Schedule a pause for the start of layer N (0-based, as the firmware counts layers).
-    #[arg(long)]
+    /// Schedule a pause before layer N starts (`M761 L<N>`): layers count from 1 in print
+    /// order, as the slicers' previews number them (turns of a spiral vase included).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     pause_at_layer: Option<u32>,
     /// Pause mode.
     #[arg(long, value_enum, default_value = "layer")]

@@ -28,6 +28,7 @@ use crate::recorder::{Scale, SegRecord};
 use crate::scenario::{Mode, PauseWhen, Scenario};
 use crate::stream::{Comparison, Key, LineEnds};
 use firmware::motion::StepPos;
+use layerref::{Comments, Model};
 
 /// Margin of the first-reachable-boundary judgement beyond the braking distance, mm: the
 /// segment executing at the request (≤ 0.2 mm), the speed estimate (the average over that
@@ -152,7 +153,7 @@ pub struct RunView {
 /// records (indices in `facts` count from `view.records[0]`).
 pub fn compute<E: Executive>(
     sc: &Scenario,
-    info: &JobInfo,
+    _info: &JobInfo,
     a: &Engine<E>,
     b: &Engine<E>,
     facts: &RunFacts,
@@ -197,15 +198,35 @@ pub fn compute<E: Executive>(
     rep.duplicated_moves = c.duplicated_moves;
 
     let complete = |line: usize, pos: &StepPos| view.b_line_ends.get(line).is_none_or(|e| e == pos);
-    let extrudes = |line: usize| info.extrudes(line);
-    let layer_of = |line: usize| info.layer_of(line);
+    // The layers of the job as the printer received it, from the independent reference model
+    // (`layerref`: no code shared with the firmware's detector). Layers are compared by their
+    // index in print order; the report names their numbers (from 1; 0 = a prelude).
+    let comments = if sc.link.strip_comments {
+        Comments::Strip
+    } else {
+        Comments::Keep
+    };
+    // Streamed like the engines' own readers (a job file is never held whole); a job that
+    // cannot be read again is judged on the lines read before the error.
+    let model = {
+        let mut m = Model::stream(comments);
+        if let Ok(mut r) = a.host.job().reader() {
+            while let Ok(true) = r.next_line() {
+                m.feed(r.line());
+            }
+        }
+        m.finish()
+    };
+    let extrudes = |line: usize| model.extrudes(line);
+    let layer_of = |line: usize| model.layer_index(line);
+    let number = |k: Option<usize>| k.and_then(|k| model.layers().get(k)).map(|l| l.number);
     let last_extruding_at_or_before = |line: usize| -> Option<usize> {
-        (0..=line.min(info.len().saturating_sub(1)))
+        (0..=line.min(model.len().saturating_sub(1)))
             .rev()
             .find(|&i| extrudes(i))
     };
     let next_extruding_after =
-        |line: usize| -> Option<usize> { (line + 1..info.len()).find(|&i| extrudes(i)) };
+        |line: usize| -> Option<usize> { (line + 1..model.len()).find(|&i| extrudes(i)) };
 
     // The pause point.
     let from = facts.records_before_req.saturating_sub(1);
@@ -243,29 +264,34 @@ pub fn compute<E: Executive>(
         rep.extrusion_after_request_mm = Some(scale.e_mm(&facts.pos_at_req, &stop_pos));
     }
 
-    // Layer at the stop.
+    // Layer at the stop (an index into the model's layers).
+    let mut stop_layer: Option<usize> = None;
     if let Some(lf) = frontier {
         let done = complete(lf, &stop_pos);
         if extrudes(lf) && !done {
-            rep.stop_layer = layer_of(lf);
+            stop_layer = layer_of(lf);
             rep.stopped_at_layer_boundary = false;
         } else {
             let last = last_extruding_at_or_before(lf);
-            rep.stop_layer = last.and_then(layer_of);
+            stop_layer = last.and_then(layer_of);
             let next = next_extruding_after(lf);
             rep.stopped_at_layer_boundary = match next {
                 None => true,
-                Some(n) => layer_of(n) != rep.stop_layer,
+                Some(n) => layer_of(n) != stop_layer,
             };
         }
     }
+    rep.stop_layer = number(stop_layer);
 
     // The first boundary after the request.
     match sc.pause {
         Some(PauseWhen::AtLayer(n)) => {
+            // `M761 L<n>`: the boundary before the first layer numbered n — after the layer
+            // before it in print order (a prelude, or nothing when layer n is the first).
             rep.request_layer = n.checked_sub(1);
-            rep.first_boundary_after_request =
-                rep.stopped_at_layer_boundary && rep.stop_layer == rep.request_layer;
+            let want = model.find(n);
+            rep.first_boundary_after_request = rep.stopped_at_layer_boundary
+                && want.is_some_and(|w| stop_layer == w.checked_sub(1));
             rep.first_reachable_boundary = Some(rep.first_boundary_after_request);
         }
         _ if facts.t_req_us.is_some() => {
@@ -287,12 +313,12 @@ pub fn compute<E: Executive>(
                     lr.checked_sub(1).and_then(last_extruding_at_or_before)
                 };
                 let kprev = prev_done.and_then(layer_of);
-                rep.request_layer = k0.or(kprev);
+                rep.request_layer = number(k0.or(kprev));
                 // Requested before the first layer mark (a purge line): its end is the
                 // first boundary.
                 let prelude = first_unfinished.is_some() && k0.is_none();
                 rep.first_boundary_after_request = rep.stopped_at_layer_boundary
-                    && match (rep.stop_layer, kprev, k0) {
+                    && match (stop_layer, kprev, k0) {
                         (Some(s), Some(p), Some(k)) => s >= p && s <= k,
                         (Some(s), None, Some(k)) => s <= k,
                         (None, None, None) if prelude => true,
@@ -311,7 +337,7 @@ pub fn compute<E: Executive>(
                     };
                     let a = f64::from(sc.machine.axes[0].max_accel_mm_s2);
                     let brake_mm = v * v / (2.0 * a) + REACH_MARGIN_MM;
-                    let mut layer_end_mm: Vec<(u32, f64)> = Vec::new();
+                    let mut layer_end_mm: Vec<(usize, f64)> = Vec::new();
                     let mut d = 0.0;
                     let upto = j.map_or(0, |j| j + 1);
                     for (idx, key) in ka.iter().enumerate().take(upto).skip(i) {
@@ -327,14 +353,14 @@ pub fn compute<E: Executive>(
                             layer_end_mm.push((l, d));
                         }
                     }
-                    let passed_near = match (rep.stop_layer, k0) {
+                    let passed_near = match (stop_layer, k0) {
                         (Some(s), Some(k)) if s > k => layer_end_mm
                             .iter()
                             .filter(|(l, _)| *l >= k && *l < s)
                             .all(|(_, d)| *d <= brake_mm),
                         _ => false,
                     };
-                    let above_lower = match (rep.stop_layer, kprev) {
+                    let above_lower = match (stop_layer, kprev) {
                         (Some(s), Some(p)) => s >= p,
                         _ => true,
                     };

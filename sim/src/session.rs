@@ -122,20 +122,23 @@ fn extrudes(r: &SegRecord) -> bool {
 
 /// The layer of every extruding segment, from the heights the head extruded at: a new layer
 /// starts when a segment extrudes higher than every extruding segment before it (a Z-hop does
-/// not extrude; a lower extrusion — a non-planar or wiping move — stays in the current layer).
-/// Returns `(index into records, layer from 0)`.
+/// not extrude; a lower extrusion — a non-planar or wiping move — stays in the current layer),
+/// or back at the height of the session's first extrusion or below (the next print of a
+/// session: its layers count on). Returns `(index into records, layer from 0)`.
 pub fn extrusion_layers(records: &[SegRecord]) -> Vec<(usize, u32)> {
     let mut out = Vec::new();
     let mut top: Option<i32> = None;
+    let mut first: Option<i32> = None;
     let mut layer = 0u32;
     for (i, r) in records.iter().enumerate() {
         if !extrudes(r) {
             continue;
         }
         let z = r.start[2].max(r.end[2]);
+        let base = *first.get_or_insert(z);
         match top {
             None => top = Some(z),
-            Some(t) if z > t => {
+            Some(t) if z > t || (z < t && z <= base) => {
                 top = Some(z);
                 layer += 1;
             }
@@ -218,8 +221,12 @@ mod tests {
 
     #[test]
     fn layers_come_from_the_extrusion_heights() {
-        let r = two_layers();
+        let mut r = two_layers();
         assert_eq!(extrusion_layers(&r), vec![(0, 0), (1, 0), (3, 1), (4, 1)]);
+        // A second print in the session starts at the first one's first height: a new layer.
+        r.push(seg(70, 80, 80, 40, 50, 100));
+        r.push(seg(80, 90, 160, 50, 60, 0));
+        assert_eq!(extrusion_layers(&r)[4..], [(5, 2), (6, 3)]);
     }
 
     #[test]

@@ -11,9 +11,15 @@ One OctoPrint session covers several scenarios (each wait bounded):
   terminal  M601 from OctoPrint's terminal (POST /api/printer/command) → "Paused"; M602 →
             "Printing".
   m25       M25 from the terminal → "Paused"; M24 → "Printing".
-  layer     pause at layer N: the plugin's API (M761 L<n>) → "Paused"; the plugin's layer
-            counter; resume with the button.
+  layer     pause at layer N: the plugin's API (M761 L<n>) → "Paused", N two layers above the
+            one the plugin's counter (M27) shows; the counter when paused (N - 1: the last layer
+            printed); resume with the button.
   cancel    OctoPrint's Cancel button → "Operational".
+  reprint   (--reprint) the same file printed again in the same session (OctoPrint sends
+            M110 N0 at the start of every print): pause at the same layer N, scheduled during
+            the heat-up; the counter when paused; resume, cancel. With --reprint-file the
+            second print is that file (e.g. one with `M73 L` markers, which stay when
+            OctoPrint strips the comments).
 
 With --two-hosts (another host on the TFT port, tests/hosts/printcore_tft.py) instead:
   twohosts  print; the other host pauses (state "Paused" seen here), OctoPrint's Resume
@@ -240,6 +246,11 @@ def main():
     ap.add_argument("--pause-layer", type=int, default=3)
     ap.add_argument("--wait", type=float, default=20.0)
     ap.add_argument("--no-emergency", action="store_true")
+    ap.add_argument("--reprint", action="store_true")
+    ap.add_argument(
+        "--reprint-file",
+        help="with --reprint: print this file (its first --layers layers) the second time",
+    )
     ap.add_argument("--two-hosts", action="store_true")
     ap.add_argument("--reconnect", action="store_true")
     a = ap.parse_args()
@@ -373,24 +384,42 @@ def main():
             pause_resume("terminal", terminal("M601"), terminal("M602"))
         if o.state() == "Printing":
             pause_resume("m25", terminal("M25"), terminal("M24"))
+        def counter(secs):
+            """The plugin's layer counter from a fresh M27 (bounded wait for its answer)."""
+            seen = o.get("/api/plugin/layerpause").get("layer_reports", 0)
+            end = time.monotonic() + secs
+            while time.monotonic() < end:
+                o.post("/api/plugin/layerpause", {"command": "refresh"})
+                t = time.monotonic() + 2.0
+                while time.monotonic() < t:
+                    st = o.get("/api/plugin/layerpause")
+                    if st.get("layer_reports", 0) > seen:
+                        return st.get("layer")
+                    time.sleep(0.1)
+            return None
+
+        pause_layer = None
         if o.state() == "Printing":
+            now = counter(a.wait)
+            pause_layer = now + 2 if now is not None else a.pause_layer
+            got = {}
+
             def at_layer():
                 o.post(
                     "/api/plugin/layerpause",
-                    {"command": "pause_at_layer", "layer": a.pause_layer},
+                    {"command": "pause_at_layer", "layer": pause_layer},
                 )
 
-            sc = pause_resume("layer", at_layer, job_cmd("resume"))
-            # M27 through the plugin: wait (bounded) for its answer to update the layer.
-            before = o.get("/api/plugin/layerpause").get("layer")
-            o.post("/api/plugin/layerpause", {"command": "refresh"})
-            end = time.monotonic() + a.wait
-            while True:
-                sc["plugin_after"] = o.get("/api/plugin/layerpause")
-                layer = sc["plugin_after"].get("layer")
-                if (layer is not None and layer != before) or time.monotonic() > end:
-                    break
-                time.sleep(0.1)
+            def resume_after_counter():
+                # While paused: the counter M27 reports (the last layer printed).
+                if o.state() == "Paused":
+                    got["layer"] = counter(a.wait)
+                o.post("/api/job", {"command": "pause", "action": "resume"})
+
+            sc = pause_resume("layer", at_layer, resume_after_counter)
+            sc["pause_layer"] = pause_layer
+            sc["printing_layer"] = now
+            sc["layer_when_paused"] = got.get("layer")
 
         # cancel
         sc = {}
@@ -399,6 +428,41 @@ def main():
         sc["operational_after_cancel"] = ok
         sc["state"] = st
         out["scenarios"]["cancel"] = sc
+
+        if a.reprint and pause_layer is not None and ok:
+            # The same file again, in the same session: the firmware's count restarts at
+            # OctoPrint's M110 N0, and the same number is the same layer.
+            sc = {"pause_layer": pause_layer}
+            name = "job.gcode"
+            if a.reprint_file:
+                # Another file: upload it and print it.
+                name = "job2.gcode"
+                text = "\n".join(job_lines(a.reprint_file, a.layers)) + "\n"
+                r = o.s.post(
+                    o.url + "/api/files/local",
+                    files={"file": (name, text.encode())},
+                    data={"select": "false", "print": "false"},
+                    timeout=30,
+                )
+                r.raise_for_status()
+                sc["file"] = a.reprint_file
+            o.post("/api/files/local/" + name, {"command": "select", "print": True})
+            st, started = o.wait_state(lambda s: s in ("Printing", "Starting"), a.wait)
+            sc["started"] = started
+            o.post("/api/plugin/layerpause", {"command": "pause_at_layer", "layer": pause_layer})
+            st, ok2 = o.wait_state(lambda s: s == "Paused", 120 + 10 * pause_layer)
+            sc["paused"] = ok2
+            sc["state_after_pause"] = st
+            if ok2:
+                sc["layer_when_paused"] = counter(a.wait)
+            o.post("/api/job", {"command": "pause", "action": "resume"})
+            st, ok2 = o.wait_state(lambda s: s == "Printing", a.wait)
+            sc["resumed"] = ok2
+            time.sleep(1.0)
+            o.post("/api/job", {"command": "cancel"})
+            st, ok2 = o.wait_state(lambda s: s.startswith("Operational"), a.wait)
+            sc["operational_after_cancel"] = ok2
+            out["scenarios"]["reprint"] = sc
         out["final_state"] = o.state()
         o.post("/api/connection", {"command": "disconnect"})
     except Done:

@@ -17,6 +17,9 @@ Scenarios, in one session (each wait bounded):
           --wait seconds).
   end     send_now M400 and M118 drive-end; wait for the echo (every move the firmware
           accepted has run).
+  repeat  (--repeat N) N more prints of the same job in the same session, each cancelled after
+          the stream has passed line --m27-line, where send_now("M27") asks for the firmware's
+          layer counter (printcore sends `N-1 M110` at each startprint: the count restarts).
 
 Prints one JSON object: the events with wall-clock seconds, and what each scenario saw.
 Needs only printcore (Printrun from PyPI, no GUI dependencies) and pyserial.
@@ -47,6 +50,8 @@ def main():
     ap.add_argument("--cancel-line", type=int, default=0)
     ap.add_argument("--wait", type=float, default=20.0)
     ap.add_argument("--timeout", type=float, default=240.0)
+    ap.add_argument("--repeat", type=int, default=0)
+    ap.add_argument("--m27-line", type=int, default=400)
     a = ap.parse_args()
 
     t0 = time.monotonic()
@@ -209,6 +214,27 @@ def main():
     done = marker("drive-end", max(a.wait, 60.0))
     ev("m400_ok" if done else "m400_timeout")
     out["scenarios"]["end"] = {"m400_ok": bool(done)}
+
+    # The same job printed again, a.repeat times: the layer counter at the same point of each.
+    counters = []
+    for k in range(a.repeat):
+        while p.printing and time.monotonic() < deadline:
+            time.sleep(0.05)
+        p.startprint(gc)
+        ev("repeat_start", n=k)
+        wait_queue(a.m27_line)
+        wait_for.mark = len(received)
+        p.send_now("M27")
+        got = wait_for(lambda l: l.startswith("echo:layer"), a.wait)
+        counters.append(got)
+        ev("repeat_m27", n=k, answer=got, queueindex=p.queueindex)
+        wait_for.mark = len(received)
+        p.send_now("M524")
+        wait_for(lambda l: l.startswith("//action:cancel"), a.wait)
+        p.cancelprint()
+        marker("repeat-%d-end" % k, max(a.wait, 60.0))
+    if a.repeat:
+        out["scenarios"]["repeat"] = {"m27": counters}
     out["errors"] = [l for _, l in received if l.startswith("Error")]
     out["received_tail"] = [l for _, l in received[-15:]]
     p.disconnect()

@@ -4,6 +4,7 @@
 use std::path::PathBuf;
 
 pub mod gcode;
+pub mod judge;
 pub mod pty;
 
 /// Root of the workspace (where `Cargo.toml`, `memory.x` and `tests/fixtures` live).

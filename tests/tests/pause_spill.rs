@@ -86,6 +86,16 @@ impl Host {
         self.next >= self.job.len() && !self.in_flight && self.pri.is_empty()
     }
 
+    /// Start the next print as printcore does: `N-1 M110`, then the job numbered from 0.
+    fn start_job(&mut self, job: Vec<String>) {
+        let pre = "N-1 M110";
+        self.pri
+            .push_back(format!("{pre}*{}", checksum(pre.as_bytes())));
+        self.job = job;
+        self.next = 0;
+        self.lineno = 0;
+    }
+
     fn read(&mut self, p: &mut Printer) -> Vec<String> {
         let mut s = String::new();
         p.write_output_on(self.port, &mut s).unwrap();
@@ -129,6 +139,8 @@ struct Rig {
     card: Option<Card<ImageDevice>>,
     now: u64,
     executed: Vec<(u32, u32)>,
+    /// The layers the head started, in order (`Record::Layer`).
+    layers: Vec<u32>,
     stops: usize,
     /// Job segments executed since `mark_cancel`.
     after_cancel: Option<usize>,
@@ -147,6 +159,7 @@ impl Rig {
             card,
             now: 0,
             executed: Vec::new(),
+            layers: Vec::new(),
             stops: 0,
             after_cancel: None,
         }
@@ -182,6 +195,7 @@ impl Rig {
                     ..
                 } => self.executed.push((seq, seg)),
                 Record::Stopped { .. } => self.stops += 1,
+                Record::Layer { layer, .. } => self.layers.push(layer),
                 _ => {}
             }
         }
@@ -317,6 +331,71 @@ fn a_long_pause_spills_to_the_card_and_runs_every_line_once_after_the_resume() {
         rig.card_files()
     );
     assert!(!out.contains("Error"), "{tail}");
+}
+
+/// printcore sends the whole rest of a print into the parked printer (one line a second, most
+/// of it onto the card) and the user starts the next print before resuming: its `N-1 M110`
+/// comes while the first job's lines still wait in the spill. The next job starts where its
+/// first line is fed back, after the first job's last line (docs/planner.md, "Jobs"): the
+/// first job's layers count on to 4 across the resume, the second's from 1, and every line of
+/// both runs once, in order. (Fails when the job starts at the `M110`'s arrival: the first
+/// job's spilled layers are numbered as the second job's.) ≈ 300 s parked, ≈ 3 s of test time.
+#[test]
+fn a_print_started_behind_spilled_lines_numbers_its_layers_after_them() {
+    let job = job(4, 100);
+    // The truth: both prints unpaused, the second started when the first was sent.
+    let base = {
+        let mut rig = Rig::new(None);
+        let mut h = Host::new(PortId::Usb, job.clone());
+        let mut second = false;
+        while rig.now < 3_600_000_000 && !(second && h.done() && rig.idle()) {
+            rig.tick(&mut [&mut h]);
+            if !second && h.done() {
+                h.start_job(job.clone());
+                second = true;
+            }
+        }
+        assert!(second && h.done() && rig.idle(), "baseline never ended");
+        rig.executed
+    };
+    let img = Image::new("next-print");
+    let mut rig = Rig::new(Some(img.card()));
+    let mut h = Host::new(PortId::Usb, job.clone());
+    let (mut pause_asked, mut paused, mut second_at, mut resumed) = (false, false, None, false);
+    let mut in_spill_at_reset = 0;
+    while rig.now < 3_600_000_000 {
+        if !pause_asked && h.next == 150 {
+            h.pri.push_back("M601".into());
+            pause_asked = true;
+        }
+        let lines = rig.tick(&mut [&mut h]).remove(0);
+        paused |= lines.iter().any(|l| l == "//action:paused");
+        if paused && second_at.is_none() && h.done() {
+            in_spill_at_reset = h.out.matches("kept on the SD card").count();
+            h.start_job(job.clone());
+            second_at = Some(rig.now);
+        }
+        if !resumed && second_at.is_some_and(|t| rig.now > t + 20_000_000) {
+            h.pri.push_back("M602".into());
+            resumed = true;
+        }
+        if resumed && h.done() && rig.idle() {
+            break;
+        }
+    }
+    let tail: String = h.out.lines().rev().take(12).collect::<Vec<_>>().join("\n");
+    assert!(resumed && h.done(), "{tail}");
+    assert_eq!(
+        in_spill_at_reset, 1,
+        "the first job's rest was spilled: {tail}"
+    );
+    assert_eq!(rig.stops, 1);
+    assert_eq!(rig.layers, [1, 2, 3, 4, 1, 2, 3, 4], "{tail}");
+    assert_eq!(
+        rig.executed, base,
+        "every segment of both jobs once, in order"
+    );
+    assert!(!h.out.contains("Error"), "{tail}");
 }
 
 #[test]

@@ -245,11 +245,13 @@ fn an_sd_job_paused_resumes_after_a_power_cut_with_m1000_alone() {
         .position(|&f| f == *offset as usize)
         .unwrap_or_else(|| panic!("offset {offset} is no layer's first line: {first:?}"));
     assert!(layer >= 2, "paused at layer {layer}");
-    assert_eq!(kept.layer as usize, layer);
+    // `;LAYER:n` is layer n + 1 (the n-th layer printed, from 1).
+    let number = layer + 1;
+    assert_eq!(kept.layer as usize, number);
     let z = 0.2 * (layer + 1) as f32;
     assert!(
         a.out.contains(&format!(
-            "echo:power-cut resume: keeping job at layer {layer}, SD file {path} byte {offset}"
+            "echo:power-cut resume: keeping job at layer {number}, SD file {path} byte {offset}"
         )),
         "{}",
         a.out
@@ -261,7 +263,7 @@ fn an_sd_job_paused_resumes_after_a_power_cut_with_m1000_alone() {
     let mut b = Rig::boot(bytes, Some(&img.0), a.phys);
     assert!(
         b.out.contains(&format!(
-            "//action:notification Paused job kept: layer {layer} at Z{z:.3}, continue from SD file {path} byte {offset} (M1000 resumes, M1000 C discards)"
+            "//action:notification Paused job kept: layer {number} at Z{z:.3}, continue from SD file {path} byte {offset} (M1000 resumes, M1000 C discards)"
         )),
         "{}",
         b.out
@@ -274,7 +276,7 @@ fn an_sd_job_paused_resumes_after_a_power_cut_with_m1000_alone() {
             text.len()
         ),
         "File selected".to_string(),
-        format!("echo:power-cut resume: layer {layer} at Z{z:.3}: SD file {path} byte {offset} continues"),
+        format!("echo:power-cut resume: layer {number} at Z{z:.3}: SD file {path} byte {offset} continues"),
     ];
     for w in &want {
         assert!(reply.lines().any(|l| l == w), "{w:?} in {reply}");

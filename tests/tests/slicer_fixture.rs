@@ -88,9 +88,9 @@ fn check_boundaries(name: &str, r: &Report) {
     assert!(hs.windows(2).all(|w| w[0] < w[1]), "{name}: {hs:?}");
     // Every layer has extrusions.
     assert_eq!(heights.len(), r.marks.len(), "{name}");
-    // Marks are numbered 0, 1, 2, ...
+    // Marks are numbered 1, 2, 3, ... (the n-th layer printed, as the slicers' previews show).
     for (i, m) in r.marks.iter().enumerate() {
-        assert_eq!(m.layer as usize, i, "{name}");
+        assert_eq!(m.layer as usize, i + 1, "{name}");
     }
 }
 

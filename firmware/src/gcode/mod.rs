@@ -43,6 +43,8 @@ mod decode;
 mod emit;
 // Parse errors and their messages.
 mod error;
+// Blanks and `( … )` comments (below `parse` and `words`).
+mod lex;
 // Decimal numbers as G-code writes them.
 mod number;
 // One line → comment + command word + words.

@@ -2,6 +2,7 @@
 //! Klipper-style extended command), text commands read, words handed to [`build_known`].
 
 use super::decode::build_known;
+use super::lex::{is_space, paren};
 use super::words::{scan_words, Words};
 use super::{err, number, sd, Command, ParseError, ParseErrorKind, Text, TEXT_CAP};
 
@@ -13,10 +14,6 @@ pub struct Line<'a> {
     /// The text after `;` (without the `;`, trailing whitespace removed), or else the text of
     /// the first `( … )` comment. Raw bytes: slicers write comments in any encoding.
     pub comment: Option<&'a [u8]>,
-}
-
-pub(super) fn is_space(c: u8) -> bool {
-    c == b' ' || c == b'\t'
 }
 
 /// Remove trailing spaces, tabs, CR and LF.
@@ -91,16 +88,6 @@ pub fn parse_line(line: &[u8]) -> Result<Line<'_>, ParseError> {
         command: Some(command),
         comment: semi.or(paren_comment),
     })
-}
-
-/// A `( … )` comment starting at `i`: (content, position after `)`). A `;` before the `)`
-/// leaves it unclosed.
-pub(super) fn paren(code: &[u8], i: usize) -> Result<(&[u8], usize), ParseError> {
-    let rest = code.get(i + 1..).unwrap_or(&[]);
-    match rest.iter().position(|&c| c == b')' || c == b';') {
-        Some(p) if rest.get(p) == Some(&b')') => Ok((rest.get(..p).unwrap_or(&[]), i + 2 + p)),
-        _ => Err(err(ParseErrorKind::UnclosedComment, i)),
-    }
 }
 
 /// Parse `G`/`M`/`T` + code and its words.

@@ -1,8 +1,8 @@
 //! The parameter words of one command: scanned once from the line, then read by letter with
 //! the letter set, flags and number ranges checked.
 
+use super::lex::{is_space, paren};
 use super::number::{self, Num};
-use super::parse::{is_space, paren};
 use super::{err, AxisFlags, AxisWords, ParseError, ParseErrorKind};
 
 /// Most distinct parameter letters one line may carry (known commands take at most 8; more is

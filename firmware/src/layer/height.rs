@@ -1,30 +1,144 @@
-//! The comment-free rule: layers from the heights at which extruding moves print.
+//! The comment-free rule: layers from the heights at which extruding moves print, and the
+//! turns of a continuous spiral from the path itself (docs/frontend.md, "The height rule";
+//! docs/planner.md, "Layers of a continuous spiral").
 //!
 //! Between two consecutive extruding moves a layer starts when
-//! - the second starts **higher** than the first ended (a layer change; a Z-hop comes back down
-//!   before the next extrusion, so it starts none);
-//! - the second starts **lower** (sequential printing: the next object's first layer);
-//! - in a **helix** (extruding moves that rise while they print: vase/spiral mode, helical
-//!   prints) the second starts at or above the current turn's base plus one layer height `h`:
-//!   each turn of `h` is a layer. The base is where the helix (or its current turn) began; `h` is
-//!   the last step between flat layers, else the height of the first layer;
-//! - the first rising extruding move after flat layers starts a layer (the helix's first turn
-//!   prints above the flat layer before it).
+//! - the second starts **higher** than the first ended and does not rise while it prints (a
+//!   flat layer change; a Z-hop comes back down before the next extrusion, so it starts none);
+//! - the second starts **lower** (sequential printing: the next object's first layer) — unless
+//!   nothing has risen yet and exactly one layer has been seen: that layer was a **prelude**
+//!   (a purge line printed above the first layer, Cura's Ender-3 start code): the count
+//!   restarts and this is the first layer again;
+//! - the second **rises** while it prints after flat layers: a spiral (vase mode, helical
+//!   prints) begins; its first turn is a layer;
+//! - inside a spiral, the head has come round: a **turn ends** at the point of the path
+//!   closest to where the turn began (within [`TURN_CLOSE_UM`] of it, after having gone at
+//!   least [`TURN_AWAY_UM`] away and risen at least 3/5 of the expected rise of a turn — the
+//!   last turn's rise, or a quarter of the layer height for the first turn), which is where
+//!   the slicers put their own marker: the seam, where Z reaches the layer's height. A spiral
+//!   whose turns never come back within [`TURN_CLOSE_UM`] is cut every 3/2 of the expected
+//!   rise instead (a first turn that has gone away waits for its seam up to 3 times the
+//!   layer height: its rise is not known yet).
 //!
-//! The first extruding move starts layer 0. Only moves that advance E by at least one step are
-//! extruding (the printer cannot tell less from nothing), so inside a helix a tiny move whose E
-//! rounds to no step lifts Z without printing: the turn rule above looks at the helix base, not
-//! at the last extrusion, and so does not take the next move for a layer change.
+//! The first extruding move starts the first layer. Heights and positions are the commanded
+//! ones in µm (the G-code's own resolution: a vase move that rises 1 µm rises, though it makes
+//! no Z step), so a spiral is seen from its first move.
 
-/// Heights compare to within this, µm. Heights come from Z step positions (2.5 µm apart on a
-/// 400 steps/mm lead screw), so equal heights are equal; the tolerance must stay under one step,
-/// or the last piece of a vase turn (Slic3r: 4.498 → 4.500 mm) would start the next turn.
-const TOL_UM: i32 = 1;
+/// Heights compare to within this, µm (slicers write Z with 3 decimals).
+const TOL_UM: i32 = 0;
 
 /// The layer height assumed before any is known: the first layer's own height, at least this.
 const MIN_LAYER_UM: i32 = 100;
 
-/// Extrusion heights seen so far.
+/// A spiral turn closes where the head comes back within this distance of the turn's start
+/// (XY), µm. The slicers' seam moves from one turn to the next by the change of the shape
+/// (measured: 0.0–0.3 mm on PrusaSlicer's and Cura's twisted vases).
+pub const TURN_CLOSE_UM: i64 = 2_000;
+
+/// ... after having gone at least this far from it, µm.
+pub const TURN_AWAY_UM: i64 = 2 * TURN_CLOSE_UM;
+
+/// Whether an extruding move starts a layer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Start {
+    /// It continues the current layer.
+    Same,
+    /// A new layer starts before it.
+    Layer,
+    /// A new layer starts before it, and what came before was a prelude (a purge line): the
+    /// count restarts at the first layer.
+    Restart,
+}
+
+/// The spiral turn being printed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Turn {
+    /// Where the turn began (X, Y), µm.
+    start_xy: [i32; 2],
+    /// Height where it began, µm.
+    base_um: i32,
+    /// The head has been at least [`TURN_AWAY_UM`] from the start.
+    away: bool,
+    /// Expected rise of a turn, µm: the last turn's rise, or the layer height for the first.
+    rise_um: i32,
+    /// The spiral's first turn (its rise is not known yet).
+    first: bool,
+}
+
+impl Turn {
+    fn new(start: &[i32; 3], rise_um: i32, first: bool) -> Self {
+        Turn {
+            start_xy: [start[0], start[1]],
+            base_um: start[2],
+            away: false,
+            rise_um: rise_um.max(1),
+            first,
+        }
+    }
+
+    /// Rise after which a turn without a seam is cut: 3/2 of the expected rise — or 3 times
+    /// it for a first turn that has gone away from its start (it may still come round, and
+    /// its rise is not known yet: a helix may rise more per turn than its first layer is
+    /// high, as the host compiler's 0.4 mm-pitch helix from Z 0.2 does).
+    fn cut_um(&self) -> i32 {
+        let halves = if self.first && self.away { 6 } else { 3 };
+        self.rise_um.saturating_mul(halves) / 2
+    }
+
+    /// Squared XY distance from the turn's start, µm².
+    fn dist2(&self, p: &[i32; 3]) -> i64 {
+        let dx = i64::from(p[0]) - i64::from(self.start_xy[0]);
+        let dy = i64::from(p[1]) - i64::from(self.start_xy[1]);
+        dx * dx + dy * dy
+    }
+
+    /// Whether the turn ends at `a`, the start of the move `a → b`: back near the turn's
+    /// start after going round, and `b` no closer (so `a` is the closest point).
+    fn closes_at(&self, a: &[i32; 3], b: &[i32; 3]) -> bool {
+        let gate = if self.first {
+            self.rise_um / 4
+        } else {
+            self.rise_um * 3 / 5
+        };
+        let da = self.dist2(a);
+        self.away
+            && a[2].saturating_sub(self.base_um) >= gate
+            && da <= TURN_CLOSE_UM * TURN_CLOSE_UM
+            && self.dist2(b) >= da
+    }
+}
+
+/// A flat layer printed as one loop so far: contiguous extrusions from `start_xy`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Lap {
+    start_xy: [i32; 2],
+    end_xy: [i32; 2],
+    /// The head has been at least [`TURN_AWAY_UM`] from the start.
+    away: bool,
+    /// An extrusion started elsewhere than where the last one ended: not one loop.
+    broken: bool,
+}
+
+impl Lap {
+    fn dist2(&self, p: &[i32; 2]) -> i64 {
+        let dx = i64::from(p[0]) - i64::from(self.start_xy[0]);
+        let dy = i64::from(p[1]) - i64::from(self.start_xy[1]);
+        dx * dx + dy * dy
+    }
+
+    /// One closed loop, and the next extrusion starts at `a`, near where it closed (Cura may
+    /// travel a fraction of a millimetre to the spiral's start).
+    fn closed_at(&self, a: &[i32; 3]) -> bool {
+        let dx = i64::from(a[0]) - i64::from(self.end_xy[0]);
+        let dy = i64::from(a[1]) - i64::from(self.end_xy[1]);
+        !self.broken
+            && self.away
+            && dx * dx + dy * dy <= TURN_CLOSE_UM * TURN_CLOSE_UM
+            && self.dist2(&self.end_xy) <= TURN_CLOSE_UM * TURN_CLOSE_UM
+    }
+}
+
+/// Extrusion heights and the spiral turn seen so far (bounded: a few numbers).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub(super) struct Heights {
     /// Z at the end of the last extruding move, µm.
@@ -33,8 +147,14 @@ pub(super) struct Heights {
     flat_um: Option<i32>,
     /// Last step between flat layers (or the first layer's height), µm.
     step_um: Option<i32>,
-    /// Where the current helix turn began, µm (`None`: printing flat).
-    helix_base_um: Option<i32>,
+    /// Layers this rule has started (saturating at 2: the prelude rule asks for exactly 1).
+    layers: u8,
+    /// A layer has started above the one before (the prelude rule applies only before that).
+    rose: bool,
+    /// The spiral turn being printed (`None`: printing flat).
+    turn: Option<Turn>,
+    /// The flat layer being printed, while it is one loop.
+    lap: Option<Lap>,
 }
 
 impl Heights {
@@ -43,53 +163,131 @@ impl Heights {
             last_end_um: None,
             flat_um: None,
             step_um: None,
-            helix_base_um: None,
+            layers: 0,
+            rose: false,
+            turn: None,
+            lap: None,
         }
     }
 
-    /// An extruding move from `z_start_um` to `z_end_um`: true when it starts a layer.
-    pub(super) fn extrusion(&mut self, z_start_um: i32, z_end_um: i32) -> bool {
-        let rising = z_end_um > z_start_um;
-        let new_layer = match self.last_end_um {
-            None => true,
-            Some(last) if z_start_um < last - TOL_UM => {
-                // The next object of a sequential print.
-                self.helix_base_um = None;
-                true
-            }
-            Some(last) => match self.helix_base_um {
-                Some(base) => {
-                    let h = self.step_um.unwrap_or(MIN_LAYER_UM);
-                    if !rising && (z_start_um - last).abs() <= TOL_UM {
-                        // A flat move where the helix ended (Cura's closing turn): same layer.
-                        self.helix_base_um = None;
-                        false
-                    } else {
-                        z_start_um >= base.saturating_add(h) - TOL_UM
-                    }
+    /// An extruding move from `a` to `b` (X, Y, Z in µm): whether it starts a layer.
+    pub(super) fn extrusion(&mut self, a: &[i32; 3], b: &[i32; 3]) -> Start {
+        let rising = b[2] > a[2];
+        let start = match self.last_end_um {
+            None => Start::Layer,
+            Some(last) if a[2] < last - TOL_UM => {
+                // Lower: the next object of a sequential print, or the end of a prelude.
+                if !self.rose && self.layers == 1 {
+                    Start::Restart
+                } else {
+                    Start::Layer
                 }
-                None => rising || z_start_um > last + TOL_UM,
+            }
+            Some(last) => match self.turn {
+                // A flat layer above the spiral.
+                Some(_) if !rising && a[2] > last + TOL_UM => Start::Layer,
+                Some(t) if t.closes_at(a, b) => {
+                    // The next turn; its expected rise is the one just completed.
+                    let rise = a[2].saturating_sub(t.base_um).max(1);
+                    return self.next_turn(Turn::new(a, rise, false), a, b);
+                }
+                Some(t) if a[2].saturating_sub(t.base_um) >= t.cut_um() => {
+                    // No seam found: cut by height, the expected rise kept.
+                    return self.next_turn(Turn::new(a, t.rise_um, t.first), a, b);
+                }
+                Some(_) => Start::Same,
+                None if rising && a[2] == last && self.lap.is_some_and(|l| l.closed_at(a)) => {
+                    // Cura's first spiralized layer prints its wall once flat, then spirals
+                    // on from where the loop closed: the first turn is the same layer.
+                    self.rose = true;
+                    let h = self.step_um.unwrap_or(MIN_LAYER_UM);
+                    self.turn = Some(Turn::new(a, h, true));
+                    self.lap = None;
+                    Start::Same
+                }
+                None if rising || a[2] > last + TOL_UM => Start::Layer,
+                None => Start::Same,
             },
         };
-        if new_layer {
-            if self.step_um.is_none() {
-                // The first layer: its height stands for the layer height until a step is seen.
-                self.step_um = Some(z_start_um.max(MIN_LAYER_UM));
+        match start {
+            Start::Same => {}
+            Start::Restart => {
+                *self = Heights::new();
+                self.begin(a, rising);
             }
-            if rising {
-                self.helix_base_um = Some(z_start_um);
-            } else {
-                self.helix_base_um = None;
-                if let Some(f) = self.flat_um {
-                    if z_start_um > f + TOL_UM {
-                        self.step_um = Some(z_start_um - f);
-                    }
-                }
-                self.flat_um = Some(z_start_um);
+            Start::Layer => self.begin(a, rising),
+        }
+        self.moved_to(a, b);
+        start
+    }
+
+    /// The head went on from `a` to `b`.
+    fn moved_to(&mut self, a: &[i32; 3], b: &[i32; 3]) {
+        if let Some(t) = &mut self.turn {
+            if t.dist2(b) >= TURN_AWAY_UM * TURN_AWAY_UM {
+                t.away = true;
             }
         }
-        self.last_end_um = Some(z_end_um);
-        new_layer
+        if let Some(l) = &mut self.lap {
+            if l.end_xy != [a[0], a[1]] {
+                l.broken = true;
+            }
+            l.end_xy = [b[0], b[1]];
+            if l.dist2(&l.end_xy) >= TURN_AWAY_UM * TURN_AWAY_UM {
+                l.away = true;
+            }
+        }
+        self.last_end_um = Some(b[2]);
+    }
+
+    /// A spiral's next turn starts (at `t`'s start; the move goes on to `b`).
+    fn next_turn(&mut self, t: Turn, a: &[i32; 3], b: &[i32; 3]) -> Start {
+        self.layers = 2;
+        self.turn = Some(t);
+        self.moved_to(a, b);
+        Start::Layer
+    }
+
+    /// A layer starts at `a`: flat, or the first turn of a spiral.
+    fn begin(&mut self, a: &[i32; 3], rising: bool) {
+        let first_layer = self.layers == 0;
+        self.layers = self.layers.saturating_add(1).min(2);
+        if let Some(last) = self.last_end_um {
+            if a[2] > last + TOL_UM {
+                self.rose = true;
+            }
+        }
+        if first_layer {
+            // Its height stands for the layer height until a step between layers is seen.
+            self.step_um = Some(a[2].max(MIN_LAYER_UM));
+        }
+        if rising {
+            self.rose = true;
+            let h = self.step_um.unwrap_or(MIN_LAYER_UM);
+            self.turn = Some(Turn::new(a, h, true));
+            self.lap = None;
+        } else {
+            self.turn = None;
+            self.lap = Some(Lap {
+                start_xy: [a[0], a[1]],
+                end_xy: [a[0], a[1]],
+                away: false,
+                broken: false,
+            });
+            if let Some(f) = self.flat_um {
+                if a[2] > f + TOL_UM {
+                    self.step_um = Some(a[2] - f);
+                }
+            }
+            self.flat_um = Some(a[2]);
+        }
+    }
+
+    /// A job continued part-way (after a power cut): no prelude to look for.
+    pub(super) fn no_prelude(&mut self) {
+        self.rose = true;
+        // Not the print's first layer: its height says nothing about the layer height.
+        self.layers = 2;
     }
 
     /// True once an extruding move has been seen.
@@ -100,13 +298,24 @@ impl Heights {
 
 #[cfg(test)]
 mod tests {
-    use super::Heights;
+    use super::{Heights, Start};
+    use std::vec::Vec;
 
-    /// Feed (start, end) pairs; the indexes of the moves that start layers.
-    fn layers(moves: &[(i32, i32)]) -> std::vec::Vec<usize> {
+    /// Feed (start, end) heights of moves along X; the indexes of the moves that start layers
+    /// (restarts marked negative).
+    fn layers(moves: &[(i32, i32)]) -> Vec<i64> {
         let mut h = Heights::new();
+        let mut x = 0;
         (0..moves.len())
-            .filter(|&i| h.extrusion(moves[i].0, moves[i].1))
+            .filter_map(|i| {
+                let (a, b) = ([x, 0, moves[i].0], [x + 1000, 0, moves[i].1]);
+                x += 1000;
+                match h.extrusion(&a, &b) {
+                    Start::Same => None,
+                    Start::Layer => Some(i as i64),
+                    Start::Restart => Some(-(i as i64)),
+                }
+            })
             .collect()
     }
 
@@ -127,31 +336,66 @@ mod tests {
     }
 
     #[test]
-    fn a_helix_turn_is_a_layer() {
-        // Flat 300 and 600, then a helix rising 12.5 µm per move: a layer every 300 µm of rise,
-        // also when a move with no E step lifted Z in between (the gap 900 → 925).
-        let mut moves = vec![(300, 300), (600, 600)];
-        let mut z = 600;
-        while z < 1500 {
-            if z == 900 {
-                z += 25;
+    fn a_purge_line_above_the_first_layer_is_a_prelude() {
+        // Cura's Ender-3 purge at 0.28, the first layer at 0.2: the count restarts there.
+        assert_eq!(
+            layers(&[(280, 280), (280, 280), (200, 200), (400, 400), (200, 200)]),
+            vec![0, -2, 3, 4]
+        );
+    }
+
+    /// A circle of `n` points of radius `r` µm around (50 mm, 50 mm), point `k`.
+    fn on_circle(k: usize, n: usize, r: f64) -> [i32; 2] {
+        let a = core::f64::consts::TAU * (k % n) as f64 / n as f64;
+        [50_000 + (r * a.cos()) as i32, 50_000 + (r * a.sin()) as i32]
+    }
+
+    #[test]
+    fn a_spiral_turn_ends_where_it_began() {
+        // Two flat layers of 200 µm, then a spiral of 40-point turns rising 200 µm per turn.
+        let mut h = Heights::new();
+        let n = 40;
+        let xy = |k| on_circle(k, n, 20_000.0);
+        // A flat layer: the wall, then (after a travel) a line of infill.
+        let flat = |h: &mut Heights, z: i32| {
+            let mut s = Vec::new();
+            for k in 0..n {
+                let (a, b) = (xy(k), xy(k + 1));
+                s.push(h.extrusion(&[a[0], a[1], z], &[b[0], b[1], z]));
             }
-            moves.push((z, z + 12));
-            z += 12;
+            s.push(h.extrusion(&[45_000, 50_000, z], &[55_000, 50_000, z]));
+            s.push(h.extrusion(&[55_000, 51_000, z], &[xy(0)[0], xy(0)[1], z]));
+            s
+        };
+        assert_eq!(flat(&mut h, 200)[0], Start::Layer);
+        assert_eq!(flat(&mut h, 400)[0], Start::Layer);
+        let mut starts = Vec::new();
+        for k in 0..(n * 5) {
+            let z = |k: usize| 400 + (k * 200 / n) as i32;
+            let (a, b) = (xy(k), xy(k + 1));
+            if h.extrusion(&[a[0], a[1], z(k)], &[b[0], b[1], z(k + 1)]) != Start::Same {
+                starts.push(k);
+            }
         }
-        let got = layers(&moves);
-        let starts: std::vec::Vec<i32> = got.iter().map(|&i| moves[i].0).collect();
-        assert_eq!(starts[..3], [300, 600, 600]);
-        // Turns at 600 (entering), then the first start at or above 900 and 1200-ish.
-        assert_eq!(starts.len(), 5, "{starts:?}");
-        assert!(starts[3] >= 897 && starts[3] < 940, "{starts:?}");
-        assert!(starts[4] >= starts[3] + 297, "{starts:?}");
-        // A flat closing turn at the top is not a layer of its own.
-        let mut h = super::Heights::new();
-        assert!(h.extrusion(300, 300));
-        assert!(h.extrusion(300, 310));
-        assert!(!h.extrusion(310, 320));
-        assert!(!h.extrusion(320, 320));
-        assert!(!h.extrusion(320, 320));
+        assert_eq!(starts, vec![0, n, 2 * n, 3 * n, 4 * n]);
+        // Cura's first spiralized layer: its wall printed once flat (one closed loop), then the
+        // spiral from where the loop closed: the first turn is the same layer.
+        let mut h = Heights::new();
+        flat(&mut h, 200);
+        let mut starts = Vec::new();
+        for k in 0..(n * 3) {
+            let z = |k: usize| {
+                if k < n {
+                    400
+                } else {
+                    400 + ((k - n) * 200 / n) as i32
+                }
+            };
+            let (a, b) = (xy(k), xy(k + 1));
+            if h.extrusion(&[a[0], a[1], z(k)], &[b[0], b[1], z(k + 1)]) != Start::Same {
+                starts.push(k);
+            }
+        }
+        assert_eq!(starts, vec![0, 2 * n]);
     }
 }

@@ -77,7 +77,11 @@ pub(super) fn classify(a: &Assembled<'_>) -> Verdict {
     let mut t = Vec::new();
     // Part of a line of at most LINE_CAP bytes, so it fits.
     let _ = t.extend_from_slice(text);
-    Verdict::Command(ReceivedLine { text: t, number })
+    Verdict::Command(ReceivedLine {
+        text: t,
+        number,
+        after_reset: false,
+    })
 }
 
 /// Split a leading `N<digits>`: (number or error, rest). `None` when the line has no number.

@@ -47,7 +47,9 @@
 //!   Number+1, Last Line: L`, `Resend: L+1`, `ok`;
 //! - `L-`[`DUPLICATE_WINDOW`]` < n <= L` (a line resent after a resend request we had already
 //!   accepted): ignored and acknowledged with `ok`;
-//! - `M110 N<m>` sets `L = m` (or `N<n> M110` sets `L = n`) and is answered `ok` at once.
+//! - `M110 N<m>` sets `L = m` (or `N<n> M110` sets `L = n`) and is answered `ok` at once; the
+//!   next line handed to the executive carries the reset ([`ReceivedLine::take_reset`]: hosts
+//!   reset their numbers when a print starts, so the executive starts a job there, in order).
 //!
 //! Lines without `N` and without a checksum are accepted as they come (a terminal).
 //!
@@ -161,20 +163,35 @@ pub fn checksum(bytes: &[u8]) -> u8 {
 pub struct ReceivedLine {
     text: Vec<u8, LINE_CAP>,
     number: Option<u32>,
+    /// The host reset its line numbers (`M110`) before this line: a new job starts here.
+    after_reset: bool,
 }
 
 impl ReceivedLine {
     /// A line without a line number (a line read from a file).
     pub(super) fn unnumbered(text: Vec<u8, LINE_CAP>) -> Self {
-        Self { text, number: None }
+        Self {
+            text,
+            number: None,
+            after_reset: false,
+        }
+    }
+
+    /// Whether the host reset its line numbers (`M110`, which OctoPrint and printcore send
+    /// when a print starts) between the previous line and this one — the executive's job
+    /// start, in stream order. True once: the flag is cleared.
+    pub fn take_reset(&mut self) -> bool {
+        core::mem::take(&mut self.after_reset)
     }
 
     /// A line taken earlier and kept (the parked intake's spill file): its text and number
-    /// as the host sent them. `None` when the text is longer than [`LINE_CAP`].
-    pub fn kept(text: &[u8], number: Option<u32>) -> Option<Self> {
+    /// as the host sent them, and whether the host reset its line numbers before it (see
+    /// [`Self::take_reset`]). `None` when the text is longer than [`LINE_CAP`].
+    pub fn kept(text: &[u8], number: Option<u32>, after_reset: bool) -> Option<Self> {
         Some(Self {
             text: Vec::from_slice(text).ok()?,
             number,
+            after_reset,
         })
     }
 
@@ -223,6 +240,9 @@ pub struct HostLink {
     halted: bool,
     /// A realtime line that acted ahead of its turn: (line number, request).
     early: Option<(u32, Realtime)>,
+    /// `M110` reset the line numbers: the next line put into the FIFO says so
+    /// ([`ReceivedLine::take_reset`]).
+    reset_pending: bool,
     out: Deque<u8, OUT_CAP>,
     stats: LinkStats,
 }
@@ -244,6 +264,7 @@ impl HostLink {
             estop: false,
             halted: false,
             early: None,
+            reset_pending: false,
             out: Deque::new(),
             stats: LinkStats {
                 lines: 0,
@@ -374,6 +395,7 @@ impl HostLink {
                     self.last_line = l;
                 }
                 self.early = None;
+                self.reset_pending = true;
                 self.respond(Response::Ok);
             }
             Verdict::Realtime(number, rt) => self.realtime_line(number, rt),

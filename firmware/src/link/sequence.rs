@@ -98,10 +98,11 @@ impl HostLink {
     }
 
     /// A checked command line for the FIFO (room was checked).
-    pub(super) fn command_line(&mut self, line: ReceivedLine) {
+    pub(super) fn command_line(&mut self, mut line: ReceivedLine) {
         if !self.number_ok(line.number) {
             return;
         }
+        line.after_reset = core::mem::take(&mut self.reset_pending);
         if self.lines.push_back(line).is_ok() {
             self.stats.lines = self.stats.lines.saturating_add(1);
         }

@@ -52,12 +52,12 @@ impl Interpreter {
     /// Interpret one line. On error neither the machine state nor the layer detector changes
     /// (a marker in the comment of a refused line is lost with it).
     pub fn line(&mut self, line: &Line<'_>, cfg: &MachineConfig) -> Result<Step, MachineError> {
-        let before = self.machine.position_steps(cfg);
+        let before = self.machine;
         let action = match &line.command {
             Some(c) => self.machine.apply(c, cfg)?,
             None => Action::None,
         };
-        let facts = MoveFacts::between(&before, &self.machine.position_steps(cfg), cfg);
+        let facts = MoveFacts::of(&before, &self.machine, cfg);
         let mark = self.layers.feed(line, facts);
         Ok(Step { mark, action })
     }

@@ -316,11 +316,7 @@ impl Printer {
                 self.schedule = None;
                 self.say(format_args!("pause schedule cleared"));
             }
-            PauseSchedule::Layer(n) => {
-                self.schedule = Some(Schedule::Layer(n));
-                self.say(format_args!("pause scheduled at layer {n}"));
-                self.schedule_queued_marks();
-            }
+            PauseSchedule::Layer(n) => self.m761_layer(n),
             PauseSchedule::Z(z) => {
                 let um = libm::roundf(z * 1000.0);
                 let um = if um.is_finite() {

@@ -130,7 +130,7 @@ impl Printer {
         let pb = self.planner.pop()?;
         self.planner.refill();
         while let Some(m) = self.planner.take_mark_before(pb.block.id) {
-            self.layer = Some(m.layer);
+            self.layer_crossed(&m);
             let t_us = self.t_us();
             self.record(Record::Layer {
                 layer: m.layer,

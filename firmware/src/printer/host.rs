@@ -76,6 +76,10 @@ pub(super) struct HostLines {
     pub(super) held_port: Option<crate::link::PortId>,
     /// The port of the last job line taken (whose host streams the job).
     pub(super) job_port: Option<crate::link::PortId>,
+    /// The host reset its line numbers (`M110`): a job starts at its next job line taken —
+    /// when that line goes to the spill behind lines of the job before, the reset goes with it
+    /// and the job starts when it is fed back (`spill.rs`).
+    pub(super) job_start_due: bool,
     /// The job's host went away while the job ran or was paused (`session.rs`): it cannot be
     /// resumed, only cancelled.
     pub(super) orphaned: bool,
@@ -232,10 +236,14 @@ impl Printer {
                 }
                 return;
             }
-            let Some(line) = self.next_line() else {
+            let Some(mut line) = self.next_line() else {
                 return;
             };
-            if self.discard_after_cancel(&line) {
+            // The host reset its line numbers before this line: a job starts with the next
+            // job line.
+            let reset = line.take_reset();
+            self.lines.job_start_due |= reset;
+            if self.discard_after_cancel(&line, reset) {
                 self.link.respond(Response::Ok);
                 continue;
             }
@@ -250,11 +258,18 @@ impl Printer {
                 None
             };
             if route == Some(Intake::Spill) {
-                self.spill_line(&line);
+                // A new job's first line behind spilled lines of the job before: the job
+                // starts when it is fed back, in stream order (it carries the reset).
+                let reset = core::mem::take(&mut self.lines.job_start_due);
+                self.spill_line(&line, reset);
                 continue;
             }
             if route.is_none() {
-                if answered_without_room(&line) {
+                // A report needs no room — unless it is a layer marker (`M73 L`,
+                // `SET_PRINT_STATS_INFO CURRENT_LAYER=`, a marker comment): every marker is part
+                // of the job stream and waits for room like a move.
+                if answered_without_room(&line) && !self.is_marker(&line) {
+                    self.start_due_job();
                     self.answer_report(&line);
                     continue;
                 }
@@ -280,9 +295,20 @@ impl Printer {
                 self.handle_line(&line, true);
                 self.swap_manual_machine();
             } else {
+                self.start_due_job();
                 self.handle_line(&line, false);
             }
             self.feed_planner();
+        }
+    }
+
+    /// The job start a line-number reset announced, when no line of the job before is left in
+    /// the spill (else it waits for the next job line, which goes to the spill with the
+    /// reset; docs/planner.md, "What a layer is").
+    fn start_due_job(&mut self) {
+        if self.lines.job_start_due && self.spill.pending() == 0 {
+            self.lines.job_start_due = false;
+            self.job_start();
         }
     }
 
@@ -300,12 +326,13 @@ impl Printer {
     /// Whether `line` is the rest of a cancelled job (see [`AfterCancel`]): then it is
     /// counted and must be answered `ok` without being executed. Ends the discarding when the
     /// host has started anew.
-    fn discard_after_cancel(&mut self, line: &ReceivedLine) -> bool {
+    fn discard_after_cancel(&mut self, line: &ReceivedLine, reset: bool) -> bool {
         let Some(mut a) = self.lines.after_cancel else {
             return false;
         };
         let silent_us = self.now_us.saturating_sub(self.last_activity_us);
         let fresh = silent_us >= crate::printer::LAYER_PAUSE_IDLE_US
+            || (reset && line.number().is_some())
             || match (line.number(), a.after) {
                 // Numbers restarted (M110): a new job.
                 (Some(n), Some(after)) => n <= after,
@@ -336,19 +363,28 @@ impl Printer {
         true
     }
 
-    /// Answer a report/message line out of turn (the queue is full): it changes nothing the
-    /// job depends on, so its place in the stream does not matter.
+    /// Whether a line carries a layer marker of any family (it must enter the queue).
+    fn is_marker(&self, line: &ReceivedLine) -> bool {
+        line.parse().is_ok_and(|l| self.layers.is_marker(&l))
+    }
+
+    /// Answer a report/message line while the queue is full. It is the next line of the stream
+    /// (every line before it was taken), it queues nothing and changes nothing a later job line
+    /// is interpreted in; the layer detector still sees it, in order (it carries no marker:
+    /// see `is_marker`).
     fn answer_report(&mut self, line: &ReceivedLine) {
         match line.parse() {
-            Ok(gcode::Line {
-                command: Some(cmd), ..
-            }) => {
-                if !self.executive(&cmd) {
+            Ok(parsed) => {
+                let here = MoveFacts::of(&self.machine, &self.machine, &self.cfg);
+                let mark = self.layers.feed(&parsed, here);
+                debug_assert!(mark.is_none(), "a marker line answered without room");
+                let answered = match &parsed.command {
+                    Some(cmd) => self.executive(cmd),
+                    None => false,
+                };
+                if !answered {
                     self.link.respond(Response::Ok);
                 }
-            }
-            Ok(_) => {
-                self.link.respond(Response::Ok);
             }
             Err(e) => {
                 self.warn(format_args!("{e}"));
@@ -392,7 +428,6 @@ impl Printer {
         };
         let modal_before = self.machine;
         let saved = self.machine;
-        let before = self.machine.position_steps(&self.cfg);
         let action = match &parsed.command {
             Some(cmd) => match self.machine.apply(cmd, &self.cfg) {
                 Ok(a) => a,
@@ -411,9 +446,10 @@ impl Printer {
             self.link.respond(Response::Ok);
             return;
         }
-        let after = self.machine.position_steps(&self.cfg);
         if !manual {
-            let facts = MoveFacts::between(&before, &after, &self.cfg);
+            // A job line after M1000 without the host's M110: the continuation has begun.
+            self.job.continue_at = None;
+            let facts = MoveFacts::of(&saved, &self.machine, &self.cfg);
             if let Some(mark) = self.layers.feed(&parsed, facts) {
                 let _ = self.cmds.push_back(Command::Layer(mark));
                 self.note_boundary(&mark, line.number(), &modal_before);

@@ -63,6 +63,9 @@ pub(super) struct JobLink {
     pub(super) kept: Option<PausedJob>,
     /// M1000 is under way (its heater waits and homing are queued).
     pub(super) recovering: bool,
+    /// M1000 continues a job from the start of this layer: the next job start (the host's
+    /// `M110`, the SD file's start) numbers its layers from here (`layers.rs`).
+    pub(super) continue_at: Option<u32>,
 }
 
 impl JobLink {
@@ -74,6 +77,7 @@ impl JobLink {
             attached: false,
             kept: None,
             recovering: false,
+            continue_at: None,
         }
     }
 }

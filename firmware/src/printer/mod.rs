@@ -32,6 +32,8 @@ mod exec;
 mod guards;
 mod homing;
 mod host;
+// The job's layer numbering: job starts, M27's layer, M761 L.
+mod layers;
 mod park;
 mod pause;
 mod queue;

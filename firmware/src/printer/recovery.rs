@@ -184,6 +184,8 @@ impl Printer {
         let _ = self.cmds.push_back(Command::Home { mask: 0b011 });
         let _ = self.cmds.push_back(Command::Recover);
         self.job.recovering = true;
+        // The continued job's layers number from the kept one on.
+        self.continue_job_at(j.layer);
         Ok(())
     }
 

@@ -259,6 +259,8 @@ impl Printer {
         self.sd.next_report_us = self.now_us.saturating_add(self.sd.auto_report_us);
         self.lines.after_cancel = None;
         self.sd.cancelled = false;
+        // A card job is a job of its own: its layers count from 1 (or from the kept layer).
+        self.job_start();
         let mut t: String<{ LINE_LEN + LONG_NAME_CAP }> = String::new();
         let _ = write!(t, "SD printing {} from byte {at}", file.name);
         self.link

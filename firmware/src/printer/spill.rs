@@ -6,7 +6,9 @@
 //!
 //! A spilled line is kept as the host sent it — its text (comments kept as the link kept them)
 //! and its line number — one per file line: `<number> <text>\n`, or `- <text>\n` for an
-//! unnumbered line. It is interpreted only when it is fed back, through the same line handler
+//! unnumbered line; a `+` before the number marks the first line after the host reset its
+//! line numbers (`M110`: a new job starts there, and its layers count from 1 only once the
+//! lines of the job before have run). It is interpreted only when it is fed back, through the same line handler
 //! as every host line (as an SD job's lines are), so the machine state, the layer detector
 //! and the power-cut notes see exactly the stream the host sent, in its order; its `ok` went
 //! out when it was taken.
@@ -35,10 +37,10 @@ pub const SPILL_STAGE: usize = 1024;
 /// While parked the stage is written to the card once it holds this much (after the resume,
 /// at once).
 pub const SPILL_FLUSH: usize = 512;
-/// Read buffer of the replay (a spilled line is at most 11 + [`LINE_CAP`] + 1 bytes).
+/// Read buffer of the replay (a spilled line is at most 12 + [`LINE_CAP`] + 1 bytes).
 pub const SPILL_CHUNK: usize = 512;
-/// The most a spilled line takes: number, blank, text, line end.
-const SPILL_LINE_MAX: usize = 11 + LINE_CAP + 1;
+/// The most a spilled line takes: reset mark, number, blank, text, line end.
+const SPILL_LINE_MAX: usize = 12 + LINE_CAP + 1;
 /// Spilled lines fed back per service at most (the command queue bounds it first).
 const SPILL_LINES_PER_SERVICE: usize = 64;
 
@@ -95,7 +97,7 @@ impl Printer {
     pub(super) fn spill_room(&self, line: &ReceivedLine) -> bool {
         self.sd_spill_ready()
             && !self.spill.failed
-            && self.spill.stage.len() + line.text().len() + 12 <= SPILL_STAGE
+            && self.spill.stage.len() + line.text().len() + 13 <= SPILL_STAGE
     }
 
     /// Whether the card can hold spilled lines (mounted, not reading a job).
@@ -103,14 +105,18 @@ impl Printer {
         self.sd_spill_ready() && !self.spill.failed
     }
 
-    /// Take a job line into the spill (its `ok` is answered by the caller's rule: here).
-    pub(super) fn spill_line(&mut self, line: &ReceivedLine) {
+    /// Take a job line into the spill (its `ok` is answered by the caller's rule: here);
+    /// `reset`: a job starts at this line (the host reset its line numbers before it).
+    pub(super) fn spill_line(&mut self, line: &ReceivedLine, reset: bool) {
         if self.spill.pending() == 0 {
             self.say(format_args!(
                 "pause: job lines from here kept on the SD card ({SPILL_NAME}) until the resume"
             ));
         }
-        let mut head: String<12> = String::new();
+        let mut head: String<13> = String::new();
+        if reset {
+            let _ = head.push('+');
+        }
         let _ = match line.number() {
             Some(n) => write!(head, "{n} "),
             None => head.write_str("- "),
@@ -207,8 +213,12 @@ impl Printer {
                 break;
             }
             match self.next_spilled(card) {
-                Ok(Some(line)) => {
+                Ok(Some(mut line)) => {
                     self.spill.lines_out = self.spill.lines_out.saturating_add(1);
+                    if line.take_reset() {
+                        // The next job's first line: the job before has run to its end.
+                        self.job_start();
+                    }
                     // Its `ok` went out when it was taken: answered as a file line.
                     self.link.answer_file();
                     self.last_activity_us = self.now_us;
@@ -284,8 +294,12 @@ impl Printer {
     }
 }
 
-/// `<number> <text>` or `- <text>` back into a line.
+/// `[+]<number> <text>` or `[+]- <text>` back into a line.
 fn parse_spilled(b: &[u8]) -> Option<ReceivedLine> {
+    let (reset, b) = match b.strip_prefix(b"+") {
+        Some(rest) => (true, rest),
+        None => (false, b),
+    };
     let blank = b.iter().position(|&c| c == b' ')?;
     let (head, text) = (b.get(..blank)?, b.get(blank + 1..)?);
     let number = if head == b"-" {
@@ -296,5 +310,5 @@ fn parse_spilled(b: &[u8]) -> Option<ReceivedLine> {
     if text.len() > SPILL_LINE_MAX {
         return None;
     }
-    ReceivedLine::kept(text, number)
+    ReceivedLine::kept(text, number, reset)
 }

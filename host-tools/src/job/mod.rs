@@ -22,7 +22,8 @@ use modal::Modal;
 /// One layer of the main code.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Layer {
-    /// Layer number as counted by the firmware's detector (0-based) in the file it came from.
+    /// Layer number as the firmware's detector counts it in the file it came from (the n-th layer
+    /// printed, from 1).
     pub number: u32,
     /// Height the detector reported for the layer (from the marker), mm.
     pub z_mm: Option<f64>,

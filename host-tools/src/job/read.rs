@@ -46,7 +46,7 @@ pub enum Event {
         /// What produced the mark (slicer comment, command, our turn marker, or a Z rise).
         source: LayerSource,
         /// The firmware's number of the layer ([`firmware::motion::LayerMark::layer`]): the
-        /// slicer's own (Cura's `;LAYER:n`, `M73 L`), else counted from 0 in file order.
+        /// n-th layer printed, from 1 (the slicers' preview numbers).
         number: u32,
     },
     /// Dwell (G4), seconds.
@@ -425,8 +425,8 @@ impl FirmwareReader {
         let z_start_um = self.z_um(from[2]);
         let z_end_um = self.z_um(to[2]);
         let facts = MoveFacts {
-            z_start_um,
-            z_end_um,
+            start_um: [um(from[0]), um(from[1]), z_start_um],
+            end_um: [um(to[0]), um(to[1]), z_end_um],
             extrudes: to[3] > from[3] && (to[0] != from[0] || to[1] != from[1]),
             moved: to != from,
         };
@@ -458,7 +458,7 @@ impl FirmwareReader {
         self.z_cache.1
     }
 
-    /// Layers found so far (the next layer's 0-based number, as the firmware counts).
+    /// Layer marks found so far.
     pub fn layers(&self) -> u32 {
         self.layers.layers()
     }

@@ -3,10 +3,11 @@
 //! bounding box of the printed material and time per layer.
 //!
 //! Layers are the firmware's ([`firmware::layer::LayerDetector`] through the reader): the
-//! slicer's markers (`;LAYER_CHANGE`, `;LAYER:n`, `; layer n`, `M73 L`, Klipper's
-//! `CURRENT_LAYER`; our writer emits one `;LAYER_CHANGE` per helix turn), or in a file without
-//! any, a layer whenever Z has risen before an extruding move — the same boundaries the
-//! printer's layer pause stops at.
+//! slicer's markers (`;LAYER_CHANGE`, `; CHANGE_LAYER`, `;LAYER:n`, `; layer n`, `M73 L`,
+//! Klipper's `CURRENT_LAYER`; our writer emits one `;LAYER_CHANGE` per helix turn), or in a
+//! file without any, the heights of the extruding moves and, in a spiral vase, its turns
+//! found from the path — the same boundaries the printer's layer pause stops at, numbered as
+//! the printer numbers them (from 1, as the slicers' previews do).
 
 use crate::design::motion::{plan_gcode_with, MotionLimits, MoveKind, Segment};
 use crate::design::profile::Profile;
@@ -26,7 +27,8 @@ pub struct BBoxMm {
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct LayerTime {
     /// The firmware's layer number — what `M761 L<n>` and the printer's layer pause call this
-    /// layer: Cura's `;LAYER:n` as written, else counted from 0 in file order.
+    /// layer: the n-th layer printed, from 1 (the slicers' preview numbers; Cura's
+    /// `;LAYER:n` is layer n + 1).
     pub layer: u32,
     /// Height of the layer when known, mm.
     pub z_mm: Option<f64>,
@@ -137,6 +139,16 @@ pub fn stats(input: &[u8], profile: &Profile) -> Result<Stats, ReadError> {
     if marker_time.len() <= n {
         marker_time.resize(n + 1, 0.0);
     }
+    // A purge line above the first layer (Cura's Ender-3 start code) is marked as layer 1 by
+    // the height rule, then the first layer as layer 1 again: the first was a prelude, part
+    // of the time before the first layer. Start codes with two purges (the i3 Mega's, at
+    // Z 0.3 then Z 0.2, before the first marker) make two such preludes.
+    while marks.len() >= 2 && marks[0].0 == 1 && marks[1].0 == 1 {
+        let prelude = marker_time.remove(1);
+        marker_time[0] += prelude;
+        marks.remove(0);
+    }
+    let n = marks.len();
     let before_first_layer_s = marker_time.first().copied().unwrap_or(0.0);
     let layer_times = marks
         .iter()
@@ -167,7 +179,7 @@ pub fn stats(input: &[u8], profile: &Profile) -> Result<Stats, ReadError> {
     let filament_mm = net_e.max(0.0);
     let vol = filament_mm * profile.filament_area_mm2();
     Ok(Stats {
-        layers: totals.layer_marks,
+        layers: n as u32,
         layer_source: source,
         moves: totals.moves,
         print_moves,
@@ -215,15 +227,15 @@ mod tests {
         );
         assert_eq!(s.layer_times.len(), 2);
         assert_eq!(s.layer_times[1].z_mm, Some(0.4));
-        // The firmware's numbers: PrusaSlicer markers counted from 0.
-        assert_eq!(s.layer_times[0].layer, 0);
-        assert_eq!(s.layer_times[1].layer, 1);
+        // The firmware's numbers: PrusaSlicer markers counted from 1.
+        assert_eq!(s.layer_times[0].layer, 1);
+        assert_eq!(s.layer_times[1].layer, 2);
         let sum: f64 = s.layer_times.iter().map(|l| l.time_s).sum();
         assert!((sum + s.before_first_layer_s - s.print_time_s).abs() < 1e-9);
     }
 
-    /// Cura's `;LAYER:n` numbers the layers as written (here from 0 after a purge line that
-    /// the `;FLAVOR` header keeps from being a layer).
+    /// Cura's `;LAYER:0` is layer 1 (after a purge line that the `;FLAVOR` header keeps from
+    /// being a layer).
     #[test]
     fn cura_numbers_are_the_firmwares() {
         let g =
@@ -232,8 +244,22 @@ mod tests {
         let s = stats(g, &Profile::ender3()).expect("stats");
         assert_eq!(s.layers, 2);
         let nums: Vec<u32> = s.layer_times.iter().map(|l| l.layer).collect();
-        assert_eq!(nums, [0, 1]);
+        assert_eq!(nums, [1, 2]);
         assert!(s.before_first_layer_s > 0.0);
+    }
+
+    /// Without comments, Cura's Ender-3 purge line (at Z 0.28, above the 0.2 mm first layer)
+    /// is no layer: the count is the slicer's, its time is before the first layer.
+    #[test]
+    fn a_purge_line_above_the_first_layer_is_no_layer() {
+        let g =
+            b"G28\nG92 E0\nG1 Z2 F3000\nG1 X0.1 Y20 Z0.28 F5000\nG1 X0.1 Y200 Z0.28 E15 F1500\n\
+                  G92 E0\nG1 Z2\nG0 X10 Y10 Z0.2\nG1 X20 E1\nG0 Z0.4\nG1 X10 E2\n";
+        let s = stats(g, &Profile::ender3()).expect("stats");
+        assert_eq!(s.layers, 2);
+        let nums: Vec<u32> = s.layer_times.iter().map(|l| l.layer).collect();
+        assert_eq!(nums, [1, 2]);
+        assert!(s.before_first_layer_s > 1.0, "{}", s.before_first_layer_s);
     }
 
     #[test]

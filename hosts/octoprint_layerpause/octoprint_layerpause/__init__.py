@@ -12,9 +12,15 @@ mid-layer without parking. This plugin
   before OctoPrint's own Cancel;
 * adds M601, M602, M25, M24 and M524 to OctoPrint's emergency commands (sent at once, not
   behind the stream's next `ok`) for the session, so its terminal can always reach them;
-* offers "pause at layer N" (`M761 L<n>`), and reports the pause state and the firmware's layer
-  counter through its API (`GET /api/plugin/layerpause`), read from the firmware's `M27`
-  answer (`echo:layer <n>`) and its action commands.
+* offers "pause at layer N" (`M761 L<n>`: the pause comes before layer N is printed), and
+  reports the pause state and the firmware's layer counter through its API
+  (`GET /api/plugin/layerpause`), read from the firmware's `M27` answer (`echo:layer <n>`) and
+  its action commands.
+
+Layer numbers are the firmware's: the n-th layer printed, from 1 — the number PrusaSlicer's and
+Cura's previews show — whether OctoPrint strips the comments or not, with a purge line in the
+start code or not. The firmware restarts the count at every print (OctoPrint sends `M110 N0`
+when a print starts); so does this plugin's counter.
 
 Only for the LayerPause firmware: the takeover is active when the firmware's M115 reports
 `Cap:PAUSE_AT_LAYER:1` (setting `takeover`: "auto", "always" or "never").
@@ -25,18 +31,21 @@ import re
 import octoprint.plugin
 
 REALTIME = ["M601", "M602", "M25", "M24", "M524"]
-LAYER_RE = re.compile(r"^echo:\s*layer\s+(\d+)")
+LAYER_RE = re.compile(r"^echo:\s*layer\s+(\d+|-)\s")
 
 
 class LayerPausePlugin(
     octoprint.plugin.StartupPlugin,
     octoprint.plugin.SettingsPlugin,
     octoprint.plugin.SimpleApiPlugin,
+    octoprint.plugin.EventHandlerPlugin,
 ):
     def __init__(self):
         self.firmware_has_layer_pause = False
         self.state = "idle"  # idle | pause_requested | paused | printing | cancelled
         self.layer = None
+        # M27 layer answers seen (a client that asks for a fresh counter waits for this to grow).
+        self.layer_reports = 0
         self.scheduled_layer = None
 
     # ~~ settings
@@ -93,6 +102,13 @@ class LayerPausePlugin(
         printer.resume_print = resume_print
         printer.cancel_print = cancel_print
 
+    # ~~ events: a new print starts a new count (the firmware's restarts at OctoPrint's M110)
+
+    def on_event(self, event, payload):
+        if event == "PrintStarted":
+            self.layer = None
+            self.state = "printing"
+
     # ~~ hooks
 
     def on_firmware_capability(self, comm, capability, enabled, already_defined, *a, **kw):
@@ -111,7 +127,8 @@ class LayerPausePlugin(
     def on_received(self, comm, line, *a, **kw):
         m = LAYER_RE.match(line)
         if m:
-            self.layer = int(m.group(1))
+            self.layer = None if m.group(1) == "-" else int(m.group(1))
+            self.layer_reports += 1
         return line
 
     # ~~ API: GET state, POST pause_at_layer / clear_schedule / refresh
@@ -127,8 +144,8 @@ class LayerPausePlugin(
                 n = int(data["layer"])
             except (TypeError, ValueError):
                 return flask.make_response("layer must be an integer", 400)
-            if n < 0:
-                return flask.make_response("layer must be >= 0", 400)
+            if n < 1:
+                return flask.make_response("layers count from 1 (the slicer preview's numbers)", 400)
             self.scheduled_layer = n
             self._printer.commands(f"M761 L{n}", tags={"plugin:layerpause"})
         elif command == "clear_schedule":
@@ -152,6 +169,7 @@ class LayerPausePlugin(
             "firmware_has_layer_pause": self.firmware_has_layer_pause,
             "state": self.state,
             "layer": self.layer,
+            "layer_reports": self.layer_reports,
             "scheduled_layer": self.scheduled_layer,
             "octoprint_state": self._printer.get_state_id(),
         }

@@ -98,9 +98,10 @@ pub(super) fn note_request(
 ) {
     match r {
         Realtime::Pause(mode) => {
+            // (A cancel's brake shows as Pausing too: a cancelled track is over.)
             let active = pauses
                 .last()
-                .is_some_and(|p| p.resumed.is_none() && p.resume_req_us.is_none());
+                .is_some_and(|p| p.resumed.is_none() && p.resume_req_us.is_none() && !p.cancelled);
             // Called after the firmware took the bytes: a pause it accepted shows as Pausing
             // (also from an idle printer inside a streamed job, e.g. at a boundary the host
             // drained with M400); a refused one leaves it as it was.
@@ -154,9 +155,10 @@ pub(super) fn track(
             t_us,
         } = *r
         {
+            // (A cancel's brake shows as Pausing too: a cancelled track is over.)
             let active = pauses
                 .last()
-                .is_some_and(|p| p.resumed.is_none() && p.resume_req_us.is_none());
+                .is_some_and(|p| p.resumed.is_none() && p.resume_req_us.is_none() && !p.cancelled);
             if !active {
                 pauses.push(PauseTrack {
                     mode: Some(PauseMode::Layer),

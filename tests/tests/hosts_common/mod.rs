@@ -166,3 +166,43 @@ pub fn run_bounded(mut cmd: Command, limit: Duration) -> (bool, String, String) 
         String::from_utf8_lossy(&out.stderr).into_owned(),
     )
 }
+
+/// Where `sim run <file> --pause-at-layer <layer> --json` stops (its `pause_point_steps`,
+/// X Y Z E): the layer the simulator names `layer` in the stream a host sends (comments
+/// stripped, `sim run`'s default), to compare a real host's pause at layer N with. `file` is
+/// relative to the workspace root. ≈ 2 s of CPU (both runs of the whole file).
+pub fn sim_run_pause_point(file: &str, layer: u32) -> Vec<i64> {
+    let mut cmd = Command::new(bin("sim", "sim"));
+    cmd.args([
+        "run",
+        file,
+        "--pause-at-layer",
+        &layer.to_string(),
+        "--json",
+    ]);
+    let (ok, out, err) = run_bounded(cmd, Duration::from_secs(300));
+    assert!(ok, "sim run failed: {out}\n{err}");
+    let r: serde_json::Value = serde_json::from_str(out.trim()).expect("sim run JSON");
+    assert_eq!(r["first_boundary_after_request"], true, "sim run: {r}");
+    r["pause_point_steps"]
+        .as_array()
+        .expect("sim run paused")
+        .iter()
+        .map(|v| v.as_i64().expect("steps"))
+        .collect()
+}
+
+/// `p`'s pause point (X Y Z, steps) is `want`'s: the same place of the same layer.
+pub fn same_stop_xyz(p: &serde_json::Value, want: &[i64], what: &str) {
+    let got: Vec<i64> = p["pause_point_steps"]
+        .as_array()
+        .unwrap_or_else(|| panic!("{what}: no pause point: {p}"))
+        .iter()
+        .map(|v| v.as_i64().expect("steps"))
+        .collect();
+    assert_eq!(
+        got[..3],
+        want[..3],
+        "{what}: stopped at {got:?} steps, sim run --pause-at-layer at {want:?}: {p}"
+    );
+}
