@@ -34,10 +34,14 @@ pub struct PortReport {
     /// Of those, the numbered ones.
     pub numbered_lines_received: u64,
     /// A host streaming into the parked printer (printcore: one numbered line per `ok`): how
-    /// many times it waited from a numbered line it sent while parked to its next line.
+    /// many times it waited from a numbered line it sent while parked to the `ok` answering
+    /// it.
     pub parked_host_waits: u64,
     /// The longest such wait, virtual seconds. A console line the host queues at any moment
-    /// goes out with its next line, so this bounds its delivery.
+    /// goes out right after that `ok` (printcore sends its priority lines first), so this
+    /// plus the host's own reaction (tens of ms; `--host-paced` keeps it so in virtual time)
+    /// bounds its delivery. The time a host that has nothing more to send stays quiet is not
+    /// a wait.
     pub parked_host_wait_max_s: f64,
 }
 

@@ -32,11 +32,11 @@ pub(super) struct Sniffer {
     /// Complete non-empty lines seen, and of those the numbered ones.
     pub(super) lines: u64,
     pub(super) numbered: u64,
-    /// When the last line came, if it was a numbered line that came while the printer was
-    /// parked (a host streaming into the parked printer), virtual µs.
+    /// When a numbered line came while the printer was parked (a host streaming into the
+    /// parked printer) and its `ok` has not gone out yet, virtual µs.
     last_parked_job_line_us: Option<u64>,
-    /// The longest virtual time from such a line to the host's next line (see
-    /// [`super::ServeRecord::ports`]), and how many such waits were seen.
+    /// The longest virtual time from such a line to the `ok` that answers it (see
+    /// [`super::report::PortReport`]), and how many such waits were seen.
     pub(super) parked_wait_max_us: u64,
     pub(super) parked_waits: u64,
 }
@@ -65,11 +65,7 @@ impl Sniffer {
                 self.lines += 1;
                 let numbered = body.starts_with('N');
                 self.numbered += u64::from(numbered);
-                if let Some(t) = self.last_parked_job_line_us.take() {
-                    self.parked_wait_max_us = self.parked_wait_max_us.max(now_us.saturating_sub(t));
-                    self.parked_waits += 1;
-                }
-                if numbered && parked {
+                if numbered && parked && self.last_parked_job_line_us.is_none() {
                     self.last_parked_job_line_us = Some(now_us);
                 }
                 let body = match body.strip_prefix('N') {
@@ -85,6 +81,17 @@ impl Sniffer {
             } else if self.buf.len() < 256 {
                 self.buf.push(b);
             }
+        }
+    }
+}
+
+impl Sniffer {
+    /// An `ok` went out to this port's host at `now_us`: it answers the parked job line
+    /// waiting for one, if any (a host that streams one line per `ok` has one in flight).
+    pub(super) fn answered(&mut self, now_us: u64) {
+        if let Some(t) = self.last_parked_job_line_us.take() {
+            self.parked_wait_max_us = self.parked_wait_max_us.max(now_us.saturating_sub(t));
+            self.parked_waits += 1;
         }
     }
 }

@@ -136,7 +136,7 @@ impl PtyPort {
     /// Take the firmware's output for this port and write what the device takes. Returns
     /// whether it held answers (not only unsolicited temperature reports and `busy:`
     /// keep-alives, which do not keep an idle session alive).
-    pub(super) fn send(&mut self, fw: &mut PrinterExec) -> anyhow::Result<bool> {
+    pub(super) fn send(&mut self, fw: &mut PrinterExec, now_us: u64) -> anyhow::Result<bool> {
         let mut out = String::new();
         fw.take_output_on(self.id, &mut out);
         let answers = out.lines().any(|l| {
@@ -156,6 +156,9 @@ impl PtyPort {
                     let oks = self.tx_pending[..w]
                         .split(|&b| b == b'\n')
                         .any(|l| l.starts_with(b"ok"));
+                    if oks {
+                        self.sniff.answered(now_us);
+                    }
                     if oks && self.owed_since.is_none() {
                         self.owed_since = Some(std::time::Instant::now());
                     }
