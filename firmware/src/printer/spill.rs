@@ -232,8 +232,9 @@ impl Printer {
         }
         if self.spill.pending() == 0 && self.spill.lines_in > 0 {
             let n = self.spill.lines_in;
+            let bytes = self.spill.on_card;
             self.say(format_args!(
-                "resume: {n} job lines kept on the SD card have run"
+                "resume: {n} job lines kept on the SD card have run ({bytes} bytes of {SPILL_NAME})"
             ));
             self.spill = Spill::new();
         }
