@@ -1,8 +1,10 @@
 //! The real OctoPrint (1.11.8 from PyPI) at the edges of a session (issue 22), two OctoPrint
 //! processes in parallel, each against its own `sim serve --speed 100 --host-paced` (virtual
 //! time runs at most 10× real while a host owes its reply to an `ok`, so OctoPrint streams as
-//! on a slow PC, and 100× while the printer waits: a pause of 20 s of wall time is an hour or
-//! more of virtual time). Needs `bash scripts/setup-hosts.sh`.
+//! on a slow PC, and 100× while the printer waits: the 15 minutes of pause take ≈ 10 s).
+//! CI cost: 36 s of wall time for both on the loaded 2-core machine (one OctoPrint start each;
+//! they replace `host_two_hosts` and `host_octoprint_reconnect`, 41 s + 107 s). Needs
+//! `bash scripts/setup-hosts.sh`.
 //!
 //! * With the plugin, `tests/hosts/octoprint_drive.py --sessions`: **two hosts** — OctoPrint
 //!   prints PrusaSlicer's fixture on the USB port while printcore sits on the TFT port
