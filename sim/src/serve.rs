@@ -260,7 +260,7 @@ impl SessionLoop {
             );
             let idle = m.idle(now_us)?;
             for p in ports.iter_mut() {
-                if p.send(&mut m.fw)? {
+                if p.send(&mut m.fw, now_us)? {
                     last_tx = Instant::now();
                 }
             }

@@ -21,14 +21,21 @@ One OctoPrint session covers several scenarios (each wait bounded):
             second print is that file (e.g. one with `M73 L` markers, which stay when
             OctoPrint strips the comments).
 
-With --two-hosts (another host on the TFT port, tests/hosts/printcore_tft.py) instead:
+With --sessions (another host on the TFT port, tests/hosts/printcore_tft.py) instead:
   twohosts  print; the other host pauses (state "Paused" seen here), OctoPrint's Resume
             button; OctoPrint's Pause button, the other host resumes (state "Printing" seen
             here); Cancel. OctoPrint's serial log is kept to show what reached this port.
-With --reconnect instead:
-  reconnect print; Pause button → "Paused"; disconnect and connect again (a new session:
-            OctoPrint has no job now); terminal M602 (refused by the firmware: the held job's
-            host went away) then M524 (cancels it, the head stays parked).
+  reconnect print again; Pause button → "Paused"; for --pause-virtual-s seconds of the
+            printer's time (counted by its M155 auto-reports) the terminal's M105, M114, M27
+            and jogs, --console-lines of them spread evenly (each must be answered);
+            disconnect and connect again (a new session: OctoPrint has no job now); terminal
+            M602 (refused by the firmware: the held job's host went away) then M524 (cancels
+            it, the head stays parked).
+With --stock instead (the plugin disabled, STOCK_SERIAL and STOCK_SCRIPTS set):
+  stock_button    print; Pause button → "Paused", M114 (parked?); Resume button → "Printing".
+  stock_terminal  terminal M601 → "Paused" (OctoPrint follows //action:paused), M114;
+                  Resume button (its beforePrintResumed script: M602) → "Printing".
+  stock_cancel    M114 while printing; Cancel button → "Operational"; M400 + M114.
 
 OctoPrint runs bound to 127.0.0.1 on a free port with a temporary basedir: the first-run
 wizard is marked done, every plugin that would reach the network is disabled, and a user with
@@ -61,7 +68,24 @@ def free_port():
     return port
 
 
-def write_basedir(base, emergency, serial_log=False):
+# The settings of a stock OctoPrint (no plugin) that make its buttons use the firmware's pause
+# and cancel (docs/hosts.md, "Without the plugin: settings only"): its Pause button runs
+# afterPrintPaused after it stopped streaming, its Resume button beforePrintResumed, its Cancel
+# button afterPrintCancelled (before its default lines: the firmware's cancel parks the head
+# first, the rest runs from there).
+STOCK_SERIAL = {
+    "emergencyCommands": ["M112", "M108", "M410", "M601", "M602", "M25", "M24", "M524"],
+    "pausingCommands": ["M0", "M1"],
+}
+STOCK_SCRIPTS = {
+    "afterPrintPaused": "M601\n",
+    "beforePrintResumed": "M602\n",
+    "afterPrintCancelled": "M524\n; disable motors\nM84\n\n;disable all heaters\n"
+    "{% snippet 'disable_hotends' %}\n{% snippet 'disable_bed' %}\n;disable fan\nM106 S0\n",
+}
+
+
+def write_basedir(base, emergency, serial_log=False, stock=False):
     config = {
         "server": {
             "firstRun": False,
@@ -95,6 +119,14 @@ def write_basedir(base, emergency, serial_log=False):
         },
         "temperature": {"cutoff": 30},
     }
+    if stock:
+        config["plugins"]["_disabled"].append("layerpause")
+        del config["plugins"]["layerpause"]
+        config["serial"].update(STOCK_SERIAL)
+        os.makedirs(os.path.join(base, "scripts", "gcode"), exist_ok=True)
+        for name, text in STOCK_SCRIPTS.items():
+            with open(os.path.join(base, "scripts", "gcode", name), "w") as f:
+                f.write(text)
     with open(os.path.join(base, "config.yaml"), "w") as f:
         yaml.safe_dump(config, f)
     users = {
@@ -147,94 +179,240 @@ class Done(Exception):
     pass
 
 
+class SerialLog:
+    """OctoPrint's serial log, read on from where the last read ended (an 8-hour pause makes it
+    megabytes). OctoPrint starts a new file when it connects again: its lines are appended to
+    the ones read before, so positions (`mark`s) stay valid across a reconnect."""
+
+    def __init__(self, path):
+        self.path = path
+        self.ino = None
+        self.offset = 0
+        self.partial = b""
+        self.lines = []
+
+    def read(self):
+        try:
+            ino = os.stat(self.path).st_ino
+            with open(self.path, "rb") as f:
+                if ino != self.ino:
+                    self.ino, self.offset, self.partial = ino, 0, b""
+                f.seek(self.offset)
+                data = f.read()
+        except OSError:
+            return self.lines
+        self.offset += len(data)
+        *complete, self.partial = (self.partial + data).split(b"\n")
+        for raw in complete:
+            l = raw.decode(errors="replace")
+            for tag in ("Recv: ", "Send: "):
+                i = l.find(tag)
+                if i >= 0:
+                    self.lines.append((tag[:4], l[i + len(tag):].rstrip("\r")))
+        return self.lines
+
+
+SERIAL_LOGS = {}
+
+
 def serial_lines(base):
     """OctoPrint's serial log: (direction, text) per line, Recv/Send."""
-    try:
-        with open(os.path.join(base, "logs", "serial.log"), errors="replace") as f:
-            lines = f.read().splitlines()
-    except OSError:
-        return []
-    out = []
-    for l in lines:
-        for tag in ("Recv: ", "Send: "):
-            i = l.find(tag)
-            if i >= 0:
-                out.append((tag[:4], l[i + len(tag):]))
-    return out
+    log = SERIAL_LOGS.setdefault(base, SerialLog(os.path.join(base, "logs", "serial.log")))
+    return log.read()
 
 
-def other_scenarios(o, a, out, printing_on, job_cmd, terminal, base):
+# --sessions: the period of the temperature auto-reports that count the pause's virtual
+# seconds (M155 S<n>), virtual s.
+REPORT_S = 10
+
+
+def recv_since(base, mark):
+    return [t for d, t in serial_lines(base)[mark:] if d == "Recv"]
+
+
+def wait_recv(base, mark, pred, secs):
+    """The first line OctoPrint received since `mark` that matches, within `secs` (bounded)."""
+    end = time.monotonic() + secs
+    while True:
+        for t in recv_since(base, mark):
+            if pred(t):
+                return t
+        if time.monotonic() > end:
+            return None
+        time.sleep(0.1)
+
+
+def m114(o, base, terminal, wait):
+    """M400 then M114 from the terminal: the answer (`X:… Y:… Z:… E:…`), or None."""
+    mark = len(serial_lines(base))
+    terminal("M400")()
+    terminal("M114")()
+    return wait_recv(base, mark, lambda t: t.startswith("X:"), wait)
+
+
+def two_hosts(o, a, out, printing_on, job_cmd, base):
+    """printcore on the TFT port pauses and resumes OctoPrint's job; OctoPrint's buttons are
+    seen there (see the module documentation)."""
     sc = {}
-    if a.two_hosts:
-        # The other host (TFT) pauses: OctoPrint sees it (the plugin follows //action:paused).
-        st, ok = o.wait_state(lambda s: s == "Paused", 90)
-        sc["paused_by_other"] = ok
-        job_cmd("resume")()
-        st, ok = o.wait_state(lambda s: s == "Printing", a.wait)
-        sc["resumed_here"] = ok
-        sc["printing_on_2"] = printing_on(60)
-        job_cmd("pause")()
-        st, ok = o.wait_state(lambda s: s == "Paused", a.wait)
-        sc["paused_here"] = ok
-        # The other host resumes.
-        st, ok = o.wait_state(lambda s: s == "Printing", 90)
-        sc["resumed_by_other"] = ok
-        sc["printing_on_3"] = printing_on(60)
-        o.post("/api/job", {"command": "cancel"})
-        st, ok = o.wait_state(lambda s: s.startswith("Operational"), a.wait)
-        sc["operational_after_cancel"] = ok
-        time.sleep(1)
-        recv = [t for d, t in serial_lines(base) if d == "Recv"]
-        sc["recv_lines"] = len(recv)
-        sc["recv_other_hosts_reply"] = [t for t in recv if "tft-asks" in t]
-        sc["recv_actions"] = [t for t in recv if t.startswith("//action:")]
-        out["scenarios"]["twohosts"] = sc
-    else:
-        sc["printing_on"] = printing_on(60)
-        job_cmd("pause")()
+    # The other host (TFT) pauses: OctoPrint sees it (the plugin follows //action:paused).
+    st, ok = o.wait_state(lambda s: s == "Paused", 90)
+    sc["paused_by_other"] = ok
+    job_cmd("resume")()
+    st, ok = o.wait_state(lambda s: s == "Printing", a.wait)
+    sc["resumed_here"] = ok
+    sc["printing_on_2"] = printing_on(60)
+    job_cmd("pause")()
+    st, ok = o.wait_state(lambda s: s == "Paused", a.wait)
+    sc["paused_here"] = ok
+    # The other host resumes.
+    st, ok = o.wait_state(lambda s: s == "Printing", 90)
+    sc["resumed_by_other"] = ok
+    sc["printing_on_3"] = printing_on(60)
+    o.post("/api/job", {"command": "cancel"})
+    st, ok = o.wait_state(lambda s: s.startswith("Operational"), a.wait)
+    sc["operational_after_cancel"] = ok
+    time.sleep(1)
+    recv = [t for d, t in serial_lines(base) if d == "Recv"]
+    sc["recv_lines"] = len(recv)
+    sc["recv_other_hosts_reply"] = [t for t in recv if "tft-asks" in t]
+    sc["recv_actions"] = [t for t in recv if t.startswith("//action:")]
+    out["scenarios"]["twohosts"] = sc
+
+
+def long_pause_reconnect(o, a, out, printing_on, job_cmd, terminal, base):
+    """Pause with the button; for --pause-virtual-s seconds the terminal's M105, M114, M27 and
+    jogs (the printhead API) go to the parked printer, each answered (the sim's record judges
+    the virtual delays); then disconnect and connect again: the firmware tells the new session
+    the job is held, M602 is refused, M524 cancels with the head parked."""
+    sc = {}
+    # Pause once it prints past its start code and heat-up (at --speed 100 the whole job
+    # streams in about 15 s): the firmware stops at the next layer boundary.
+    end = time.monotonic() + a.wait
+    sc["printing_on"] = False
+    while time.monotonic() < end and not sc["printing_on"]:
+        job = o.get("/api/job")
+        pos = (job.get("progress") or {}).get("filepos") or 0
+        sc["printing_on"] = job.get("state") == "Printing" and pos > 5000
+        time.sleep(0.05)
+    job_cmd("pause")()
+    st, ok = o.wait_state(lambda s: s == "Paused", a.wait)
+    sc["paused"] = ok
+    # Virtual time, counted by the printer's own temperature auto-reports (one per
+    # REPORT_S virtual seconds): with `sim serve --host-paced` virtual time is no fixed
+    # multiple of real time. The terminal lines are spread evenly over --pause-virtual-s.
+    terminal("M155 S%d" % REPORT_S)()
+    log = serial_lines(base)
+    mark = len(log)
+    wanted = int(a.pause_virtual_s / REPORT_S)
+    moments = [(i + 1) * wanted // (a.console_lines + 1) for i in range(a.console_lines)]
+    kinds = [
+        ("M105", lambda t: t.startswith("ok T:")),
+        ("M114", lambda t: t.startswith("X:")),
+        ("M27", lambda t: "state paused" in t),
+        ("jog", lambda t: t == "ok"),
+    ]
+    console = []
+    reports, seen = 0, mark
+    t_paused = time.monotonic()
+    deadline = t_paused + a.pause_wall
+    while time.monotonic() < deadline:
+        log = serial_lines(base)
+        reports += sum(1 for d, t in log[seen:] if d == "Recv" and t.lstrip().startswith("T:"))
+        seen = len(log)
+        k = len(console)
+        if k < len(moments) and reports >= moments[k]:
+            name, pred = kinds[k % len(kinds)]
+            m2 = len(log)
+            if name == "jog":
+                z = 1 if (k // len(kinds)) % 2 == 0 else -1
+                o.post("/api/printer/printhead", {"command": "jog", "z": z})
+            else:
+                terminal(name)()
+            got = wait_recv(base, m2, pred, a.wait)
+            console.append({"cmd": name, "at_virtual_s": reports * REPORT_S,
+                            "answered": got is not None})
+            continue
+        if reports >= wanted:
+            break
+        time.sleep(0.1)
+    sc["pause_virtual_s"] = reports * REPORT_S
+    sc["pause_wall_s"] = round(time.monotonic() - t_paused, 1)
+    sc["console"] = console
+    sc["state_before_disconnect"] = o.state()
+    o.post("/api/connection", {"command": "disconnect"})
+    st, ok = o.wait_state(lambda s: s.startswith("Offline") or s.startswith("Closed"), a.wait)
+    sc["disconnected"] = ok
+    sc["state_disconnected"] = st
+    mark = len(serial_lines(base))
+    o.post("/api/connection", {"command": "connect", "port": a.port, "baudrate": 115200})
+    st, ok = o.wait_state(lambda s: s.startswith("Operational"), 30)
+    sc["reconnected_state"] = st
+    told = wait_recv(base, mark, lambda t: "paused: job held" in t, a.wait)
+    sc["told"] = [told] if told else []
+    if not told:
+        sc["recv_after_connect"] = recv_since(base, mark)[:12]
+    mark = len(serial_lines(base))
+    terminal("M602")()
+    got = wait_recv(base, mark, lambda t: "resume" in t, a.wait)
+    sc["m602"] = [got] if got else []
+    mark = len(serial_lines(base))
+    terminal("M524")()
+    sc["cancel_action"] = wait_recv(base, mark, lambda t: t == "//action:cancel", a.wait) is not None
+    # The head after the cancel (after its park).
+    sc["m114_after_cancel"] = m114(o, base, terminal, a.wait)
+    sc["state_end"] = o.state()
+    out["scenarios"]["reconnect"] = sc
+
+
+def stock(o, a, out, job_cmd, terminal, base):
+    """OctoPrint without the plugin, with STOCK_SERIAL and STOCK_SCRIPTS: its Pause button,
+    the terminal's M601, its Resume button, its Cancel button (see docs/hosts.md)."""
+
+    def printing_on(secs):
+        end = time.monotonic() + secs
+        start = None
+        while time.monotonic() < end:
+            job = o.get("/api/job")
+            pos = (job.get("progress") or {}).get("filepos") or 0
+            start = pos if start is None else start
+            if job.get("state") == "Printing" and pos > start + 500:
+                return True
+            time.sleep(0.1)
+        return False
+
+    def pause_resume(name, pause):
+        sc = {"printing_on": printing_on(60)}
+        t = time.monotonic()
+        pause()
         st, ok = o.wait_state(lambda s: s == "Paused", a.wait)
         sc["paused"] = ok
+        sc["state_after_pause"] = st
+        sc["pause_s"] = round(time.monotonic() - t, 2)
+        # Parked? (the firmware's park lifts the head off the part.)
         time.sleep(1)
-        o.post("/api/connection", {"command": "disconnect"})
-        st, ok = o.wait_state(lambda s: s.startswith("Offline") or s.startswith("Closed"), a.wait)
-        sc["disconnected"] = ok
-        sc["state_disconnected"] = st
         mark = len(serial_lines(base))
-        o.post("/api/connection", {"command": "connect", "port": a.port, "baudrate": 115200})
-        st, ok = o.wait_state(lambda s: s.startswith("Operational"), 30)
-        sc["reconnected_state"] = st
-        time.sleep(2)
-        after = [t for d, t in serial_lines(base)[mark:] if d == "Recv"]
-        sc["told"] = [t for t in after if "paused: job held" in t]
-        mark = len(serial_lines(base))
-        terminal("M602")()
-        time.sleep(2)
-        sc["m602"] = [t for d, t in serial_lines(base)[mark:] if d == "Recv" and "resume" in t]
-        mark = len(serial_lines(base))
-        terminal("M524")()
-        end = time.monotonic() + a.wait
-        seen = []
-        while time.monotonic() < end:
-            seen = [t for d, t in serial_lines(base)[mark:] if d == "Recv"]
-            if "//action:cancel" in seen:
-                break
-            time.sleep(0.2)
-        sc["cancel_action"] = "//action:cancel" in seen
-        # The head after the cancel (after its park): M400, M114.
-        time.sleep(2)
-        mark = len(serial_lines(base))
-        terminal("M400")()
         terminal("M114")()
-        end = time.monotonic() + a.wait
-        while time.monotonic() < end:
-            m114 = [t for d, t in serial_lines(base)[mark:] if d == "Recv" and t.startswith("X:")]
-            if m114:
-                sc["m114_after_cancel"] = m114[0]
-                break
-            time.sleep(0.2)
-        sc["state_end"] = o.state()
-        out["scenarios"]["reconnect"] = sc
-    o.post("/api/connection", {"command": "disconnect"})
+        sc["m114_paused"] = wait_recv(base, mark, lambda t: t.startswith("X:"), a.wait)
+        sc["actions"] = [t for t in recv_since(base, 0) if t.startswith("//action:")]
+        job_cmd("resume")()
+        st, ok = o.wait_state(lambda s: s == "Printing", a.wait)
+        sc["resumed"] = ok
+        sc["state_after_resume"] = st
+        out["scenarios"][name] = sc
+
+    pause_resume("stock_button", job_cmd("pause"))
+    if o.state() == "Printing":
+        pause_resume("stock_terminal", terminal("M601"))
+    sc = {"printing_on": printing_on(60)}
+    mark = len(serial_lines(base))
+    terminal("M114")()
+    sc["m114_before"] = wait_recv(base, mark, lambda t: t.startswith("X:"), a.wait)
+    o.post("/api/job", {"command": "cancel"})
+    st, ok = o.wait_state(lambda s: s.startswith("Operational"), a.wait)
+    sc["operational_after_cancel"] = ok
+    sc["m114_after_cancel"] = m114(o, base, terminal, a.wait)
+    sc["cancel_action"] = any(t == "//action:cancel" for t in recv_since(base, mark))
+    out["scenarios"]["stock_cancel"] = sc
 
 
 def main():
@@ -251,14 +429,27 @@ def main():
         "--reprint-file",
         help="with --reprint: print this file (its first --layers layers) the second time",
     )
-    ap.add_argument("--two-hosts", action="store_true")
-    ap.add_argument("--reconnect", action="store_true")
+    ap.add_argument(
+        "--sessions",
+        action="store_true",
+        help="two hosts (printcore on the TFT port), then a long pause and a reconnect",
+    )
+    ap.add_argument(
+        "--pause-virtual-s", type=float, default=900, help="--sessions: virtual seconds paused"
+    )
+    ap.add_argument(
+        "--pause-wall", type=float, default=120, help="--sessions: at most this long paused, s"
+    )
+    ap.add_argument(
+        "--console-lines", type=int, default=12, help="--sessions: terminal lines over the pause"
+    )
+    ap.add_argument("--stock", action="store_true", help="without the plugin (STOCK_* settings)")
     a = ap.parse_args()
 
     t0 = time.monotonic()
     out = {"scenarios": {}}
     base = tempfile.mkdtemp(prefix="octoprint-test-")
-    write_basedir(base, not a.no_emergency, serial_log=a.two_hosts or a.reconnect)
+    write_basedir(base, not a.no_emergency, serial_log=a.sessions or a.stock, stock=a.stock)
     port = free_port()
     log = open(os.path.join(base, "serve.log"), "w")
     proc = subprocess.Popen(
@@ -288,7 +479,7 @@ def main():
         # OctoPrint turns Operational when its hello is answered; the M115 capability lines
         # that make the plugin active may be parsed a moment later, so wait for them (bounded).
         end = time.monotonic() + 15
-        while True:
+        while not a.stock:
             try:
                 out["plugin"] = o.get("/api/plugin/layerpause")
             except Exception as e:
@@ -299,17 +490,30 @@ def main():
 
         # The job: the file's first --layers layers plus its end code.
         text = "\n".join(job_lines(a.file, a.layers)) + "\n"
-        r = o.s.post(
-            o.url + "/api/files/local",
-            files={"file": ("job.gcode", text.encode())},
-            data={"select": "true", "print": "true"},
-            timeout=30,
-        )
-        r.raise_for_status()
+
+        def start_print():
+            r = o.s.post(
+                o.url + "/api/files/local",
+                files={"file": ("job.gcode", text.encode())},
+                data={"select": "true", "print": "true"},
+                timeout=30,
+            )
+            r.raise_for_status()
+
+        def job_cmd(action):
+            return lambda: o.post("/api/job", {"command": "pause", "action": action})
+
+        def terminal(cmd):
+            return lambda: o.post("/api/printer/command", {"commands": [cmd]})
+
+        start_print()
+        if a.stock:
+            stock(o, a, out, job_cmd, terminal, base)
+            raise Done()
 
         # heatup: temperatures shown while the firmware waits in M109/M190.
         temps = []
-        end = time.monotonic() + 60
+        end = time.monotonic() + (0 if a.sessions else 60)
         while time.monotonic() < end:
             p = o.get("/api/printer?exclude=sd")
             t = p.get("temperature", {})
@@ -323,7 +527,8 @@ def main():
                 break
             time.sleep(0.25)
         actual = [x[1] for x in temps if x[1] is not None]
-        out["scenarios"]["heatup"] = {
+        if not a.sessions:
+            out["scenarios"]["heatup"] = {
             "samples": len(temps),
             "distinct_tool0": len(set(actual)),
             "max_tool0": max(actual) if actual else None,
@@ -370,14 +575,10 @@ def main():
             out["scenarios"][name] = sc
             return sc
 
-        def job_cmd(action):
-            return lambda: o.post("/api/job", {"command": "pause", "action": action})
-
-        def terminal(cmd):
-            return lambda: o.post("/api/printer/command", {"commands": [cmd]})
-
-        if a.two_hosts or a.reconnect:
-            other_scenarios(o, a, out, printing_on, job_cmd, terminal, base)
+        if a.sessions:
+            two_hosts(o, a, out, printing_on, job_cmd, base)
+            start_print()
+            long_pause_reconnect(o, a, out, printing_on, job_cmd, terminal, base)
             raise Done()
         pause_resume("button", job_cmd("pause"), job_cmd("resume"))
         if o.state() == "Printing":

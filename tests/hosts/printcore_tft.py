@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Printrun's printcore on the TFT port while OctoPrint prints on the USB port (issue 22; the
-OctoPrint side is tests/hosts/octoprint_drive.py --two-hosts). printcore prints nothing: it
+OctoPrint side is tests/hosts/octoprint_drive.py --sessions). printcore prints nothing: it
 asks (M118, M27), pauses the job OctoPrint streams (M601), waits for OctoPrint's Resume, then
 for OctoPrint's Pause, resumes it (M602), and waits for OctoPrint's Cancel — all seen through
 the notifications on its own port.

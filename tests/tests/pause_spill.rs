@@ -547,3 +547,129 @@ fn a_session_that_ends_orphans_the_job() {
     assert_eq!(rig.stops, 1);
     assert!(rig.p.job_orphaned());
 }
+
+/// A block device that counts the blocks read and written through it (the spill file's I/O
+/// profile, below).
+struct Counting {
+    dev: ImageDevice,
+    reads: std::rc::Rc<std::cell::Cell<u64>>,
+    writes: std::rc::Rc<std::cell::Cell<u64>>,
+}
+
+impl embedded_sdmmc::BlockDevice for Counting {
+    type Error = std::io::ErrorKind;
+
+    fn read(
+        &self,
+        blocks: &mut [embedded_sdmmc::Block],
+        start: embedded_sdmmc::BlockIdx,
+    ) -> Result<(), Self::Error> {
+        self.reads.set(self.reads.get() + blocks.len() as u64);
+        self.dev.read(blocks, start)
+    }
+
+    fn write(
+        &self,
+        blocks: &[embedded_sdmmc::Block],
+        start: embedded_sdmmc::BlockIdx,
+    ) -> Result<(), Self::Error> {
+        self.writes.set(self.writes.get() + blocks.len() as u64);
+        self.dev.write(blocks, start)
+    }
+
+    fn num_blocks(&self) -> Result<embedded_sdmmc::BlockCount, Self::Error> {
+        self.dev.num_blocks()
+    }
+}
+
+/// The spill file's block I/O does not grow with its length: an eight-hour pause spills ≈ 1 MB
+/// (one line a second), on the simulator's card in 2 048 clusters of 512 bytes (a FAT16 card
+/// made by `fatfs`; sold cards have 4–64 KiB clusters). Each append (one [`SPILL_FLUSH`]
+/// stage) and each replay read ([`SPILL_CHUNK`]) costs the same few blocks at the file's end
+/// as at its start: the file is not searched for in the directory, nor its cluster chain
+/// walked from the start, for each of them. Then the pattern of the replay after a resume
+/// (reads, with an append every [`SPILL_FLUSH`] bytes of new lines) reads every byte back
+/// in order.
+#[test]
+fn the_spill_file_costs_the_same_blocks_per_access_at_any_length() {
+    use firmware::printer::{SPILL_CHUNK, SPILL_FLUSH};
+    let img = Image::new("io");
+    let (reads, writes) = (
+        std::rc::Rc::new(std::cell::Cell::new(0)),
+        std::rc::Rc::new(std::cell::Cell::new(0)),
+    );
+    let mut card = Card::new(Counting {
+        dev: ImageDevice::open(&img.0).expect("open image"),
+        reads: reads.clone(),
+        writes: writes.clone(),
+    });
+    card.mount().expect("mount");
+    let io = |_: &Card<Counting>| (reads.get(), writes.get());
+    // 1 MiB in appends of SPILL_FLUSH bytes, lines of the spill's format.
+    let mut content = Vec::new();
+    let mut n = 0u32;
+    let appends = (1 << 20) / SPILL_FLUSH;
+    let mut append_cost = Vec::new();
+    for _ in 0..appends {
+        let mut chunk = Vec::new();
+        while chunk.len() < SPILL_FLUSH {
+            n += 1;
+            chunk.extend_from_slice(
+                format!("{n} G1 X{} Y{} E0.0412\n", n % 200, n % 170).as_bytes(),
+            );
+        }
+        let before = io(&card);
+        let len = card.spill_append(&chunk).expect("append");
+        let after = io(&card);
+        content.extend_from_slice(&chunk);
+        assert_eq!(len as usize, content.len());
+        append_cost.push((after.0 - before.0, after.1 - before.1));
+    }
+    // Replay: reads of SPILL_CHUNK bytes from the start.
+    let mut read_cost = Vec::new();
+    let mut at = 0usize;
+    let mut buf = vec![0u8; SPILL_CHUNK];
+    while at < content.len() {
+        let before = io(&card);
+        let got = card.spill_read_at(at as u32, &mut buf).expect("read");
+        let after = io(&card);
+        assert!(got > 0);
+        assert_eq!(&buf[..got], &content[at..at + got], "at byte {at}");
+        at += got;
+        read_cost.push(after.0 - before.0);
+    }
+    let tenth = |v: &[u64], last: bool| -> u64 {
+        let k = v.len() / 10;
+        let s = if last { &v[v.len() - k..] } else { &v[..k] };
+        s.iter().copied().max().unwrap_or(0)
+    };
+    let ar: Vec<u64> = append_cost.iter().map(|c| c.0).collect();
+    let aw: Vec<u64> = append_cost.iter().map(|c| c.1).collect();
+    eprintln!(
+        "{} appends: blocks read per append max {} (first tenth) / {} (last tenth), written {} / {}; \
+         {} reads: blocks read per read max {} / {}; total read {} written {}",
+        ar.len(),
+        tenth(&ar, false),
+        tenth(&ar, true),
+        tenth(&aw, false),
+        tenth(&aw, true),
+        read_cost.len(),
+        tenth(&read_cost, false),
+        tenth(&read_cost, true),
+        io(&card).0,
+        io(&card).1,
+    );
+    assert!(
+        tenth(&ar, true) <= tenth(&ar, false).max(4),
+        "appends read more blocks as the file grows"
+    );
+    assert!(
+        tenth(&aw, true) <= tenth(&aw, false).max(4),
+        "appends write more blocks as the file grows"
+    );
+    assert!(
+        tenth(&read_cost, true) <= 3,
+        "a replay read at the file's end reads {} blocks",
+        tenth(&read_cost, true)
+    );
+}

@@ -15,15 +15,16 @@
 //!
 //! Memory: [`SPILL_STAGE`] bytes of lines not yet on the card, a [`SPILL_CHUNK`]-byte read
 //! buffer. The card is written by the driver's [`Printer::service_card`] (the executive never
-//! blocks on it), in appends of at least [`SPILL_FLUSH`] bytes while parked (an 8-hour pause
-//! at one line a second is ≈ 30 000 lines, ≈ 1 MB, ≈ 2 000 appends).
+//! blocks on it), in appends of at least [`SPILL_FLUSH`] bytes (an 8-hour pause at one line a
+//! second is ≈ 30 000 lines, ≈ 1 MB, ≈ 2 000 appends). The card keeps the file open from its
+//! first append to its deletion, so an append and a replay read cost the same few blocks at
+//! any length of the file (`Card::spill_append`).
 //!
 //! Failures lose nothing the card did not lose: lines not yet written stay in RAM and are fed
 //! back from there; a failed write stops the spilling (the host waits, with `busy:`, as
 //! without a card); a spill file that cannot be read back cancels the job (its lines are
 //! gone with the card; the cancel parks the head off the part).
 
-use super::state::Pause;
 use super::{Printer, LINE_LEN};
 use crate::link::{ReceivedLine, Response, LINE_CAP};
 use crate::motion::Realtime;
@@ -34,8 +35,8 @@ use heapless::{String, Vec};
 
 /// Bytes of spilled lines kept in RAM until the card takes them.
 pub const SPILL_STAGE: usize = 1024;
-/// While parked the stage is written to the card once it holds this much (after the resume,
-/// at once).
+/// The stage is written to the card once it holds this much (lines that never fill it run
+/// from RAM after the card's).
 pub const SPILL_FLUSH: usize = 512;
 /// Read buffer of the replay (a spilled line is at most 12 + [`LINE_CAP`] + 1 bytes).
 pub const SPILL_CHUNK: usize = 512;
@@ -166,11 +167,12 @@ impl Printer {
                 self.spill.remove = false;
             }
         }
-        let parked = matches!(self.pause, Pause::Parked { .. } | Pause::Parking { .. });
-        let flush = !self.spill.stage.is_empty()
-            && !self.spill.failed
-            && !self.spill.remove
-            && (self.spill.stage.len() >= SPILL_FLUSH || !parked);
+        // Appends of at least SPILL_FLUSH bytes, parked or not: after the resume an append
+        // moves the card's file position to the end, so the replay's next read walks the
+        // cluster chain from the start once (`Card::spill_read_at`); one append per line
+        // taken would do that for every line.
+        let flush =
+            self.spill.stage.len() >= SPILL_FLUSH && !self.spill.failed && !self.spill.remove;
         if flush {
             match card.spill_append(&self.spill.stage) {
                 Ok(len) => {
@@ -240,8 +242,9 @@ impl Printer {
         }
         if self.spill.pending() == 0 && self.spill.lines_in > 0 {
             let n = self.spill.lines_in;
+            let bytes = self.spill.on_card;
             self.say(format_args!(
-                "resume: {n} job lines kept on the SD card have run"
+                "resume: {n} job lines kept on the SD card have run ({bytes} bytes of {SPILL_NAME})"
             ));
             self.spill = Spill::new();
         }

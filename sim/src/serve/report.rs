@@ -33,11 +33,16 @@ pub struct PortReport {
     pub lines_received: u64,
     /// Of those, the numbered ones.
     pub numbered_lines_received: u64,
-    /// A host streaming into the parked printer (printcore: one numbered line per `ok`): how
-    /// many times it waited from a numbered line it sent while parked to its next line.
+    /// Lines taken while the printer was parked (job lines a host streams into it, console
+    /// lines, temperature polling) whose `ok` was seen: how many waited for it.
     pub parked_host_waits: u64,
-    /// The longest such wait, virtual seconds. A console line the host queues at any moment
-    /// goes out with its next line, so this bounds its delivery.
+    /// The longest such wait, virtual seconds, from when the line was read from the device
+    /// to the `ok` answering it (the firmware answers a port's lines in order). A host that
+    /// sends one line per `ok` (printcore, OctoPrint) sends a console line it queues at any
+    /// moment right after the `ok` of its line in flight (printcore sends its priority lines
+    /// first), so this plus twice the host's own reaction (tens of ms; `--host-paced` keeps
+    /// it so in virtual time) bounds the console line's delivery. The time a host with
+    /// nothing to send stays quiet is not a wait.
     pub parked_host_wait_max_s: f64,
 }
 

@@ -22,6 +22,16 @@ pub(super) struct PauseTrack {
     pub(super) resumed: Option<(u64, [i32; 4])>,
     /// The firmware cancelled the job before this pause reached Paused: a cancel, not a pause.
     pub(super) cancelled: bool,
+    /// The job was cancelled during this pause (or this was the cancel's own stop): a later
+    /// pause request is a new pause.
+    pub(super) ended: bool,
+}
+
+impl PauseTrack {
+    /// Still in progress: neither resumed, nor asked to resume, nor ended by a cancel.
+    fn active(&self) -> bool {
+        self.resumed.is_none() && self.resume_req_us.is_none() && !self.ended
+    }
 }
 
 /// Lines from the host, assembled to find realtime requests (for the record only: the
@@ -32,22 +42,30 @@ pub(super) struct Sniffer {
     /// Complete non-empty lines seen, and of those the numbered ones.
     pub(super) lines: u64,
     pub(super) numbered: u64,
-    /// When the last line came, if it was a numbered line that came while the printer was
-    /// parked (a host streaming into the parked printer), virtual µs.
-    last_parked_job_line_us: Option<u64>,
-    /// The longest virtual time from such a line to the host's next line (see
-    /// [`super::ServeRecord::ports`]), and how many such waits were seen.
+    /// When the line being assembled was read from the device, virtual µs.
+    line_read_us: u64,
+    /// Lines taken and not yet answered by an `ok`, oldest first: when each was read from the
+    /// device (virtual µs) and whether the printer was parked when it was taken. A host
+    /// answered line by line (printcore, OctoPrint) has one or a few in flight; at most
+    /// [`UNANSWERED_CAP`] are kept (lines a firmware never answers, M112, cannot make it grow).
+    unanswered: std::collections::VecDeque<(u64, bool)>,
+    /// The longest virtual time from a line taken while parked to the `ok` that answers it
+    /// (see [`super::report::PortReport`]), and how many such waits were seen.
     pub(super) parked_wait_max_us: u64,
     pub(super) parked_waits: u64,
 }
 
+/// See [`Sniffer::unanswered`].
+const UNANSWERED_CAP: usize = 64;
+
 impl Sniffer {
-    /// Bytes the firmware took at `now_us`; `parked`: the printer is parked.
+    /// Bytes the firmware took at `now_us`, read from the device at `read_us`; `parked`: the
+    /// printer is parked.
     pub(super) fn feed(
         &mut self,
         bytes: &[u8],
         out: &mut Vec<Realtime>,
-        now_us: u64,
+        read_us: u64,
         parked: bool,
     ) {
         for &b in bytes {
@@ -65,13 +83,10 @@ impl Sniffer {
                 self.lines += 1;
                 let numbered = body.starts_with('N');
                 self.numbered += u64::from(numbered);
-                if let Some(t) = self.last_parked_job_line_us.take() {
-                    self.parked_wait_max_us = self.parked_wait_max_us.max(now_us.saturating_sub(t));
-                    self.parked_waits += 1;
+                if self.unanswered.len() == UNANSWERED_CAP {
+                    self.unanswered.pop_front();
                 }
-                if numbered && parked {
-                    self.last_parked_job_line_us = Some(now_us);
-                }
+                self.unanswered.push_back((self.line_read_us, parked));
                 let body = match body.strip_prefix('N') {
                     Some(rest) => rest.split_once(' ').map_or("", |x| x.1),
                     None => body,
@@ -82,10 +97,37 @@ impl Sniffer {
                         out.push(r);
                     }
                 }
-            } else if self.buf.len() < 256 {
-                self.buf.push(b);
+            } else {
+                if self.buf.is_empty() {
+                    self.line_read_us = read_us;
+                }
+                if self.buf.len() < 256 {
+                    self.buf.push(b);
+                }
             }
         }
+    }
+}
+
+impl Sniffer {
+    /// `oks` answers went out to this port's host at `now_us`: they answer the oldest lines
+    /// waiting for one (the firmware answers a port's lines in order).
+    pub(super) fn answered(&mut self, oks: usize, now_us: u64) {
+        for _ in 0..oks {
+            let Some((t, parked)) = self.unanswered.pop_front() else {
+                return;
+            };
+            if parked {
+                self.parked_wait_max_us = self.parked_wait_max_us.max(now_us.saturating_sub(t));
+                self.parked_waits += 1;
+            }
+        }
+    }
+
+    /// A session started or ended on the port: its lines in flight are gone.
+    pub(super) fn new_session(&mut self) {
+        self.buf.clear();
+        self.unanswered.clear();
     }
 }
 
@@ -99,9 +141,7 @@ pub(super) fn note_request(
     match r {
         Realtime::Pause(mode) => {
             // (A cancel's brake shows as Pausing too: a cancelled track is over.)
-            let active = pauses
-                .last()
-                .is_some_and(|p| p.resumed.is_none() && p.resume_req_us.is_none() && !p.cancelled);
+            let active = pauses.last().is_some_and(|p| p.active() && !p.cancelled);
             // Called after the firmware took the bytes: a pause it accepted shows as Pausing
             // (also from an idle printer inside a streamed job, e.g. at a boundary the host
             // drained with M400); a refused one leaves it as it was.
@@ -146,6 +186,9 @@ pub(super) fn track(
                 if p.parked_us.is_none() {
                     p.cancelled = true;
                 }
+                // Before this, a cancel left its track (or the paused job's) active, and the
+                // next job's pause went unrecorded.
+                p.ended = true;
             }
         }
         // A pause the firmware started by itself (M761 schedule, M600/M0, M25 in the job):
@@ -156,9 +199,7 @@ pub(super) fn track(
         } = *r
         {
             // (A cancel's brake shows as Pausing too: a cancelled track is over.)
-            let active = pauses
-                .last()
-                .is_some_and(|p| p.resumed.is_none() && p.resume_req_us.is_none() && !p.cancelled);
+            let active = pauses.last().is_some_and(|p| p.active() && !p.cancelled);
             if !active {
                 pauses.push(PauseTrack {
                     mode: Some(PauseMode::Layer),

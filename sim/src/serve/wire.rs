@@ -28,6 +28,9 @@ pub(super) struct PtyPort {
     /// Bytes read and not yet taken by the firmware (flow control: the device is not read
     /// again until they are).
     rx_pending: Vec<u8>,
+    /// When `rx_pending` was read from the device, virtual µs (it is read only when empty:
+    /// all its bytes came at once).
+    rx_read_us: u64,
     /// Output the host has not read yet.
     tx_pending: Vec<u8>,
     /// A host holds the device.
@@ -40,7 +43,17 @@ pub(super) struct PtyPort {
     /// Since when (real time) the host owes its reply to an `ok` written to it: no byte
     /// from it since (see [`super::clock`]).
     owed_since: Option<std::time::Instant>,
+    /// Since when (real time) a host holds the device while the firmware has not been told
+    /// yet (see [`OPEN_SETTLE`]).
+    opening_since: Option<std::time::Instant>,
 }
+
+/// How long a host holds the device before the firmware hears of the new session. A host's
+/// serial library empties its input right after it opens the device (pyserial's `open()`
+/// calls `reset_input_buffer()`): what the firmware says first to a new session (a held job,
+/// `//action:paused`) must come after that, or it is flushed away unread (OctoPrint's
+/// reconnect missed it about one time in two). Nothing is read from the device meanwhile.
+const OPEN_SETTLE: std::time::Duration = std::time::Duration::from_millis(100);
 
 impl PtyPort {
     pub(super) fn open(id: PortId) -> anyhow::Result<Self> {
@@ -52,11 +65,13 @@ impl PtyPort {
             master,
             path,
             rx_pending: Vec::new(),
+            rx_read_us: 0,
             tx_pending: Vec::new(),
             open: false,
             ever_open: false,
             sniff: Sniffer::default(),
             owed_since: None,
+            opening_since: None,
         })
     }
 
@@ -82,6 +97,16 @@ impl PtyPort {
     /// A host opened or closed the device since the last call: tell the firmware.
     pub(super) fn watch_session(&mut self, fw: &mut PrinterExec, now_us: u64) {
         let open = !self.hung_up();
+        if !open || self.open {
+            self.opening_since = None;
+        } else if self
+            .opening_since
+            .get_or_insert_with(std::time::Instant::now)
+            .elapsed()
+            < OPEN_SETTLE
+        {
+            return;
+        }
         if open != self.open {
             self.open = open;
             self.ever_open |= open;
@@ -89,6 +114,7 @@ impl PtyPort {
                 self.rx_pending.clear();
                 self.tx_pending.clear();
             }
+            self.sniff.new_session();
             fw.port_session(self.id, open, now_us);
         }
     }
@@ -104,13 +130,16 @@ impl PtyPort {
     ) -> anyhow::Result<bool> {
         let mut got = false;
         let mut buf = [0u8; 4096];
+        if self.opening_since.is_some() {
+            return Ok(got);
+        }
         loop {
             if !self.rx_pending.is_empty() {
                 let n = fw.receive_on(self.id, &self.rx_pending, now_us);
                 let mut reqs = Vec::new();
                 let parked = fw.status().state == crate::port::RunState::Paused;
                 self.sniff
-                    .feed(&self.rx_pending[..n], &mut reqs, now_us, parked);
+                    .feed(&self.rx_pending[..n], &mut reqs, self.rx_read_us, parked);
                 self.rx_pending.drain(..n);
                 for r in reqs {
                     note_request(pauses, r, now_us, rec, fw);
@@ -125,6 +154,7 @@ impl PtyPort {
                     got = true;
                     self.owed_since = None;
                     self.rx_pending.extend_from_slice(&buf[..n]);
+                    self.rx_read_us = now_us;
                 }
                 // EIO: nobody holds the device (see the module documentation).
                 Err(nix::errno::Errno::EAGAIN | nix::errno::Errno::EIO) => return Ok(got),
@@ -136,9 +166,12 @@ impl PtyPort {
     /// Take the firmware's output for this port and write what the device takes. Returns
     /// whether it held answers (not only unsolicited temperature reports and `busy:`
     /// keep-alives, which do not keep an idle session alive).
-    pub(super) fn send(&mut self, fw: &mut PrinterExec) -> anyhow::Result<bool> {
+    pub(super) fn send(&mut self, fw: &mut PrinterExec, now_us: u64) -> anyhow::Result<bool> {
         let mut out = String::new();
         fw.take_output_on(self.id, &mut out);
+        // When the firmware answered (not when the host read it).
+        let oks = out.lines().filter(|l| l.starts_with("ok")).count();
+        self.sniff.answered(oks, now_us);
         let answers = out.lines().any(|l| {
             let l = l.trim_start();
             !l.starts_with("T:") && !l.starts_with("busy:")
@@ -153,10 +186,10 @@ impl PtyPort {
         if !self.tx_pending.is_empty() {
             match nix::unistd::write(&self.master, &self.tx_pending) {
                 Ok(w) => {
-                    let oks = self.tx_pending[..w]
+                    let wrote_ok = self.tx_pending[..w]
                         .split(|&b| b == b'\n')
                         .any(|l| l.starts_with(b"ok"));
-                    if oks && self.owed_since.is_none() {
+                    if wrote_ok && self.owed_since.is_none() {
                         self.owed_since = Some(std::time::Instant::now());
                     }
                     self.tx_pending.drain(..w);

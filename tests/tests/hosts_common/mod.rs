@@ -108,6 +108,15 @@ impl Sim {
         }
     }
 
+    /// The session's peak resident memory so far (`VmHWM`), kB.
+    pub fn peak_rss_kb(&self) -> Option<u64> {
+        let status = std::fs::read_to_string(format!("/proc/{}/status", self.child.id())).ok()?;
+        status
+            .lines()
+            .find_map(|l| l.strip_prefix("VmHWM:"))
+            .and_then(|v| v.split_whitespace().next()?.parse().ok())
+    }
+
     /// End the session (SIGTERM, as Ctrl-C would) and return its record.
     pub fn finish(mut self) -> serde_json::Value {
         let _ = Command::new("kill")

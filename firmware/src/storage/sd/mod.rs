@@ -49,7 +49,8 @@ pub const CARD_VOLUMES: usize = 1;
 pub const CARD_MAX_DEPTH: usize = 6;
 /// Directories open at once (the root and one per level below it).
 pub const CARD_DIRS: usize = 1 + CARD_MAX_DEPTH;
-/// Files open at once (the selected job, and the spill file while it is read or written).
+/// Files open at once (the selected job, and the spill file from its first access to its
+/// deletion).
 pub const CARD_FILES: usize = 2;
 /// The parked intake's spill file in the root directory (see `printer/spill.rs`). A name no
 /// slicer writes; M20 lists it like any file while it exists.
@@ -328,6 +329,12 @@ where
     vm: VolumeManager<Budgeted<D>, NoClock, CARD_DIRS, CARD_FILES, CARD_VOLUMES>,
     mounted: Option<(RawVolume, RawDirectory)>,
     file: Option<RawFile>,
+    /// The spill file, kept open from its first access to its deletion (or the card's
+    /// release): its handle keeps the cluster at its position, so an append at the end and a
+    /// read forward from the last one do not search the directory nor walk the FAT chain from
+    /// the file's start (which made each access cost one FAT block per 128–256 clusters of the
+    /// file: quadratic in a long pause's spill).
+    spill: Option<RawFile>,
 }
 
 impl<D: BlockDevice> Card<D>
@@ -347,6 +354,7 @@ where
             ),
             mounted: None,
             file: None,
+            spill: None,
         }
     }
 
@@ -407,6 +415,7 @@ where
     /// Close the file, the directory and the volume (M22; also before a re-mount).
     pub fn release(&mut self) {
         self.close();
+        self.spill_close();
         if let Some((volume, root)) = self.mounted.take() {
             let _ = self.vm.close_dir(root);
             let _ = self.vm.close_volume(volume);
@@ -604,36 +613,66 @@ where
         }
     }
 
-    /// Append `bytes` to the spill file [`SPILL_NAME`] (created when missing); returns its
-    /// length after. The file is opened and closed around each call (a few per minute), so
-    /// the directory entry always has the true length and the job file's handle is untouched.
-    pub fn spill_append(&mut self, bytes: &[u8]) -> Result<u32, CardError> {
+    /// The spill file's handle, opened (created with `create`) at its first use.
+    /// `Ok(None)`: there is no spill file and `create` is false.
+    fn spill_file(&mut self, create: bool) -> Result<Option<RawFile>, CardError> {
+        if let Some(f) = self.spill {
+            return Ok(Some(f));
+        }
         let root = self.root()?;
+        let mode = if create {
+            Mode::ReadWriteCreateOrAppend
+        } else {
+            Mode::ReadWriteAppend
+        };
         // Finding the entry walks the root directory: counted, as any directory operation.
         self.budget(Some(CARD_READ_BUDGET));
-        let f = self
-            .vm
-            .open_file_in_dir(root, SPILL_NAME, Mode::ReadWriteCreateOrAppend)
-            .map_err(write_error)?;
+        let opened = self.vm.open_file_in_dir(root, SPILL_NAME, mode);
+        self.budget(None);
+        match opened {
+            Ok(f) => {
+                self.spill = Some(f);
+                Ok(Some(f))
+            }
+            Err(Error::NotFound) if !create => Ok(None),
+            Err(e) => Err(write_error(e)),
+        }
+    }
+
+    /// Close the spill file's handle (its directory entry is up to date after every append).
+    fn spill_close(&mut self) {
+        if let Some(f) = self.spill.take() {
+            let _ = self.vm.close_file(f);
+        }
+    }
+
+    /// Append `bytes` to the spill file [`SPILL_NAME`] (created when missing); returns its
+    /// length after. The directory entry is written after each append (a power cut leaves a
+    /// consistent card); the handle stays open, at the file's end. After a failure the handle
+    /// is closed (the next access opens the file anew).
+    pub fn spill_append(&mut self, bytes: &[u8]) -> Result<u32, CardError> {
+        let f = self.spill_file(true)?.ok_or(CardError::NotFound)?;
         // Appending is bounded by `bytes` and the file's own chain: not counted.
         self.budget(None);
-        let wrote = self.vm.write(f, bytes).map_err(write_error);
-        let len = self.vm.file_length(f).map_err(write_error);
-        let closed = self.vm.close_file(f).map_err(write_error);
-        wrote?;
-        closed?;
-        len
+        let done = (|| {
+            self.vm.file_seek_from_end(f, 0).map_err(write_error)?;
+            self.vm.write(f, bytes).map_err(write_error)?;
+            self.vm.flush_file(f).map_err(write_error)?;
+            self.vm.file_length(f).map_err(write_error)
+        })();
+        if done.is_err() {
+            self.spill_close();
+        }
+        done
     }
 
     /// Read the spill file from byte `offset` into `buf`; returns how many bytes were read
-    /// (0 at or past its end, or when there is none).
+    /// (0 at or past its end, or when there is none). Reading on from where the last read
+    /// ended costs only the blocks read; reading before the handle's position (after an
+    /// append, which leaves it at the end) walks the cluster chain from the start once.
     pub fn spill_read_at(&mut self, offset: u32, buf: &mut [u8]) -> Result<usize, CardError> {
-        let root = self.root()?;
-        self.budget(Some(CARD_READ_BUDGET));
-        let f = match self.vm.open_file_in_dir(root, SPILL_NAME, Mode::ReadOnly) {
-            Ok(f) => f,
-            Err(Error::NotFound) => return Ok(0),
-            Err(e) => return Err(card_error(e)),
+        let Some(f) = self.spill_file(false)? else {
+            return Ok(0);
         };
         // Bounded by the file's size, as `read_at`: not counted.
         self.budget(None);
@@ -642,17 +681,22 @@ where
             if offset >= len {
                 return Ok(0);
             }
-            self.vm
-                .file_seek_from_start(f, offset)
-                .map_err(card_error)?;
+            if self.vm.file_offset(f).map_err(card_error)? != offset {
+                self.vm
+                    .file_seek_from_start(f, offset)
+                    .map_err(card_error)?;
+            }
             self.vm.read(f, buf).map_err(card_error)
         })();
-        let _ = self.vm.close_file(f);
+        if read.is_err() {
+            self.spill_close();
+        }
         read
     }
 
     /// Delete the spill file (nothing when there is none).
     pub fn spill_remove(&mut self) -> Result<(), CardError> {
+        self.spill_close();
         let root = self.root()?;
         self.budget(Some(CARD_READ_BUDGET));
         match self.vm.delete_file_in_dir(root, SPILL_NAME) {
