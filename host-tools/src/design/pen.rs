@@ -27,15 +27,16 @@
 //! ```
 
 use crate::design::model::{StateChange, Step};
-use crate::design::profile::Retraction;
+use crate::design::profile::{Primer, Retraction};
 use crate::design::turtle::{finite, Turtle, TurtleError};
 use glam::DVec3;
 use std::f64::consts::PI;
 
 /// How a line's cross-section follows from its width and height (FullControl's area models).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub enum AreaModel {
     /// width × height.
+    #[default]
     Rectangle,
     /// A rectangle with semicircular sides: (width − height)·height + π(height/2)².
     Stadium,
@@ -235,7 +236,10 @@ impl Turtle {
         Ok(())
     }
 
-    /// Raw G-code lines, written as they are (printable ASCII only).
+    /// Raw G-code lines, written as they are (printable ASCII only). Each line must parse
+    /// with the printer's own parser and keep the frame the writer relies on
+    /// ([`crate::design::raw::check_text`]); what the lines do (moves, homing, heaters, fan,
+    /// E) is seen by the checks and the writer.
     pub fn gcode(&mut self, text: &str) -> Result<(), TurtleError> {
         if text
             .chars()
@@ -245,7 +249,38 @@ impl Turtle {
                 "gcode: printable ASCII lines only, got {text:?}"
             )));
         }
+        crate::design::raw::check_text(text)
+            .map_err(|e| TurtleError::BadArgument(e.to_string()))?;
         self.state_change(StateChange::Gcode(text.to_string()));
+        Ok(())
+    }
+
+    /// Speed of the travels from here on, mm/s (> 0; replaces the profile's).
+    pub fn set_travel_speed(&mut self, mm_s: f64) -> Result<(), TurtleError> {
+        let v = finite("travel speed", mm_s)?;
+        if v <= 0.0 {
+            return Err(TurtleError::BadArgument(format!(
+                "travel speed must be > 0 mm/s, got {v}"
+            )));
+        }
+        self.state_change(StateChange::TravelSpeed(v));
+        Ok(())
+    }
+
+    /// The profile's primer (its purge line) or none; only before the first move.
+    pub fn set_primer(&mut self, primer: Primer) -> Result<(), TurtleError> {
+        if self
+            .model
+            .steps
+            .iter()
+            .any(|s| matches!(s, Step::String(_) | Step::Travel { .. }))
+        {
+            return Err(TurtleError::BadArgument(
+                "set_primer: the primer is part of the start code; choose it before the first move"
+                    .into(),
+            ));
+        }
+        self.state_change(StateChange::Primer(primer));
         Ok(())
     }
 

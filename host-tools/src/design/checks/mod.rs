@@ -4,12 +4,18 @@
 //! - **unsupported**: a point of a string (every `sample_mm` along it, not only its ends: a
 //!   bridge onto a pillar is caught in the middle) with nothing printed below it within
 //!   `support_radius_mm` (the turtle paper's "cannot print in the air");
-//! - **widening too fast**: at a string's end, the supporting material is offset sideways by
-//!   more than half the string's width (width ≈ cross-section ÷ vertical gap) plus half the
-//!   sample spacing (the nearest sample may lie that far from the supporting string's
-//!   nearest point), so the wall cannot stack (the paper's collapsing cylinder);
+//! - **widening too fast**: at a string's end, the supporting string (the printed path through
+//!   the nearest sample below, not the sample itself) is offset sideways by more than half the
+//!   string's width (width ≈ cross-section ÷ vertical gap), so the wall cannot stack (the
+//!   paper's collapsing cylinder): an overhang is flagged from `atan(w / 2h)` from the
+//!   vertical — 45° for lines twice as wide as high;
 //! - **travel crosses printed material** at or above the nozzle's height;
-//! - **flow above the profile's maximum** (cross-section × speed).
+//! - **flow above the profile's maximum** (cross-section × speed);
+//! - **line width** (cross-section ÷ the height it is laid at: the gap to the string below,
+//!   or the height above the bed) outside `min_width_ratio..=max_width_ratio` × the nozzle;
+//! - **cold extrusion**: extruding while the hot end is set below the firmware's extrusion
+//!   minimum (a design's temperature or a raw `M104 S0`), and **homing mid-print** (a raw
+//!   `G28` after printing started) — raw G-code is followed, see [`machine`].
 //!
 //! Printed material is indexed once ([`crate::design::checks::grid`]): every point sampled along
 //! the strings, in XY columns of the support radius sorted by height, of which a growing prefix
@@ -20,6 +26,9 @@
 //! against one).
 
 mod grid;
+mod machine;
+
+pub use machine::MIN_EXTRUDE_C;
 
 use crate::design::model::{Model, Step, Str};
 use crate::design::profile::Profile;
@@ -46,6 +55,14 @@ pub struct CheckOptions {
     pub max_listed: usize,
     /// Lowest height of an extruding string, mm: below it the nozzle presses into the bed.
     pub min_z_mm: f64,
+    /// Narrowest line, × the nozzle diameter (cross-section ÷ the height it is laid at).
+    pub min_width_ratio: f64,
+    /// Widest line, × the nozzle diameter (SuperSlicer's and FullControl's practice: up to
+    /// double the nozzle).
+    pub max_width_ratio: f64,
+    /// Widest line laid on the bed, × the nozzle diameter: first layers are squashed wider
+    /// (Kanada's 0.2 mm² helix starts 1 mm wide at 0.2 mm: 2.5×).
+    pub max_first_width_ratio: f64,
 }
 
 impl Default for CheckOptions {
@@ -59,6 +76,9 @@ impl Default for CheckOptions {
             travel_clearance_mm: 0.1,
             max_listed: 10,
             min_z_mm: 0.05,
+            min_width_ratio: 0.5,
+            max_width_ratio: 2.0,
+            max_first_width_ratio: 2.5,
         }
     }
 }
@@ -76,7 +96,16 @@ pub enum IssueKind {
     TravelCrossesPrint,
     /// Volumetric flow above the profile's maximum.
     FlowTooHigh,
+    /// A line narrower or wider than the nozzle can lay.
+    LineWidth,
+    /// Extruding with the hot end set below the firmware's extrusion minimum.
+    ColdExtrusion,
+    /// Raw G-code homes the axes after printing started.
+    HomesMidPrint,
 }
+
+/// Number of issue kinds.
+const KINDS: usize = 8;
 
 impl IssueKind {
     /// Short name.
@@ -87,6 +116,9 @@ impl IssueKind {
             IssueKind::WideningTooFast => "widening-too-fast",
             IssueKind::TravelCrossesPrint => "travel-crosses-print",
             IssueKind::FlowTooHigh => "flow-too-high",
+            IssueKind::LineWidth => "line-width",
+            IssueKind::ColdExtrusion => "cold-extrusion",
+            IssueKind::HomesMidPrint => "homes-mid-print",
         }
     }
 }
@@ -110,7 +142,7 @@ pub struct CheckReport {
     /// The first `max_listed` issues of each kind.
     pub issues: Vec<Issue>,
     /// Total per kind, in [`IssueKind`] order.
-    pub counts: [usize; 5],
+    pub counts: [usize; KINDS],
 }
 
 impl CheckReport {
@@ -154,13 +186,15 @@ pub(crate) trait Printed {
     fn point(&self, i: usize) -> [f64; 3];
     /// Marks the points before `end` as printed.
     fn print_through(&mut self, end: usize);
-    /// The nearest printed point within `sqrt(r2)` of `q` with z ≤ `max_z`, ties to the
-    /// earliest printed.
-    fn nearest_below(&mut self, q: [f64; 3], r2: f64, max_z: f64) -> Option<[f64; 3]>;
+    /// The print index of the nearest printed point within `sqrt(r2)` of `q` with
+    /// z ≤ `max_z`, ties to the earliest printed.
+    fn nearest_below(&mut self, q: [f64; 3], r2: f64, max_z: f64) -> Option<usize>;
     /// True when [`Printed::nearest_below`] would find a point.
     fn any_below(&mut self, q: [f64; 3], r2: f64, max_z: f64) -> bool;
     /// True when a printed point lies in the XY box `lo..=hi` at height `min_z` or above.
     fn any_at_or_above(&self, lo: [f64; 2], hi: [f64; 2], min_z: f64) -> bool;
+    /// How many points are printed.
+    fn printed(&self) -> usize;
 }
 
 impl Printed for Grid {
@@ -173,7 +207,7 @@ impl Printed for Grid {
     fn print_through(&mut self, end: usize) {
         Grid::print_through(self, end)
     }
-    fn nearest_below(&mut self, q: [f64; 3], r2: f64, max_z: f64) -> Option<[f64; 3]> {
+    fn nearest_below(&mut self, q: [f64; 3], r2: f64, max_z: f64) -> Option<usize> {
         Grid::nearest_below(self, q, r2, max_z)
     }
     fn any_below(&mut self, q: [f64; 3], r2: f64, max_z: f64) -> bool {
@@ -181,6 +215,9 @@ impl Printed for Grid {
     }
     fn any_at_or_above(&self, lo: [f64; 2], hi: [f64; 2], min_z: f64) -> bool {
         Grid::any_at_or_above(self, lo, hi, min_z)
+    }
+    fn printed(&self) -> usize {
+        Grid::printed(self)
     }
 }
 
@@ -217,27 +254,46 @@ pub(crate) fn check_with<P: Printed>(
             && p.z <= b.z_max_mm + 1e-9
     };
     // Every sample point of every extruded string, in print order: the points the support
-    // check asks about and, once their string is checked, printed material.
+    // check asks about and, once their string is checked, printed material. With each, the
+    // XY start of the printed piece that ends there (the string's start for its first
+    // sample), so the widening check measures against the printed path, not its samples.
     // Also the number of points of each extruded string, in order, and the lowest z of the
     // design (`model.bbox().min.z`, in the same pass: one read of a large model less).
     let mut points = Vec::with_capacity(model.steps.len());
+    let mut from_xy: Vec<[f64; 2]> = Vec::with_capacity(model.steps.len());
     let mut counts = Vec::with_capacity(model.steps.len());
     let mut min_z = f64::INFINITY;
     let mut lower = |z: f64| min_z = if min_z < z { min_z } else { z }; // as `BBox::add`
+    let mut last_end: Option<DVec3> = None;
     for step in &model.steps {
         match step {
             Step::String(s) => {
                 lower(s.start.z);
                 lower(s.end.z);
                 if s.cross_mm2 > 0.0 {
+                    // A string that does not continue the last one (after a travel) starts
+                    // with its start point: material, but not asked about (it is where the
+                    // head came down, not something the string lays on something).
+                    let lead = usize::from(last_end != Some(s.start));
+                    if lead == 1 {
+                        points.push(s.start.to_array());
+                        from_xy.push([s.start.x, s.start.y]);
+                    }
                     let n = sample_count(s, o);
+                    let first = points.len();
                     points.extend(
                         (1..=n).map(|k| s.start.lerp(s.end, k as f64 / n as f64).to_array()),
                     );
-                    counts.push(n);
+                    from_xy.push([s.start.x, s.start.y]);
+                    from_xy.extend(points[first..points.len() - 1].iter().map(|p| [p[0], p[1]]));
+                    counts.push((lead, n));
+                    last_end = Some(s.end);
                 }
             }
-            Step::Travel { to, .. } => lower(to.z),
+            Step::Travel { to, .. } => {
+                lower(to.z);
+                last_end = None;
+            }
             _ => {}
         }
     }
@@ -249,6 +305,11 @@ pub(crate) fn check_with<P: Printed>(
     // Columns as wide as the support radius: measured fastest on the globe (1.2 mm: 8.7 ms,
     // 0.6 mm: 9.4 ms, 0.4 mm: 12.9 ms; narrower columns mean more of them per query).
     let mut tree = P::build(o.support_radius_mm.max(o.nozzle_radius_mm).max(0.1), points);
+    let below = Below {
+        from_xy: &from_xy,
+        nozzle_mm: profile.nozzle_diameter_mm,
+    };
+    let mut machine = machine::Machine::new(&model.steps, profile);
     let mut counts = counts.into_iter();
     let mut printed = 0;
     let mut pos: Option<DVec3> = None;
@@ -294,6 +355,7 @@ pub(crate) fn check_with<P: Printed>(
                     );
                 }
                 if s.cross_mm2 > 0.0 {
+                    machine.extrusion(i, s, o, &mut rep);
                     let low = s.start.z.min(s.end.z);
                     if low < o.min_z_mm && low >= -1e-9 {
                         let at = if s.start.z <= s.end.z { s.start } else { s.end };
@@ -312,23 +374,29 @@ pub(crate) fn check_with<P: Printed>(
                     }
                     // Support at every sample point along the string (its start is the
                     // previous string's end, already checked), then the string is printed
-                    // (after the check: it cannot support itself).
-                    let n = counts.next().unwrap_or(0);
+                    // (after the check: it cannot support itself). On the bed, only the
+                    // line's width at its end.
+                    let (lead, n) = counts.next().unwrap_or((0, 0));
+                    printed += lead;
                     for k in 0..n {
                         let q = DVec3::from_array(tree.point(printed + k));
-                        if q.z > bed_contact_z
-                            && !support_check(
+                        let end = k + 1 == n;
+                        if q.z > bed_contact_z {
+                            if !support_check(
                                 &mut tree,
+                                &below,
                                 o,
                                 r2,
                                 i,
                                 q,
                                 s.cross_mm2,
-                                k + 1 == n,
+                                end,
                                 &mut rep,
-                            )
-                        {
-                            break;
+                            ) {
+                                break;
+                            }
+                        } else if end {
+                            bed_width_check(&mut tree, &below, o, r2, i, q, s.cross_mm2, &mut rep);
                         }
                     }
                     printed += n;
@@ -356,17 +424,118 @@ pub(crate) fn check_with<P: Printed>(
                 }
                 pos = Some(*to);
             }
+            Step::State(sc) => machine.state(i, sc, &mut pos, printed > 0, o, &mut rep),
             _ => {}
         }
     }
     rep
 }
 
+/// What the support and width checks need besides the index: where each printed piece
+/// starts, and the nozzle.
+struct Below<'a> {
+    from_xy: &'a [[f64; 2]],
+    nozzle_mm: f64,
+}
+
+impl Below<'_> {
+    /// XY distance from `q` to the printed path through sample `k` (the pieces ending at
+    /// `k` and, when printed and joined, at `k + 1`).
+    fn side_mm<P: Printed>(&self, tree: &P, k: usize, q: DVec3) -> f64 {
+        let p = tree.point(k);
+        let mut d = seg_dist_xy(q, self.from_xy.get(k).copied().unwrap_or([p[0], p[1]]), p);
+        if let Some(next_from) = self.from_xy.get(k + 1) {
+            if *next_from == [p[0], p[1]] && k + 1 < tree.printed() {
+                d = d.min(seg_dist_xy(q, [p[0], p[1]], tree.point(k + 1)));
+            }
+        }
+        d
+    }
+
+    /// Flags a line laid `height` mm thick whose width is outside the sane range.
+    #[allow(clippy::too_many_arguments)]
+    fn width_check(
+        &self,
+        o: &CheckOptions,
+        i: usize,
+        q: DVec3,
+        cross: f64,
+        height: f64,
+        on_bed: bool,
+        rep: &mut CheckReport,
+    ) {
+        let over = if on_bed {
+            "above the bed"
+        } else {
+            "over the string below"
+        };
+        let w = cross / height.max(1e-3);
+        let ratio = w / self.nozzle_mm;
+        let max = if on_bed {
+            o.max_first_width_ratio
+        } else {
+            o.max_width_ratio
+        };
+        if ratio > max + 1e-9 || ratio < o.min_width_ratio - 1e-9 {
+            rep.add(
+                o.max_listed,
+                Issue {
+                    kind: IssueKind::LineWidth,
+                    step: i,
+                    at: q,
+                    msg: format!(
+                        "line {w:.2} mm wide ({cross:.3} mm² laid {height:.2} mm {over}) is {ratio:.2}× the {} mm nozzle, outside {}–{max}× (set the width and height with set_extrusion)",
+                        self.nozzle_mm, o.min_width_ratio
+                    ),
+                },
+            );
+        }
+    }
+}
+
+/// XY distance from `q` to the segment `a`–`b`.
+fn seg_dist_xy(q: DVec3, a: [f64; 2], b: [f64; 3]) -> f64 {
+    let (a, b, q) = (
+        glam::DVec2::from(a),
+        glam::DVec2::new(b[0], b[1]),
+        q.truncate(),
+    );
+    let ab = b - a;
+    let l2 = ab.length_squared();
+    let t = if l2 > 0.0 {
+        ((q - a).dot(ab) / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    q.distance(a + ab * t)
+}
+
+/// The width of a string's end near the bed: over the string below when there is one, else
+/// over the bed.
+#[allow(clippy::too_many_arguments)]
+fn bed_width_check<P: Printed>(
+    tree: &mut P,
+    below: &Below,
+    o: &CheckOptions,
+    r2: f64,
+    i: usize,
+    q: DVec3,
+    cross: f64,
+    rep: &mut CheckReport,
+) {
+    match tree.nearest_below(q.to_array(), r2, q.z - o.min_drop_mm) {
+        Some(k) => below.width_check(o, i, q, cross, q.z - tree.point(k)[2], false, rep),
+        None => below.width_check(o, i, q, cross, q.z, true, rep),
+    }
+}
+
 /// Checks that `q` rests on printed material (and, at a string's `end`, that it does not
-/// widen too fast); false when an issue was reported (the rest of the string is not checked).
+/// widen too fast and its width is sane); false when an issue was reported (the rest of the
+/// string is not checked).
 #[allow(clippy::too_many_arguments)]
 fn support_check<P: Printed>(
     tree: &mut P,
+    below: &Below,
     o: &CheckOptions,
     r2: f64,
     i: usize,
@@ -400,12 +569,12 @@ fn support_check<P: Printed>(
             false
         }
         Some(_) if !end => true,
-        Some(p) => {
-            let drop = q.z - p[2];
-            let side = ((q.x - p[0]).powi(2) + (q.y - p[1]).powi(2)).sqrt();
+        Some(k) => {
+            let drop = q.z - tree.point(k)[2];
+            let side = below.side_mm(tree, k, q);
             let width = cross / drop.max(0.05);
-            let allowance = o.sample_mm * 0.5;
-            if side > 0.5 * width + allowance {
+            below.width_check(o, i, q, cross, drop, false, rep);
+            if side > 0.5 * width + 1e-9 {
                 rep.add(
                     o.max_listed,
                     Issue {
@@ -413,8 +582,10 @@ fn support_check<P: Printed>(
                         step: i,
                         at: q,
                         msg: format!(
-                            "offset {side:.2} mm from the string {drop:.2} mm below exceeds half the string width ({:.2} mm) plus the {allowance:.2} mm sampling allowance",
-                            0.5 * width
+                            "offset {side:.2} mm from the string {drop:.2} mm below exceeds half the string width ({:.2} mm): an overhang of {:.0}° from the vertical, beyond atan(w / 2h) = {:.0}°",
+                            0.5 * width,
+                            side.atan2(drop).to_degrees(),
+                            (0.5 * width).atan2(drop).to_degrees()
                         ),
                     },
                 );
