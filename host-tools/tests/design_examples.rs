@@ -41,6 +41,8 @@ const ALL: &[&str] = &[
     "fc_ripple_vase.rhai",
     "fc_nonplanar_spacer.rhai",
     "fc_star_lattice.rhai",
+    "fc_speed_lattice.rhai",
+    "fc_polar_array.rhai",
 ];
 
 #[test]

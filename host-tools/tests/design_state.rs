@@ -223,8 +223,8 @@ fn the_writer_continues_after_raw_moves_and_e() {
             );
             assert!(mv.de < 2.0, "{name}: line {} pushes {} mm", mv.line, mv.de);
         }
-        // What the design extrudes: 10 mm + 3 × 80 mm of 0.08 mm² lines.
-        let want = 0.08 * 250.0 / (std::f64::consts::PI * 0.875 * 0.875);
+        // What the design extrudes: its strings' volume over the filament's area.
+        let want = m.volume_mm3() / (std::f64::consts::PI * 0.875 * 0.875);
         let design: f64 = tr
             .moves
             .iter()

@@ -307,6 +307,36 @@ mod tests {
         assert!(AreaModel::parse("circle").is_err());
     }
 
+    /// A polyline starting one layer above where the last one closed steps straight up
+    /// (it hopped 1 mm before issue 23); one crossing printed material at its height lifts.
+    #[test]
+    fn polyline_hops_only_when_printed_material_is_in_the_way() {
+        let travels = |t: &Turtle| -> Vec<DVec3> {
+            t.model()
+                .steps
+                .iter()
+                .filter_map(|s| match s {
+                    Step::Travel { to, .. } => Some(*to),
+                    _ => None,
+                })
+                .collect()
+        };
+        let mut t = Turtle::at(DVec3::new(110.0, 100.0, 0.2), 0.08, 20.0);
+        for z in [0.2, 0.4] {
+            let ring =
+                crate::design::points::circle_xy(DVec3::new(100.0, 100.0, z), 10.0, 0.0, 64, false)
+                    .expect("circle");
+            t.polyline(&ring).expect("ring");
+        }
+        assert_eq!(travels(&t), [DVec3::new(110.0, 100.0, 0.4)]);
+        // Across the ring at its own height: up, across, down.
+        t.polyline(&[DVec3::new(90.0, 100.0, 0.4), DVec3::new(89.0, 100.0, 0.4)])
+            .expect("across");
+        let tr = travels(&t);
+        assert_eq!(tr.len(), 4, "{tr:?}");
+        assert!(tr[1].z > 1.0 && tr[2].z > 1.0);
+    }
+
     #[test]
     fn extrude_to_keeps_the_pen_and_travel_to_lifts() {
         let mut t = Turtle::at(DVec3::new(0.0, 0.0, 0.2), 0.1, 20.0);

@@ -37,6 +37,8 @@ pub struct RawEffects {
     pub cold_min_c: Option<f64>,
     /// The text moved E or set it (`G92 E`).
     pub e_changed: bool,
+    /// `G90`/`G91`: on Marlin these switch E too, so the E mode must be set again after.
+    pub modes: bool,
 }
 
 /// The head and filament state raw lines act on: the logical position (absolute, mm; `None`
@@ -173,8 +175,14 @@ impl RawTracker {
                         fx.e_changed = true;
                     }
                 }
-                Command::Relative => relative = true,
-                Command::Absolute => relative = false,
+                Command::Relative => {
+                    relative = true;
+                    fx.modes = true;
+                }
+                Command::Absolute => {
+                    relative = false;
+                    fx.modes = true;
+                }
                 Command::AbsoluteE => abs_e = true,
                 Command::RelativeE => abs_e = false,
                 Command::SetTemperature {

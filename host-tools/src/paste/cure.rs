@@ -331,19 +331,32 @@ fn nearest_below(
                     }
                 }
                 let j = cols.order[a + t] as usize;
-                if j >= i || (layered && samples[j].layer >= samples[i].layer) {
+                // A piece that crosses a layer change belongs to the layer it leaves (it
+                // lays the end of that layer: the seam).
+                let layer = samples[j].layer.min(samples[j - 1].layer);
+                if j > i || (layered && layer >= samples[i].layer) {
                     continue;
                 }
                 let (p0, p1) = (samples[j - 1].pos, samples[j].pos);
                 let d = p1.truncate() - p0.truncate();
                 let l2 = d.length_squared();
-                let u = if l2 > 0.0 {
+                let mut u = if l2 > 0.0 {
                     ((s.truncate() - p0.truncate()).dot(d) / l2).clamp(0.0, 1.0)
                 } else {
                     1.0
                 };
+                // Only the part of the piece low enough counts (a ramp between layers).
+                let rise = p1.z - p0.z;
+                if rise != 0.0 {
+                    let uz = (zmax - p0.z) / rise;
+                    u = if rise > 0.0 { u.min(uz) } else { u.max(uz) };
+                    if !(0.0..=1.0).contains(&u) {
+                        continue;
+                    }
+                }
                 let q = p0.lerp(p1, u);
-                if q.z > zmax {
+                // Laid before the sample (the piece reaching sample i itself only in part).
+                if q.z > zmax + 1e-12 || (j - 1) as f64 + u >= i as f64 {
                     continue;
                 }
                 let dxy2 = (q.truncate() - s.truncate()).length_squared();
@@ -355,8 +368,9 @@ fn nearest_below(
                     d2: dxy2 + dz * dz,
                     at: (j - 1) as f64 + u,
                 };
-                // Ties go to the later material (the one that cured least).
-                if best.is_none_or(|bf| f.d2 < bf.d2 || (f.d2 == bf.d2 && f.at > bf.at)) {
+                // Ties go to the earlier time: a point where the head stood still (between
+                // two pieces) was laid when the head arrived, not when it left.
+                if best.is_none_or(|bf| f.d2 < bf.d2 || (f.d2 == bf.d2 && f.at < bf.at)) {
                     best = Some(f);
                 }
             }

@@ -485,6 +485,72 @@ mod tests {
         assert!(fine.model.string_count() > plain.model.string_count());
     }
 
+    /// Issue 23's hints: each names a function that does the job; none shows `anon$`.
+    #[test]
+    fn hints_name_the_right_function_and_never_a_closure_name() {
+        for (src, want) in [
+            ("let t = turtle(0, 0, 0.2); t.set_fan(50); t", "`fan"),
+            ("arc(point(0, 0, 0), 5, 0, 1, 8)", "arc_xy"),
+            ("let t = turtle(0, 0, 0.2); t.rotate(90); t", "left"),
+            ("rotate([point(1, 0, 0)], point(0, 0, 0), 1)", "rotate_xy"),
+            (
+                "let t = turtle(0, 0, 0.2); t.extrude_too(point(1, 0, 0.2)); t",
+                "extrude_to",
+            ),
+        ] {
+            let e = run(src).expect_err(src);
+            assert!(e.msg.contains(want), "{src}: {e}");
+        }
+        assert!(run(
+            "let t = turtle(0, 0, 0.2); t.set_travel_speed(100); t.extrude_to(point(5, 0, 0.2)); t"
+        )
+        .is_ok());
+        for src in [
+            "let a = [1, 2].map(|x| x.nope()); turtle(0, 0, 0)",
+            "let f = |x| x + y; f.call(1)",
+            "let h = helix(#{}); h.partition(|s| s.nope)",
+        ] {
+            let e = run(src).expect_err(src);
+            assert!(
+                !e.msg.contains("anon$") && !e.to_string().contains("anon$"),
+                "{src}: {e}"
+            );
+        }
+    }
+
+    /// `move_polar` rotates (the hint it used to get, `polar + move_points`, could not), for
+    /// points, paths and models, with copies.
+    #[test]
+    fn move_polar_rotate_and_scale_from_scripts() {
+        let out = run(
+            "let p = move_polar([point(15, 10, 0.2), point(20, 10, 0.2)], point(10, 10, 0), 0, PI / 2);\n\
+             if (p[0][0] - 10.0).abs() > 1e-9 || (p[0][1] - 15.0).abs() > 1e-9 { throw `${p}`; }\n\
+             let q = move_polar(point(15, 10, 0), point(10, 10, 0), 1, PI);\n\
+             if (q[0] - 4.0).abs() > 1e-9 { throw `${q}`; }\n\
+             let r = rotate_xy(point(1, 0, 0), point(0, 0, 0), PI / 2);\n\
+             if r[1] < 0.999 { throw `${r}`; }\n\
+             let s = scale([point(2, 2, 2)], point(1, 1, 1), [2, 3, 1]);\n\
+             if s[0][0] != 3.0 || s[0][1] != 4.0 || s[0][2] != 2.0 { throw `${s}`; }\n\
+             let ring = move_polar([point(60, 50, 0.2)], point(50, 50, 0), 0, PI / 2, 4);\n\
+             if ring.len() != 4 || (ring[3][1] - 40.0).abs() > 1e-9 { throw `${ring}`; }\n\
+             let h = helix(#{ cx: 60, cy: 50, radius: 2, turns: 1, per_turn: 8 });\n\
+             h.move_polar(point(50, 50, 0), 0, PI / 2, 4)",
+        )
+        .expect("script");
+        // Four copies of the 8-string turn, a quarter turn apart about (50, 50).
+        assert_eq!(out.model.string_count(), 32);
+        let ends: Vec<_> = out.model.strings().map(|s| s.end).collect();
+        assert!(ends.iter().any(|p| (p.x - 50.0).abs() < 2.01 && p.y > 57.9));
+        assert!(ends.iter().any(|p| p.x < 42.1 && (p.y - 50.0).abs() < 2.01));
+        let e = run("init(#{ relative_e: true })").expect_err("unknown key");
+        assert!(
+            e.msg.contains("relative_e") && e.msg.contains("nozzle_temp"),
+            "{e}"
+        );
+        let e = run("init(#{ print_speed: 1000 })").expect_err("mm/min");
+        assert!(e.msg.contains("mm/min"), "{e}");
+    }
+
     #[test]
     fn sandbox_refuses_paths_outside() {
         let e = run("load_bitmap(\"../x.png\")").expect_err("refused");

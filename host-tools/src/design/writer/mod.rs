@@ -313,7 +313,7 @@ impl<'p> GcodeWriter<'p> {
                         StateChange::Primer(_) => {} // decided the start code
                         StateChange::Gcode(text) => {
                             write_state(buf, &mut st, sc, dec);
-                            fan_set |= self.follow_raw(&mut st, text, scale);
+                            fan_set |= self.follow_raw(buf, &mut st, text, scale);
                         }
                         StateChange::Fan(_) => {
                             fan_set = true;
@@ -385,13 +385,17 @@ fn lead_in(steps: &[Step]) -> LeadIn {
 impl GcodeWriter<'_> {
     /// After raw lines: the position, feed and E they leave (the writer continues from
     /// there, see `design::raw`). Returns true when they set the fan.
-    fn follow_raw(&self, st: &mut State, text: &str, scale: f64) -> bool {
+    fn follow_raw(&self, buf: &mut Vec<u8>, st: &mut State, text: &str, scale: f64) -> bool {
         let abs_e = self.profile.e_mode == EMode::Absolute;
         let pos = st
             .pos_f
             .map_or([None; 3], |p| [Some(p.x), Some(p.y), Some(p.z)]);
         let mut t = RawTracker::new(pos, st.e_written as f64 / scale, abs_e, DVec3::ZERO);
         let fx = t.apply(text);
+        if fx.modes {
+            // Marlin's G90/G91 switch E as well: the profile's E mode again.
+            buf.extend_from_slice(if abs_e { b"M82\n" } else { b"M83\n" });
+        }
         if fx.moved {
             st.pos_f = t.position();
             st.pos = match st.pos_f {
