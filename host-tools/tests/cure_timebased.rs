@@ -66,7 +66,7 @@ fn elapsed_is_index_difference_times_period() {
     assert_eq!(r.violation_count, (layers - 1) * per_layer);
     // The first sample of a layer lies on the seam: the piece that deposits the jump from
     // the layer below's end to it passes right under it (laid a moment before).
-    let seam = |i: usize| i % (per_layer + wait) == 0;
+    let seam = |i: usize| i.is_multiple_of(per_layer + wait);
     for v in &r.violations {
         if seam(v.index) {
             assert!(v.elapsed_s < period, "{v:?}");

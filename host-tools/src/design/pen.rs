@@ -76,6 +76,17 @@ impl AreaModel {
     }
 }
 
+/// `v` with at most three decimals, trailing zeros trimmed.
+fn fmt3(v: f64) -> String {
+    let s = format!("{v:.3}");
+    let s = s.trim_end_matches('0').trim_end_matches('.');
+    if s == "-0" {
+        "0".into()
+    } else {
+        s.into()
+    }
+}
+
 fn point(p: DVec3) -> Result<DVec3, TurtleError> {
     if p.is_finite() {
         Ok(p)
@@ -284,6 +295,25 @@ impl Turtle {
         Ok(())
     }
 
+    /// An annotation for viewers (FullControl's `PlotAnnotation`), written as the comment
+    /// `; ANNOTATE X<x> Y<y> Z<z> <label>` (mm, three decimals, the label on one line) at `at`
+    /// (the pen's position when `None`); the 3D preview shows it there.
+    pub fn annotate(&mut self, at: Option<DVec3>, label: &str) -> Result<(), TurtleError> {
+        let p = point(at.unwrap_or(self.state.pos))?;
+        let label: String = label
+            .chars()
+            .map(|c| if c.is_control() { ' ' } else { c })
+            .collect();
+        self.model.push(Step::Comment(format!(
+            "ANNOTATE X{} Y{} Z{} {}",
+            fmt3(p.x),
+            fmt3(p.y),
+            fmt3(p.z),
+            label.trim()
+        )));
+        Ok(())
+    }
+
     /// A pause mark: `M601` (the firmware stops at the next layer boundary) or, with `now`,
     /// `M601 S1` (it stops here).
     pub fn pause(&mut self, now: bool) {
@@ -360,5 +390,16 @@ mod tests {
         assert!(t.fan(101.0).is_err());
         assert!(t.hotend(500.0, true).is_err());
         assert!(t.gcode("M42 P1\u{7}").is_err());
+        t.annotate(None, "seam\nhere").expect("annotate");
+        t.annotate(Some(DVec3::new(1.5, -2.0, 0.25)), "corner")
+            .expect("annotate");
+        let n = t.model().steps.len();
+        assert_eq!(
+            t.model().steps[n - 2..],
+            [
+                Step::Comment("ANNOTATE X0 Y0 Z0.2 seam here".into()),
+                Step::Comment("ANNOTATE X1.5 Y-2 Z0.25 corner".into())
+            ]
+        );
     }
 }

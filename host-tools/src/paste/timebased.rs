@@ -101,7 +101,7 @@ pub fn design_window(t: &Trajectory) -> Option<(f64, f64)> {
         .map_or(0, |m| m.line);
     let prints = || t.segments.iter().filter(|s| s.kind == MoveKind::Print);
     let first = prints().find(|s| s.line >= first_mark)?;
-    let last = prints().last()?;
+    let last = prints().next_back()?;
     Some((first.t_start_s, last.t_end_s().max(first.t_start_s)))
 }
 

@@ -11,8 +11,9 @@
 //!   vertical — 45° for lines twice as wide as high;
 //! - **travel crosses printed material** at or above the nozzle's height;
 //! - **flow above the profile's maximum** (cross-section × speed);
-//! - **line width** (cross-section ÷ the height it is laid at: the gap to the string below,
-//!   or the height above the bed) outside `min_width_ratio..=max_width_ratio` × the nozzle;
+//! - **line width** (cross-section ÷ the bead's thickness: its distance to the string it
+//!   rests on, or its height above the bed) outside `min_width_ratio..=max_width_ratio` × the
+//!   nozzle;
 //! - **cold extrusion**: extruding while the hot end is set below the firmware's extrusion
 //!   minimum (a design's temperature or a raw `M104 S0`), and **homing mid-print** (a raw
 //!   `G28` after printing started) — raw G-code is followed, see [`machine`].
@@ -484,7 +485,7 @@ impl Below<'_> {
                     step: i,
                     at: q,
                     msg: format!(
-                        "line {w:.2} mm wide ({cross:.3} mm² laid {height:.2} mm {over}) is {ratio:.2}× the {} mm nozzle, outside {}–{max}× (set the width and height with set_extrusion)",
+                        "line {w:.2} mm wide ({cross:.3} mm² laid {height:.2} mm thick {over}) is {ratio:.2}× the {} mm nozzle, outside {}–{max}× (set the width and height with set_extrusion)",
                         self.nozzle_mm, o.min_width_ratio
                     ),
                 },
@@ -524,7 +525,10 @@ fn bed_width_check<P: Printed>(
     rep: &mut CheckReport,
 ) {
     match tree.nearest_below(q.to_array(), r2, q.z - o.min_drop_mm) {
-        Some(k) => below.width_check(o, i, q, cross, q.z - tree.point(k)[2], false, rep),
+        Some(k) => {
+            let t = (q.z - tree.point(k)[2]).hypot(below.side_mm(tree, k, q));
+            below.width_check(o, i, q, cross, t, false, rep)
+        }
         None => below.width_check(o, i, q, cross, q.z, true, rep),
     }
 }
@@ -573,7 +577,9 @@ fn support_check<P: Printed>(
             let drop = q.z - tree.point(k)[2];
             let side = below.side_mm(tree, k, q);
             let width = cross / drop.max(0.05);
-            below.width_check(o, i, q, cross, drop, false, rep);
+            // The bead's thickness is its distance to the string it rests on: the drop on a
+            // vertical wall, more on a leaning one (a dish's strings lie nearly side by side).
+            below.width_check(o, i, q, cross, drop.hypot(side), false, rep);
             if side > 0.5 * width + 1e-9 {
                 rep.add(
                     o.max_listed,

@@ -90,6 +90,7 @@ const RENAMED: &[(&str, &str)] = &[
     ("nozzle_temp", "hotend"),
     ("bed_temp", "bed"),
     ("Retraction", "set_retraction"),
+    ("PlotAnnotation", "annotate"),
 ];
 
 fn normalise(name: &str) -> String {

@@ -117,6 +117,15 @@ pub(super) fn register_pen(e: &mut Engine) {
     e.register_fn("set_primer", |t: &mut Turtle, p: &str| -> Res<()> {
         t.set_primer(Primer::parse(p)?).map_err(err)
     });
+    e.register_fn("annotate", |t: &mut Turtle, label: &str| -> Res<()> {
+        t.annotate(None, label).map_err(err)
+    });
+    e.register_fn(
+        "annotate",
+        |t: &mut Turtle, p: Dynamic, label: &str| -> Res<()> {
+            t.annotate(Some(pt(&p, "annotate")?), label).map_err(err)
+        },
+    );
     e.register_fn("pause", |t: &mut Turtle| t.pause(false));
     e.register_fn("pause_now", |t: &mut Turtle| t.pause(true));
     e.register_get("position", |t: &mut Turtle| arr3(t.state().pos));
