@@ -472,12 +472,15 @@ impl Below<'_> {
         };
         let w = cross / height.max(1e-3);
         let ratio = w / self.nozzle_mm;
+        // A bead farther than a nozzle from the string it rests on does not touch it: its
+        // width is unknown there (the support check judges it), so only "too wide" is asked.
+        let narrow_known = on_bed || height <= self.nozzle_mm;
         let max = if on_bed {
             o.max_first_width_ratio
         } else {
             o.max_width_ratio
         };
-        if ratio > max + 1e-9 || ratio < o.min_width_ratio - 1e-9 {
+        if ratio > max + 1e-9 || (narrow_known && ratio < o.min_width_ratio - 1e-9) {
             rep.add(
                 o.max_listed,
                 Issue {
