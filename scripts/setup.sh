@@ -8,6 +8,10 @@ rustup target list --installed | grep -q thumbv7em-none-eabihf || rustup target 
 need=()
 command -v qemu-system-arm >/dev/null || need+=(qemu-system-arm)
 command -v arm-none-eabi-objcopy >/dev/null || need+=(binutils-arm-none-eabi)
+# The emulated board (board-emu) builds the Unicorn engine's C with cmake, and its Rust
+# bindings with bindgen, which needs libclang.
+command -v cmake >/dev/null || need+=(cmake)
+dpkg -s libclang-dev >/dev/null 2>&1 || need+=(libclang-dev)
 # Headless browser for the 3D preview's screenshot test (host-tools/tests/preview_html.rs).
 command -v chromium >/dev/null || need+=(chromium)
 if [ ${#need[@]} -gt 0 ]; then

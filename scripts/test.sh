@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
-# All tests: host unit, property and end-to-end tests of every crate, then the portable core on
-# an emulated Cortex-M4 (QEMU), whose step-event digest must equal the host's.
+# All tests: host unit, property and end-to-end tests of every crate — among them the
+# unmodified SKR 2 image on the emulated board (board-emu/tests/emulated.rs, which builds the
+# image itself) — then the portable core on an emulated Cortex-M4 (QEMU), whose step-event
+# digest must equal the host's.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh

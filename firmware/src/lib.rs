@@ -13,6 +13,11 @@
 #![cfg_attr(not(test), no_std)]
 #![deny(missing_docs)]
 
+// The TMC2209 register model (`drivers::tmc2209::model`, host builds only) keeps its datagrams
+// in `alloc` vectors.
+#[cfg(any(test, feature = "tmc-model"))]
+extern crate alloc;
+
 pub mod config;
 pub mod drivers;
 pub mod motion;

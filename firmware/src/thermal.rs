@@ -330,6 +330,26 @@ impl Thermal {
         }
     }
 
+    /// The pause's nozzle timeout (`M760 T`); `None` turns it off. A nozzle already lowered
+    /// stays so until the resume.
+    pub fn set_idle(&mut self, cfg: Option<IdleConfig>) {
+        self.idle_cfg = cfg;
+    }
+
+    /// The pause's nozzle timeout in force.
+    pub fn idle_config(&self) -> Option<IdleConfig> {
+        self.idle_cfg
+    }
+
+    /// The pause ends without a return (a cancel): the timer stops and a lowered nozzle stays
+    /// lowered (a cancel never heats).
+    pub fn pause_idle_forget(&mut self) {
+        self.idle = IdleState {
+            since_us: None,
+            saved_target_c: None,
+        };
+    }
+
     /// True while the idle timeout holds the nozzle at its lowered target.
     pub fn idle_lowered(&self) -> bool {
         self.idle.saved_target_c.is_some()

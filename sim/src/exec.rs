@@ -83,6 +83,24 @@ impl PrinterExec {
         self
     }
 
+    /// Host bytes in on one port (see [`Printer::receive_on`]); returns how many were taken.
+    pub fn receive_on(&mut self, port: firmware::link::PortId, bytes: &[u8], now_us: u64) -> usize {
+        let n = self.printer.receive_on(port, bytes, now_us);
+        self.drain_records();
+        n
+    }
+
+    /// The host on `port` came or went (see [`Printer::port_session`]).
+    pub fn port_session(&mut self, port: firmware::link::PortId, open: bool, now_us: u64) {
+        self.printer.port_session(port, open, now_us);
+        self.drain_records();
+    }
+
+    /// The pending output of one port.
+    pub fn take_output_on(&mut self, port: firmware::link::PortId, out: &mut String) {
+        let _ = self.printer.write_output_on(port, out);
+    }
+
     fn drain_records(&mut self) {
         while let Some(r) = self.printer.pop_record() {
             match r {

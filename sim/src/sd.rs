@@ -9,8 +9,9 @@
 //! with 512-byte clusters up to 24 MiB of files, FAT32 beyond. Long file names are kept
 //! (VFAT). The image is served as a file-backed block device ([`ImageDevice`]) and deleted
 //! when the session ends; later changes to DIR are not seen (restart the session).
-//! `--sd-image FILE` serves an existing image instead (never written by the firmware, which
-//! only reads the card).
+//! `--sd IMAGE` serves an existing image instead. The firmware writes only its parked
+//! intake's spill file (docs/frontend.md, "Host rules"); those writes go to blocks kept in
+//! memory ([`ImageDevice`]'s overlay), so an image file is never changed by a session.
 
 use anyhow::{bail, Context};
 use embedded_sdmmc::{Block, BlockCount, BlockDevice, BlockIdx};
@@ -30,6 +31,8 @@ pub struct ImageDevice {
     blocks: u32,
     /// Deleted on drop (a temporary image built from a directory).
     temp: Option<PathBuf>,
+    /// Blocks the firmware wrote (the spill file), kept in memory for the session.
+    written: std::cell::RefCell<std::collections::HashMap<u32, [u8; 512]>>,
 }
 
 impl ImageDevice {
@@ -44,6 +47,7 @@ impl ImageDevice {
             file,
             blocks: u32::try_from(len / 512).unwrap_or(u32::MAX),
             temp: None,
+            written: Default::default(),
         })
     }
 
@@ -87,18 +91,31 @@ impl BlockDevice for ImageDevice {
     type Error = io::ErrorKind;
 
     fn read(&self, blocks: &mut [Block], start: BlockIdx) -> Result<(), Self::Error> {
+        let written = self.written.borrow();
         for (i, b) in blocks.iter_mut().enumerate() {
-            let at = (u64::from(start.0) + i as u64) * 512;
+            let idx = start.0.saturating_add(i as u32);
+            if let Some(w) = written.get(&idx) {
+                b.contents = *w;
+                continue;
+            }
             self.file
-                .read_exact_at(&mut b.contents, at)
+                .read_exact_at(&mut b.contents, u64::from(idx) * 512)
                 .map_err(|e| e.kind())?;
         }
         Ok(())
     }
 
-    fn write(&self, _blocks: &[Block], _start: BlockIdx) -> Result<(), Self::Error> {
-        // The firmware only reads the card; an image is never changed by a session.
-        Err(io::ErrorKind::PermissionDenied)
+    fn write(&self, blocks: &[Block], start: BlockIdx) -> Result<(), Self::Error> {
+        // Into the overlay: the image file is never changed by a session.
+        let mut written = self.written.borrow_mut();
+        for (i, b) in blocks.iter().enumerate() {
+            let idx = start.0.saturating_add(i as u32);
+            if idx >= self.blocks {
+                return Err(io::ErrorKind::InvalidInput);
+            }
+            written.insert(idx, b.contents);
+        }
+        Ok(())
     }
 
     fn num_blocks(&self) -> Result<BlockCount, Self::Error> {

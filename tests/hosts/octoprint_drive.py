@@ -15,6 +15,15 @@ One OctoPrint session covers several scenarios (each wait bounded):
             counter; resume with the button.
   cancel    OctoPrint's Cancel button → "Operational".
 
+With --two-hosts (another host on the TFT port, tests/hosts/printcore_tft.py) instead:
+  twohosts  print; the other host pauses (state "Paused" seen here), OctoPrint's Resume
+            button; OctoPrint's Pause button, the other host resumes (state "Printing" seen
+            here); Cancel. OctoPrint's serial log is kept to show what reached this port.
+With --reconnect instead:
+  reconnect print; Pause button → "Paused"; disconnect and connect again (a new session:
+            OctoPrint has no job now); terminal M602 (refused by the firmware: the held job's
+            host went away) then M524 (cancels it, the head stays parked).
+
 OctoPrint runs bound to 127.0.0.1 on a free port with a temporary basedir: the first-run
 wizard is marked done, every plugin that would reach the network is disabled, and a user with
 an API key is written to users.yaml. Prints one JSON object with what each scenario saw.
@@ -46,7 +55,7 @@ def free_port():
     return port
 
 
-def write_basedir(base, emergency):
+def write_basedir(base, emergency, serial_log=False):
     config = {
         "server": {
             "firstRun": False,
@@ -59,7 +68,7 @@ def write_basedir(base, emergency):
             "additionalPorts": ["/dev/pts/*", "/proc/*/fd/*"],
             "autoconnect": False,
             # The firmware answers M105 at once; keep OctoPrint's polling at its default.
-            "log": False,
+            "log": serial_log,
         },
         "plugins": {
             # Nothing that talks to the network.
@@ -128,6 +137,100 @@ class Octo:
         return st, False
 
 
+class Done(Exception):
+    pass
+
+
+def serial_lines(base):
+    """OctoPrint's serial log: (direction, text) per line, Recv/Send."""
+    try:
+        with open(os.path.join(base, "logs", "serial.log"), errors="replace") as f:
+            lines = f.read().splitlines()
+    except OSError:
+        return []
+    out = []
+    for l in lines:
+        for tag in ("Recv: ", "Send: "):
+            i = l.find(tag)
+            if i >= 0:
+                out.append((tag[:4], l[i + len(tag):]))
+    return out
+
+
+def other_scenarios(o, a, out, printing_on, job_cmd, terminal, base):
+    sc = {}
+    if a.two_hosts:
+        # The other host (TFT) pauses: OctoPrint sees it (the plugin follows //action:paused).
+        st, ok = o.wait_state(lambda s: s == "Paused", 90)
+        sc["paused_by_other"] = ok
+        job_cmd("resume")()
+        st, ok = o.wait_state(lambda s: s == "Printing", a.wait)
+        sc["resumed_here"] = ok
+        sc["printing_on_2"] = printing_on(60)
+        job_cmd("pause")()
+        st, ok = o.wait_state(lambda s: s == "Paused", a.wait)
+        sc["paused_here"] = ok
+        # The other host resumes.
+        st, ok = o.wait_state(lambda s: s == "Printing", 90)
+        sc["resumed_by_other"] = ok
+        sc["printing_on_3"] = printing_on(60)
+        o.post("/api/job", {"command": "cancel"})
+        st, ok = o.wait_state(lambda s: s.startswith("Operational"), a.wait)
+        sc["operational_after_cancel"] = ok
+        time.sleep(1)
+        recv = [t for d, t in serial_lines(base) if d == "Recv"]
+        sc["recv_lines"] = len(recv)
+        sc["recv_other_hosts_reply"] = [t for t in recv if "tft-asks" in t]
+        sc["recv_actions"] = [t for t in recv if t.startswith("//action:")]
+        out["scenarios"]["twohosts"] = sc
+    else:
+        sc["printing_on"] = printing_on(60)
+        job_cmd("pause")()
+        st, ok = o.wait_state(lambda s: s == "Paused", a.wait)
+        sc["paused"] = ok
+        time.sleep(1)
+        o.post("/api/connection", {"command": "disconnect"})
+        st, ok = o.wait_state(lambda s: s.startswith("Offline") or s.startswith("Closed"), a.wait)
+        sc["disconnected"] = ok
+        sc["state_disconnected"] = st
+        mark = len(serial_lines(base))
+        o.post("/api/connection", {"command": "connect", "port": a.port, "baudrate": 115200})
+        st, ok = o.wait_state(lambda s: s.startswith("Operational"), 30)
+        sc["reconnected_state"] = st
+        time.sleep(2)
+        after = [t for d, t in serial_lines(base)[mark:] if d == "Recv"]
+        sc["told"] = [t for t in after if "paused: job held" in t]
+        mark = len(serial_lines(base))
+        terminal("M602")()
+        time.sleep(2)
+        sc["m602"] = [t for d, t in serial_lines(base)[mark:] if d == "Recv" and "resume" in t]
+        mark = len(serial_lines(base))
+        terminal("M524")()
+        end = time.monotonic() + a.wait
+        seen = []
+        while time.monotonic() < end:
+            seen = [t for d, t in serial_lines(base)[mark:] if d == "Recv"]
+            if "//action:cancel" in seen:
+                break
+            time.sleep(0.2)
+        sc["cancel_action"] = "//action:cancel" in seen
+        # The head after the cancel (after its park): M400, M114.
+        time.sleep(2)
+        mark = len(serial_lines(base))
+        terminal("M400")()
+        terminal("M114")()
+        end = time.monotonic() + a.wait
+        while time.monotonic() < end:
+            m114 = [t for d, t in serial_lines(base)[mark:] if d == "Recv" and t.startswith("X:")]
+            if m114:
+                sc["m114_after_cancel"] = m114[0]
+                break
+            time.sleep(0.2)
+        sc["state_end"] = o.state()
+        out["scenarios"]["reconnect"] = sc
+    o.post("/api/connection", {"command": "disconnect"})
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--port", required=True)
@@ -137,12 +240,14 @@ def main():
     ap.add_argument("--pause-layer", type=int, default=3)
     ap.add_argument("--wait", type=float, default=20.0)
     ap.add_argument("--no-emergency", action="store_true")
+    ap.add_argument("--two-hosts", action="store_true")
+    ap.add_argument("--reconnect", action="store_true")
     a = ap.parse_args()
 
     t0 = time.monotonic()
     out = {"scenarios": {}}
     base = tempfile.mkdtemp(prefix="octoprint-test-")
-    write_basedir(base, not a.no_emergency)
+    write_basedir(base, not a.no_emergency, serial_log=a.two_hosts or a.reconnect)
     port = free_port()
     log = open(os.path.join(base, "serve.log"), "w")
     proc = subprocess.Popen(
@@ -260,6 +365,9 @@ def main():
         def terminal(cmd):
             return lambda: o.post("/api/printer/command", {"commands": [cmd]})
 
+        if a.two_hosts or a.reconnect:
+            other_scenarios(o, a, out, printing_on, job_cmd, terminal, base)
+            raise Done()
         pause_resume("button", job_cmd("pause"), job_cmd("resume"))
         if o.state() == "Printing":
             pause_resume("terminal", terminal("M601"), terminal("M602"))
@@ -293,6 +401,8 @@ def main():
         out["scenarios"]["cancel"] = sc
         out["final_state"] = o.state()
         o.post("/api/connection", {"command": "disconnect"})
+    except Done:
+        pass
     except Exception as e:
         out["error"] = repr(e)
     finally:

@@ -37,20 +37,26 @@ fn octoprint_reads_the_nested_listing_and_its_selection_opens_each_file() {
         std::fs::create_dir_all(p.parent().unwrap()).unwrap();
         std::fs::write(&p, "G1 X1 ; filler\n".repeat(n / 15 + 1).get(..n).unwrap()).unwrap();
     }
-    // OctoPrint's parser, started first (its import takes ≈ 0.5 s; the session ends after 3 s
-    // without a line), fed the lines as they came.
+    // OctoPrint's parser, started first and waited for (its import takes 0.5 s on an idle
+    // machine, 3.3 s with a load average of 16; the session ends after 3 s without a line),
+    // then fed the lines as they came.
     let mut child = Command::new(&py)
         .env("PYTHONDONTWRITEBYTECODE", "1")
         .args([
             "-c",
             "import sys, json\n\
              from octoprint.util.comm import parse_file_list_line\n\
+             print('ready', flush=True)\n\
              print(json.dumps([list(parse_file_list_line(l)) for l in sys.stdin.read().splitlines()]))",
         ])
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
         .spawn()
         .expect("octoprint's python");
+    let mut parsed_out = std::io::BufReader::new(child.stdout.take().expect("stdout"));
+    let mut ready = String::new();
+    std::io::BufRead::read_line(&mut parsed_out, &mut ready).expect("parser ready");
+    assert_eq!(ready.trim(), "ready", "OctoPrint's parser did not start");
     let sd = dir.clone();
     let (server, mut host) = serve_in_thread(
         ServeArgs {
@@ -61,6 +67,8 @@ fn octoprint_reads_the_nested_listing_and_its_selection_opens_each_file() {
             link: None,
             flash: None,
             sd: Some(sd),
+            tft: false,
+            host_paced: false,
             machine: None,
             trace: None,
         },
@@ -84,10 +92,11 @@ fn octoprint_reads_the_nested_listing_and_its_selection_opens_each_file() {
         .unwrap()
         .write_all(lines.join("\n").as_bytes())
         .unwrap();
-    let out = child.wait_with_output().unwrap();
+    let mut out = String::new();
+    std::io::Read::read_to_string(&mut parsed_out, &mut out).unwrap();
+    child.wait().unwrap();
     let parsed: Vec<(String, u64, Option<String>, Option<String>)> =
-        serde_json::from_slice(&out.stdout)
-            .unwrap_or_else(|e| panic!("{e}: {}", String::from_utf8_lossy(&out.stdout)));
+        serde_json::from_str(&out).unwrap_or_else(|e| panic!("{e}: {out}"));
     assert_eq!(parsed.len(), FILES.len(), "{lines:?}");
     for (path, n) in FILES {
         let (short, size, _, _) = parsed

@@ -23,6 +23,8 @@ fn a_host_prints_pauses_and_resumes_over_the_pseudo_terminal() {
             machine: None,
             trace: None,
             sd: None,
+            tft: false,
+            host_paced: false,
         },
         Duration::from_secs(10),
     );

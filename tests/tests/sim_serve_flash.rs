@@ -28,6 +28,8 @@ fn session_with(flash: &Path, lines: &[&str], pause_after: Option<usize>) -> Vec
             machine: None,
             trace: None,
             sd: None,
+            tft: false,
+            host_paced: false,
         },
         Duration::from_secs(10),
     );

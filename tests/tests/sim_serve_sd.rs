@@ -37,6 +37,8 @@ fn a_host_prints_a_sliced_file_from_the_card_with_a_layer_pause() {
             link: None,
             flash: None,
             sd: Some(sd),
+            tft: false,
+            host_paced: false,
             machine: None,
             trace: None,
         },

@@ -77,9 +77,23 @@ impl BlockDevice for SdioCard {
         Ok(())
     }
 
-    fn write(&self, _blocks: &[Block], _start: BlockIdx) -> Result<(), Self::Error> {
-        // The firmware only reads the card (no M28/M928).
-        Err(SdioError::NotUp)
+    fn write(&self, blocks: &[Block], start: BlockIdx) -> Result<(), Self::Error> {
+        // Only the parked intake's spill file is written (storage/sd, printer/spill.rs).
+        if !self.up.get() {
+            return Err(SdioError::NotUp);
+        }
+        let mut dev = self.dev.try_borrow_mut().map_err(|_| SdioError::Busy)?;
+        let mut data = DataBlock::new();
+        for (i, b) in blocks.iter().enumerate() {
+            let idx = start.0.saturating_add(i as u32);
+            data.copy_from_slice(&b.contents);
+            if let Err(e) = embassy_futures::block_on(dev.write_block(idx, &data)) {
+                defmt::warn!("SD block {=u32} not written: {}", idx, e);
+                self.up.set(false);
+                return Err(SdioError::Card);
+            }
+        }
+        Ok(())
     }
 
     fn num_blocks(&self) -> Result<BlockCount, Self::Error> {

@@ -481,5 +481,7 @@ impl<P: OutputPin + InputPin + Direction, D: DelayNs> SingleWire for SoftUart<P,
     }
 }
 
+#[cfg(any(test, feature = "tmc-model"))]
+pub mod model;
 #[cfg(test)]
 mod tests;

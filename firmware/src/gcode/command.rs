@@ -73,6 +73,9 @@ pub struct PauseParams {
     pub max_volumetric_mm3_s: Option<f32>,
     /// `L`: planner segment length, mm.
     pub segment_len_mm: Option<f32>,
+    /// `T`: seconds parked before the nozzle heater goes off (0 = never; see
+    /// [`crate::thermal::IdleConfig`]).
+    pub nozzle_timeout_s: Option<f32>,
 }
 
 impl PauseParams {

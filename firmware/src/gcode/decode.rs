@@ -252,7 +252,7 @@ pub(super) fn build_known(code: (u8, u16), w: &Words<'_>) -> Option<Result<Comma
                 }
             }
             (b'M', 760) => {
-                w.check(b"RZXYFSVL", b"")?;
+                w.check(b"RZXYFSVLT", b"")?;
                 Command::PauseParams(PauseParams {
                     retract_mm: w.f32(b'R')?,
                     lift_z_mm: w.f32(b'Z')?,
@@ -262,6 +262,7 @@ pub(super) fn build_known(code: (u8, u16), w: &Words<'_>) -> Option<Result<Comma
                     speedup_factor: w.f32(b'S')?,
                     max_volumetric_mm3_s: w.f32(b'V')?,
                     segment_len_mm: w.f32(b'L')?,
+                    nozzle_timeout_s: w.f32(b'T')?,
                 })
             }
             (b'M', 761) => {

@@ -226,7 +226,8 @@ pub fn write_command<W: Write>(w: &mut W, c: &Command) -> fmt::Result {
             opt(w, 'F', p.park_feed_mm_min)?;
             opt(w, 'S', p.speedup_factor)?;
             opt(w, 'V', p.max_volumetric_mm3_s)?;
-            opt(w, 'L', p.segment_len_mm)
+            opt(w, 'L', p.segment_len_mm)?;
+            opt(w, 'T', p.nozzle_timeout_s)
         }
         Command::SchedulePause(s) => {
             w.write_str("M761")?;

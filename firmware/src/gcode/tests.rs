@@ -162,7 +162,7 @@ fn text_commands() {
 #[test]
 fn firmware_specific() {
     assert_eq!(
-        cmd("M760 R2 Z5 X235 Y235 F3600 S3 V12 L0.2"),
+        cmd("M760 R2 Z5 X235 Y235 F3600 S3 V12 L0.2 T45"),
         Command::PauseParams(PauseParams {
             retract_mm: Some(2.0),
             lift_z_mm: Some(5.0),
@@ -172,6 +172,7 @@ fn firmware_specific() {
             speedup_factor: Some(3.0),
             max_volumetric_mm3_s: Some(12.0),
             segment_len_mm: Some(0.2),
+            nozzle_timeout_s: Some(45.0),
         })
     );
     assert_eq!(cmd("M760"), Command::PauseParams(PauseParams::default()));
@@ -384,10 +385,11 @@ fn command() -> impl Strategy<Value = Command> {
             onum(),
             onum(),
             onum(),
+            onum(),
             onum()
         )
             .prop_map(
-                |(a, b, c, d, e, f, g, h)| Command::PauseParams(PauseParams {
+                |(a, b, c, d, e, f, g, h, i)| Command::PauseParams(PauseParams {
                     retract_mm: a,
                     lift_z_mm: b,
                     park_x_mm: c,
@@ -395,7 +397,8 @@ fn command() -> impl Strategy<Value = Command> {
                     park_feed_mm_min: e,
                     speedup_factor: f,
                     max_volumetric_mm3_s: g,
-                    segment_len_mm: h
+                    segment_len_mm: h,
+                    nozzle_timeout_s: i
                 })
             ),
         prop_oneof![

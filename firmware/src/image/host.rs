@@ -1,7 +1,7 @@
 //! The host ports: USB CDC-ACM and the TFT header's UART, each feeding `Printer::receive_on`
 //! with flow control, and the executive's output pushed to each port's pipe.
 
-use embassy_futures::join::join;
+use embassy_futures::join::join3;
 use embassy_futures::select::{select, Either};
 use embassy_stm32::peripherals;
 use embassy_stm32::usart::BufferedUart;
@@ -42,7 +42,22 @@ pub(super) async fn cdc_task(
     class: CdcAcmClass<'static, Driver<'static, peripherals::USB_OTG_FS>>,
     printer: Shared,
 ) {
-    let (mut tx, mut rx) = class.split();
+    // The session (docs/frontend.md, "A session that ends while paused"): DTR set when a host
+    // opens the port, cleared when it closes it; a USB reset or unplug ends it too.
+    let (mut tx, mut rx, control) = class.split_with_control();
+    let line_state = async {
+        let mut open = false;
+        loop {
+            control.control_changed().await;
+            let dtr = control.dtr();
+            if dtr != open {
+                open = dtr;
+                printer
+                    .borrow_mut()
+                    .port_session(PortId::Usb, dtr, printer_now_us());
+            }
+        }
+    };
     let receive = async {
         let mut buf = [0u8; 64];
         loop {
@@ -63,6 +78,10 @@ pub(super) async fn cdc_task(
                     Timer::after_millis(1).await;
                 }
             }
+            // The endpoint went down (USB reset or unplug): the session ended.
+            printer
+                .borrow_mut()
+                .port_session(PortId::Usb, false, printer_now_us());
         }
     };
     let send = async {
@@ -78,7 +97,7 @@ pub(super) async fn cdc_task(
             }
         }
     };
-    join(receive, send).await;
+    join3(receive, send, line_state).await;
 }
 
 #[embassy_executor::task]

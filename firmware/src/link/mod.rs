@@ -169,6 +169,15 @@ impl ReceivedLine {
         Self { text, number: None }
     }
 
+    /// A line taken earlier and kept (the parked intake's spill file): its text and number
+    /// as the host sent them. `None` when the text is longer than [`LINE_CAP`].
+    pub fn kept(text: &[u8], number: Option<u32>) -> Option<Self> {
+        Some(Self {
+            text: Vec::from_slice(text).ok()?,
+            number,
+        })
+    }
+
     /// The command text (line number and checksum stripped, surrounding spaces trimmed).
     pub fn text(&self) -> &[u8] {
         &self.text

@@ -33,6 +33,14 @@ impl PortId {
             PortId::Tft => 1,
         }
     }
+
+    /// Its name in messages (`USB`, `TFT`).
+    pub const fn name(self) -> &'static str {
+        match self {
+            PortId::Usb => "USB",
+            PortId::Tft => "TFT",
+        }
+    }
 }
 
 /// The host links of every port, and where answers go. The executive uses it as it would one
@@ -188,6 +196,23 @@ impl HostPorts {
     pub fn notify(&mut self, r: Response<'_>) {
         for l in &mut self.links {
             l.respond(r);
+        }
+    }
+
+    /// The host on port `p` went away (USB DTR dropped or unplugged, the pty closed): its
+    /// line assembly, line numbers, waiting lines and unsent answers are forgotten, as a new
+    /// connection starts them anew.
+    pub fn reset_port(&mut self, p: PortId) {
+        let halted = self.port(p).is_halted();
+        *self.port_mut(p) = HostLink::new();
+        if halted {
+            self.port_mut(p).halt();
+        }
+        if self.line_port == Some(p) {
+            self.line_port = None;
+        }
+        if self.request_port == Some(p) {
+            self.request_port = None;
         }
     }
 

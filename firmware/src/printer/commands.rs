@@ -238,8 +238,9 @@ impl Printer {
     pub(super) fn m760(&mut self, p: &gcode::PauseParams) {
         if p.is_empty() {
             let c = self.cfg.pause;
+            let t = self.thermal.idle_config().map_or(0, |i| i.timeout_s);
             self.say(format_args!(
-                "M760 R{:.2} Z{:.2} X{:.1} Y{:.1} F{:.0} S{:.2} V{:.1} L{:.3}",
+                "M760 R{:.2} Z{:.2} X{:.1} Y{:.1} F{:.0} S{:.2} V{:.1} L{:.3} T{t}",
                 c.retract_mm,
                 c.lift_z_mm,
                 c.park_x_mm,
@@ -250,6 +251,15 @@ impl Printer {
                 c.segment_len_mm
             ));
             return;
+        }
+        if let Some(t) = p.nozzle_timeout_s.filter(|t| t.is_finite() && *t >= 0.0) {
+            // Whole seconds; 0 = the nozzle stays hot however long the pause.
+            let secs = libm::roundf(t) as u32;
+            self.thermal
+                .set_idle((secs > 0).then_some(crate::thermal::IdleConfig {
+                    timeout_s: secs,
+                    nozzle_c: 0.0,
+                }));
         }
         let pos = |v: Option<f32>| v.filter(|x| x.is_finite() && *x >= 0.0);
         let c = &mut self.cfg.pause;

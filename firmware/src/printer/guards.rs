@@ -32,6 +32,8 @@ pub const EXTRUDE_MINTEMP_C: f32 = 170.0;
 /// Marlin's `EXTRUDE_MAXLENGTH` in its Ender-3 example configurations, mm.
 pub const EXTRUDE_MAXLENGTH_MM: f32 = 200.0;
 
+/// Longest pause nozzle timeout (M760 T), s: a day.
+pub const MAX_NOZZLE_TIMEOUT_S: f32 = 86_400.0;
 /// Longest pause retract (M760 R), mm.
 pub const MAX_PAUSE_RETRACT_MM: f32 = 20.0;
 
@@ -158,7 +160,7 @@ pub fn check_pause_params(p: &PauseParams, cfg: &MachineConfig) -> Result<(), Re
     let y = cfg.axis(Axis::Y);
     let z = cfg.axis(Axis::Z);
     let xy_feed_mm_min = x.max_feed_mm_s.min(y.max_feed_mm_s) * 60.0;
-    let checks: [(char, Option<f32>, f32, f32); 8] = [
+    let checks: [(char, Option<f32>, f32, f32); 9] = [
         ('R', p.retract_mm, 0.0, MAX_PAUSE_RETRACT_MM),
         ('Z', p.lift_z_mm, 0.0, z.max_mm - z.min_mm),
         ('X', p.park_x_mm, x.min_mm, x.max_mm),
@@ -167,6 +169,7 @@ pub fn check_pause_params(p: &PauseParams, cfg: &MachineConfig) -> Result<(), Re
         ('S', p.speedup_factor, 1.0, 10.0),
         ('V', p.max_volumetric_mm3_s, f32::MIN_POSITIVE, 1000.0),
         ('L', p.segment_len_mm, 0.0, 1000.0),
+        ('T', p.nozzle_timeout_s, 0.0, MAX_NOZZLE_TIMEOUT_S),
     ];
     for (letter, value, min, max) in checks {
         if let Some(v) = value {

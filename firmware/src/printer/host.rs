@@ -14,17 +14,29 @@ use crate::printer::{CMD_CAPACITY, CMD_SLOTS};
 use core::fmt::Write as _;
 use heapless::String;
 
-/// Job lines a parked printer takes beyond the running queue limit ([`CMD_CAPACITY`]), one
-/// per pace period, so that a host that keeps streaming one numbered line per `ok` into a
-/// parked printer (printcore: it ignores `//action:paused`) keeps getting `ok`s, and with each
-/// `ok` its priority queue (`send_now`: M602, M524, M105, jogs) gets out. Bounded, as any
-/// buffer: see docs/frontend.md, "Host rules", for why no firmware can do this for ever.
+/// Job lines a parked printer takes into RAM beyond the running queue limit
+/// ([`CMD_CAPACITY`]), one per pace period, so that a host that keeps streaming one numbered
+/// line per `ok` into a parked printer (printcore: it ignores `//action:paused`) keeps getting
+/// `ok`s, and with each `ok` its priority queue (`send_now`: M602, M524, M105, jogs) gets out.
+/// Beyond them the lines go to the SD card when one is mounted (`spill.rs`), for as long as
+/// the pause lasts; without a card the intake ends here (docs/frontend.md, "Host rules").
 pub const PARKED_EXTRA: usize = 96;
 
 /// Pace of the parked intake: a job line that has waited this long while parked is taken
-/// (and its `ok` sent); the period grows by this much for every 32 lines taken, so the
-/// intake lasts 32 × (1 + 2 + 3) s = 192 s of pause with `ok`s at most 3 s apart.
+/// (and its `ok` sent). With a card to spill to the pace stays at this, so a console line
+/// queued at any moment gets out within it; without one it grows by this much for every 32
+/// lines taken, so the RAM slots last 32 × (1 + 2 + 3) s = 192 s of pause with `ok`s at most
+/// 3 s apart.
 pub const PARKED_PACE_US: u64 = 1_000_000;
+
+/// Where the parked intake puts a job line it takes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Intake {
+    /// Into the command queue (within the running limit, or into the RAM extra slots).
+    Queue,
+    /// Into the spill on the SD card (`spill.rs`).
+    Spill,
+}
 
 /// After a cancel, the host may still stream the rest of the job (printcore ignores
 /// `//action:cancel`; lines were in flight): those lines are discarded (answered `ok`, never
@@ -60,6 +72,13 @@ pub(super) struct HostLines {
     pub(super) last_busy_us: u64,
     /// When `held_line` started to wait, µs (the parked intake's pace counts from it).
     pub(super) held_since_us: u64,
+    /// The port `held_line` came from.
+    pub(super) held_port: Option<crate::link::PortId>,
+    /// The port of the last job line taken (whose host streams the job).
+    pub(super) job_port: Option<crate::link::PortId>,
+    /// The job's host went away while the job ran or was paused (`session.rs`): it cannot be
+    /// resumed, only cancelled.
+    pub(super) orphaned: bool,
 }
 
 impl Printer {
@@ -102,21 +121,46 @@ impl Printer {
             .saturating_sub(self.policy.cmd_limit.clamp(1, CMD_CAPACITY))
     }
 
-    /// Whether the job line waiting in `held_line` is due for the parked intake: parked, room
-    /// in the extra slots, and it has waited the pace ([`PARKED_PACE_US`], longer as the
-    /// extra slots fill). Then it is taken and answered `ok`, and the host's next line (its
+    /// Whether a job line may go straight into the queue: room under the limit, and no
+    /// spilled line ahead of it.
+    fn job_line_fits(&self) -> bool {
+        self.line_room() && self.spill.pending() == 0
+    }
+
+    /// Whether the job line waiting in `held_line` is due for the paced intake, and where it
+    /// goes: parked (or, after the resume, while what the intake took still runs), and it has
+    /// waited the pace ([`PARKED_PACE_US`]; longer as the RAM slots fill when no card can
+    /// take the spill). Then it is taken and answered `ok`, and the host's next line (its
     /// priority line, or its next job line, which waits the next pace) follows.
-    fn parked_intake_due(&self) -> bool {
-        let pace_us = PARKED_PACE_US * (1 + (self.parked_excess() / 32) as u64);
-        matches!(self.pause, Pause::Parked { .. })
-            && self.cmds.len() + 2 <= CMD_SLOTS
-            && self.now_us.saturating_sub(self.lines.held_since_us) >= pace_us
+    fn intake_due(&self, line: &ReceivedLine) -> Option<Intake> {
+        let backlog = self.parked_excess() > 0 || self.spill.pending() > 0;
+        let on = match self.pause {
+            // A job whose host went away takes no new session's lines behind it.
+            Pause::Parked { .. } => !self.lines.orphaned,
+            Pause::Run => backlog,
+            _ => false,
+        };
+        if !on {
+            return None;
+        }
+        let pace_us = if self.spill_possible() {
+            PARKED_PACE_US
+        } else {
+            PARKED_PACE_US * (1 + (self.parked_excess() / 32) as u64)
+        };
+        if self.now_us.saturating_sub(self.lines.held_since_us) < pace_us {
+            return None;
+        }
+        if self.spill.pending() == 0 && self.cmds.len() + 2 <= CMD_SLOTS {
+            return Some(Intake::Queue);
+        }
+        self.spill_room(line).then_some(Intake::Spill)
     }
 
     /// Whether a host line waiting for room should get `busy:` keep-alives: while a pause
-    /// holds the queue, and while the lines the parked intake took drain after the resume.
+    /// holds the queue, and while the lines the parked intake took run after the resume.
     fn host_kept_waiting(&self) -> bool {
-        !matches!(self.pause, Pause::Run) || self.parked_excess() > 0
+        !matches!(self.pause, Pause::Run) || self.parked_excess() > 0 || self.spill.pending() > 0
     }
 
     /// Whether a host line taken now is a manual command (while parked, see [`PausedLines`]).
@@ -171,7 +215,7 @@ impl Printer {
                 let fits = if self.is_manual(held) {
                     !self.service.is_full()
                 } else {
-                    self.line_room() || self.parked_intake_due()
+                    self.job_line_fits() || self.intake_due(held).is_some()
                 };
                 if !fits {
                     if self.host_kept_waiting() {
@@ -196,18 +240,27 @@ impl Printer {
                 continue;
             }
             let manual = self.is_manual(&line);
-            let fits = if manual {
-                !self.service.is_full()
+            let route = if manual {
+                (!self.service.is_full()).then_some(Intake::Queue)
+            } else if self.job_line_fits() {
+                Some(Intake::Queue)
+            } else if from_held {
+                self.intake_due(&line)
             } else {
-                self.line_room() || (from_held && self.parked_intake_due())
+                None
             };
-            if !fits {
+            if route == Some(Intake::Spill) {
+                self.spill_line(&line);
+                continue;
+            }
+            if route.is_none() {
                 if answered_without_room(&line) {
                     self.answer_report(&line);
                     continue;
                 }
                 self.lines.held_line = Some(line);
                 self.lines.held_since_us = self.now_us;
+                self.lines.held_port = Some(self.link.reply_port());
                 if self.host_kept_waiting() {
                     // A pause holds the queue: keep the host from timing out.
                     self.keep_alive();
@@ -217,6 +270,9 @@ impl Printer {
             if line.number().is_some() {
                 self.lines.host_numbers = true;
                 self.lines.last_line_no = line.number();
+            }
+            if !manual {
+                self.lines.job_port = Some(self.link.reply_port());
             }
             self.last_activity_us = self.now_us;
             if manual {

@@ -54,6 +54,11 @@ mod report;
 // SD-card printing: the SD M-codes and the card as a job source.
 mod sd;
 pub use sd::{SD_CHUNK, SD_LINES_PER_SERVICE};
+// The parked intake's spill to the SD card.
+mod spill;
+// Host sessions that end and begin (USB DTR, the sim's pty).
+mod session;
+pub use spill::{SPILL_CHUNK, SPILL_FLUSH, SPILL_STAGE};
 
 pub use service::ServiceMove;
 
@@ -142,6 +147,8 @@ pub struct Printer {
     job: job::JobLink,
     /// The SD card's job and the commands waiting for the card (see `sd.rs`).
     sd: sd::SdLink,
+    /// Job lines of a parked printer kept on the card (see `spill.rs`).
+    spill: spill::Spill,
 }
 
 fn steps(cfg: &MachineConfig, axis: Axis, mm: f32) -> i32 {
@@ -198,6 +205,7 @@ impl Printer {
             reports: report::Reports::new(),
             job: job::JobLink::new(),
             sd: sd::SdLink::new(),
+            spill: spill::Spill::new(),
         };
         p.set_policy(policy);
         p.set_factory_settings();
@@ -293,7 +301,6 @@ impl Printer {
     }
 
     /// An `echo:` line to every port (a notification, not an answer: pause state changes).
-    #[allow(dead_code)]
     fn notice(&mut self, args: core::fmt::Arguments) {
         let mut t: String<LINE_LEN> = String::new();
         let _ = t.write_fmt(args);
@@ -434,7 +441,10 @@ impl Printer {
     }
 
     fn has_work(&self) -> bool {
-        !self.cmds.is_empty() || !self.planner.is_empty() || self.stepgen.current().is_some()
+        !self.cmds.is_empty()
+            || !self.planner.is_empty()
+            || self.stepgen.current().is_some()
+            || self.spill.pending() > 0
     }
 
     /// Realtime request (pause button, sim, or parsed from the byte stream).
@@ -537,8 +547,16 @@ impl Printer {
         self.set_now(now_us);
         let had_fault = self.thermal.fault().is_some();
         let tune = self.thermal.autotune_status(id);
+        let was_lowered = self.thermal.idle_lowered();
         let duty = self.thermal.update(id, measured_c, now_us);
         self.report_autotune(id, tune);
+        if !was_lowered && self.thermal.idle_lowered() {
+            let s = self.thermal.idle_config().map_or(0, |i| i.timeout_s);
+            self.notice(format_args!(
+                "pause: nozzle heater off after {s} s parked (M760 T); the resume heats it \
+                 again and waits before the head moves"
+            ));
+        }
         if !had_fault {
             if let Some(f) = self.thermal.fault() {
                 let mut t: String<LINE_LEN> = String::new();

@@ -132,6 +132,10 @@ impl Printer {
 
     pub(super) fn request_resume(&mut self) {
         match &mut self.pause {
+            Pause::Parked { .. } if self.lines.orphaned => self.say(format_args!(
+                "refused: resume: the host that streamed this job went away; M524 ends it (the \
+                 head stays parked)"
+            )),
             Pause::Parked { .. } => self.start_resume(),
             Pause::Parking { then, .. } => {
                 if *then != AfterPark::Cancel {
@@ -166,6 +170,8 @@ impl Printer {
         let pos = self.stepgen.position();
         let (blocks, segs, marks) = self.planner.clear(pos);
         self.cmds.clear();
+        self.spill_drop();
+        self.lines.orphaned = false;
         self.pay_sync_ok();
         self.arc = None;
         self.schedule = None;
@@ -234,7 +240,8 @@ impl Printer {
         self.planner.clear(pos);
         self.planner.exec_done();
         self.machine.set_position_steps(&pos, &self.cfg);
-        self.thermal.pause_idle_end();
+        // A nozzle the timeout turned off stays off: a cancel never heats.
+        self.thermal.pause_idle_forget();
     }
 
     pub(super) fn emergency_stop(&mut self) {
@@ -263,6 +270,7 @@ impl Printer {
         self.planner.exec_done();
         self.service.clear();
         self.pause = Pause::Run;
+        self.lines.orphaned = false;
         self.arc = None;
         self.machine.set_position_steps(&pos, &self.cfg);
         self.say(format_args!(

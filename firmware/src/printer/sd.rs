@@ -215,6 +215,11 @@ impl Printer {
         });
     }
 
+    /// Whether the card can take the parked intake's spill: mounted and not read for a job.
+    pub(super) fn sd_spill_ready(&self) -> bool {
+        self.sd.attached && self.sd.mounted && !self.sd_printing()
+    }
+
     /// See [`SdLink::cancelled`].
     pub(super) fn sd_cancelled(&self) -> bool {
         self.sd.cancelled
@@ -293,6 +298,7 @@ impl Printer {
             self.sd.cancelled = false;
         }
         self.card_request(card);
+        self.service_spill(card);
         self.feed_card_lines(card);
         self.sd_finish(card);
         self.sd_auto_report();
@@ -320,6 +326,23 @@ impl Printer {
         let Some(req) = self.sd.request.take() else {
             return;
         };
+        if let CardRequest::Mount { port: Some(port) } | CardRequest::Release { port: Some(port) } =
+            req
+        {
+            if self.spill.pending() > 0 {
+                // The card holds job lines the host was told were taken.
+                let n = self.spill.pending();
+                self.sd.request = None;
+                let mut t: String<LINE_LEN> = String::new();
+                let _ = write!(
+                    t,
+                    "refused: the SD card holds {n} job lines of the paused job"
+                );
+                self.answer_to(Some(port), Response::Echo(&t));
+                self.answer_to(Some(port), Response::Ok);
+                return;
+            }
+        }
         match req {
             CardRequest::Mount { port } => {
                 self.sd_drop_job(card);

@@ -444,6 +444,11 @@ impl Printer {
             speedup_factor: Some(p.speedup_factor),
             max_volumetric_mm3_s: Some(p.max_volumetric_mm3_s),
             segment_len_mm: Some(p.segment_len_mm),
+            nozzle_timeout_s: Some(
+                self.thermal
+                    .idle_config()
+                    .map_or(0.0, |i| i.timeout_s as f32),
+            ),
         }));
     }
 }

@@ -66,15 +66,27 @@ pub struct HeaterConfig {
     pub residency_s: f32,
 }
 
-/// The optional pause idle timeout: while paused, after `timeout_s` the nozzle target is lowered
-/// to `nozzle_c` so filament does not cook in the hot end; on resume the old target comes back
-/// and the executive waits for it before moving.
+/// The pause's nozzle timeout: while parked, after `timeout_s` the nozzle target is lowered to
+/// `nozzle_c` so filament does not cook in the hot end; on resume the old target comes back and
+/// the executive waits for it before the head moves back. The bed is never touched (the part
+/// must stay stuck to it). Marlin's pause does the same with `PAUSE_PARK_NOZZLE_TIMEOUT`
+/// (`feature/pause.cpp`, `wait_for_confirmation`: the hot ends' idle timers only; `resume_print`:
+/// re-heat and wait before the moves back). Set with `M760 T<s>` (`T0`: off).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct IdleConfig {
     /// Seconds paused before the nozzle is lowered.
     pub timeout_s: u32,
     /// Nozzle target while idle, °C (0 = off).
     pub nozzle_c: f32,
+}
+
+impl IdleConfig {
+    /// Marlin's default: the nozzle heater off after 45 s parked (`PAUSE_PARK_NOZZLE_TIMEOUT`,
+    /// `Configuration_adv.h`), the bed kept.
+    pub const MARLIN: IdleConfig = IdleConfig {
+        timeout_s: 45,
+        nozzle_c: 0.0,
+    };
 }
 
 /// The whole thermal configuration.
@@ -90,7 +102,7 @@ pub struct ThermalConfig {
     /// Consecutive out-of-range samples before a min/max/sensor fault (filters single glitches;
     /// at 10 Hz, 3 samples = 0.3 s).
     pub range_fault_samples: u8,
-    /// Pause idle timeout (None = off, the default, like Marlin's `HOTEND_IDLE_TIMEOUT`).
+    /// The pause's nozzle timeout (None = off).
     pub idle: Option<IdleConfig>,
 }
 
@@ -130,7 +142,7 @@ impl ThermalConfig {
         },
         hotend_fan_c: 50.0,
         range_fault_samples: 3,
-        idle: None,
+        idle: Some(IdleConfig::MARLIN),
     };
 }
 

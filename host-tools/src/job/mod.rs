@@ -11,6 +11,7 @@ pub mod modal;
 pub mod ops;
 pub mod preview;
 pub mod preview_html;
+pub mod preview_moves;
 pub mod read;
 pub mod sender;
 pub mod stats;

@@ -18,6 +18,27 @@ pub struct ServeRecord {
     pub session: SessionReport,
     /// One object per pause (the fields of `sim run --json`).
     pub pauses: Vec<PauseReport>,
+    /// One object per port (USB, and TFT with `--tft`).
+    pub ports: Vec<PortReport>,
+    /// Where the head was when the session ended (the sim's steps, X Y Z E).
+    pub end_position_steps: [i32; 4],
+}
+
+/// What one port's host did.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct PortReport {
+    /// `USB` or `TFT`.
+    pub port: String,
+    /// Complete lines received.
+    pub lines_received: u64,
+    /// Of those, the numbered ones.
+    pub numbered_lines_received: u64,
+    /// A host streaming into the parked printer (printcore: one numbered line per `ok`): how
+    /// many times it waited from a numbered line it sent while parked to its next line.
+    pub parked_host_waits: u64,
+    /// The longest such wait, virtual seconds. A console line the host queues at any moment
+    /// goes out with its next line, so this bounds its delivery.
+    pub parked_host_wait_max_s: f64,
 }
 
 pub(super) fn reports(
@@ -233,4 +254,76 @@ fn host_stops(
         after_gap.clear();
     }
     out
+}
+
+/// What the session saw besides the firmware: for [`session_record`].
+pub(super) struct Seen<'a> {
+    pub(super) pauses: &'a [PauseTrack],
+    pub(super) cancel_marks: &'a [usize],
+    /// Lines and numbered lines received, over every port.
+    pub(super) lines: (u64, u64),
+    /// Virtual time of the first host byte.
+    pub(super) first_byte_us: Option<u64>,
+    /// Real seconds the session ran.
+    pub(super) wall_s: f64,
+}
+
+/// The whole session judged once it ends: moves lost or duplicated, whether the job
+/// finished, and one report per pause.
+pub(super) fn session_record(
+    fw: &mut PrinterExec,
+    rec: &Recorder,
+    sc: &Scenario,
+    seen: &Seen,
+) -> ServeRecord {
+    let end_us = rec.last_step_us;
+    let t0_us = seen.first_byte_us.unwrap_or(0);
+    let moving_at_end = fw.printer.next_step_us().is_some();
+    let moves = crate::session::MoveLog {
+        executed: &fw.executed,
+        cancel_marks: seen.cancel_marks,
+        moving_at_end,
+    }
+    .counts();
+    let mut pauses = reports(seen.pauses, rec, fw, sc, t0_us, end_us, &moves);
+    // Wall time of the session and virtual time per wall second (≈ `--speed`).
+    for r in &mut pauses {
+        r.sim_wall_s = seen.wall_s;
+        r.realtime_factor = if seen.wall_s > 0.0 {
+            end_us as f64 * 1e-6 / seen.wall_s
+        } else {
+            0.0
+        };
+    }
+    let layers = extrusion_layers(&rec.records);
+    let cancelled_last = seen
+        .cancel_marks
+        .last()
+        .is_some_and(|&m| m >= fw.executed.len());
+    ServeRecord {
+        session: SessionReport {
+            lines_received: seen.lines.0,
+            numbered_lines_received: seen.lines.1,
+            moves_executed: moves.moves,
+            segments_executed: moves.segments,
+            lost_moves: moves.lost.0,
+            duplicated_moves: moves.duplicated.0,
+            lost_segments: moves.lost.1,
+            duplicated_segments: moves.duplicated.1,
+            cancelled_moves: moves.cancelled,
+            running_at_end: moves.running_at_end,
+            cancelled: !seen.cancel_marks.is_empty(),
+            finished: fw.status().state == RunState::Idle
+                && !cancelled_last
+                && !moves.running_at_end
+                && moves.lost.0 == 0
+                && moves.moves > 0,
+            layers_extruded: layers.last().map_or(0, |l| l.1 + 1),
+            pauses: pauses.len(),
+            print_time_s: end_us.saturating_sub(t0_us) as f64 * 1e-6,
+        },
+        pauses,
+        ports: Vec::new(),
+        end_position_steps: rec.pos,
+    }
 }

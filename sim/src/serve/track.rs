@@ -32,10 +32,24 @@ pub(super) struct Sniffer {
     /// Complete non-empty lines seen, and of those the numbered ones.
     pub(super) lines: u64,
     pub(super) numbered: u64,
+    /// When the last line came, if it was a numbered line that came while the printer was
+    /// parked (a host streaming into the parked printer), virtual µs.
+    last_parked_job_line_us: Option<u64>,
+    /// The longest virtual time from such a line to the host's next line (see
+    /// [`super::ServeRecord::ports`]), and how many such waits were seen.
+    pub(super) parked_wait_max_us: u64,
+    pub(super) parked_waits: u64,
 }
 
 impl Sniffer {
-    pub(super) fn feed(&mut self, bytes: &[u8], out: &mut Vec<Realtime>) {
+    /// Bytes the firmware took at `now_us`; `parked`: the printer is parked.
+    pub(super) fn feed(
+        &mut self,
+        bytes: &[u8],
+        out: &mut Vec<Realtime>,
+        now_us: u64,
+        parked: bool,
+    ) {
         for &b in bytes {
             if let Some(r) = firmware::link::control_byte(b) {
                 out.push(r);
@@ -49,7 +63,15 @@ impl Sniffer {
                     continue;
                 }
                 self.lines += 1;
-                self.numbered += u64::from(body.starts_with('N'));
+                let numbered = body.starts_with('N');
+                self.numbered += u64::from(numbered);
+                if let Some(t) = self.last_parked_job_line_us.take() {
+                    self.parked_wait_max_us = self.parked_wait_max_us.max(now_us.saturating_sub(t));
+                    self.parked_waits += 1;
+                }
+                if numbered && parked {
+                    self.last_parked_job_line_us = Some(now_us);
+                }
                 let body = match body.strip_prefix('N') {
                     Some(rest) => rest.split_once(' ').map_or("", |x| x.1),
                     None => body,

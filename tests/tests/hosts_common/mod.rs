@@ -62,16 +62,25 @@ pub struct Sim {
     child: Child,
     /// The device path it printed.
     pub device: String,
+    /// The TFT port's device path (`--tft`).
+    #[allow(dead_code)]
+    pub tft: Option<String>,
     record: PathBuf,
 }
 
 impl Sim {
     /// Start `sim serve --speed <speed> --exit-after-idle <idle_s> --record …`.
     pub fn start(tag: &str, speed: &str, idle_s: &str) -> Sim {
+        Self::start_with(tag, speed, idle_s, &[])
+    }
+
+    /// [`Sim::start`] with more `sim serve` arguments (`--sd DIR`, ...).
+    pub fn start_with(tag: &str, speed: &str, idle_s: &str, more: &[&str]) -> Sim {
         let record = std::env::temp_dir().join(format!("hosts_{tag}_{}.json", std::process::id()));
         let _ = std::fs::remove_file(&record);
         let mut child = Command::new(bin("sim", "sim"))
             .args(["serve", "--speed", speed, "--exit-after-idle", idle_s])
+            .args(more)
             .arg("--record")
             .arg(&record)
             .stdout(Stdio::piped())
@@ -80,14 +89,21 @@ impl Sim {
             .expect("start sim serve");
         let mut line = String::new();
         let out = child.stdout.take().expect("stdout");
-        BufReader::new(out)
-            .read_line(&mut line)
-            .expect("device path");
+        let mut out = BufReader::new(out);
+        out.read_line(&mut line).expect("device path");
         let device = line.trim().to_string();
         assert!(device.starts_with("/dev/"), "sim printed {device:?}");
+        let tft = more.contains(&"--tft").then(|| {
+            line.clear();
+            out.read_line(&mut line).expect("TFT device path");
+            let tft = line.trim().to_string();
+            assert!(tft.starts_with("/dev/"), "sim printed {tft:?}");
+            tft
+        });
         Sim {
             child,
             device,
+            tft,
             record,
         }
     }

@@ -28,7 +28,10 @@
 //! (a listing reads each directory `1 + sub-directories` times). The crate keeps one 512-byte
 //! block cache; this type adds no buffer of its own.
 //!
-//! Limits: the card is read, never written (no M28/M928 logging). The crate needs an
+//! Written: only the parked intake's spill file [`SPILL_NAME`] in the root directory (job
+//! lines a host streams into a parked printer, kept until they run: `printer/spill.rs`,
+//! docs/frontend.md "Host rules"), through [`Card::spill_append`], [`Card::spill_read_at`] and
+//! [`Card::spill_remove`]. No M28/M928 logging. The crate needs an
 //! MBR-partitioned card (every card sold is; a "superfloppy" without a partition table is
 //! refused with a format error).
 
@@ -46,8 +49,11 @@ pub const CARD_VOLUMES: usize = 1;
 pub const CARD_MAX_DEPTH: usize = 6;
 /// Directories open at once (the root and one per level below it).
 pub const CARD_DIRS: usize = 1 + CARD_MAX_DEPTH;
-/// Files open at once (the selected job).
-pub const CARD_FILES: usize = 1;
+/// Files open at once (the selected job, and the spill file while it is read or written).
+pub const CARD_FILES: usize = 2;
+/// The parked intake's spill file in the root directory (see `printer/spill.rs`). A name no
+/// slicer writes; M20 lists it like any file while it exists.
+pub const SPILL_NAME: &str = "LPSPILL.TMP";
 /// Longest long file name kept, bytes of UTF-8 (the power-cut record keeps as many:
 /// [`crate::storage::JOB_PATH_CAP`]).
 pub const LONG_NAME_CAP: usize = crate::storage::JOB_PATH_CAP;
@@ -74,6 +80,8 @@ pub enum CardError {
     TooDeep,
     /// A block could not be read.
     Read,
+    /// A block could not be written (the card is full, write-protected or failing).
+    Write,
 }
 
 impl core::fmt::Display for CardError {
@@ -85,6 +93,7 @@ impl core::fmt::Display for CardError {
             CardError::BadName => "bad file name",
             CardError::TooDeep => "path too deep",
             CardError::Read => "read error",
+            CardError::Write => "write error",
         })
     }
 }
@@ -492,5 +501,61 @@ where
         if let Some(f) = self.file.take() {
             let _ = self.vm.close_file(f);
         }
+    }
+
+    /// Append `bytes` to the spill file [`SPILL_NAME`] (created when missing); returns its
+    /// length after. The file is opened and closed around each call (a few per minute), so
+    /// the directory entry always has the true length and the job file's handle is untouched.
+    pub fn spill_append(&mut self, bytes: &[u8]) -> Result<u32, CardError> {
+        let root = self.root()?;
+        let f = self
+            .vm
+            .open_file_in_dir(root, SPILL_NAME, Mode::ReadWriteCreateOrAppend)
+            .map_err(write_error)?;
+        let wrote = self.vm.write(f, bytes).map_err(write_error);
+        let len = self.vm.file_length(f).map_err(write_error);
+        let closed = self.vm.close_file(f).map_err(write_error);
+        wrote?;
+        closed?;
+        len
+    }
+
+    /// Read the spill file from byte `offset` into `buf`; returns how many bytes were read
+    /// (0 at or past its end, or when there is none).
+    pub fn spill_read_at(&mut self, offset: u32, buf: &mut [u8]) -> Result<usize, CardError> {
+        let root = self.root()?;
+        let f = match self.vm.open_file_in_dir(root, SPILL_NAME, Mode::ReadOnly) {
+            Ok(f) => f,
+            Err(Error::NotFound) => return Ok(0),
+            Err(e) => return Err(card_error(e)),
+        };
+        let read = (|| {
+            let len = self.vm.file_length(f).map_err(card_error)?;
+            if offset >= len {
+                return Ok(0);
+            }
+            self.vm
+                .file_seek_from_start(f, offset)
+                .map_err(card_error)?;
+            self.vm.read(f, buf).map_err(card_error)
+        })();
+        let _ = self.vm.close_file(f);
+        read
+    }
+
+    /// Delete the spill file (nothing when there is none).
+    pub fn spill_remove(&mut self) -> Result<(), CardError> {
+        let root = self.root()?;
+        match self.vm.delete_file_in_dir(root, SPILL_NAME) {
+            Ok(()) | Err(Error::NotFound) => Ok(()),
+            Err(e) => Err(write_error(e)),
+        }
+    }
+}
+
+fn write_error<E: core::fmt::Debug>(e: Error<E>) -> CardError {
+    match e {
+        Error::DeviceError(_) | Error::NotEnoughSpace | Error::ReadOnly => CardError::Write,
+        e => card_error(e),
     }
 }

@@ -280,6 +280,7 @@ fn trapezoid(b: &Block, v0: f64, v1: f64, t0: f64) -> Segment {
         t_start_s: t0,
         len_mm: l,
         v_entry_mm_s: v0,
+        feed_mm_s: b.mv.feed_mm_s,
         v_peak_mm_s: vp,
         v_exit_mm_s: v1,
         accel_mm_s2: a,

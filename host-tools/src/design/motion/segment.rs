@@ -18,6 +18,8 @@ pub struct Segment {
     pub len_mm: f64,
     /// Speed at the start, mm/s.
     pub v_entry_mm_s: f64,
+    /// Feed the G-code asked for (its `F`), mm/s; the planner may stay below it.
+    pub feed_mm_s: f64,
     /// Highest speed reached, mm/s.
     pub v_peak_mm_s: f64,
     /// Speed at the end, mm/s.

@@ -1,0 +1,42 @@
+//! Faults injected from the emulator's side: the image is never modified. Each says how it is
+//! done.
+
+use crate::time::{cyc_from_ms, Cyc};
+
+/// A fault to inject while a job runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Fault {
+    /// Thread mode (the executor: motion, heater, host tasks) is held for 5 s while the head
+    /// moves, as if the motion task were stuck in a loop; interrupts still run. Injected as
+    /// a stall that starts at the executor's first read of the TIM5 counter after the
+    /// injection time. The watchdog should reset the board.
+    MotionStall,
+    /// Thread mode held for 5 ms while the head moves (a blocking SD read, a flash program,
+    /// a long USB transfer): the step interrupt runs its queue dry, then the motion loop
+    /// catches up. No step may come faster than the axis's limit afterwards.
+    ExecutorStall,
+    /// A HardFault: debugger-style, the return address in the step interrupt's exception
+    /// frame (on the stack) is overwritten with an address where nothing is mapped, so the
+    /// exception return faults.
+    HardFault,
+    /// An interrupt nobody expects: SysTick armed and its interrupt enabled (STK_CTRL =
+    /// ENABLE | TICKINT | CLKSOURCE, 1 ms), as a bootloader could leave it, while the image
+    /// runs. The image has no SysTick handler: cortex-m-rt's `DefaultHandler`.
+    UnexpectedIrq,
+}
+
+impl Fault {
+    /// How long the injected stall lasts (stall faults).
+    pub fn stall(self) -> Option<Cyc> {
+        match self {
+            Fault::MotionStall => Some(cyc_from_ms(5_000)),
+            Fault::ExecutorStall => Some(cyc_from_ms(5)),
+            _ => None,
+        }
+    }
+}
+
+/// The address written over the return address for [`Fault::HardFault`]: nothing is mapped
+/// there (RM0090 table 1: reserved).
+pub const BAD_RETURN: u32 = 0x3000_0000;

@@ -1,0 +1,111 @@
+//! `board-emu`: runs the unmodified SKR 2 image on the emulated board and writes a JSON report
+//! (`docs/board-emu.md`; `scripts/board-emu.sh` builds the image and calls this).
+use anyhow::{Context, Result};
+use board_emu::fault::Fault;
+use board_emu::flash::FlashTiming;
+use board_emu::scenario::{self, FlashFill, Options};
+use clap::Parser;
+use std::path::PathBuf;
+
+/// Boots the image, sends M115, the commands and the job over USART1 one line per `ok`.
+#[derive(Parser)]
+#[command(name = "board-emu")]
+struct Args {
+    /// The image as flashed (`firmware-f407.bin`).
+    #[arg(long)]
+    image: PathBuf,
+    /// Its ELF, for the stack's bounds (the high-water mark).
+    #[arg(long)]
+    elf: Option<PathBuf>,
+    /// The image is the F429 build (maps its 192 KiB of SRAM).
+    #[arg(long)]
+    f429: bool,
+    /// G-code job sent over USART1.
+    #[arg(long)]
+    job: Option<PathBuf>,
+    /// A command sent before the job (repeatable; `@reset` resets the board, `@wait MS`).
+    #[arg(long = "cmd")]
+    commands: Vec<String>,
+    /// Schedule a pause at the start of layer N (`M761 L<n>`, as `sim run --pause-at-layer`).
+    #[arg(long)]
+    pause_at_layer: Option<u32>,
+    /// Resume this long after the printer parked, s.
+    #[arg(long, default_value_t = 1.0)]
+    resume_after: f64,
+    /// Inject a fault while the job moves.
+    #[arg(long, value_enum)]
+    fault: Option<Fault>,
+    /// Inject it this long after the job's first line was answered, s.
+    #[arg(long, default_value_t = 0.5)]
+    fault_after: f64,
+    /// LSI frequency, Hz (datasheet: 17000 min, 32000 typ, 47000 max).
+    #[arg(long, default_value_t = 32_000)]
+    lsi_hz: u32,
+    /// Flash erase/program times.
+    #[arg(long, value_enum, default_value = "typ")]
+    flash_timing: FlashTiming,
+    /// The settings sectors as a file (kept across runs).
+    #[arg(long)]
+    flash: Option<PathBuf>,
+    /// Fill a fresh settings area with foreign data.
+    #[arg(long, value_enum)]
+    flash_fill: Option<FlashFill>,
+    /// A card image in the micro-SD slot.
+    #[arg(long)]
+    sd_image: Option<PathBuf>,
+    /// A driver module plugged in backwards: 0 X, 1 Y, 2 Z, 3 E.
+    #[arg(long)]
+    reversed_driver: Option<usize>,
+    /// Give up after this much virtual time, s.
+    #[arg(long, default_value_t = 120.0)]
+    max_virtual_s: f64,
+    /// Keep running this long after the job, s.
+    #[arg(long, default_value_t = 0.2)]
+    settle: f64,
+    /// Write the report here (else stdout).
+    #[arg(long)]
+    json: Option<PathBuf>,
+}
+
+fn main() -> Result<()> {
+    let a = Args::parse();
+    let job = match &a.job {
+        Some(p) => std::fs::read_to_string(p)
+            .with_context(|| format!("reading {}", p.display()))?
+            .lines()
+            .map(str::to_string)
+            .collect(),
+        None => Vec::new(),
+    };
+    anyhow::ensure!(
+        a.lsi_hz > 0 && a.max_virtual_s.is_finite() && a.max_virtual_s > 0.0,
+        "--lsi-hz and --max-virtual-s must be positive"
+    );
+    let o = Options {
+        image: a.image,
+        elf: a.elf,
+        f429: a.f429,
+        commands: a.commands,
+        job,
+        pause_at_layer: a.pause_at_layer,
+        resume_after_s: a.resume_after,
+        fault: a.fault,
+        fault_after_s: a.fault_after,
+        lsi_hz: a.lsi_hz,
+        flash_timing: a.flash_timing,
+        flash_file: a.flash,
+        flash_fill: a.flash_fill,
+        sd_image: a.sd_image,
+        reversed_driver: a.reversed_driver,
+        max_virtual_s: a.max_virtual_s.min(3600.0),
+        settle_s: a.settle.clamp(0.0, 600.0),
+        ..Options::default()
+    };
+    let r = scenario::run(&o)?;
+    let text = serde_json::to_string_pretty(&r)?;
+    match &a.json {
+        Some(p) => std::fs::write(p, text).with_context(|| format!("writing {}", p.display()))?,
+        None => println!("{text}"),
+    }
+    Ok(())
+}

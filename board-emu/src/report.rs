@@ -1,0 +1,342 @@
+//! The JSON report of a run (`scripts/board-emu.sh --json OUT`): everything from what the
+//! emulated board's pins, UART and chip did, nothing from the image's own accounts.
+
+use crate::axes::Axes;
+use crate::cpu::Emulator;
+use crate::host::Host;
+use crate::rcc::ResetKind;
+use crate::scenario::{Options, Reaction};
+use crate::time::{ns_from_cyc, s_from_cyc, Cyc, CPU_HZ};
+use serde::Serialize;
+use std::collections::BTreeMap;
+
+/// A value per axis, keyed X, Y, Z, E.
+pub type PerAxis<T> = BTreeMap<&'static str, T>;
+
+const AXES: [&str; 4] = ["X", "Y", "Z", "E"];
+
+fn per_axis<T>(f: impl Fn(usize) -> T) -> PerAxis<T> {
+    AXES.iter().enumerate().map(|(i, n)| (*n, f(i))).collect()
+}
+
+/// A reset the board went through.
+#[derive(Clone, Debug, Serialize)]
+pub struct ResetEntry {
+    /// When, s.
+    pub t_s: f64,
+    /// Why.
+    pub kind: ResetKind,
+}
+
+/// A fault the core took (HardFault entry) or a lockup.
+#[derive(Clone, Debug, Serialize)]
+pub struct FaultEntry {
+    /// When, s.
+    pub t_s: f64,
+    /// What the core met.
+    pub what: String,
+}
+
+/// What happened after an injected fault.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct AfterFault {
+    /// Injected at, s.
+    pub injected_s: f64,
+    /// Heaters and drivers were all off this long after the injection (None: never), ms.
+    pub safe_after_ms: Option<f64>,
+    /// A heater was powered at the injection.
+    pub heater_on_at_injection: bool,
+    /// The first reset after the injection, s after it.
+    pub reset_after_s: Option<f64>,
+}
+
+/// The report.
+#[derive(Clone, Debug, Serialize)]
+pub struct Report {
+    /// The reply to M115 (the `FIRMWARE_NAME` line).
+    pub m115: Option<String>,
+    /// Every line the printer sent on USART1.
+    pub lines: Vec<String>,
+    /// Signed steps per axis, from the DIR level at each rising STEP edge, from power-on.
+    pub net_steps: PerAxis<i64>,
+    /// The pause point (X Y Z E steps, the frame of `net_steps`; `sim run --json`'s
+    /// `pause_point_steps` counts from the same origin when the carriage starts at the
+    /// switches' home): where the park sequence (E retract, Z lift, XY travel) began.
+    pub pause_point_steps: Option<[i64; 4]>,
+    /// The pause point in the `net_steps` frame (from the carriage's power-on position).
+    pub pause_point_net_steps: Option<[i64; 4]>,
+    /// Where the head was parked (`net_steps` frame).
+    pub parked_steps: Option<[i64; 4]>,
+    /// The first runs of steps in one direction per axis (a homing's approach, bump, slow
+    /// approach), with their rates.
+    pub runs: PerAxis<Vec<crate::axes::Run>>,
+    /// Shortest STEP high time, ns.
+    pub min_step_high_ns: PerAxis<Option<u64>>,
+    /// Shortest DIR change to STEP rise, ns.
+    pub min_dir_setup_ns: PerAxis<Option<u64>>,
+    /// Highest step rate (1 / the shortest interval between rising edges), Hz.
+    pub max_step_rate_hz: PerAxis<Option<f64>>,
+    /// The axis's own limit: max feed × steps/mm (`MachineConfig::ENDER3`), Hz.
+    pub step_rate_limit_hz: PerAxis<f64>,
+    /// Worst delay of a step edge after the TIM5 compare time the image armed for it, ns.
+    pub step_schedule_deviation_max_ns: Option<u64>,
+    /// Compare times armed (CCR1 writes) and how many were followed by a step within 50 µs.
+    pub step_compares: (usize, usize),
+    /// Deepest stack use, bytes (painted at power-on, scanned at the end).
+    pub stack_high_water_bytes: Option<u32>,
+    /// The stack's size, bytes.
+    pub stack_size_bytes: Option<u32>,
+    /// Resets by the independent watchdog.
+    pub watchdog_resets: usize,
+    /// Every reset after power-on.
+    pub resets: Vec<ResetEntry>,
+    /// Faults the core took.
+    pub faults: Vec<FaultEntry>,
+    /// After an injected fault.
+    pub after_fault: Option<AfterFault>,
+    /// Heaters powered at the end (hot end, bed).
+    pub heaters_powered_at_end: [bool; 2],
+    /// Drivers enabled at the end (X, Y, Z, E).
+    pub drivers_enabled_at_end: [bool; 4],
+    /// SAFE_POWER (PC13) high at the end.
+    pub safe_power_at_end: bool,
+    /// First time SAFE_POWER went high, s.
+    pub safe_power_first_high_s: Option<f64>,
+    /// Highest temperature of each heater, °C.
+    pub max_temp_c: [f32; 2],
+    /// Flash sector erases: (start s, sector, duration s).
+    pub flash_erases: Vec<(f64, u32, f64)>,
+    /// The watchdog's timeout at this LSI, s (0 when never started).
+    pub watchdog_timeout_s: f64,
+    /// LSI frequency used, Hz.
+    pub lsi_hz: u32,
+    /// SD blocks read.
+    pub sd_blocks_read: u64,
+    /// TMC2209 datagrams each module took.
+    pub tmc_datagrams: [u64; 4],
+    /// Bytes the host sent that the UART dropped (overrun).
+    pub uart_overruns: u64,
+    /// Instructions executed.
+    pub instructions: u64,
+    /// Virtual time, s.
+    pub virtual_s: f64,
+    /// Wall time, s.
+    pub wall_s: f64,
+    /// Instructions per wall second.
+    pub instructions_per_s: f64,
+    /// Virtual seconds per wall second.
+    pub virtual_per_wall: f64,
+    /// Cycles skipped in sleep, stalls and counter polling, s.
+    pub skipped_s: f64,
+    /// Notes from the models.
+    pub notes: Vec<String>,
+    /// Peripheral blocks the image touched that have no model (1 KiB block addresses).
+    pub unmodelled: Vec<String>,
+}
+
+/// Where the park began: walking back from the parked moment over the park's moves (XY
+/// travel, then the Z lift, then the E retract, as `docs/pause.md` describes the park).
+fn pause_point(axes: &Axes, parked: Cyc) -> Option<[i64; 4]> {
+    let mut steps: Vec<(Cyc, usize, i8)> = Vec::new();
+    for (i, a) in axes.axis.iter().enumerate() {
+        steps.extend(
+            a.rises
+                .iter()
+                .filter(|(t, _)| *t <= parked)
+                .map(|(t, d)| (*t, i, *d)),
+        );
+    }
+    steps.sort();
+    let mut pos: [i64; 4] = [0, 1, 2, 3].map(|i| {
+        axes.axis[i]
+            .rises
+            .iter()
+            .filter(|(t, _)| *t <= parked)
+            .map(|(_, d)| i64::from(*d))
+            .sum()
+    });
+    let mut phase = 0;
+    for &(_, i, d) in steps.iter().rev() {
+        let next = match (i, d) {
+            (0 | 1, _) if phase == 0 => 0,
+            (2, 1) if phase <= 1 => 1,
+            (3, -1) if phase <= 2 => 2,
+            _ => break,
+        };
+        phase = next;
+        pos[i] -= i64::from(d);
+    }
+    Some(pos)
+}
+
+/// Builds the report.
+pub fn make(
+    emu: &Emulator,
+    host: &Host,
+    o: &Options,
+    r: &Reaction,
+    stack: Option<(u32, u32)>,
+    wall_s: f64,
+) -> Report {
+    let b = emu.board();
+    let now = emu.now();
+    let timing = b.axes.timing();
+    let cfg = firmware::config::MachineConfig::ENDER3;
+    let axes_cfg = [
+        firmware::motion::Axis::X,
+        firmware::motion::Axis::Y,
+        firmware::motion::Axis::Z,
+        firmware::motion::Axis::E,
+    ];
+    // Schedule: every compare time armed, against the first step edge at or after it.
+    let mut rises: Vec<Cyc> = b
+        .axes
+        .axis
+        .iter()
+        .flat_map(|a| a.rises.iter().map(|(t, _)| *t))
+        .collect();
+    rises.sort_unstable();
+    let mut dev: Option<u64> = None;
+    let mut matched = 0;
+    let compares: Vec<Cyc> = b
+        .tim5
+        .ccr1_writes
+        .iter()
+        .map(|(_, m)| *m)
+        .filter(|m| *m <= now)
+        .collect();
+    for &m in &compares {
+        let i = rises.partition_point(|&t| t < m);
+        if let Some(&t) = rises.get(i) {
+            if t - m <= crate::time::cyc_from_us(50) {
+                matched += 1;
+                let d = ns_from_cyc(t - m);
+                dev = Some(dev.map_or(d, |x| x.max(d)));
+            }
+        }
+    }
+    let after_fault = r.injected.map(|t0| {
+        let safe = b
+            .outputs_log
+            .iter()
+            .find(|(t, h, d)| *t >= t0 && !h.iter().any(|x| *x) && !d.iter().any(|x| *x))
+            .map(|(t, _, _)| s_from_cyc(t - t0) * 1e3);
+        let at = b
+            .outputs_log
+            .iter()
+            .rev()
+            .find(|(t, _, _)| *t <= t0)
+            .map(|(_, h, _)| h.iter().any(|x| *x))
+            .unwrap_or(false);
+        // Already safe at the injection: 0.
+        let safe = safe.or_else(|| {
+            b.outputs_log
+                .iter()
+                .rev()
+                .find(|(t, _, _)| *t <= t0)
+                .filter(|(_, h, d)| !h.iter().any(|x| *x) && !d.iter().any(|x| *x))
+                .map(|_| 0.0)
+        });
+        AfterFault {
+            injected_s: s_from_cyc(t0),
+            safe_after_ms: safe,
+            heater_on_at_injection: at,
+            reset_after_s: b
+                .resets
+                .iter()
+                .find(|(t, _)| *t >= t0)
+                .map(|(t, _)| s_from_cyc(t - t0)),
+        }
+    });
+    let safe_power = crate::axes::SAFE_POWER;
+    let stack_hw =
+        stack.and_then(|(lo, hi)| emu.lowest_touched(lo, hi, 0xC5C5_C5C5).map(|a| hi - a));
+    let skipped = b.skipped;
+    Report {
+        m115: host.find("FIRMWARE_NAME").map(|(_, l)| l.clone()),
+        lines: host.received.iter().map(|(_, l)| l.clone()).collect(),
+        net_steps: per_axis(|i| b.axes.axis[i].net_steps),
+        pause_point_steps: r.parked.and_then(|t| pause_point(&b.axes, t)).map(|p| {
+            // The firmware's frame: the switches are at 0 (min_mm of the Ender-3), and the
+            // carriage started `start_mm` from them.
+            let mut q = p;
+            for (i, a) in [
+                firmware::motion::Axis::X,
+                firmware::motion::Axis::Y,
+                firmware::motion::Axis::Z,
+            ]
+            .into_iter()
+            .enumerate()
+            {
+                q[i] += (o.start_mm[i] * cfg.axis(a).steps_per_mm).round() as i64;
+            }
+            q
+        }),
+        pause_point_net_steps: r.parked.and_then(|t| pause_point(&b.axes, t)),
+        runs: per_axis(|i| b.axes.axis[i].runs.iter().take(12).copied().collect()),
+        parked_steps: b
+            .axes
+            .marks
+            .iter()
+            .find(|(l, _, _)| l == "parked")
+            .map(|(_, _, p)| *p),
+        min_step_high_ns: per_axis(|i| timing[i].0),
+        min_dir_setup_ns: per_axis(|i| timing[i].1),
+        max_step_rate_hz: per_axis(|i| timing[i].2),
+        step_rate_limit_hz: per_axis(|i| {
+            let a = cfg.axis(axes_cfg[i]);
+            f64::from(a.max_feed_mm_s * a.steps_per_mm)
+        }),
+        step_schedule_deviation_max_ns: dev,
+        step_compares: (compares.len(), matched),
+        stack_high_water_bytes: stack_hw,
+        stack_size_bytes: stack.map(|(lo, hi)| hi - lo),
+        watchdog_resets: b
+            .resets
+            .iter()
+            .filter(|(_, k)| *k == ResetKind::Watchdog)
+            .count(),
+        resets: b
+            .resets
+            .iter()
+            .skip(1)
+            .map(|(t, k)| ResetEntry {
+                t_s: s_from_cyc(*t),
+                kind: *k,
+            })
+            .collect(),
+        faults: emu
+            .faults
+            .iter()
+            .map(|(t, w)| FaultEntry {
+                t_s: s_from_cyc(*t),
+                what: w.clone(),
+            })
+            .collect(),
+        after_fault,
+        heaters_powered_at_end: b.heaters_powered(),
+        drivers_enabled_at_end: b.drivers_enabled(),
+        safe_power_at_end: b.gpio.level(safe_power),
+        safe_power_first_high_s: b.trace_first_high(safe_power).map(s_from_cyc),
+        max_temp_c: b.heaters.max_c,
+        flash_erases: b
+            .flash
+            .erases
+            .iter()
+            .map(|(t, n, d)| (s_from_cyc(*t), *n, s_from_cyc(*d)))
+            .collect(),
+        watchdog_timeout_s: b.iwdg.timeout_s(),
+        lsi_hz: o.lsi_hz,
+        sd_blocks_read: b.sdio.blocks_read,
+        tmc_datagrams: [0, 1, 2, 3].map(|i| b.tmc.modules[i].datagrams),
+        uart_overruns: b.usart1.overruns,
+        instructions: b.insns,
+        virtual_s: s_from_cyc(now),
+        wall_s,
+        instructions_per_s: b.insns as f64 / wall_s.max(1e-9),
+        virtual_per_wall: s_from_cyc(now) / wall_s.max(1e-9),
+        skipped_s: skipped as f64 / CPU_HZ as f64,
+        notes: b.notes.clone(),
+        unmodelled: b.unmodelled.iter().map(|a| format!("{a:#010x}")).collect(),
+    }
+}

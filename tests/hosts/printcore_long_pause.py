@@ -1,0 +1,154 @@
+#!/usr/bin/env python3
+"""Printrun's printcore through a long firmware pause (issue 22): it streams a slicer file,
+send_now("M601") pauses it at the layer, and while printcore keeps streaming into the parked
+printer (it ignores //action:paused) console lines (M105, M114, a jog) are sent with send_now at
+seeded random moments over --pause-virtual-s of virtual time (counted by the printer's
+M155 temperature auto-reports); each must be answered. Then send_now("M602") and the end
+marker (M400 + M118). The virtual delivery bound is the sim's record (`ports`), not measured
+here: real time is no measure of virtual time under `sim serve --host-paced`.
+
+Prints one JSON object: per console line its wall delivery time, and the rest.
+"""
+
+import argparse
+import json
+import os
+import random
+import sys
+import threading
+import time
+
+from printrun import gcoder
+from printrun.printcore import printcore
+
+from joblines import job_lines
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--port", required=True)
+    ap.add_argument("--file", required=True)
+    ap.add_argument("--layers", type=int, default=99)
+    ap.add_argument("--pause-line", type=int, default=150)
+    ap.add_argument("--speed", type=float, required=True)
+    ap.add_argument("--pause-virtual-s", type=float, default=8 * 3600)
+    ap.add_argument("--console-lines", type=int, default=24)
+    ap.add_argument("--seed", type=int, default=22)
+    ap.add_argument("--wait", type=float, default=20.0)
+    ap.add_argument("--report-s", type=int, default=60)
+    ap.add_argument("--wall-limit", type=float, default=240.0)
+    a = ap.parse_args()
+    rnd = random.Random(a.seed)
+    t0 = time.monotonic()
+    received = []
+    cond = threading.Condition()
+
+    reports = [0]
+
+    def on_recv(line):
+        with cond:
+            received.append(line.strip())
+            if line.strip().startswith("T:"):
+                reports[0] += 1
+            cond.notify_all()
+
+    def wait_for(pred, secs, start):
+        end = time.monotonic() + secs
+        with cond:
+            i = start
+            while True:
+                while i < len(received):
+                    if pred(received[i]):
+                        return received[i]
+                    i += 1
+                left = end - time.monotonic()
+                if left <= 0:
+                    return None
+                cond.wait(left)
+
+    out = {}
+    p = printcore()
+    p.recvcb = on_recv
+    p.connect(a.port, 115200)
+    end = time.monotonic() + 20
+    while not p.online and time.monotonic() < end:
+        time.sleep(0.05)
+    if not p.online:
+        print(json.dumps({"error": "never online"}))
+        return 2
+    gc = gcoder.LightGCode(job_lines(a.file, a.layers))
+    out["job_lines"] = len(gc)
+    p.startprint(gc)
+    while p.printing and p.queueindex < a.pause_line:
+        time.sleep(0.005)
+    mark = len(received)
+    p.send_now("M601")
+    out["paused"] = wait_for(lambda l: l.startswith("//action:paused"), a.wait, mark) is not None
+    t_paused = time.monotonic()
+    # Virtual time, counted by the printer's own temperature auto-reports (one per
+    # --report-s virtual seconds): with `sim serve --host-paced` virtual time is not a fixed
+    # multiple of real time.
+    reports_wanted = int(a.pause_virtual_s / a.report_s)
+    mark = reports[0]
+    p.send_now("M155 S%d" % a.report_s)
+    moments = sorted(rnd.sample(range(2, reports_wanted - 1), a.console_lines))
+    kinds = [("M105", lambda l: l.startswith("ok T:")), ("M114", lambda l: l.startswith("X:"))]
+    console = []
+
+    def reports_since(start):
+        return reports[0] - start
+
+    k = 0
+    deadline = time.monotonic() + a.wall_limit
+    while time.monotonic() < deadline:
+        n = reports_since(mark)
+        if k < len(moments) and n >= moments[k]:
+            cmd, pred = kinds[k % 2]
+            m2 = len(received)
+            t = time.monotonic()
+            if k % 5 == 4:
+                for l in ("G91", "G1 Z1 F600", "G1 Z-1 F600", "G90"):
+                    p.send_now(l)
+            p.send_now(cmd)
+            got = wait_for(pred, a.wait, m2)
+            console.append({"cmd": cmd, "at_virtual_s": n * a.report_s,
+                            "answered": got is not None,
+                            "wall_s": round(time.monotonic() - t, 4),
+                            "printcore_streaming": bool(p.printing)})
+            k += 1
+            continue
+        if n >= reports_wanted:
+            break
+        time.sleep(0.01)
+    out["pause_virtual_s"] = reports_since(mark) * a.report_s
+    out["pause_wall_s"] = round(time.monotonic() - t_paused, 1)
+    out["console"] = console
+    mark = len(received)
+    t = time.monotonic()
+    p.send_now("M602")
+    out["resumed"] = wait_for(lambda l: l.startswith("//action:resumed"), a.wait, mark) is not None
+    out["resume_wall_s"] = round(time.monotonic() - t, 3)
+    p.send_now("M155 S0")
+    end = time.monotonic() + 600
+    while p.printing and time.monotonic() < end:
+        time.sleep(0.05)
+    mark = len(received)
+    p.send_now("M400")
+    p.send_now("M118 long-pause-end")
+    out["end"] = wait_for(lambda l: "long-pause-end" in l and not l.startswith("M118"), 600, mark) is not None
+    out["spill_notes"] = [l for l in received if "SD card" in l]
+    out["errors"] = [l for l in received if l.startswith("Error")]
+    out["wall_s"] = round(time.monotonic() - t0, 1)
+    p.disconnect()
+    print(json.dumps(out))
+    return 0
+
+
+if __name__ == "__main__":
+    try:
+        code = main()
+    except Exception as e:  # report, never hang
+        print(json.dumps({"error": repr(e)}))
+        code = 3
+    sys.stdout.flush()
+    os._exit(code)

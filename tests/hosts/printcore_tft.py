@@ -1,0 +1,105 @@
+#!/usr/bin/env python3
+"""Printrun's printcore on the TFT port while OctoPrint prints on the USB port (issue 22; the
+OctoPrint side is tests/hosts/octoprint_drive.py --two-hosts). printcore prints nothing: it
+asks (M118, M27), pauses the job OctoPrint streams (M601), waits for OctoPrint's Resume, then
+for OctoPrint's Pause, resumes it (M602), and waits for OctoPrint's Cancel — all seen through
+the notifications on its own port.
+
+Prints one JSON object with what it saw.
+"""
+
+import argparse
+import json
+import os
+import sys
+import threading
+import time
+
+from printrun.printcore import printcore
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--port", required=True)
+    ap.add_argument("--wait", type=float, default=120.0)
+    a = ap.parse_args()
+    received = []
+    cond = threading.Condition()
+
+    def on_recv(line):
+        with cond:
+            received.append(line.strip())
+            cond.notify_all()
+
+    def wait_for(pred, secs, start):
+        end = time.monotonic() + secs
+        with cond:
+            i = start
+            while True:
+                while i < len(received):
+                    if pred(received[i]):
+                        return received[i]
+                    i += 1
+                left = end - time.monotonic()
+                if left <= 0:
+                    return None
+                cond.wait(left)
+
+    out = {}
+    p = printcore()
+    p.recvcb = on_recv
+    p.connect(a.port, 115200)
+    end = time.monotonic() + 20
+    while not p.online and time.monotonic() < end:
+        time.sleep(0.02)
+    out["online"] = p.online
+    online_mark = len(received)
+    mark = len(received)
+    p.send_now("M118 tft-asks")
+    out["reply_here"] = wait_for(lambda l: "tft-asks" in l, 20, mark)
+    # Until the job OctoPrint streams prints its third layer (M27: the firmware's layer).
+    def at_layer_2(l):
+        w = l.split()
+        return "state printing" in l and len(w) > 1 and w[0].endswith("layer") and w[1].isdigit() and int(w[1]) >= 2
+
+    end = time.monotonic() + a.wait
+    out["printing_seen"] = False
+    while time.monotonic() < end:
+        mark = len(received)
+        p.send_now("M27")
+        l = wait_for(at_layer_2, 2, mark)
+        if l is not None:
+            out["printing_seen"] = l
+            break
+        time.sleep(0.5)
+    mark = len(received)
+    p.send_now("M601")
+    out["paused_by_me"] = wait_for(lambda l: l == "//action:paused", a.wait, mark) is not None
+    mark = len(received)
+    out["resumed_by_other"] = wait_for(lambda l: l == "//action:resumed", a.wait, mark) is not None
+    mark = len(received)
+    out["paused_by_other"] = wait_for(lambda l: l == "//action:paused", a.wait, mark) is not None
+    time.sleep(1)
+    mark = len(received)
+    p.send_now("M602")
+    out["resumed_by_me"] = wait_for(lambda l: l == "//action:resumed", a.wait, mark) is not None
+    mark = len(received)
+    out["cancel_seen"] = wait_for(lambda l: l == "//action:cancel", a.wait, mark) is not None
+    after = received[online_mark:]
+    # Answers to OctoPrint's lines must not come here: its M105 polling's `ok T:`.
+    out["others_temperature_answers"] = sum(1 for l in after if l.startswith("ok T:"))
+    out["actions"] = [l for l in after if l.startswith("//action:")]
+    out["errors"] = [l for l in after if l.startswith("Error")]
+    p.disconnect()
+    print(json.dumps(out))
+    return 0
+
+
+if __name__ == "__main__":
+    try:
+        code = main()
+    except Exception as e:  # report, never hang
+        print(json.dumps({"error": repr(e)}))
+        code = 3
+    sys.stdout.flush()
+    os._exit(code)
