@@ -29,6 +29,7 @@
 use crate::design::model::{StateChange, Step};
 use crate::design::profile::{Primer, Retraction};
 use crate::design::turtle::{finite, Turtle, TurtleError};
+use crate::job::annotation;
 use glam::DVec3;
 use std::f64::consts::PI;
 
@@ -73,17 +74,6 @@ impl AreaModel {
                 (w - h) * h + PI * (h / 2.0) * (h / 2.0)
             }
         })
-    }
-}
-
-/// `v` with at most three decimals, trailing zeros trimmed.
-fn fmt3(v: f64) -> String {
-    let s = format!("{v:.3}");
-    let s = s.trim_end_matches('0').trim_end_matches('.');
-    if s == "-0" {
-        "0".into()
-    } else {
-        s.into()
     }
 }
 
@@ -296,21 +286,14 @@ impl Turtle {
     }
 
     /// An annotation for viewers (FullControl's `PlotAnnotation`), written as the comment
-    /// `; ANNOTATE X<x> Y<y> Z<z> <label>` (mm, three decimals, the label on one line) at `at`
-    /// (the pen's position when `None`); the 3D preview shows it there.
+    /// `; ANNOTATION X<x> Y<y> Z<z>: <label>` ([`crate::job::annotation`]: mm, at most three
+    /// decimals, the label on one line) at `at`, the pen's position when `None`; the 3D
+    /// preview shows it there.
     pub fn annotate(&mut self, at: Option<DVec3>, label: &str) -> Result<(), TurtleError> {
         let p = point(at.unwrap_or(self.state.pos))?;
-        let label: String = label
-            .chars()
-            .map(|c| if c.is_control() { ' ' } else { c })
-            .collect();
-        self.model.push(Step::Comment(format!(
-            "ANNOTATE X{} Y{} Z{} {}",
-            fmt3(p.x),
-            fmt3(p.y),
-            fmt3(p.z),
-            label.trim()
-        )));
+        let text = annotation::comment(Some(p.to_array()), label)
+            .ok_or_else(|| TurtleError::BadArgument(format!("point must be finite, got {p:?}")))?;
+        self.model.push(Step::Comment(text));
         Ok(())
     }
 
@@ -397,8 +380,8 @@ mod tests {
         assert_eq!(
             t.model().steps[n - 2..],
             [
-                Step::Comment("ANNOTATE X0 Y0 Z0.2 seam here".into()),
-                Step::Comment("ANNOTATE X1.5 Y-2 Z0.25 corner".into())
+                Step::Comment("ANNOTATION X0 Y0 Z0.2: seam here".into()),
+                Step::Comment("ANNOTATION X1.5 Y-2 Z0.25: corner".into())
             ]
         );
     }
