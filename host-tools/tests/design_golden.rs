@@ -166,7 +166,7 @@ const EXAMPLE_GCODE: &[(&str, usize, u64)] = &[
     ("dish.rhai", 404155, 0xb853354fcc57bfdd),
     ("dish_closures.rhai", 404164, 0xeae2d500ecce16ac),
     ("fc_nonplanar_spacer.rhai", 113823, 0xe7675d5a5396765b),
-    ("fc_ripple_vase.rhai", 477889, 0xcca41df14a0768c9),
+    ("fc_ripple_vase.rhai", 477915, 0xceb95848767014c9),
     ("fc_star_lattice.rhai", 26868, 0x8dfce9bd8a6d195a),
     ("fc_speed_lattice.rhai", 6899, 0x8a1e3e4c1bfb2973),
     ("fc_polar_array.rhai", 138491, 0xe0ae7b7bbba15d24),

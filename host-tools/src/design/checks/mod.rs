@@ -262,6 +262,10 @@ pub(crate) fn check_with<P: Printed>(
     // design (`model.bbox().min.z`, in the same pass: one read of a large model less).
     let mut points = Vec::with_capacity(model.steps.len());
     let mut from_xy: Vec<[f64; 2]> = Vec::with_capacity(model.steps.len());
+    // Path length to each point, a new line (after a travel) starting `RUN_GAP_MM` farther:
+    // how far back along the line leading into a point another point was printed.
+    let mut along_mm: Vec<f64> = Vec::with_capacity(model.steps.len());
+    let mut path_mm = 0.0;
     let mut counts = Vec::with_capacity(model.steps.len());
     let mut min_z = f64::INFINITY;
     let mut lower = |z: f64| min_z = if min_z < z { min_z } else { z }; // as `BBox::add`
@@ -279,12 +283,17 @@ pub(crate) fn check_with<P: Printed>(
                     if lead == 1 {
                         points.push(s.start.to_array());
                         from_xy.push([s.start.x, s.start.y]);
+                        path_mm += RUN_GAP_MM;
+                        along_mm.push(path_mm);
                     }
                     let n = sample_count(s, o);
                     let first = points.len();
                     points.extend(
                         (1..=n).map(|k| s.start.lerp(s.end, k as f64 / n as f64).to_array()),
                     );
+                    let len = s.len_mm();
+                    along_mm.extend((1..=n).map(|k| path_mm + len * k as f64 / n as f64));
+                    path_mm += len;
                     from_xy.push([s.start.x, s.start.y]);
                     from_xy.extend(points[first..points.len() - 1].iter().map(|p| [p[0], p[1]]));
                     counts.push((lead, n));
@@ -308,6 +317,8 @@ pub(crate) fn check_with<P: Printed>(
     let mut tree = P::build(o.support_radius_mm.max(o.nozzle_radius_mm).max(0.1), points);
     let below = Below {
         from_xy: &from_xy,
+        along_mm: &along_mm,
+        trail_mm: 2.0 * o.support_radius_mm,
         nozzle_mm: profile.nozzle_diameter_mm,
     };
     let mut machine = machine::Machine::new(&model.steps, profile);
@@ -380,7 +391,8 @@ pub(crate) fn check_with<P: Printed>(
                     let (lead, n) = counts.next().unwrap_or((0, 0));
                     printed += lead;
                     for k in 0..n {
-                        let q = DVec3::from_array(tree.point(printed + k));
+                        let qi = printed + k;
+                        let q = DVec3::from_array(tree.point(qi));
                         let end = k + 1 == n;
                         if q.z > bed_contact_z {
                             if !support_check(
@@ -389,7 +401,7 @@ pub(crate) fn check_with<P: Printed>(
                                 o,
                                 r2,
                                 i,
-                                q,
+                                (qi, q),
                                 s.cross_mm2,
                                 end,
                                 &mut rep,
@@ -397,7 +409,16 @@ pub(crate) fn check_with<P: Printed>(
                                 break;
                             }
                         } else if end {
-                            bed_width_check(&mut tree, &below, o, r2, i, q, s.cross_mm2, &mut rep);
+                            bed_width_check(
+                                &mut tree,
+                                &below,
+                                o,
+                                r2,
+                                i,
+                                (qi, q),
+                                s.cross_mm2,
+                                &mut rep,
+                            );
                         }
                     }
                     printed += n;
@@ -432,14 +453,35 @@ pub(crate) fn check_with<P: Printed>(
     rep
 }
 
+/// Path length added between lines (after a travel), so that no point of an earlier line is
+/// within a trail's length of a later one, mm.
+const RUN_GAP_MM: f64 = 1e3;
+
 /// What the support and width checks need besides the index: where each printed piece
-/// starts, and the nozzle.
+/// starts, how far along the print each point is, and the nozzle.
 struct Below<'a> {
     from_xy: &'a [[f64; 2]],
+    along_mm: &'a [f64],
+    /// A point printed less than this far back along the same line is the bead leading into
+    /// the point asked about, not something it rests on, mm.
+    trail_mm: f64,
     nozzle_mm: f64,
 }
 
 impl Below<'_> {
+    /// True when printed point `k` is the line leading into point `qi` (the last `trail_mm`
+    /// of it): on a ramp that rises more than `min_drop_mm` within the support radius, the
+    /// nearest point below is the line's own trail, a fraction of a millimetre behind and
+    /// below — a distance that says nothing of the bead's thickness (FullControl's
+    /// nonplanar spacer, whose rings climb their waves, was flagged 2–3× too wide on
+    /// ≈ 1,100 strings by it).
+    fn is_trail(&self, k: usize, qi: usize) -> bool {
+        match (self.along_mm.get(k), self.along_mm.get(qi)) {
+            (Some(a), Some(b)) => b - a < self.trail_mm,
+            _ => false,
+        }
+    }
+
     /// XY distance from `q` to the printed path through sample `k` (the pieces ending at
     /// `k` and, when printed and joined, at `k + 1`).
     fn side_mm<P: Printed>(&self, tree: &P, k: usize, q: DVec3) -> f64 {
@@ -449,6 +491,31 @@ impl Below<'_> {
             if *next_from == [p[0], p[1]] && k + 1 < tree.printed() {
                 d = d.min(seg_dist_xy(q, [p[0], p[1]], tree.point(k + 1)));
             }
+        }
+        d
+    }
+
+    /// Distance from `q` to the printed path through sample `k` (as [`Below::side_mm`], in
+    /// 3D): the bead's thickness over the string it rests on. Not the drop to the sample
+    /// combined with the side to the path: on a wavy layer below, those are two different
+    /// places (the spacer's rings measured 0.32 mm that way, 0.42 mm to the path).
+    fn thickness_mm<P: Printed>(&self, tree: &P, k: usize, q: DVec3) -> f64 {
+        let p = DVec3::from_array(tree.point(k));
+        let joined = |j: usize| {
+            // The piece ending at sample `j` starts at sample `j - 1` unless it is a line's
+            // first point.
+            let prev = j.checked_sub(1).map(|i| tree.point(i));
+            match (prev, self.from_xy.get(j)) {
+                (Some(a), Some(f)) if [a[0], a[1]] == *f => Some(DVec3::from_array(a)),
+                _ => None,
+            }
+        };
+        let mut d = match joined(k) {
+            Some(a) => seg_dist(q, a, p),
+            None => q.distance(p),
+        };
+        if k + 1 < tree.printed() && joined(k + 1).is_some() {
+            d = d.min(seg_dist(q, p, DVec3::from_array(tree.point(k + 1))));
         }
         d
     }
@@ -497,6 +564,18 @@ impl Below<'_> {
     }
 }
 
+/// Distance from `q` to the segment `a`–`b`.
+fn seg_dist(q: DVec3, a: DVec3, b: DVec3) -> f64 {
+    let ab = b - a;
+    let l2 = ab.length_squared();
+    let t = if l2 > 0.0 {
+        ((q - a).dot(ab) / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    q.distance(a + ab * t)
+}
+
 /// XY distance from `q` to the segment `a`–`b`.
 fn seg_dist_xy(q: DVec3, a: [f64; 2], b: [f64; 3]) -> f64 {
     let (a, b, q) = (
@@ -523,13 +602,14 @@ fn bed_width_check<P: Printed>(
     o: &CheckOptions,
     r2: f64,
     i: usize,
-    q: DVec3,
+    (qi, q): (usize, DVec3),
     cross: f64,
     rep: &mut CheckReport,
 ) {
     match tree.nearest_below(q.to_array(), r2, q.z - o.min_drop_mm) {
+        Some(k) if below.is_trail(k, qi) => {} // resting on what, unknown: not judged
         Some(k) => {
-            let t = (q.z - tree.point(k)[2]).hypot(below.side_mm(tree, k, q));
+            let t = below.thickness_mm(tree, k, q);
             below.width_check(o, i, q, cross, t, false, rep)
         }
         None => below.width_check(o, i, q, cross, q.z, true, rep),
@@ -546,7 +626,7 @@ fn support_check<P: Printed>(
     o: &CheckOptions,
     r2: f64,
     i: usize,
-    q: DVec3,
+    (qi, q): (usize, DVec3),
     cross: f64,
     end: bool,
     rep: &mut CheckReport,
@@ -581,8 +661,12 @@ fn support_check<P: Printed>(
             let side = below.side_mm(tree, k, q);
             let width = cross / drop.max(0.05);
             // The bead's thickness is its distance to the string it rests on: the drop on a
-            // vertical wall, more on a leaning one (a dish's strings lie nearly side by side).
-            below.width_check(o, i, q, cross, drop.hypot(side), false, rep);
+            // vertical wall, more on a leaning one (a dish's strings lie nearly side by side);
+            // not judged against the line's own trail.
+            if !below.is_trail(k, qi) {
+                let t = below.thickness_mm(tree, k, q);
+                below.width_check(o, i, q, cross, t, false, rep);
+            }
             if side > 0.5 * width + 1e-9 {
                 rep.add(
                     o.max_listed,

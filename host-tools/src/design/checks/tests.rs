@@ -262,3 +262,39 @@ fn raw_gcode_heater_off_and_homing_are_flagged() {
     line(&mut m, [120.0, 100.0, 0.2], [120.0, 120.0, 0.2]);
     assert_eq!(check(&m, &p, &o).count(IssueKind::ColdExtrusion), 1);
 }
+
+/// A line that climbs in short strings (FullControl's nonplanar spacer: 0.26 mm strings of
+/// 0.32 mm² rising up to 0.03 mm each) has its own trail as the nearest material more than
+/// `min_drop_mm` below: that trail says nothing of the bead's thickness, and the bead is
+/// not flagged as too wide (it was, 3.1× the nozzle: 0.26 mm to the trail taken for its
+/// thickness). A second pass laid 0.1 mm over the first is still flagged (8×).
+#[test]
+fn a_climbing_line_is_not_measured_against_its_own_trail() {
+    let p = Profile::ender3();
+    let o = CheckOptions::default();
+    let ramp = |m: &mut Model, y: f64, z0: f64| {
+        let mut at = [100.0, y, z0];
+        for _ in 0..60 {
+            let next = [at[0] + 0.25, y, at[2] + 0.03];
+            m.push(Step::String(crate::design::model::Str::line(
+                DVec3::from_array(at),
+                DVec3::from_array(next),
+                0.32,
+                20.0,
+            )));
+            at = next;
+        }
+    };
+    let mut m = Model::new([0.0, 0.0]);
+    ramp(&mut m, 100.0, 0.4); // 0.32 mm² at 0.43 mm over the bed: 1.9×
+    let r = check(&m, &p, &o);
+    assert_eq!(r.count(IssueKind::LineWidth), 0, "{:?}", r.issues);
+    assert_eq!(r.count(IssueKind::Unsupported), 0, "{:?}", r.issues);
+    m.push(Step::Travel {
+        to: DVec3::new(100.0, 100.0, 0.5),
+        speed_mm_s: Some(100.0),
+    });
+    ramp(&mut m, 100.0, 0.5);
+    let r = check(&m, &p, &o);
+    assert!(r.count(IssueKind::LineWidth) > 30, "{:?}", r.counts);
+}
