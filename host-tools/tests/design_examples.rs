@@ -253,3 +253,32 @@ fn widening_too_fast_is_reported() {
         rep.counts
     );
 }
+
+/// `turtle()`'s documented default cross-section (docs/design.md: Kanada's 0.2 mm²) stacked
+/// at 0.2 mm layers lays 1 mm lines, 2.5× a 0.4 mm nozzle: flagged above the first layer
+/// (issue 23: it went unflagged); `set_extrusion` to 0.4 × 0.2 mm makes the same walls clean.
+#[test]
+fn turtles_default_cross_section_is_documented_and_flagged_at_thin_layers() {
+    let p = Profile::ender3();
+    let walls = |setup: &str| {
+        let src = format!(
+            "let t = turtle(100, 100, 0.2); {setup}\n\
+             for layer in 0..3 {{ for k in 0..4 {{ t.forward(20); t.left(90); }} t.up(0.2); }}\n\
+             t"
+        );
+        let out = ScriptRunner::new(p.clone())
+            .run("walls.rhai", &src, &examples_dir())
+            .unwrap_or_else(|e| panic!("{e}"));
+        let cross: Vec<f64> = out.model.strings().map(|s| s.cross_mm2).collect();
+        (cross, check(&out.model, &p, &CheckOptions::default()))
+    };
+    let (cross, rep) = walls("");
+    assert!(cross.len() >= 12 && cross.iter().all(|c| (c - 0.2).abs() < 1e-12));
+    assert!(rep.count(IssueKind::LineWidth) >= 8, "{:?}", rep.issues);
+    assert!(rep
+        .issues
+        .iter()
+        .any(|i| i.kind == IssueKind::LineWidth && i.msg.contains("1.00 mm wide")));
+    let (_, rep) = walls("t.set_extrusion(#{ width: 0.4, height: 0.2 });");
+    assert_eq!(rep.count(IssueKind::LineWidth), 0, "{:?}", rep.issues);
+}
