@@ -2,7 +2,7 @@
 //! support, widening, line width (the bead's thickness over what it rests on) and travels
 //! over printed material. [`super::check_with`] walks the design and asks these.
 
-use super::{CheckOptions, CheckReport, Issue, IssueKind, Printed};
+use super::{CheckOptions, CheckReport, IssueKind, Printed};
 use glam::DVec3;
 
 /// Path length added between lines (after a travel), so that no point of an earlier line is
@@ -100,18 +100,10 @@ impl Below<'_> {
             o.max_width_ratio
         };
         if ratio > max + 1e-9 || (narrow_known && ratio < o.min_width_ratio - 1e-9) {
-            rep.add(
-                o.max_listed,
-                Issue {
-                    kind: IssueKind::LineWidth,
-                    step: i,
-                    at: q,
-                    msg: format!(
+            rep.add(o.max_listed, IssueKind::LineWidth, i, q, || format!(
                         "line {w:.2} mm wide ({cross:.3} mm² laid {height:.2} mm thick {over}) is {ratio:.2}× the {} mm nozzle, outside {}–{max}× (set the width and height with set_extrusion)",
                         self.nozzle_mm, o.min_width_ratio
-                    ),
-                },
-            );
+                    ));
         }
     }
 }
@@ -193,18 +185,12 @@ pub(super) fn support_check<P: Printed>(
     };
     match found {
         None => {
-            rep.add(
-            o.max_listed,
-            Issue {
-                kind: IssueKind::Unsupported,
-                step: i,
-                at: q,
-                        msg: format!(
-                            "nothing printed within {} mm below ({:.2}, {:.2}, {:.2}): printing in the air",
-                            o.support_radius_mm, q.x, q.y, q.z
-                        ),
-                    },
-            );
+            rep.add(o.max_listed, IssueKind::Unsupported, i, q, || {
+                format!(
+                    "nothing printed within {} mm below ({:.2}, {:.2}, {:.2}): printing in the air",
+                    o.support_radius_mm, q.x, q.y, q.z
+                )
+            });
             false
         }
         Some(_) if !end => true,
@@ -220,20 +206,12 @@ pub(super) fn support_check<P: Printed>(
                 below.width_check(o, i, q, cross, t, false, rep);
             }
             if side > 0.5 * width + 1e-9 {
-                rep.add(
-                    o.max_listed,
-                    Issue {
-                        kind: IssueKind::WideningTooFast,
-                        step: i,
-                        at: q,
-                        msg: format!(
+                rep.add(o.max_listed, IssueKind::WideningTooFast, i, q, || format!(
                             "offset {side:.2} mm from the string {drop:.2} mm below exceeds half the string width ({:.2} mm): an overhang of {:.0}° from the vertical, beyond atan(w / 2h) = {:.0}°",
                             0.5 * width,
                             side.atan2(drop).to_degrees(),
                             (0.5 * width).atan2(drop).to_degrees()
-                        ),
-                    },
-                );
+                        ));
                 return false;
             }
             true
@@ -264,18 +242,10 @@ pub(super) fn travel_check<P: Printed>(
             [p.x + r, p.y + r],
             p.z - o.travel_clearance_mm,
         ) {
-            rep.add(
-                o.max_listed,
-                Issue {
-                    kind: IssueKind::TravelCrossesPrint,
-                    step: i,
-                    at: p,
-                    msg: format!(
+            rep.add(o.max_listed, IssueKind::TravelCrossesPrint, i, p, || format!(
                         "travel from ({:.2}, {:.2}) to ({:.2}, {:.2}) at z {:.2} passes over printed material (stringing)",
                         from.x, from.y, to.x, to.y, p.z
-                    ),
-                },
-            );
+                    ));
             return;
         }
     }

@@ -3,7 +3,7 @@
 //! lines take the head (`G0`/`G1`, `G28`) — so a heater switched off before an extrusion and a
 //! `G28` in the middle of a print are flagged like any other design step.
 
-use super::{CheckOptions, CheckReport, Issue, IssueKind};
+use super::{CheckOptions, CheckReport, IssueKind};
 use crate::design::model::{StateChange, Step, Str};
 use crate::design::profile::Profile;
 use crate::design::raw::RawTracker;
@@ -97,18 +97,10 @@ impl Machine {
                 }
                 if fx.homes && printing {
                     let at = pos.unwrap_or(self.home);
-                    rep.add(
-                        o.max_listed,
-                        Issue {
-                            kind: IssueKind::HomesMidPrint,
-                            step: i,
-                            at,
-                            msg: format!(
+                    rep.add(o.max_listed, IssueKind::HomesMidPrint, i, at, || format!(
                                 "raw G-code `{}` homes in the middle of the print: the head drives to its endstops through or across what is printed",
                                 text.lines().map(str::trim).filter(|l| !l.is_empty()).collect::<Vec<_>>().join("\\n")
-                            ),
-                        },
-                    );
+                            ));
                 }
             }
             _ => {}
@@ -126,17 +118,9 @@ impl Machine {
             Some(t) => format!(" by {} at step {}", t.what, t.step),
             None => String::new(),
         };
-        rep.add(
-            o.max_listed,
-            Issue {
-                kind: IssueKind::ColdExtrusion,
-                step: i,
-                at: s.start,
-                msg: format!(
+        rep.add(o.max_listed, IssueKind::ColdExtrusion, i, s.start, || format!(
                     "extruding with the hot end set to {:.0} °C{by}: below {:.0} °C the firmware refuses to move the extruder (M302)",
                     self.hotend_c, self.min_c
-                ),
-            },
-        );
+                ));
     }
 }
