@@ -8,7 +8,8 @@
 //! - [`job`]: G-code jobs: reading, the job model and its edits, stats, preview, the sender;
 //! - [`paste`]: paste printing: growth, time-based jobs, the cure check;
 //! - [`additive`]: polygon-frame additive printing onto an existing part;
-//! - [`cli`] and [`fileio`]: the command line and bounded, non-destructive file I/O.
+//! - [`cli`] and [`fileio`]: the command line and bounded, non-destructive file I/O;
+//! - [`mem`]: the heap in use, for the script sandbox's memory budget.
 #![deny(missing_docs)]
 
 pub mod additive;
@@ -16,4 +17,5 @@ pub mod cli;
 pub mod design;
 pub mod fileio;
 pub mod job;
+pub mod mem;
 pub mod paste;

@@ -2,6 +2,10 @@
 use clap::{Parser, Subcommand};
 use host_tools::cli;
 
+/// Counts the heap in use, so design scripts run within a memory budget.
+#[global_allocator]
+static ALLOC: host_tools::mem::Counting = host_tools::mem::Counting;
+
 /// Design compiler and job tools for FDM (and paste) printers.
 #[derive(Parser, Debug)]
 #[command(name = "host-tools", version, about)]

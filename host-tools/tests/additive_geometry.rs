@@ -546,6 +546,38 @@ fn pyramid_on_15_degree_slope_stacks_along_the_normal() {
     assert!(check(&steep, &job, &params).expect("check").is_some());
 }
 
+/// A refusal names the real cause: a base part within the carriage's reach of the start
+/// position is not a face-tilt problem (issue 23: the message blamed the 15° face).
+#[test]
+fn refusal_names_the_start_position_when_that_is_the_cause() {
+    use host_tools::additive::job::explain;
+    let base = slope_base(DVec2::new(80.0, 80.0), 60.0, 60.0, 10.0, 15.0);
+    let shape = triangular_pyramid(20.0, 15.0);
+    let params = JobParams {
+        face: FaceChoice::Index(SLOPE_FACE),
+        // 10 mm beside the base part, at the bed: inside the 20 mm carriage.
+        start_mm: DVec3::new(70.0, 100.0, 0.0),
+        ..JobParams::default()
+    };
+    let job = plan(&base, &shape, &params).unwrap();
+    let c = check(&base, &job, &params).expect("check").expect("hits");
+    let msg = explain(&job, &params.head, &c);
+    assert!(
+        msg.contains("start position") && msg.contains("not the cause"),
+        "{msg}"
+    );
+    // The steep face: the tilt is the cause and is named.
+    let steep = slope_base(DVec2::new(80.0, 80.0), 60.0, 60.0, 10.0, 60.0);
+    let far = JobParams {
+        start_mm: DVec3::ZERO,
+        ..params
+    };
+    let job = plan(&steep, &shape, &far).unwrap();
+    let c = check(&steep, &job, &far).expect("check").expect("hits");
+    let msg = explain(&job, &far.head, &c);
+    assert!(msg.contains("tilt is 60.0°"), "{msg}");
+}
+
 #[test]
 fn bad_job_parameters_are_errors() {
     let base = cube10();

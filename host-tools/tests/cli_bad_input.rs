@@ -95,6 +95,22 @@ fn numeric_options_beyond_their_limits_are_refused() {
             "additive", "--base", "b.stl", "--shape", "s.stl", "--face", "0", "--offset", "1e308,0",
         ],
         &["compile", "x.rhai", "--max-operations", "0"],
+        &["compile", "x.rhai", "--max-memory-mib", "0"],
+        &["compile", "x.rhai", "--max-memory-mib", "1000000"],
+        &["timebased", "x.gcode", "--period-ms", "1e308"],
+        &["timebased", "x.gcode", "--period-ms", "0"],
+        &["timebased", "x.gcode", "--period-ms", "-5"],
+        &["timebased", "x.gcode", "--period-ms", "nan"],
+        &["timebased", "x.gcode", "--period-ms", "0.001"],
+        &["timebased", "x.gcode", "--period-ms", "60001"],
+        &[
+            "cure-check",
+            "x.gcode",
+            "--cure",
+            "5",
+            "--period-ms",
+            "1e308",
+        ],
     ] {
         let mut a = args.to_vec();
         a.extend(["-o", s(&out)]);
@@ -274,4 +290,41 @@ fn output_paths_keep_links_devices_and_directories() {
         .collect();
     names.sort();
     assert_eq!(names, ["line.rhai", "link.gcode", "out", "real.gcode"]);
+}
+
+/// A script that grows without end (doubling a string or an array every operation, or one
+/// `pad` to a huge size) stops with a clean error: the sandbox bounds the heap as a whole
+/// (issue 23 took Rhai's per-value limits out: they made appending to a path quadratic).
+#[test]
+fn runaway_scripts_stop_at_the_memory_budget() {
+    let d = tmp("memory");
+    let out = d.join("o.gcode");
+    for (name, src) in [
+        ("string", "let s = \"xy\"; loop { s += s; }"),
+        ("array", "let a = [1, 2]; loop { a += a; }"),
+        ("nested", "let a = [1]; loop { a.push(a); }"),
+        (
+            "pad",
+            "let a = []; a.pad(1000000000000, 0); turtle(0, 0, 0)",
+        ),
+        ("blob", "let b = blob(1000000000000); turtle(0, 0, 0)"),
+    ] {
+        let script = d.join(format!("{name}.rhai"));
+        std::fs::write(&script, src).expect("script");
+        let o = run(&[
+            "compile",
+            s(&script),
+            "-o",
+            s(&out),
+            "--max-memory-mib",
+            "64",
+        ]);
+        assert_clean_error(&o, "error");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            err.contains("memory") || err.contains("sandbox"),
+            "{name}: {err}"
+        );
+        assert!(!out.exists(), "{name} wrote output");
+    }
 }

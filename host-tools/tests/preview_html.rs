@@ -17,7 +17,6 @@
 
 use host_tools::design::parts::Helix;
 use host_tools::design::profile::Profile;
-use host_tools::design::turtle::Turtle;
 use host_tools::design::writer::{GcodeWriter, WriteOptions};
 use std::f64::consts::PI;
 use std::fmt::Write as _;
@@ -548,30 +547,54 @@ fn default_view_hover_legend_and_annotations() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// The design compiler writes an annotation with `comment("ANNOTATION: …")`; the page places
-/// it at the nozzle's position there.
+/// A design's annotations reach the page: `t.comment("ANNOTATION: …")` at the nozzle's
+/// position there, `t.annotate(label)` at the pen's, `t.annotate(point, label)` at that point
+/// (FullControl's `PlotAnnotation` with and without a point), each with its layer.
 #[test]
-fn a_designs_annotation_reaches_the_page() {
+fn a_designs_annotations_reach_the_page() {
     let p = Profile::builtin("mk3s").expect("mk3s");
-    let mut t = Turtle::at(glam::DVec3::new(100.0, 100.0, 0.2), 0.1, 20.0);
-    t.forward(10.0, 0.0).expect("line");
-    t.comment("ANNOTATION: corner");
-    t.left(90.0).expect("turn");
-    t.forward(10.0, 0.0).expect("line");
+    let src = r#"
+        let t = turtle(100.0, 100.0, 0.2);
+        t.set_width_height(0.45, 0.2);
+        t.forward(10.0);
+        t.comment("ANNOTATION: corner");
+        t.left(90.0);
+        t.forward(10.0);
+        t.annotate("pen");
+        t.annotate([95.5, 104.25, 3.0], "above");
+        t.mark_layer(0.2);
+        t.forward(5.0);
+        t
+    "#;
+    let out = host_tools::design::script::ScriptRunner::new(p.clone())
+        .run("notes.rhai", src, Path::new("."))
+        .expect("script");
     let (g, _) = GcodeWriter::new(&p, WriteOptions::default())
-        .to_string(&t.into_model())
+        .to_string(&out.model)
         .expect("write");
     let (html, s) = host_tools::job::preview_html::html(g.as_bytes(), &p, "t").expect("page");
-    assert_eq!(s.annotations, 1);
-    let line = g
-        .lines()
-        .position(|l| l.contains("ANNOTATION: corner"))
-        .expect("comment written")
-        + 1;
-    assert!(
-        html.contains(&format!("[\"corner\",{line},110,100,0.2,")),
-        "the note sits at the end of the first line (110, 100, 0.2)"
-    );
+    assert_eq!(s.annotations, 3, "{g}");
+    let line_of = |needle: &str| {
+        g.lines()
+            .position(|l| l.contains(needle))
+            .unwrap_or_else(|| panic!("{needle} not written:\n{g}"))
+            + 1
+    };
+    let notes_at = html.find("const NOTES = ").expect("notes") + 14;
+    let notes = &html[notes_at..notes_at + html[notes_at..].find('\n').expect("end")];
+    // [text, line, x, y, z, layer index]: all three on the first layer (index 1: the start
+    // code is index 0), before the mark of the second.
+    for (text, x, y, z) in [
+        ("corner", "110", "100", "0.2"),
+        ("pen", "110", "110", "0.2"),
+        ("above", "95.5", "104.25", "3"),
+    ] {
+        let want = format!(
+            "[\"{text}\",{},{x},{y},{z},1]",
+            line_of(&format!(": {text}"))
+        );
+        assert!(notes.contains(&want), "{want} in {notes}");
+    }
 }
 
 /// The CLI writes the page (`preview --html`), self-contained, and refuses another extension.

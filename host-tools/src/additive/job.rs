@@ -335,6 +335,43 @@ pub fn check(base: &Mesh, job: &Job, p: &JobParams) -> anyhow::Result<Option<Col
     ))
 }
 
+/// Why the head hits the base part, in words: the real cause, not always the face's tilt.
+/// A hit on the approach (the head at, or rising from, where the start code leaves it) is
+/// the start position lying within the head's reach of the base part; a hit while printing
+/// is the face's tilt only when the tilt is beyond what the head can print on.
+pub fn explain(job: &Job, head: &HeadModel, c: &Collision) -> String {
+    let hit = format!(
+        "the {} hits the base part at ({:.2}, {:.2}, {:.2}) with the nozzle at ({:.2}, {:.2}, {:.2})",
+        c.part, c.base_point[0], c.base_point[1], c.base_point[2], c.tip[0], c.tip[1], c.tip[2]
+    );
+    let tilt = job.frame.tilt_deg();
+    match job.approach.first() {
+        Some(start) if c.path_index < 2 && job.approach.len() >= 2 => {
+            let dxy = (DVec3::from_array(c.base_point) - *start).truncate().length();
+            format!(
+                "{hit} {} the start position ({:.1}, {:.1}, {:.1}), where the printer's start code leaves the head: the base part is {dxy:.1} mm from it, within the head's reach of {:.0} mm (carriage radius). Place the base part farther from the start position (or use a profile whose start code parks elsewhere); the face tilt ({tilt:.1}°) is not the cause",
+                if c.path_index == 0 { "at" } else { "rising from" },
+                start.x,
+                start.y,
+                start.z,
+                head.max_radius_mm()
+            )
+        }
+        _ if c.path_index < job.approach.len() => format!(
+            "{hit} on the approach across, {:.0} mm above the base part's top: the base part is taller than its bounding box says?",
+            APPROACH_CLEARANCE_MM
+        ),
+        _ if tilt > job.max_tilt_deg => format!(
+            "{hit} (toolpath point {}): the face tilt is {tilt:.1}°, the head can print on up to {:.1}°",
+            c.path_index, job.max_tilt_deg
+        ),
+        _ => format!(
+            "{hit} (toolpath point {}): the face tilt ({tilt:.1}°) is within the head's {:.1}°, so another part of the base rises into the head's reach of the shape (move the shape with --offset, or use a head model with a smaller carriage)",
+            c.path_index, job.max_tilt_deg
+        ),
+    }
+}
+
 /// Speeds of the emitted paths, mm/s.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Speeds {

@@ -5,7 +5,8 @@ use crate::additive::collision::HeadModel;
 use crate::additive::fill::FillParams;
 use crate::additive::frame::Placement;
 use crate::additive::job::{
-    check, plan, start_position, to_model, FaceChoice, JobParams, Speeds, MAX_LAYERS, MAX_WALLS,
+    check, explain, plan, start_position, to_model, FaceChoice, JobParams, Speeds, MAX_LAYERS,
+    MAX_WALLS,
 };
 use crate::additive::stl::read_stl;
 use crate::design::profile::Profile;
@@ -159,15 +160,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         ))?;
     }
     if let Some(c) = check(&base, &job, &params)? {
-        anyhow::bail!(
-            "refused: the {} hits the base part at ({:.2}, {:.2}, {:.2}) with the nozzle at ({:.2}, {:.2}, {:.2}) (toolpath point {}); the face tilt is {:.1}°, the head can print on up to {:.1}°",
-            c.part,
-            c.base_point[0], c.base_point[1], c.base_point[2],
-            c.tip[0], c.tip[1], c.tip[2],
-            c.path_index,
-            f.tilt_deg(),
-            job.max_tilt_deg
-        );
+        anyhow::bail!("refused: {}", explain(&job, &params.head, &c));
     }
     let model = to_model(&job, &params, &Speeds::default());
     let writer = GcodeWriter::new(

@@ -36,6 +36,10 @@ pub struct Args {
     #[arg(long, default_value_t = 200_000_000,
           value_parser = clap::value_parser!(u64).range(1000..=1_000_000_000_000))]
     pub max_operations: u64,
+    /// Most heap the script may use while it runs, MiB (16 to 65,536).
+    #[arg(long, default_value_t = 1024,
+          value_parser = clap::value_parser!(u64).range(16..=65_536))]
+    pub max_memory_mib: u64,
 }
 
 /// Runs the subcommand.
@@ -50,6 +54,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let runner = ScriptRunner::new(profile.clone())
         .with_limits(Limits {
             max_operations: args.max_operations,
+            max_memory_bytes: (args.max_memory_mib as usize).saturating_mul(1 << 20),
             ..Limits::default()
         })
         .with_progress(move |ops| {

@@ -3,7 +3,7 @@
 use crate::design::motion::{MotionLimits, Trajectory};
 use crate::design::profile::Profile;
 use crate::paste::cure::{check, heat_map_svg, summary, CureParams};
-use crate::paste::timebased::{is_timebased, read_timebased, TimedPath};
+use crate::paste::timebased::{design_window, is_timebased, read_timebased, TimedPath, PERIOD_MS};
 use std::io::Write;
 use std::path::PathBuf;
 
@@ -21,8 +21,8 @@ pub struct Args {
     /// A sample is below another when lower by at least this, mm.
     #[arg(long, default_value_t = 0.05)]
     pub min_dz: f64,
-    /// Sample period when the input is ordinary G-code, ms.
-    #[arg(long, default_value_t = 100.0)]
+    /// Sample period when the input is ordinary G-code, ms (1 to 60,000).
+    #[arg(long, default_value_t = 100.0, value_parser = super::range::within(PERIOD_MS.0, PERIOD_MS.1))]
     pub period_ms: f64,
     /// Printer profile for resampling ordinary G-code.
     #[arg(long, default_value = "ender3")]
@@ -60,7 +60,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         let traj = Trajectory::from_gcode(&input, MotionLimits::from_profile(&profile))
             .map_err(|e| anyhow::anyhow!("{}: {e}", a.input.display()))?;
         let p = a.period_ms / 1000.0;
-        (p, traj.samples(p))
+        // The design only, as `timebased` resamples it.
+        let (t0, t1) = design_window(&traj)
+            .ok_or_else(|| anyhow::anyhow!("{}: nothing is printed", a.input.display()))?;
+        (p, traj.samples_between(t0, t1, p))
     };
     let params = CureParams {
         period_s,

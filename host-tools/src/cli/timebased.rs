@@ -2,7 +2,10 @@
 
 use crate::design::motion::{MotionLimits, Trajectory};
 use crate::design::profile::Profile;
-use crate::paste::timebased::{first_temperatures, with_start_end, write_timebased, TimedPath};
+use crate::paste::timebased::{
+    approach, design_window, first_temperatures, with_start_end, write_timebased, TimedPath,
+    PERIOD_MS,
+};
 use std::path::PathBuf;
 
 /// Arguments of `host-tools timebased`.
@@ -13,8 +16,8 @@ pub struct Args {
     /// Output time-based G-code.
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Sample period, ms.
-    #[arg(long, default_value_t = 100.0)]
+    /// Sample period, ms (1 to 60,000).
+    #[arg(long, default_value_t = 100.0, value_parser = super::range::within(PERIOD_MS.0, PERIOD_MS.1))]
     pub period_ms: f64,
     /// Printer profile whose motion limits time the moves (built-in name or TOML path).
     #[arg(long, default_value = "ender3")]
@@ -23,15 +26,14 @@ pub struct Args {
 
 /// Runs the subcommand.
 pub fn run(a: Args) -> anyhow::Result<()> {
-    if !a.period_ms.is_finite() || a.period_ms <= 0.0 {
-        anyhow::bail!("--period-ms must be a positive number");
-    }
     let profile = Profile::load(&a.printer)?;
     let input = crate::fileio::read_bounded(&a.input, crate::fileio::Limit::Gcode)?;
     let traj = Trajectory::from_gcode(&input, MotionLimits::from_profile(&profile))
         .map_err(|e| anyhow::anyhow!("{}: {e}", a.input.display()))?;
+    let (t0, t1) = design_window(&traj)
+        .ok_or_else(|| anyhow::anyhow!("{}: nothing is printed", a.input.display()))?;
     let period_s = a.period_ms / 1000.0;
-    let n = (traj.duration_s() / period_s).floor() + 1.0;
+    let n = ((t1 - t0) / period_s).ceil() + 1.0;
     if n > 50e6 {
         anyhow::bail!(
             "{:.0} samples at {} ms: choose a longer --period-ms",
@@ -39,25 +41,41 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             a.period_ms
         );
     }
-    let samples = traj.samples(period_s);
-    // The source's heating and homing are not motion: the printer's start and end code go
-    // around the samples, at the source's first temperatures (else the profile's).
+    // Only the design is resampled: the source's own start and end code (heating, homing,
+    // purge, park) are not motion of the design; the printer's go around the samples, at the
+    // source's first temperatures (else the profile's), with an approach from where the
+    // start code leaves the head to the first sample.
+    let samples = traj.samples_between(t0, t1, period_s);
     let (hotend_c, bed_c) = first_temperatures(&input);
     let hotend_c = hotend_c.unwrap_or(profile.hotend_c);
     let bed_c = bed_c.unwrap_or(profile.bed_c);
+    let mut start = profile.start_code(hotend_c, bed_c);
+    if let Some(first) = samples.first() {
+        let from = crate::additive::job::start_position(&profile).ok();
+        if !start.is_empty() && !start.ends_with('\n') {
+            start.push('\n');
+        }
+        start.push_str(&approach(
+            from,
+            first.pos,
+            profile.travel_speed_mm_s,
+            profile.limits.max_feed_z_mm_s,
+        ));
+    }
     let text = with_start_end(
         &write_timebased(&samples, period_s, &a.input.display().to_string()),
-        &profile.start_code(hotend_c, bed_c),
+        &start,
         &profile.end_code(hotend_c, bed_c),
     );
     crate::fileio::write_bytes(&a.output, text.as_bytes())?;
     let deposited = samples.iter().filter(|s| s.extruding).count();
     crate::fileio::say(format_args!(
-        "{} samples every {} ms over {:.1} s ({} depositing) -> {} ({} bytes)",
+        "{} samples every {} ms over the design's {:.1} s ({} depositing; the source's start and end code, {:.1} s, left out) -> {} ({} bytes)",
         samples.len(),
         a.period_ms,
-        traj.duration_s(),
+        t1 - t0,
         deposited,
+        traj.duration_s() - (t1 - t0),
         a.output.display(),
         text.len()
     ))

@@ -3,6 +3,7 @@
 
 pub mod checks;
 pub mod deform;
+pub mod init;
 pub mod model;
 pub mod modulate;
 pub mod motion;
@@ -11,7 +12,9 @@ pub mod pen;
 pub mod points;
 pub mod profile;
 pub mod progress;
+pub mod raw;
 pub mod script;
+pub mod transform;
 pub mod travel;
 pub mod turtle;
 pub mod writer;

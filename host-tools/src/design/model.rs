@@ -16,6 +16,10 @@ use glam::DVec3;
 /// parts, mm.
 pub const ASSEMBLY_CLEARANCE_MM: f64 = 1.0;
 
+/// Largest number of strings one model operation may make (guards scripts against runaway
+/// sizes: parts, subdivision, copies).
+pub const MAX_STRINGS: usize = 20_000_000;
+
 /// A true circular arc in the XY plane (optionally rising in Z: a helical arc), written as
 /// G2/G3 when the design keeps it; deformations turn arcs into straight strings.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -129,6 +133,12 @@ pub enum StateChange {
         /// Pause at once instead of at the layer boundary.
         now: bool,
     },
+    /// Speed of the travels from here on that do not name their own, mm/s (replaces the
+    /// profile's `travel_speed_mm_s`).
+    TravelSpeed(f64),
+    /// Whether the profile's primer (its purge line) is written in the start code; only
+    /// before the design's first move.
+    Primer(crate::design::profile::Primer),
 }
 
 /// Kind of a progress marker.
@@ -462,14 +472,14 @@ impl Model {
 
     /// Splits every straight string longer than `max_len_mm` into equal strings no longer
     /// than it (same cross-section and speed), so later deformations bend it smoothly. Arcs
-    /// are kept. Errors when the result would exceed [`crate::design::parts::MAX_PART_STRINGS`].
+    /// are kept. Errors when the result would exceed [`MAX_STRINGS`].
     pub fn subdivide(mut self, max_len_mm: f64) -> Result<Model, String> {
         if !(max_len_mm.is_finite() && max_len_mm > 0.0) {
             return Err(format!(
                 "subdivide: max length must be > 0, got {max_len_mm}"
             ));
         }
-        let limit = crate::design::parts::MAX_PART_STRINGS as f64;
+        let limit = MAX_STRINGS as f64;
         let total: f64 = self
             .strings()
             .filter(|s| s.arc.is_none())

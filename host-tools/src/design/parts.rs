@@ -6,8 +6,9 @@ use crate::design::model::{Arc, MarkerKind, Model, Step, Str};
 use glam::DVec3;
 use std::f64::consts::TAU;
 
-/// Largest number of strings one part may have (guards scripts against runaway sizes).
-pub const MAX_PART_STRINGS: usize = 20_000_000;
+/// Largest number of strings one part may have (guards scripts against runaway sizes): the
+/// model's limit for any operation.
+pub const MAX_PART_STRINGS: usize = crate::design::model::MAX_STRINGS;
 
 /// A helix around a vertical axis.
 #[derive(Clone, Copy, Debug, PartialEq)]

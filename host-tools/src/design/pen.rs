@@ -27,15 +27,17 @@
 //! ```
 
 use crate::design::model::{StateChange, Step};
-use crate::design::profile::Retraction;
+use crate::design::profile::{Primer, Retraction};
 use crate::design::turtle::{finite, Turtle, TurtleError};
+use crate::job::annotation;
 use glam::DVec3;
 use std::f64::consts::PI;
 
 /// How a line's cross-section follows from its width and height (FullControl's area models).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub enum AreaModel {
     /// width × height.
+    #[default]
     Rectangle,
     /// A rectangle with semicircular sides: (width − height)·height + π(height/2)².
     Stadium,
@@ -235,7 +237,10 @@ impl Turtle {
         Ok(())
     }
 
-    /// Raw G-code lines, written as they are (printable ASCII only).
+    /// Raw G-code lines, written as they are (printable ASCII only). Each line must parse
+    /// with the printer's own parser and keep the frame the writer relies on
+    /// ([`crate::design::raw::check_text`]); what the lines do (moves, homing, heaters, fan,
+    /// E) is seen by the checks and the writer.
     pub fn gcode(&mut self, text: &str) -> Result<(), TurtleError> {
         if text
             .chars()
@@ -245,7 +250,50 @@ impl Turtle {
                 "gcode: printable ASCII lines only, got {text:?}"
             )));
         }
+        crate::design::raw::check_text(text)
+            .map_err(|e| TurtleError::BadArgument(e.to_string()))?;
         self.state_change(StateChange::Gcode(text.to_string()));
+        Ok(())
+    }
+
+    /// Speed of the travels from here on, mm/s (> 0; replaces the profile's).
+    pub fn set_travel_speed(&mut self, mm_s: f64) -> Result<(), TurtleError> {
+        let v = finite("travel speed", mm_s)?;
+        if v <= 0.0 {
+            return Err(TurtleError::BadArgument(format!(
+                "travel speed must be > 0 mm/s, got {v}"
+            )));
+        }
+        self.state_change(StateChange::TravelSpeed(v));
+        Ok(())
+    }
+
+    /// The profile's primer (its purge line) or none; only before the first move.
+    pub fn set_primer(&mut self, primer: Primer) -> Result<(), TurtleError> {
+        if self
+            .model
+            .steps
+            .iter()
+            .any(|s| matches!(s, Step::String(_) | Step::Travel { .. }))
+        {
+            return Err(TurtleError::BadArgument(
+                "set_primer: the primer is part of the start code; choose it before the first move"
+                    .into(),
+            ));
+        }
+        self.state_change(StateChange::Primer(primer));
+        Ok(())
+    }
+
+    /// An annotation for viewers (FullControl's `PlotAnnotation`), written as the comment
+    /// `; ANNOTATION X<x> Y<y> Z<z>: <label>` ([`crate::job::annotation`]: mm, at most three
+    /// decimals, the label on one line) at `at`, the pen's position when `None`; the 3D
+    /// preview shows it there.
+    pub fn annotate(&mut self, at: Option<DVec3>, label: &str) -> Result<(), TurtleError> {
+        let p = point(at.unwrap_or(self.state.pos))?;
+        let text = annotation::comment(Some(p.to_array()), label)
+            .ok_or_else(|| TurtleError::BadArgument(format!("point must be finite, got {p:?}")))?;
+        self.model.push(Step::Comment(text));
         Ok(())
     }
 
@@ -272,6 +320,36 @@ mod tests {
         assert!(AreaModel::parse("circle").is_err());
     }
 
+    /// A polyline starting one layer above where the last one closed steps straight up
+    /// (it hopped 1 mm before issue 23); one crossing printed material at its height lifts.
+    #[test]
+    fn polyline_hops_only_when_printed_material_is_in_the_way() {
+        let travels = |t: &Turtle| -> Vec<DVec3> {
+            t.model()
+                .steps
+                .iter()
+                .filter_map(|s| match s {
+                    Step::Travel { to, .. } => Some(*to),
+                    _ => None,
+                })
+                .collect()
+        };
+        let mut t = Turtle::at(DVec3::new(110.0, 100.0, 0.2), 0.08, 20.0);
+        for z in [0.2, 0.4] {
+            let ring =
+                crate::design::points::circle_xy(DVec3::new(100.0, 100.0, z), 10.0, 0.0, 64, false)
+                    .expect("circle");
+            t.polyline(&ring).expect("ring");
+        }
+        assert_eq!(travels(&t), [DVec3::new(110.0, 100.0, 0.4)]);
+        // Across the ring at its own height: up, across, down.
+        t.polyline(&[DVec3::new(90.0, 100.0, 0.4), DVec3::new(89.0, 100.0, 0.4)])
+            .expect("across");
+        let tr = travels(&t);
+        assert_eq!(tr.len(), 4, "{tr:?}");
+        assert!(tr[1].z > 1.0 && tr[2].z > 1.0);
+    }
+
     #[test]
     fn extrude_to_keeps_the_pen_and_travel_to_lifts() {
         let mut t = Turtle::at(DVec3::new(0.0, 0.0, 0.2), 0.1, 20.0);
@@ -295,5 +373,16 @@ mod tests {
         assert!(t.fan(101.0).is_err());
         assert!(t.hotend(500.0, true).is_err());
         assert!(t.gcode("M42 P1\u{7}").is_err());
+        t.annotate(None, "seam\nhere").expect("annotate");
+        t.annotate(Some(DVec3::new(1.5, -2.0, 0.25)), "corner")
+            .expect("annotate");
+        let n = t.model().steps.len();
+        assert_eq!(
+            t.model().steps[n - 2..],
+            [
+                Step::Comment("ANNOTATION X0 Y0 Z0.2: seam here".into()),
+                Step::Comment("ANNOTATION X1.5 Y-2 Z0.25: corner".into())
+            ]
+        );
     }
 }

@@ -11,9 +11,8 @@
 use glam::{DVec2, DVec3};
 use std::f64::consts::{FRAC_PI_2, TAU};
 
-/// Most points one generator call may return: the sandbox's default array limit
-/// ([`crate::design::script::Limits`]), checked here before anything is allocated (a path of
-/// a million points is ~24 MB native, ~100 MB as script arrays).
+/// Most points one generator call may return, checked before anything is allocated (a path
+/// of a million points is ~24 MB native, ~100 MB as script arrays).
 pub const MAX_POINTS: usize = 1_000_000;
 
 /// A bad argument to a point generator.

@@ -10,7 +10,7 @@
 
 use crate::design::motion::{plan_gcode, MotionLimits};
 use crate::design::profile::Profile;
-use crate::design::writer::WriteError;
+use crate::job::read::ReadError;
 
 /// Inserts progress lines into `buf` at the byte offsets `at` (each at the start of a line,
 /// ascending, all ≥ `body_start`; the last one is where the end code begins). The G-code from
@@ -20,7 +20,7 @@ pub fn insert_m73(
     body_start: usize,
     at: &[usize],
     profile: &Profile,
-) -> Result<(), WriteError> {
+) -> Result<(), ReadError> {
     let Some(&body_end) = at.last() else {
         return Ok(());
     };
@@ -32,11 +32,7 @@ pub fn insert_m73(
         MotionLimits::from_profile(profile),
         &mut |s| starts.push((s.line, s.t_start_s)),
         &mut |_, _, _| {},
-    )
-    .map_err(|e| WriteError::BadStep {
-        index: 0,
-        msg: format!("progress estimate: the written G-code does not read back: {e}"),
-    })?;
+    )?;
     let total_s = totals.time_s;
     // Line number (1-based, within the body) of the line starting at each offset.
     let mut lines = Vec::with_capacity(at.len());

@@ -20,6 +20,11 @@ use std::collections::HashMap;
 pub const CELL_MM: f64 = 2.0;
 /// How far above printed material (and above both ends) a travel crosses, mm.
 pub const TRAVEL_CLEARANCE_MM: f64 = 1.0;
+/// A straight travel must pass this far above printed material, mm (the printability
+/// check's `travel_clearance_mm`).
+pub const STRAIGHT_CLEARANCE_MM: f64 = 0.1;
+/// Length at each end of a travel where printed material does not count, mm (the check's).
+pub const END_SKIP_MM: f64 = 1.0;
 /// Cells a single segment may mark or probe; longer segments are probed at coarser steps
 /// bounded by this (a travel across a 300 mm bed needs 150).
 const MAX_SAMPLES: usize = 100_000;
@@ -99,12 +104,37 @@ impl HeightMap {
             .reduce(f64::max)
     }
 
-    /// The route from `from` to `to`: up to [`TRAVEL_CLEARANCE_MM`] above the higher end and
-    /// above everything printed in the corridor, across, down onto `to`. Returns the points
-    /// to travel to, `to` last; empty when `from == to`.
+    /// True when the straight way from `from` to `to` passes over nothing printed that
+    /// reaches within [`STRAIGHT_CLEARANCE_MM`] of the lower end's height, away from the ends
+    /// ([`END_SKIP_MM`] along the way: the ends touch the strings they leave and join) — the
+    /// rule the printability check applies to travels. A step to the next layer, a short hop
+    /// between neighbouring points and a crossing above lower material go straight.
+    pub fn clear_straight(&self, from: DVec3, to: DVec3) -> bool {
+        let len = from.distance(to);
+        if len <= 2.0 * END_SKIP_MM {
+            return true;
+        }
+        let inner = len - 2.0 * END_SKIP_MM;
+        let n = ((inner / (CELL_MM / 2.0)).ceil() as usize).clamp(1, MAX_SAMPLES);
+        let min_z = from.z.min(to.z) - STRAIGHT_CLEARANCE_MM;
+        (0..=n).all(|k| {
+            let p = from.lerp(to, (END_SKIP_MM + inner * k as f64 / n as f64) / len);
+            self.cells
+                .get(&cell_of(p.x, p.y))
+                .is_none_or(|h| *h < min_z)
+        })
+    }
+
+    /// The route from `from` to `to`: straight when nothing printed is in the way
+    /// ([`HeightMap::clear_straight`]), else up to [`TRAVEL_CLEARANCE_MM`] above the higher end
+    /// and above everything printed in the corridor, across, down onto `to`. Returns the
+    /// points to travel to, `to` last; empty when `from == to`.
     pub fn route(&self, from: DVec3, to: DVec3) -> Vec<DVec3> {
         if from == to {
             return Vec::new();
+        }
+        if self.clear_straight(from, to) {
+            return vec![to];
         }
         let top = self.max_along(from, to).unwrap_or(f64::NEG_INFINITY);
         let safe_z = top.max(from.z).max(to.z) + TRAVEL_CLEARANCE_MM;
@@ -145,9 +175,18 @@ mod tests {
         let r = map.route(DVec3::new(0.0, 0.0, 0.2), DVec3::new(20.0, 0.0, 0.2));
         assert_eq!(r.len(), 3);
         assert!((r[0].z - 6.0).abs() < 1e-9, "{r:?}");
-        // A travel that passes far from the wall only hops.
+        // A travel that passes far from the wall goes straight (it used to hop 1 mm).
         let r = map.route(DVec3::new(0.0, 20.0, 0.2), DVec3::new(20.0, 20.0, 0.2));
-        assert!((r[0].z - 1.2).abs() < 1e-9, "{r:?}");
+        assert_eq!(r, [DVec3::new(20.0, 20.0, 0.2)]);
+        // The step from the wall's top to the next layer above it: straight.
+        let top = DVec3::new(10.0, 5.0, 5.0);
+        assert_eq!(map.route(top, top + DVec3::Z * 0.2), [top + DVec3::Z * 0.2]);
+        // Along the wall's top at its own height: over printed material, so it lifts.
+        let r = map.route(DVec3::new(10.0, -5.0, 5.0), DVec3::new(10.0, 5.0, 5.0));
+        assert_eq!(r.len(), 3, "{r:?}");
+        // Across the wall one layer above it: clear by the layer height, straight.
+        let r = map.route(DVec3::new(0.0, 0.0, 5.2), DVec3::new(20.0, 0.0, 5.2));
+        assert_eq!(r.len(), 1, "{r:?}");
         assert!(map.route(DVec3::ONE, DVec3::ONE).is_empty());
         // Non-finite strings are ignored, huge ones saturate.
         map.add_segment(DVec3::splat(f64::NAN), DVec3::ZERO);

@@ -6,6 +6,7 @@
 //! writer emits layer/turn markers the same detector reads). Operations that edit the rest of a
 //! job at a paused layer boundary live in [`ops`].
 
+pub mod annotation;
 pub mod gcode;
 pub mod modal;
 pub mod ops;

@@ -1,12 +1,14 @@
 //! The moves, layers and annotations of a job as the 3D page ([`crate::job::preview_html`])
 //! embeds them: each printing move with its bead (width × height, from E, the layer's rise and
 //! the filament), its source line, commanded feed and the motion model's speed and time; the
-//! firmware's layers; and the design's `;ANNOTATION:` comments placed where the nozzle is.
+//! firmware's layers; and the design's annotation comments ([`crate::job::annotation`]) placed
+//! at their point or where the nozzle is.
 //!
 //! Everything is written straight into compact JSON number lists while the job streams through
 //! the motion model, so a 1.5 M-move job costs its text, not a vector of structs.
 
 use crate::design::motion::{MoveKind, Segment};
+use crate::job::annotation;
 use std::fmt::Write as _;
 
 /// Most annotations kept (the rest are counted and dropped).
@@ -18,45 +20,47 @@ pub const MAX_ANNOTATION_CHARS: usize = 200;
 /// de, width, height`).
 pub const MOVE_FIELDS: usize = 12;
 
-/// A `;ANNOTATION: text` comment of the G-code.
+/// An annotation comment of the G-code ([`crate::job::annotation`]).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Annotation {
     /// 1-based line of the comment.
     pub line: u32,
-    /// The text after `ANNOTATION:`, trimmed.
+    /// The label, cut to [`MAX_ANNOTATION_CHARS`].
     pub text: String,
-    /// Where the nozzle is at that line: the end of the last move before or on it (the start
-    /// of the first move when none precedes it), mm; with that move's layer index.
+    /// The point the comment gives (X, Y, Z, mm; `None` ones are the nozzle's).
+    pub point: [Option<f64>; 3],
+    /// Where it is shown: the comment's point, completed by the nozzle's position at that line
+    /// (the end of the last move before or on it, the start of the first move when none
+    /// precedes it), mm; with that move's layer index (the label is hidden with that layer).
     pub at: Option<([f64; 3], u32)>,
 }
 
-/// Finds the annotations of `input`: a comment `;ANNOTATION: text` (spaces allowed after the
-/// `;`, the keyword in any case) on its own line or after a command. At most
-/// [`MAX_ANNOTATIONS`]; returns them (in line order) and how many more there were.
+/// Finds the annotations of `input` (each line read by [`crate::job::annotation::parse`]).
+/// At most [`MAX_ANNOTATIONS`]; returns them (in line order) and how many more there were.
 pub fn scan_annotations(input: &[u8]) -> (Vec<Annotation>, usize) {
-    const KEY: &[u8] = b"annotation:";
     let mut out = Vec::new();
     let mut dropped = 0usize;
     for (i, raw) in input.split(|&b| b == b'\n').enumerate() {
-        let Some(semi) = raw.iter().position(|&b| b == b';') else {
+        let Some(note) = annotation::parse(raw) else {
             continue;
         };
-        let rest = raw[semi + 1..].trim_ascii_start();
-        if rest.len() < KEY.len() || !rest[..KEY.len()].eq_ignore_ascii_case(KEY) {
-            continue;
-        }
         if out.len() >= MAX_ANNOTATIONS {
             dropped += 1;
             continue;
         }
-        let text = String::from_utf8_lossy(rest[KEY.len()..].trim_ascii());
         out.push(Annotation {
             line: u32::try_from(i + 1).unwrap_or(u32::MAX),
-            text: text.chars().take(MAX_ANNOTATION_CHARS).collect(),
+            text: note.text.chars().take(MAX_ANNOTATION_CHARS).collect(),
+            point: note.point,
             at: None,
         });
     }
     (out, dropped)
+}
+
+/// `nozzle` with the coordinates `point` gives.
+fn place(point: [Option<f64>; 3], nozzle: [f64; 3]) -> [f64; 3] {
+    [0, 1, 2].map(|k| point[k].unwrap_or(nozzle[k]))
 }
 
 /// The bead a printing move lays: `(width, height)` in mm.
@@ -149,10 +153,11 @@ impl PageData {
             if n.line >= line {
                 break;
             }
-            n.at = Some(match self.last_end {
+            let (nozzle, layer) = match self.last_end {
                 Some(end) => (end, self.last_layer),
                 None => (start, layer),
-            });
+            };
+            n.at = Some((place(n.point, nozzle), layer));
             self.next_note += 1;
         }
     }
@@ -161,7 +166,7 @@ impl PageData {
     pub fn finish_notes(&mut self, notes: &mut [Annotation]) {
         if let Some(end) = self.last_end {
             for n in notes.iter_mut().skip(self.next_note) {
-                n.at = Some((end, self.last_layer));
+                n.at = Some((place(n.point, end), self.last_layer));
             }
         }
         self.next_note = notes.len();
@@ -306,11 +311,13 @@ mod tests {
 
     #[test]
     fn annotations_are_found_on_their_lines() {
-        let g = b"G1 X1\n; ANNOTATION: seam here\nG1 X2 ;annotation:  after a move \n;ANNOTATIONS are not\n; note: no\n";
+        let g = b"G1 X1\n; ANNOTATION: seam here\nG1 X2 ;annotation:  after a move \n;ANNOTATIONS are not\n; note: no\n; ANNOTATION X1 Z2: up\n";
         let (notes, dropped) = scan_annotations(g);
         assert_eq!(dropped, 0);
         let got: Vec<(u32, &str)> = notes.iter().map(|n| (n.line, n.text.as_str())).collect();
-        assert_eq!(got, vec![(2, "seam here"), (3, "after a move")]);
+        assert_eq!(got, vec![(2, "seam here"), (3, "after a move"), (6, "up")]);
+        assert_eq!(notes[2].point, [Some(1.0), None, Some(2.0)]);
+        assert_eq!(place(notes[2].point, [5.0, 6.0, 7.0]), [1.0, 6.0, 2.0]);
         let many = ";ANNOTATION: n\n".repeat(MAX_ANNOTATIONS + 2);
         let (notes, dropped) = scan_annotations(many.as_bytes());
         assert_eq!((notes.len(), dropped), (MAX_ANNOTATIONS, 2));

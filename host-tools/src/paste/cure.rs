@@ -1,19 +1,26 @@
-//! Cure check on time-based samples (SPEC §4): for every deposited sample, the nearest earlier
-//! deposited sample *directly below it* — lower by at least `min_dz_mm`, horizontally within
-//! `radius_mm`, and on an earlier layer when the job has layer marks (so neighbouring samples
-//! of one tilted or helical layer never count as "below") — and the time since it was laid,
-//! `elapsed = (i − j) × period`. Spots below the
-//! cure time are violations. The same check is an FDM minimum-layer-time check.
+//! Cure check on time-based samples (SPEC §4): for every deposited sample, the nearest
+//! material *directly below it* — on the path deposited earlier, lower by at least
+//! `min_dz_mm`, horizontally within `radius_mm`, and on an earlier layer when the job has layer
+//! marks (so neighbouring samples of one tilted or helical layer never count as "below") — and
+//! the time since that material was laid. Spots below the cure time are violations. The same
+//! check is an FDM minimum-layer-time check.
 //!
-//! **Index**: samples are bucketed into a uniform XY grid of columns (cell = radius) and each
-//! column is sorted by height. A query looks at the 3×3 columns around the sample, starts at
-//! the highest point lower than `z − min_dz` (binary search) and walks down, stopping as soon
-//! as the height difference alone exceeds the best distance found: the first layer below is
-//! usually all it reads. Queries run in parallel (rayon).
+//! The material below is the **deposited path**: the segments between consecutive depositing
+//! samples, not the samples themselves (at 40 mm/s and 100 ms the samples of the layer below
+//! are 4 mm apart, and a sample-to-sample search found nothing within a 1 mm radius for most
+//! of a layer). The point below is the XY-nearest point of a segment; its time is interpolated
+//! along the segment, `elapsed = t_i − (j − 1 + u) × period` for the point at fraction `u` of
+//! the segment from sample `j − 1` to `j` (the head moves along a segment within one period).
+//!
+//! **Index**: every depositing segment is entered in each XY column (cell = radius) it
+//! crosses; columns are sorted by the segments' lowest z. A query looks at the 3×3 columns
+//! around the sample (any segment within the radius crosses one of them), starts at the
+//! highest segment low enough (binary search) and walks down, stopping as soon as the height
+//! difference alone exceeds the best distance found. Queries run in parallel (rayon).
 
 use crate::paste::bins::bin_by_cell;
 use crate::paste::timebased::Sample;
-use glam::{DVec2, DVec3};
+use glam::DVec2;
 use rayon::prelude::*;
 
 /// Parameters of the check.
@@ -34,7 +41,8 @@ pub struct CureParams {
 pub struct Violation {
     /// Index of the sample (its time is `index × period`).
     pub index: usize,
-    /// Index of the sample below it.
+    /// The sample nearest in time to the material below it (that material was laid at a
+    /// point of the path between two samples; `elapsed_s` is exact).
     pub below_index: usize,
     /// Layer of the sample.
     pub layer: u32,
@@ -70,7 +78,7 @@ pub struct CureReport {
     pub samples: usize,
     /// Samples that deposit material (the ones checked).
     pub deposited: usize,
-    /// Deposited samples with an earlier sample below them.
+    /// Deposited samples with earlier deposited material below them.
     pub supported: usize,
     /// Number of violations.
     pub violation_count: usize,
@@ -92,25 +100,36 @@ pub struct CureReport {
     pub elapsed_s: Vec<Option<f64>>,
 }
 
+/// Depositing segments in XY columns.
 struct Columns {
     origin: DVec2,
     cell: f64,
     nx: usize,
     ny: usize,
     starts: Vec<u32>,
-    /// Sample indices, grouped by column, each column sorted by z.
+    /// Segment ends `j` (the segment from sample `j - 1` to `j`), grouped by column, each
+    /// column sorted by the segment's lowest z.
     order: Vec<u32>,
-    /// z of `order[k]` (contiguous for the binary search).
+    /// Lowest z of the segment `order[k]` (contiguous for the binary search).
     zs: Vec<f64>,
+    /// Largest rise of any segment (highest minus lowest z), for the walk's stopping bound.
+    max_rise: f64,
+}
+
+/// True when sample `j` ends a depositing segment (from sample `j - 1`).
+fn deposits(samples: &[Sample], j: usize) -> bool {
+    j > 0 && samples[j].extruding && samples[j].pos.is_finite() && samples[j - 1].pos.is_finite()
 }
 
 impl Columns {
     fn new(samples: &[Sample], cell: f64) -> Columns {
-        let dep = || samples.iter().filter(|s| s.extruding && s.pos.is_finite());
+        let segs = || (1..samples.len()).filter(|&j| deposits(samples, j));
         let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
-        for s in dep() {
-            lo = lo.min(s.pos.truncate());
-            hi = hi.max(s.pos.truncate());
+        for j in segs() {
+            for p in [samples[j - 1].pos, samples[j].pos] {
+                lo = lo.min(p.truncate());
+                hi = hi.max(p.truncate());
+            }
         }
         if lo.x > hi.x {
             lo = DVec2::ZERO;
@@ -123,21 +142,50 @@ impl Columns {
         }
         let nx = ((hi.x - lo.x) / cell) as usize + 1;
         let ny = ((hi.y - lo.y) / cell) as usize + 1;
-        let col = |p: DVec3| -> usize {
-            let ix = (((p.x - lo.x) / cell) as usize).min(nx - 1);
-            let iy = (((p.y - lo.y) / cell) as usize).min(ny - 1);
-            iy * nx + ix
+        let col = |p: DVec2| -> (usize, usize) {
+            (
+                (((p.x - lo.x) / cell) as usize).min(nx - 1),
+                (((p.y - lo.y) / cell) as usize).min(ny - 1),
+            )
         };
+        // Every column a segment crosses: the boxes of its pieces no longer than a cell (at
+        // most 2 × 2 columns each).
+        let mut entries: Vec<(u32, usize)> = Vec::new();
+        let mut cols: Vec<usize> = Vec::new();
+        let mut max_rise = 0.0f64;
+        for j in segs() {
+            let (a, b) = (samples[j - 1].pos, samples[j].pos);
+            max_rise = max_rise.max((a.z - b.z).abs());
+            let len = a.truncate().distance(b.truncate());
+            let pieces = ((len / cell).ceil() as usize).clamp(1, 1 << 20);
+            cols.clear();
+            for k in 0..pieces {
+                let p0 = a.truncate().lerp(b.truncate(), k as f64 / pieces as f64);
+                let p1 = a
+                    .truncate()
+                    .lerp(b.truncate(), (k + 1) as f64 / pieces as f64);
+                let (c0, c1) = (col(p0.min(p1)), col(p0.max(p1)));
+                for iy in c0.1..=c1.1 {
+                    for ix in c0.0..=c1.0 {
+                        cols.push(iy * nx + ix);
+                    }
+                }
+            }
+            cols.sort_unstable();
+            cols.dedup();
+            entries.extend(cols.iter().map(|&c| (j as u32, c)));
+        }
         let (mut starts, mut cursor, mut order) = (Vec::new(), Vec::new(), Vec::new());
-        let items = || {
-            samples
-                .iter()
-                .enumerate()
-                .filter(|(_, s)| s.extruding && s.pos.is_finite())
-                .map(|(i, s)| (i as u32, col(s.pos)))
-        };
-        bin_by_cell(nx * ny, items, &mut starts, &mut cursor, &mut order);
-        // Sort every column by z (ties by index), in parallel over disjoint slices.
+        bin_by_cell(
+            nx * ny,
+            || entries.iter().copied(),
+            &mut starts,
+            &mut cursor,
+            &mut order,
+        );
+        drop(entries);
+        let low = |j: u32| samples[j as usize].pos.z.min(samples[j as usize - 1].pos.z);
+        // Sort every column by lowest z (ties by index), in parallel over disjoint slices.
         let mut slices: Vec<&mut [u32]> = Vec::with_capacity(nx * ny);
         let mut rest: &mut [u32] = &mut order;
         for c in 0..nx * ny {
@@ -148,16 +196,10 @@ impl Columns {
         }
         slices.par_iter_mut().for_each(|sl| {
             if sl.len() > 1 {
-                sl.sort_unstable_by(|&a, &b| {
-                    samples[a as usize]
-                        .pos
-                        .z
-                        .total_cmp(&samples[b as usize].pos.z)
-                        .then(a.cmp(&b))
-                });
+                sl.sort_unstable_by(|&a, &b| low(a).total_cmp(&low(b)).then(a.cmp(&b)));
             }
         });
-        let zs = order.iter().map(|&i| samples[i as usize].pos.z).collect();
+        let zs = order.iter().map(|&j| low(j)).collect();
         Columns {
             origin: lo,
             cell,
@@ -166,8 +208,17 @@ impl Columns {
             starts,
             order,
             zs,
+            max_rise,
         }
     }
+}
+
+/// The material below a sample: its time in sample periods (`j - 1 + u`) and the squared
+/// distance to it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Found {
+    d2: f64,
+    at: f64,
 }
 
 /// Runs the check.
@@ -175,7 +226,7 @@ pub fn check(samples: &[Sample], p: &CureParams) -> CureReport {
     let cols = Columns::new(samples, p.radius_mm.max(1e-6));
     let layered = samples.iter().any(|s| s.layer > 0);
     let r2 = p.radius_mm * p.radius_mm;
-    let below: Vec<Option<usize>> = (0..samples.len())
+    let below: Vec<Option<Found>> = (0..samples.len())
         .into_par_iter()
         .map(|i| {
             let s = samples[i];
@@ -215,8 +266,8 @@ pub fn check(samples: &[Sample], p: &CureParams) -> CureReport {
         report.deposited += 1;
         let ls = &mut layers[s.layer as usize];
         ls.samples += 1;
-        let Some(j) = below[i] else { continue };
-        let elapsed = (i - j) as f64 * p.period_s;
+        let Some(f) = below[i] else { continue };
+        let elapsed = (i as f64 - f.at) * p.period_s;
         report.elapsed_s[i] = Some(elapsed);
         report.supported += 1;
         ls.supported += 1;
@@ -230,7 +281,7 @@ pub fn check(samples: &[Sample], p: &CureParams) -> CureReport {
             ls.violations += 1;
             report.violations.push(Violation {
                 index: i,
-                below_index: j,
+                below_index: f.at.round() as usize,
                 layer: s.layer,
                 x: s.pos.x,
                 y: s.pos.y,
@@ -244,6 +295,7 @@ pub fn check(samples: &[Sample], p: &CureParams) -> CureReport {
     report
 }
 
+/// The nearest point of the deposited path below sample `i` (see the module docs).
 fn nearest_below(
     cols: &Columns,
     samples: &[Sample],
@@ -251,12 +303,12 @@ fn nearest_below(
     r2: f64,
     min_dz: f64,
     layered: bool,
-) -> Option<usize> {
+) -> Option<Found> {
     let s = samples[i].pos;
     let zmax = s.z - min_dz;
     let g = (s.truncate() - cols.origin) / cols.cell;
     let (cx, cy) = (g.x.floor() as i64, g.y.floor() as i64);
-    let mut best: Option<(f64, usize)> = None;
+    let mut best: Option<Found> = None;
     for y in cy - 1..=cy + 1 {
         if y < 0 || y >= cols.ny as i64 {
             continue;
@@ -268,32 +320,63 @@ fn nearest_below(
             let c = y as usize * cols.nx + x as usize;
             let (a, b) = (cols.starts[c] as usize, cols.starts[c + 1] as usize);
             let zs = &cols.zs[a..b];
-            // Entries [a, a + k) have z ≤ zmax.
+            // Entries [a, a + k) start low enough.
             let k = zs.partition_point(|&z| z <= zmax);
             for t in (0..k).rev() {
-                let j = cols.order[a + t] as usize;
-                let q = samples[j].pos;
-                let dz = s.z - q.z;
-                if let Some((bd2, _)) = best {
-                    if dz * dz > bd2 {
+                // Lowest possible height difference of this and every later entry.
+                let dz_min = s.z - zs[t] - cols.max_rise;
+                if let Some(bf) = best {
+                    if dz_min > 0.0 && dz_min * dz_min > bf.d2 {
                         break;
                     }
                 }
-                if j >= i || (layered && samples[j].layer >= samples[i].layer) {
+                let j = cols.order[a + t] as usize;
+                // A piece that crosses a layer change belongs to the layer it leaves (it
+                // lays the end of that layer: the seam).
+                let layer = samples[j].layer.min(samples[j - 1].layer);
+                if j > i || (layered && layer >= samples[i].layer) {
+                    continue;
+                }
+                let (p0, p1) = (samples[j - 1].pos, samples[j].pos);
+                let d = p1.truncate() - p0.truncate();
+                let l2 = d.length_squared();
+                let mut u = if l2 > 0.0 {
+                    ((s.truncate() - p0.truncate()).dot(d) / l2).clamp(0.0, 1.0)
+                } else {
+                    1.0
+                };
+                // Only the part of the piece low enough counts (a ramp between layers).
+                let rise = p1.z - p0.z;
+                if rise != 0.0 {
+                    let uz = (zmax - p0.z) / rise;
+                    u = if rise > 0.0 { u.min(uz) } else { u.max(uz) };
+                    if !(0.0..=1.0).contains(&u) {
+                        continue;
+                    }
+                }
+                let q = p0.lerp(p1, u);
+                // Laid before the sample (the piece reaching sample i itself only in part).
+                if q.z > zmax + 1e-12 || (j - 1) as f64 + u >= i as f64 {
                     continue;
                 }
                 let dxy2 = (q.truncate() - s.truncate()).length_squared();
                 if dxy2 > r2 {
                     continue;
                 }
-                let d2 = dxy2 + dz * dz;
-                if best.is_none_or(|(bd2, bj)| d2 < bd2 || (d2 == bd2 && j > bj)) {
-                    best = Some((d2, j));
+                let dz = s.z - q.z;
+                let f = Found {
+                    d2: dxy2 + dz * dz,
+                    at: (j - 1) as f64 + u,
+                };
+                // Ties go to the earlier time: a point where the head stood still (between
+                // two pieces) was laid when the head arrived, not when it left.
+                if best.is_none_or(|bf| f.d2 < bf.d2 || (f.d2 == bf.d2 && f.at < bf.at)) {
+                    best = Some(f);
                 }
             }
         }
     }
-    best.map(|(_, j)| j)
+    best
 }
 
 /// Text summary (and every violation when `list` is set).

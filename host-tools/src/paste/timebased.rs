@@ -5,29 +5,37 @@
 //! ([`crate::design::motion::Trajectory`], ht-design's), reached through the small [`TimedPath`]
 //! trait, so another model can be slotted in without touching the resampler or the cure check.
 //!
+//! Only the design is resampled ([`design_window`]): from its first printing move to its last,
+//! so the source's own start code (homing, heating, purge line) and end code (retract, lift,
+//! park) are not replayed in the samples: the printer's start and end code go around them,
+//! and an approach (up, across, down) takes the head from where the start code leaves it to
+//! the first sample.
+//!
 //! # Output format
 //! ```text
 //! ;TIMEBASED period_ms=100 samples=N
 //! ;FORMAT line k (k = 0..N-1) of the motion lines below is the head position at t = k*period;
 //! ;FORMAT G1 moves reach it in one period (F = distance / period), G4 P<period> = head still
-//! (the printer's start code: homing, heating — `timebased` writes the profile's)
+//! (the printer's start code: homing, heating, its purge line — `timebased` writes the profile's)
+//! ;TIMEBASED_APPROACH ...     <- up, across, down onto sample 0
 //! ;TIMEBASED_BEGIN
 //! G90
 //! M82
 //! G92 E0
-//! G1 X.. Y.. Z.. E.. F..      <- sample 0
+//! G1 X.. Y.. Z.. E0 F..       <- sample 0: the design's first printing point
 //! ;LAYER_CHANGE / ;Z:..       <- where the source's layer changes (not a sample)
 //! G1 X.. Y.. E.. F..          <- sample 1, only changed axes written
 //! G4 P100                     <- sample k while the head stands still (dwell, heating)
-//! ;TIMEBASED_END
+//! ;TIMEBASED_END              <- after the design's last point (the last sample; reached
+//!                                within one period)
 //! (the printer's end code)
 //! ```
 //! Only the lines between `;TIMEBASED_BEGIN` and `;TIMEBASED_END` are samples; start and end
 //! code around them may move the head (homing, purge line, parking) without shifting times.
-//! E is absolute (a running total, as the motion model reports it). A sample is *extruding*
-//! when E grows towards it; travels and retractions do not deposit material. The file is
-//! ordinary G-code that any firmware runs at the right pace, and `cure-check` reads it back
-//! sample by sample (with the same reader as `stats`).
+//! E is absolute: the filament pushed since sample 0 (whatever the source's E mode and `G92`
+//! resets). A sample is *extruding* when E grows towards it; travels and retractions do not
+//! deposit material. The file is ordinary G-code that any firmware runs at the right pace,
+//! and `cure-check` reads it back sample by sample (with the same reader as `stats`).
 
 use crate::design::motion::{MoveKind, Trajectory};
 use crate::job::read::{default_reader, Event, GcodeReader};
@@ -54,12 +62,47 @@ pub struct Sample {
     pub layer: u32,
 }
 
+/// Shortest and longest sample period `timebased` and `cure-check` take, ms: below 1 ms a
+/// printer cannot take one move per period from a file, and a period of a minute already
+/// says nothing about where the head went.
+pub const PERIOD_MS: (f64, f64) = (1.0, 60_000.0);
+
 /// Anything that can say where the head is at a given time.
 pub trait TimedPath {
     /// Length of the job, s.
     fn duration_s(&self) -> f64;
-    /// Samples at `t = k·period_s`, `k = 0..=⌊duration/period⌋`.
-    fn samples(&self, period_s: f64) -> Vec<Sample>;
+    /// Samples at `t = t0 + k·period_s` from `t0_s` to `t1_s` (the last one at `t1_s` when
+    /// the period does not divide the span: the head is there then at the latest). E is the
+    /// filament pushed since `t0_s` (G92 resets and absolute/relative E do not show).
+    fn samples_between(&self, t0_s: f64, t1_s: f64, period_s: f64) -> Vec<Sample>;
+    /// Samples over the whole job.
+    fn samples(&self, period_s: f64) -> Vec<Sample> {
+        self.samples_between(0.0, self.duration_s(), period_s)
+    }
+}
+
+/// The design's part of a job, from the start of its first printing move to the end of its
+/// last one (s): a start code's homing, heating and purge line come before it, an end code's
+/// retract, lift and park after it. When the job has explicit layer marks (slicer comments,
+/// our markers, `M73 L`), its first printing move after the first such mark starts it, so a
+/// purge line before the marks is left out; a job without marks starts at its first printing
+/// move (a purge line there counts as the design's). `None` when nothing prints.
+pub fn design_window(t: &Trajectory) -> Option<(f64, f64)> {
+    use crate::job::read::LayerSource;
+    let first_mark = t
+        .layers
+        .iter()
+        .find(|m| {
+            matches!(
+                m.source,
+                LayerSource::Comment | LayerSource::Command | LayerSource::Turn
+            )
+        })
+        .map_or(0, |m| m.line);
+    let prints = || t.segments.iter().filter(|s| s.kind == MoveKind::Print);
+    let first = prints().find(|s| s.line >= first_mark)?;
+    let last = prints().next_back()?;
+    Some((first.t_start_s, last.t_end_s().max(first.t_start_s)))
 }
 
 impl TimedPath for Trajectory {
@@ -67,20 +110,58 @@ impl TimedPath for Trajectory {
         self.duration_s
     }
 
-    fn samples(&self, period_s: f64) -> Vec<Sample> {
-        self.sample(period_s)
-            .map(|(t, p, idx)| {
-                let seg = self.segments.get(idx);
-                let moving = seg.is_some_and(|s| t >= s.t_start_s && t <= s.t_end_s() + 1e-9);
-                Sample {
-                    pos: DVec3::new(p[0], p[1], p[2]),
-                    e_mm: p[3],
-                    extruding: moving && seg.is_some_and(|s| s.kind == MoveKind::Print),
-                    layer: seg.map_or(0, |s| s.layer),
-                }
-            })
-            .collect()
+    fn samples_between(&self, t0_s: f64, t1_s: f64, period_s: f64) -> Vec<Sample> {
+        if self.segments.is_empty() || !(period_s.is_finite() && period_s > 0.0) {
+            return Vec::new();
+        }
+        // Filament pushed before each segment (sums of its E changes: a G92 between two
+        // segments is no motion).
+        let mut pushed = Vec::with_capacity(self.segments.len() + 1);
+        let mut acc = 0.0;
+        for s in &self.segments {
+            pushed.push(acc);
+            acc += s.end[3] - s.start[3];
+        }
+        let e_at = |idx: usize, p: [f64; 4]| pushed[idx] + (p[3] - self.segments[idx].start[3]);
+        let span = (t1_s - t0_s).max(0.0);
+        let n = (span / period_s).ceil() as usize;
+        let mut idx = self.segment_at(t0_s).unwrap_or(0);
+        let mut e0 = None;
+        let mut out = Vec::with_capacity(n + 1);
+        for k in 0..=n {
+            let t = (t0_s + k as f64 * period_s).min(t1_s.max(t0_s));
+            while idx + 1 < self.segments.len() && self.segments[idx + 1].t_start_s <= t {
+                idx += 1;
+            }
+            let seg = &self.segments[idx];
+            let p = seg.position_at(t);
+            let e = e_at(idx, p);
+            let e0 = *e0.get_or_insert(e);
+            let moving = t >= seg.t_start_s && t <= seg.t_end_s() + 1e-9;
+            out.push(Sample {
+                pos: DVec3::new(p[0], p[1], p[2]),
+                e_mm: e - e0,
+                extruding: k > 0 && moving && seg.kind == MoveKind::Print,
+                layer: seg.layer,
+            });
+        }
+        out
     }
+}
+
+/// The head's way from where the printer's start code leaves it (`from`) to the first
+/// sample: straight up to 1 mm above both, across, and down onto it (nothing is printed yet;
+/// the start code's own moves are its own).
+pub fn approach(from: Option<DVec3>, to: DVec3, travel_mm_s: f64, z_mm_s: f64) -> String {
+    let f_xy = fmt_num(travel_mm_s * 60.0, 1);
+    let f_z = fmt_num(z_mm_s.min(travel_mm_s) * 60.0, 1);
+    let (x, y, z) = (fmt_num(to.x, 3), fmt_num(to.y, 3), fmt_num(to.z, 3));
+    let safe = from.map_or(to.z, |f| f.z.max(to.z)) + 1.0;
+    format!(
+        ";TIMEBASED_APPROACH from the start code's last position to the first sample\n\
+         G90\nG0 Z{} F{f_z}\nG0 X{x} Y{y} F{f_xy}\nG0 Z{z} F{f_z}\n",
+        fmt_num(safe, 3)
+    )
 }
 
 /// Writes samples as time-based G-code (see the module docs for the format).

@@ -286,6 +286,11 @@ impl Grid {
         self.points[i]
     }
 
+    /// How many points (a prefix in print order) are printed.
+    pub fn printed(&self) -> usize {
+        self.printed
+    }
+
     /// Marks the points before `end` (in print order) as printed.
     pub fn print_through(&mut self, end: usize) {
         let end = end.min(self.points.len());
@@ -355,12 +360,12 @@ impl Grid {
         axis(q[0], ix).powi(2) + axis(q[1], iy).powi(2)
     }
 
-    /// The nearest printed point within `sqrt(r2)` of `q` whose z is at most `max_z` (ties to
-    /// the earliest printed), if any.
-    pub fn nearest_below(&mut self, q: [f64; 3], r2: f64, max_z: f64) -> Option<[f64; 3]> {
+    /// The print index of the nearest printed point within `sqrt(r2)` of `q` whose z is at
+    /// most `max_z` (ties to the earliest printed), if any.
+    pub fn nearest_below(&mut self, q: [f64; 3], r2: f64, max_z: f64) -> Option<usize> {
         let best = self.search(q, r2, max_z, false)?;
         self.hint = best.seq;
-        Some(self.points[best.seq])
+        Some(best.seq)
     }
 
     /// True when some printed point within `sqrt(r2)` of `q` has z at most `max_z`.

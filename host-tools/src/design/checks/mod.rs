@@ -4,12 +4,19 @@
 //! - **unsupported**: a point of a string (every `sample_mm` along it, not only its ends: a
 //!   bridge onto a pillar is caught in the middle) with nothing printed below it within
 //!   `support_radius_mm` (the turtle paper's "cannot print in the air");
-//! - **widening too fast**: at a string's end, the supporting material is offset sideways by
-//!   more than half the string's width (width ≈ cross-section ÷ vertical gap) plus half the
-//!   sample spacing (the nearest sample may lie that far from the supporting string's
-//!   nearest point), so the wall cannot stack (the paper's collapsing cylinder);
+//! - **widening too fast**: at a string's end, the supporting string (the printed path through
+//!   the nearest sample below, not the sample itself) is offset sideways by more than half the
+//!   string's width (width ≈ cross-section ÷ vertical gap), so the wall cannot stack (the
+//!   paper's collapsing cylinder): an overhang is flagged from `atan(w / 2h)` from the
+//!   vertical — 45° for lines twice as wide as high;
 //! - **travel crosses printed material** at or above the nozzle's height;
-//! - **flow above the profile's maximum** (cross-section × speed).
+//! - **flow above the profile's maximum** (cross-section × speed);
+//! - **line width** (cross-section ÷ the bead's thickness: its distance to the string it
+//!   rests on, or its height above the bed) outside `min_width_ratio..=max_width_ratio` × the
+//!   nozzle;
+//! - **cold extrusion**: extruding while the hot end is set below the firmware's extrusion
+//!   minimum (a design's temperature or a raw `M104 S0`), and **homing mid-print** (a raw
+//!   `G28` after printing started) — raw G-code is followed, see [`machine`].
 //!
 //! Printed material is indexed once ([`crate::design::checks::grid`]): every point sampled along
 //! the strings, in XY columns of the support radius sorted by height, of which a growing prefix
@@ -18,11 +25,21 @@
 //! (`cpu_time` example: 0.96–0.98× on the globe, 0.86–0.89× on a 45,000-segment helix).
 //! The answers are those of a plain scan over the printed points (`scan.rs` tests them
 //! against one).
+//!
+//! Modules: this one walks the design (options, report, the pass over the steps); `below`
+//! holds the checks of one point against the material printed before it (support,
+//! widening, line width, travels); `grid` the index; `machine` the printer state raw G-code
+//! and the design's state changes set (cold extrusion, homing).
 
+mod below;
 mod grid;
+mod machine;
+
+pub use machine::MIN_EXTRUDE_C;
 
 use crate::design::model::{Model, Step, Str};
 use crate::design::profile::Profile;
+use below::{bed_width_check, support_check, travel_check, Below, RUN_GAP_MM};
 use glam::DVec3;
 use grid::Grid;
 
@@ -46,6 +63,14 @@ pub struct CheckOptions {
     pub max_listed: usize,
     /// Lowest height of an extruding string, mm: below it the nozzle presses into the bed.
     pub min_z_mm: f64,
+    /// Narrowest line, × the nozzle diameter (cross-section ÷ the height it is laid at).
+    pub min_width_ratio: f64,
+    /// Widest line, × the nozzle diameter (SuperSlicer's and FullControl's practice: up to
+    /// double the nozzle).
+    pub max_width_ratio: f64,
+    /// Widest line laid on the bed, × the nozzle diameter: first layers are squashed wider
+    /// (Kanada's 0.2 mm² helix starts 1 mm wide at 0.2 mm: 2.5×).
+    pub max_first_width_ratio: f64,
 }
 
 impl Default for CheckOptions {
@@ -59,6 +84,9 @@ impl Default for CheckOptions {
             travel_clearance_mm: 0.1,
             max_listed: 10,
             min_z_mm: 0.05,
+            min_width_ratio: 0.5,
+            max_width_ratio: 2.0,
+            max_first_width_ratio: 2.5,
         }
     }
 }
@@ -76,7 +104,16 @@ pub enum IssueKind {
     TravelCrossesPrint,
     /// Volumetric flow above the profile's maximum.
     FlowTooHigh,
+    /// A line narrower or wider than the nozzle can lay.
+    LineWidth,
+    /// Extruding with the hot end set below the firmware's extrusion minimum.
+    ColdExtrusion,
+    /// Raw G-code homes the axes after printing started.
+    HomesMidPrint,
 }
+
+/// Number of issue kinds.
+const KINDS: usize = 8;
 
 impl IssueKind {
     /// Short name.
@@ -87,6 +124,9 @@ impl IssueKind {
             IssueKind::WideningTooFast => "widening-too-fast",
             IssueKind::TravelCrossesPrint => "travel-crosses-print",
             IssueKind::FlowTooHigh => "flow-too-high",
+            IssueKind::LineWidth => "line-width",
+            IssueKind::ColdExtrusion => "cold-extrusion",
+            IssueKind::HomesMidPrint => "homes-mid-print",
         }
     }
 }
@@ -110,7 +150,7 @@ pub struct CheckReport {
     /// The first `max_listed` issues of each kind.
     pub issues: Vec<Issue>,
     /// Total per kind, in [`IssueKind`] order.
-    pub counts: [usize; 5],
+    pub counts: [usize; KINDS],
 }
 
 impl CheckReport {
@@ -129,11 +169,27 @@ impl CheckReport {
         self.counts[kind as usize]
     }
 
-    fn add(&mut self, max: usize, issue: Issue) {
-        let k = issue.kind as usize;
+    /// Counts an issue of `kind` and lists it while fewer than `max` of its kind are: the
+    /// message is written only then (a design with an issue at every point — Kanada's
+    /// 0.2 mm² helix at 0.2 mm layers, 44,701 line widths — spent 4× the checks' time
+    /// writing messages nobody sees).
+    fn add(
+        &mut self,
+        max: usize,
+        kind: IssueKind,
+        step: usize,
+        at: DVec3,
+        msg: impl FnOnce() -> String,
+    ) {
+        let k = kind as usize;
         self.counts[k] += 1;
         if self.counts[k] <= max {
-            self.issues.push(issue);
+            self.issues.push(Issue {
+                kind,
+                step,
+                at,
+                msg: msg(),
+            });
         }
     }
 }
@@ -154,13 +210,15 @@ pub(crate) trait Printed {
     fn point(&self, i: usize) -> [f64; 3];
     /// Marks the points before `end` as printed.
     fn print_through(&mut self, end: usize);
-    /// The nearest printed point within `sqrt(r2)` of `q` with z ≤ `max_z`, ties to the
-    /// earliest printed.
-    fn nearest_below(&mut self, q: [f64; 3], r2: f64, max_z: f64) -> Option<[f64; 3]>;
+    /// The print index of the nearest printed point within `sqrt(r2)` of `q` with
+    /// z ≤ `max_z`, ties to the earliest printed.
+    fn nearest_below(&mut self, q: [f64; 3], r2: f64, max_z: f64) -> Option<usize>;
     /// True when [`Printed::nearest_below`] would find a point.
     fn any_below(&mut self, q: [f64; 3], r2: f64, max_z: f64) -> bool;
     /// True when a printed point lies in the XY box `lo..=hi` at height `min_z` or above.
     fn any_at_or_above(&self, lo: [f64; 2], hi: [f64; 2], min_z: f64) -> bool;
+    /// How many points are printed.
+    fn printed(&self) -> usize;
 }
 
 impl Printed for Grid {
@@ -173,7 +231,7 @@ impl Printed for Grid {
     fn print_through(&mut self, end: usize) {
         Grid::print_through(self, end)
     }
-    fn nearest_below(&mut self, q: [f64; 3], r2: f64, max_z: f64) -> Option<[f64; 3]> {
+    fn nearest_below(&mut self, q: [f64; 3], r2: f64, max_z: f64) -> Option<usize> {
         Grid::nearest_below(self, q, r2, max_z)
     }
     fn any_below(&mut self, q: [f64; 3], r2: f64, max_z: f64) -> bool {
@@ -181,6 +239,9 @@ impl Printed for Grid {
     }
     fn any_at_or_above(&self, lo: [f64; 2], hi: [f64; 2], min_z: f64) -> bool {
         Grid::any_at_or_above(self, lo, hi, min_z)
+    }
+    fn printed(&self) -> usize {
+        Grid::printed(self)
     }
 }
 
@@ -217,27 +278,55 @@ pub(crate) fn check_with<P: Printed>(
             && p.z <= b.z_max_mm + 1e-9
     };
     // Every sample point of every extruded string, in print order: the points the support
-    // check asks about and, once their string is checked, printed material.
+    // check asks about and, once their string is checked, printed material. With each, the
+    // XY start of the printed piece that ends there (the string's start for its first
+    // sample), so the widening check measures against the printed path, not its samples.
     // Also the number of points of each extruded string, in order, and the lowest z of the
     // design (`model.bbox().min.z`, in the same pass: one read of a large model less).
     let mut points = Vec::with_capacity(model.steps.len());
+    let mut from_xy: Vec<[f64; 2]> = Vec::with_capacity(model.steps.len());
+    // Path length to each point, a new line (after a travel) starting `RUN_GAP_MM` farther:
+    // how far back along the line leading into a point another point was printed.
+    let mut along_mm: Vec<f64> = Vec::with_capacity(model.steps.len());
+    let mut path_mm = 0.0;
     let mut counts = Vec::with_capacity(model.steps.len());
     let mut min_z = f64::INFINITY;
     let mut lower = |z: f64| min_z = if min_z < z { min_z } else { z }; // as `BBox::add`
+    let mut last_end: Option<DVec3> = None;
     for step in &model.steps {
         match step {
             Step::String(s) => {
                 lower(s.start.z);
                 lower(s.end.z);
                 if s.cross_mm2 > 0.0 {
+                    // A string that does not continue the last one (after a travel) starts
+                    // with its start point: material, but not asked about (it is where the
+                    // head came down, not something the string lays on something).
+                    let lead = usize::from(last_end != Some(s.start));
+                    if lead == 1 {
+                        points.push(s.start.to_array());
+                        from_xy.push([s.start.x, s.start.y]);
+                        path_mm += RUN_GAP_MM;
+                        along_mm.push(path_mm);
+                    }
                     let n = sample_count(s, o);
+                    let first = points.len();
                     points.extend(
                         (1..=n).map(|k| s.start.lerp(s.end, k as f64 / n as f64).to_array()),
                     );
-                    counts.push(n);
+                    let len = s.len_mm();
+                    along_mm.extend((1..=n).map(|k| path_mm + len * k as f64 / n as f64));
+                    path_mm += len;
+                    from_xy.push([s.start.x, s.start.y]);
+                    from_xy.extend(points[first..points.len() - 1].iter().map(|p| [p[0], p[1]]));
+                    counts.push((lead, n));
+                    last_end = Some(s.end);
                 }
             }
-            Step::Travel { to, .. } => lower(to.z),
+            Step::Travel { to, .. } => {
+                lower(to.z);
+                last_end = None;
+            }
             _ => {}
         }
     }
@@ -249,6 +338,13 @@ pub(crate) fn check_with<P: Printed>(
     // Columns as wide as the support radius: measured fastest on the globe (1.2 mm: 8.7 ms,
     // 0.6 mm: 9.4 ms, 0.4 mm: 12.9 ms; narrower columns mean more of them per query).
     let mut tree = P::build(o.support_radius_mm.max(o.nozzle_radius_mm).max(0.1), points);
+    let below = Below {
+        from_xy: &from_xy,
+        along_mm: &along_mm,
+        trail_mm: 2.0 * o.support_radius_mm,
+        nozzle_mm: profile.nozzle_diameter_mm,
+    };
+    let mut machine = machine::Machine::new(&model.steps, profile);
     let mut counts = counts.into_iter();
     let mut printed = 0;
     let mut pos: Option<DVec3> = None;
@@ -263,72 +359,67 @@ pub(crate) fn check_with<P: Printed>(
                 }
                 for p in [s.start, s.end] {
                     if !inside(p) {
-                        rep.add(
-                            o.max_listed,
-                            Issue {
-                                kind: IssueKind::OutsideBed,
-                                step: i,
-                                at: p,
-                                msg: format!(
-                                    "({:.2}, {:.2}, {:.2}) is outside the build volume of {}",
-                                    p.x, p.y, p.z, profile.name
-                                ),
-                            },
-                        );
+                        rep.add(o.max_listed, IssueKind::OutsideBed, i, p, || {
+                            format!(
+                                "({:.2}, {:.2}, {:.2}) is outside the build volume of {}",
+                                p.x, p.y, p.z, profile.name
+                            )
+                        });
                         break;
                     }
                 }
                 let flow = s.flow_mm3_s();
                 if flow > max_flow {
-                    rep.add(
-                        o.max_listed,
-                        Issue {
-                            kind: IssueKind::FlowTooHigh,
-                            step: i,
-                            at: s.end,
-                            msg: format!(
+                    rep.add(o.max_listed, IssueKind::FlowTooHigh, i, s.end, || format!(
                                 "flow {flow:.1} mm³/s ({:.3} mm² × {:.1} mm/s) exceeds {max_flow} mm³/s",
                                 s.cross_mm2, s.speed_mm_s
-                            ),
-                        },
-                    );
+                            ));
                 }
                 if s.cross_mm2 > 0.0 {
+                    machine.extrusion(i, s, o, &mut rep);
                     let low = s.start.z.min(s.end.z);
                     if low < o.min_z_mm && low >= -1e-9 {
                         let at = if s.start.z <= s.end.z { s.start } else { s.end };
-                        rep.add(
-                            o.max_listed,
-                            Issue {
-                                kind: IssueKind::OutsideBed,
-                                step: i,
-                                at,
-                                msg: format!(
+                        rep.add(o.max_listed, IssueKind::OutsideBed, i, at, || format!(
                                     "extruding at z {:.3} mm, below {} mm: the nozzle would press into the bed (a first layer needs z ≈ its height)",
                                     at.z, o.min_z_mm
-                                ),
-                            },
-                        );
+                                ));
                     }
                     // Support at every sample point along the string (its start is the
                     // previous string's end, already checked), then the string is printed
-                    // (after the check: it cannot support itself).
-                    let n = counts.next().unwrap_or(0);
+                    // (after the check: it cannot support itself). On the bed, only the
+                    // line's width at its end.
+                    let (lead, n) = counts.next().unwrap_or((0, 0));
+                    printed += lead;
                     for k in 0..n {
-                        let q = DVec3::from_array(tree.point(printed + k));
-                        if q.z > bed_contact_z
-                            && !support_check(
+                        let qi = printed + k;
+                        let q = DVec3::from_array(tree.point(qi));
+                        let end = k + 1 == n;
+                        if q.z > bed_contact_z {
+                            if !support_check(
                                 &mut tree,
+                                &below,
                                 o,
                                 r2,
                                 i,
-                                q,
+                                (qi, q),
                                 s.cross_mm2,
-                                k + 1 == n,
+                                end,
                                 &mut rep,
-                            )
-                        {
-                            break;
+                            ) {
+                                break;
+                            }
+                        } else if end {
+                            bed_width_check(
+                                &mut tree,
+                                &below,
+                                o,
+                                r2,
+                                i,
+                                (qi, q),
+                                s.cross_mm2,
+                                &mut rep,
+                            );
                         }
                     }
                     printed += n;
@@ -338,131 +429,23 @@ pub(crate) fn check_with<P: Printed>(
             }
             Step::Travel { to, .. } => {
                 if !inside(*to) {
-                    rep.add(
-                        o.max_listed,
-                        Issue {
-                            kind: IssueKind::OutsideBed,
-                            step: i,
-                            at: *to,
-                            msg: format!(
-                                "travel to ({:.2}, {:.2}, {:.2}) leaves the build volume",
-                                to.x, to.y, to.z
-                            ),
-                        },
-                    );
+                    rep.add(o.max_listed, IssueKind::OutsideBed, i, *to, || {
+                        format!(
+                            "travel to ({:.2}, {:.2}, {:.2}) leaves the build volume",
+                            to.x, to.y, to.z
+                        )
+                    });
                 }
                 if let Some(p) = pos {
                     travel_check(&tree, o, i, p, *to, &mut rep);
                 }
                 pos = Some(*to);
             }
+            Step::State(sc) => machine.state(i, sc, &mut pos, printed > 0, o, &mut rep),
             _ => {}
         }
     }
     rep
-}
-
-/// Checks that `q` rests on printed material (and, at a string's `end`, that it does not
-/// widen too fast); false when an issue was reported (the rest of the string is not checked).
-#[allow(clippy::too_many_arguments)]
-fn support_check<P: Printed>(
-    tree: &mut P,
-    o: &CheckOptions,
-    r2: f64,
-    i: usize,
-    q: DVec3,
-    cross: f64,
-    end: bool,
-    rep: &mut CheckReport,
-) -> bool {
-    let (qa, max_z) = (q.to_array(), q.z - o.min_drop_mm);
-    let found = if end {
-        tree.nearest_below(qa, r2, max_z)
-    } else if tree.any_below(qa, r2, max_z) {
-        return true; // only the end's nearest point matters (widening)
-    } else {
-        None
-    };
-    match found {
-        None => {
-            rep.add(
-            o.max_listed,
-            Issue {
-                kind: IssueKind::Unsupported,
-                step: i,
-                at: q,
-                        msg: format!(
-                            "nothing printed within {} mm below ({:.2}, {:.2}, {:.2}): printing in the air",
-                            o.support_radius_mm, q.x, q.y, q.z
-                        ),
-                    },
-            );
-            false
-        }
-        Some(_) if !end => true,
-        Some(p) => {
-            let drop = q.z - p[2];
-            let side = ((q.x - p[0]).powi(2) + (q.y - p[1]).powi(2)).sqrt();
-            let width = cross / drop.max(0.05);
-            let allowance = o.sample_mm * 0.5;
-            if side > 0.5 * width + allowance {
-                rep.add(
-                    o.max_listed,
-                    Issue {
-                        kind: IssueKind::WideningTooFast,
-                        step: i,
-                        at: q,
-                        msg: format!(
-                            "offset {side:.2} mm from the string {drop:.2} mm below exceeds half the string width ({:.2} mm) plus the {allowance:.2} mm sampling allowance",
-                            0.5 * width
-                        ),
-                    },
-                );
-                return false;
-            }
-            true
-        }
-    }
-}
-
-fn travel_check<P: Printed>(
-    tree: &P,
-    o: &CheckOptions,
-    i: usize,
-    from: DVec3,
-    to: DVec3,
-    rep: &mut CheckReport,
-) {
-    let len = from.distance(to);
-    let skip = 1.0; // the ends touch the strings they leave and join
-    if len <= 2.0 * skip {
-        return;
-    }
-    let n = ((len - 2.0 * skip) / o.sample_mm).ceil() as usize;
-    let r = o.nozzle_radius_mm;
-    for k in 0..=n.min(100_000) {
-        let d = skip + (len - 2.0 * skip) * k as f64 / n.max(1) as f64;
-        let p = from.lerp(to, d / len);
-        if tree.any_at_or_above(
-            [p.x - r, p.y - r],
-            [p.x + r, p.y + r],
-            p.z - o.travel_clearance_mm,
-        ) {
-            rep.add(
-                o.max_listed,
-                Issue {
-                    kind: IssueKind::TravelCrossesPrint,
-                    step: i,
-                    at: p,
-                    msg: format!(
-                        "travel from ({:.2}, {:.2}) to ({:.2}, {:.2}) at z {:.2} passes over printed material (stringing)",
-                        from.x, from.y, to.x, to.y, p.z
-                    ),
-                },
-            );
-            return;
-        }
-    }
 }
 
 #[cfg(test)]

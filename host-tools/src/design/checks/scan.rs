@@ -26,18 +26,21 @@ impl Printed for Scan {
     fn print_through(&mut self, end: usize) {
         self.printed = self.printed.max(end.min(self.points.len()));
     }
-    fn nearest_below(&mut self, q: [f64; 3], r2: f64, max_z: f64) -> Option<[f64; 3]> {
-        let mut best: Option<(f64, [f64; 3])> = None;
-        for p in &self.points[..self.printed] {
+    fn nearest_below(&mut self, q: [f64; 3], r2: f64, max_z: f64) -> Option<usize> {
+        let mut best: Option<(f64, usize)> = None;
+        for (i, p) in self.points[..self.printed].iter().enumerate() {
             let d2 = dist2(*p, q);
             if p[2] <= max_z && d2 <= r2 && best.is_none_or(|(b, _)| d2 < b) {
-                best = Some((d2, *p));
+                best = Some((d2, i));
             }
         }
-        best.map(|(_, p)| p)
+        best.map(|(_, i)| i)
     }
     fn any_below(&mut self, q: [f64; 3], r2: f64, max_z: f64) -> bool {
         self.nearest_below(q, r2, max_z).is_some()
+    }
+    fn printed(&self) -> usize {
+        self.printed
     }
     fn any_at_or_above(&self, lo: [f64; 2], hi: [f64; 2], min_z: f64) -> bool {
         self.points[..self.printed].iter().any(|p| {

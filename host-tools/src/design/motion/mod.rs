@@ -24,7 +24,7 @@ mod trajectory;
 
 pub use planner::{PlanMove, Planner, OVERLAP, WINDOW};
 pub use segment::Segment;
-pub use trajectory::{plan_gcode, plan_gcode_with, PlanTotals, Trajectory};
+pub use trajectory::{plan_gcode, plan_gcode_with, plan_marks, LayerMark, PlanTotals, Trajectory};
 
 use crate::design::profile::Profile;
 

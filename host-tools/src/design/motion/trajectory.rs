@@ -24,6 +24,34 @@ pub fn plan_gcode_with(
     out: &mut dyn FnMut(Segment),
     layer: &mut dyn FnMut(u32, Option<f64>, f64),
 ) -> Result<PlanTotals, ReadError> {
+    plan_marks(reader, input, limits, out, &mut |m| {
+        layer(m.number, m.z_mm, m.t_s)
+    })
+}
+
+/// A layer start as the planner meets it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LayerMark {
+    /// The firmware's layer number.
+    pub number: u32,
+    /// Height, when the mark gives it, mm.
+    pub z_mm: Option<f64>,
+    /// Time of the mark, s.
+    pub t_s: f64,
+    /// What made it: a slicer comment, a command, a Z rise, the end of printing, a turn.
+    pub source: LayerSource,
+    /// Source line (1-based).
+    pub line: u32,
+}
+
+/// [`plan_gcode_with`] with every layer mark in full.
+pub fn plan_marks(
+    reader: &mut crate::job::read::FirmwareReader,
+    input: &[u8],
+    limits: MotionLimits,
+    out: &mut dyn FnMut(Segment),
+    layer: &mut dyn FnMut(LayerMark),
+) -> Result<PlanTotals, ReadError> {
     let mut planner = Planner::new(limits);
     let mut cur_layer = 0u32;
     let mut moves = 0u64;
@@ -52,11 +80,17 @@ pub fn plan_gcode_with(
             z_mm,
             source,
             number,
-            ..
+            line,
         } => {
             cur_layer += 1;
             explicit_layers |= source != LayerSource::ZRise;
-            layer(number, z_mm, planner.time_s());
+            layer(LayerMark {
+                number,
+                z_mm,
+                t_s: planner.time_s(),
+                source,
+                line,
+            });
         }
         Event::Dwell(s) => {
             dwell_s += s;
@@ -109,16 +143,26 @@ pub struct Trajectory {
     pub segments: Vec<Segment>,
     /// Total time, s.
     pub duration_s: f64,
+    /// The layer marks, in time order.
+    pub layers: Vec<LayerMark>,
 }
 
 impl Trajectory {
     /// Plans a G-code job.
     pub fn from_gcode(input: &[u8], limits: MotionLimits) -> Result<Trajectory, ReadError> {
         let mut segments = Vec::new();
-        let totals = plan_gcode(input, limits, &mut |s| segments.push(s), &mut |_, _, _| {})?;
+        let mut layers = Vec::new();
+        let totals = plan_marks(
+            &mut default_reader(),
+            input,
+            limits,
+            &mut |s| segments.push(s),
+            &mut |m| layers.push(m),
+        )?;
         Ok(Trajectory {
             segments,
             duration_s: totals.time_s,
+            layers,
         })
     }
 

@@ -50,7 +50,6 @@ const RENAMED: &[(&str, &str)] = &[
     ("trianglewaveXYpolar", "triangle_wave_xy"),
     ("segmented_path", "subdivide"),
     ("move", "move_points (a path) or moved (a Model)"),
-    ("move_polar", "polar + move_points"),
     ("reflectXY", "reflect_xy"),
     ("Point", "point"),
     ("Fan", "fan"),
@@ -65,6 +64,33 @@ const RENAMED: &[(&str, &str)] = &[
     ("setpos", "move_to"),
     ("turn", "left / right"),
     ("forward_to", "extrude_to"),
+    ("set_fan", "fan (percent)"),
+    ("setFan", "fan (percent)"),
+    ("fan_speed", "fan (percent)"),
+    (
+        "arc",
+        "arc_xy (a path of points) or extrude_arc (a true arc from the pen)",
+    ),
+    (
+        "rotate",
+        "rotate_xy(centre, angle in radians) for paths and models; left / right turn the turtle",
+    ),
+    ("rotateXY", "rotate_xy"),
+    ("mirror", "reflect_xy"),
+    ("mirrorXY", "reflect_xy"),
+    ("scaleXY", "scale(centre, factor or [kx, ky, kz])"),
+    ("travel_speed", "set_travel_speed"),
+    ("setTravelSpeed", "set_travel_speed"),
+    ("print_speed", "set_speed"),
+    (
+        "primer",
+        "set_primer (\"profile\" or \"none\", before the first move)",
+    ),
+    ("temperature", "hotend / bed"),
+    ("nozzle_temp", "hotend"),
+    ("bed_temp", "bed"),
+    ("Retraction", "set_retraction"),
+    ("PlotAnnotation", "annotate"),
 ];
 
 fn normalise(name: &str) -> String {
@@ -95,10 +121,52 @@ pub(super) fn hint(engine: &Engine, signature: &str) -> Option<String> {
         ));
     }
     let want = normalise(name);
-    names_of(engine)
-        .into_iter()
-        .find(|n| normalise(n) == want)
-        .map(|n| format!("did you mean `{n}`?"))
+    let names = names_of(engine);
+    if let Some(n) = names.iter().find(|n| normalise(n) == want) {
+        return Some(format!("did you mean `{n}`?"));
+    }
+    // A slip of the keyboard: the one registered name within two edits (of names long
+    // enough that two edits do not make another word).
+    if want.chars().count() < 5 {
+        return None;
+    }
+    let mut near: Vec<&String> = names
+        .iter()
+        .filter(|n| !n.starts_with(|c: char| !c.is_ascii_alphabetic()))
+        .filter(|n| edits(&normalise(n), &want) <= 2)
+        .collect();
+    near.sort_by_key(|n| edits(&normalise(n), &want));
+    match near.as_slice() {
+        [] => None,
+        [one] => Some(format!("did you mean `{one}`?")),
+        [a, b, ..] if edits(&normalise(a), &want) < edits(&normalise(b), &want) => {
+            Some(format!("did you mean `{a}`?"))
+        }
+        many => Some(format!(
+            "did you mean one of {}?",
+            many.iter()
+                .take(4)
+                .map(|n| format!("`{n}`"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        )),
+    }
+}
+
+/// Levenshtein distance between two short names (characters).
+fn edits(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut prev = row[0];
+        row[0] = i + 1;
+        for (j, cb) in b.iter().enumerate() {
+            let cur = row[j + 1];
+            row[j + 1] = (prev + usize::from(ca != *cb)).min(row[j] + 1).min(cur + 1);
+            prev = cur;
+        }
+    }
+    row[b.len()]
 }
 
 /// Names of every registered function, sorted, each once.

@@ -16,6 +16,7 @@
 
 mod aliases;
 mod args;
+mod guards;
 mod model;
 mod model_ops;
 mod parts;
@@ -41,10 +42,13 @@ pub struct Limits {
     pub max_operations: u64,
     /// Deepest function call nesting.
     pub max_call_levels: usize,
-    /// Longest string, bytes.
-    pub max_string_size: usize,
-    /// Largest array.
-    pub max_array_size: usize,
+    /// Most heap the script may add while it runs, bytes (checked between operations
+    /// through [`crate::mem`]; Rhai's per-value size limits made every append to a path
+    /// O(path length), see there).
+    pub max_memory_bytes: usize,
+    /// Most elements (or bytes) one `pad` or `blob` call may make: the one way a single
+    /// operation allocates by a number the script gives.
+    pub max_pad: usize,
 }
 
 impl Default for Limits {
@@ -52,8 +56,8 @@ impl Default for Limits {
         Limits {
             max_operations: 200_000_000,
             max_call_levels: 64,
-            max_string_size: 64 * 1024,
-            max_array_size: 1_000_000,
+            max_memory_bytes: 1 << 30,
+            max_pad: 10_000_000,
         }
     }
 }
@@ -167,7 +171,9 @@ impl ScriptRunner {
             if let Some(h) = not_found(&e).and_then(|sig| aliases::hint(&engine, sig)) {
                 msg = format!("{msg} ({h})");
             }
-            at(msg, innermost_position(&e))
+            // Whatever Rhai put in its message (a closure's signature in "function not
+            // found", a call stack), never its generated closure names.
+            at(without_closure_names(&msg), innermost_position(&e))
         })?;
         let model = if result.is::<Model>() {
             result.cast::<Model>()
@@ -195,20 +201,27 @@ impl ScriptRunner {
         // 0 would turn Rhai's operation limit off: the sandbox always keeps a limit.
         e.set_max_operations(self.limits.max_operations.max(1));
         e.set_max_call_levels(self.limits.max_call_levels);
-        e.set_max_string_size(self.limits.max_string_size);
-        e.set_max_array_size(self.limits.max_array_size);
-        e.set_max_map_size(10_000);
+        // No per-value size limits (0 = none): Rhai re-measures a whole value after every
+        // call that may change it, which made appending to a path quadratic. The heap as a
+        // whole is bounded instead (below), and the calls that allocate by a number are
+        // bounded by `guards`.
+        e.set_max_string_size(0);
+        e.set_max_array_size(0);
+        e.set_max_map_size(0);
         e.set_max_expr_depths(128, 64);
         e.on_print(|s| eprintln!("{s}"));
         e.on_debug(|s, _, pos| eprintln!("debug {pos}: {s}"));
-        if let Some(p) = self.progress.clone() {
-            e.on_progress(move |ops| {
-                if ops % 1_000_000 == 0 {
+        let progress = self.progress.clone();
+        let budget = crate::mem::in_use().saturating_add(self.limits.max_memory_bytes);
+        e.on_progress(move |ops| {
+            if ops % 1_000_000 == 0 {
+                if let Some(p) = &progress {
                     p(ops);
                 }
-                None
-            });
-        }
+            }
+            (crate::mem::in_use() > budget).then(|| Dynamic::from(MEMORY_TOKEN))
+        });
+        guards::register_guards(&mut e, self.limits.max_pad);
         {
             let sh = shared.clone();
             e.register_fn("warn", move |msg: &str| {
@@ -217,7 +230,7 @@ impl ScriptRunner {
                 }
             });
         }
-        turtle::register_turtle(&mut e);
+        turtle::register_turtle(&mut e, self.profile.clone());
         model::register_model(&mut e, shared.clone());
         model_ops::register_model_ops(&mut e, shared, self.profile.clone());
         parts::register_parts(&mut e);
@@ -250,10 +263,22 @@ impl ScriptRunner {
     }
 }
 
+/// What the progress callback stops a script with when it exceeds its memory budget.
+const MEMORY_TOKEN: &str = "memory budget";
+
 fn describe(e: &EvalAltResult) -> String {
     match e {
+        EvalAltResult::ErrorTerminated(token, _)
+            if token.clone().into_string().is_ok_and(|t| t == MEMORY_TOKEN) =>
+        {
+            "the script uses more memory than the sandbox allows (`compile --max-memory-mib`, 1 GiB by default)".to_string()
+        }
         EvalAltResult::ErrorInFunctionCall(name, _, inner, _) => {
-            format!("in `{name}`: {}", describe(inner))
+            if is_closure_name(name) {
+                format!("in the closure: {}", describe(inner))
+            } else {
+                format!("in `{name}`: {}", describe(inner))
+            }
         }
         EvalAltResult::ErrorRuntime(d, _) => d.to_string(),
         other => {
@@ -291,14 +316,36 @@ fn last_line(src: &str) -> Position {
     Position::new(line.min(u16::MAX as usize) as u16, 1)
 }
 
+/// True for the generated name of a closure (`anon$…`).
+fn is_closure_name(name: &str) -> bool {
+    name.starts_with("anon$")
+}
+
 /// How an error names a script function: closures have generated names (`anon$…`) that
 /// mean nothing to the designer.
 fn fn_label(f: &FnPtr) -> &str {
-    if f.fn_name().starts_with("anon$") {
+    if is_closure_name(f.fn_name()) {
         "the closure"
     } else {
         f.fn_name()
     }
+}
+
+/// Replaces every generated closure name (`anon$` and its hex digits) in a message.
+fn without_closure_names(msg: &str) -> String {
+    let mut out = String::with_capacity(msg.len());
+    let mut rest = msg;
+    while let Some(i) = rest.find("anon$") {
+        out.push_str(&rest[..i]);
+        let tail = &rest[i + 5..];
+        let end = tail
+            .find(|c: char| !c.is_ascii_alphanumeric() && c != '_')
+            .unwrap_or(tail.len());
+        out.push_str("the closure");
+        rest = &tail[end..];
+    }
+    out.push_str(rest);
+    out
 }
 
 fn innermost_position(e: &EvalAltResult) -> Position {
@@ -436,6 +483,72 @@ mod tests {
         let fine = run("helix(#{ turns: 4, per_turn: 8 }).helix_to_sphere(10, 1.6, 0.2, 0.05)")
             .expect("sphere");
         assert!(fine.model.string_count() > plain.model.string_count());
+    }
+
+    /// Issue 23's hints: each names a function that does the job; none shows `anon$`.
+    #[test]
+    fn hints_name_the_right_function_and_never_a_closure_name() {
+        for (src, want) in [
+            ("let t = turtle(0, 0, 0.2); t.set_fan(50); t", "`fan"),
+            ("arc(point(0, 0, 0), 5, 0, 1, 8)", "arc_xy"),
+            ("let t = turtle(0, 0, 0.2); t.rotate(90); t", "left"),
+            ("rotate([point(1, 0, 0)], point(0, 0, 0), 1)", "rotate_xy"),
+            (
+                "let t = turtle(0, 0, 0.2); t.extrude_too(point(1, 0, 0.2)); t",
+                "extrude_to",
+            ),
+        ] {
+            let e = run(src).expect_err(src);
+            assert!(e.msg.contains(want), "{src}: {e}");
+        }
+        assert!(run(
+            "let t = turtle(0, 0, 0.2); t.set_travel_speed(100); t.extrude_to(point(5, 0, 0.2)); t"
+        )
+        .is_ok());
+        for src in [
+            "let a = [1, 2].map(|x| x.nope()); turtle(0, 0, 0)",
+            "let f = |x| x + y; f.call(1)",
+            "let h = helix(#{}); h.partition(|s| s.nope)",
+        ] {
+            let e = run(src).expect_err(src);
+            assert!(
+                !e.msg.contains("anon$") && !e.to_string().contains("anon$"),
+                "{src}: {e}"
+            );
+        }
+    }
+
+    /// `move_polar` rotates (the hint it used to get, `polar + move_points`, could not), for
+    /// points, paths and models, with copies.
+    #[test]
+    fn move_polar_rotate_and_scale_from_scripts() {
+        let out = run(
+            "let p = move_polar([point(15, 10, 0.2), point(20, 10, 0.2)], point(10, 10, 0), 0, PI / 2);\n\
+             if (p[0][0] - 10.0).abs() > 1e-9 || (p[0][1] - 15.0).abs() > 1e-9 { throw `${p}`; }\n\
+             let q = move_polar(point(15, 10, 0), point(10, 10, 0), 1, PI);\n\
+             if (q[0] - 4.0).abs() > 1e-9 { throw `${q}`; }\n\
+             let r = rotate_xy(point(1, 0, 0), point(0, 0, 0), PI / 2);\n\
+             if r[1] < 0.999 { throw `${r}`; }\n\
+             let s = scale([point(2, 2, 2)], point(1, 1, 1), [2, 3, 1]);\n\
+             if s[0][0] != 3.0 || s[0][1] != 4.0 || s[0][2] != 2.0 { throw `${s}`; }\n\
+             let ring = move_polar([point(60, 50, 0.2)], point(50, 50, 0), 0, PI / 2, 4);\n\
+             if ring.len() != 4 || (ring[3][1] - 40.0).abs() > 1e-9 { throw `${ring}`; }\n\
+             let h = helix(#{ cx: 60, cy: 50, radius: 2, turns: 1, per_turn: 8 });\n\
+             h.move_polar(point(50, 50, 0), 0, PI / 2, 4)",
+        )
+        .expect("script");
+        // Four copies of the 8-string turn, a quarter turn apart about (50, 50).
+        assert_eq!(out.model.string_count(), 32);
+        let ends: Vec<_> = out.model.strings().map(|s| s.end).collect();
+        assert!(ends.iter().any(|p| (p.x - 50.0).abs() < 2.01 && p.y > 57.9));
+        assert!(ends.iter().any(|p| p.x < 42.1 && (p.y - 50.0).abs() < 2.01));
+        let e = run("init(#{ relative_e: true })").expect_err("unknown key");
+        assert!(
+            e.msg.contains("relative_e") && e.msg.contains("nozzle_temp"),
+            "{e}"
+        );
+        let e = run("init(#{ print_speed: 1000 })").expect_err("mm/min");
+        assert!(e.msg.contains("mm/min"), "{e}");
     }
 
     #[test]

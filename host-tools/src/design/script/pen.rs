@@ -5,7 +5,7 @@
 use super::args::{arr3, err, num, Opts, Res};
 use super::points::{flag, path_of, pt};
 use crate::design::pen::AreaModel;
-use crate::design::profile::Retraction;
+use crate::design::profile::{Primer, Retraction};
 use crate::design::turtle::{Turtle, TurtleError};
 use glam::DVec3;
 use rhai::{Array, Dynamic, Engine, Map};
@@ -108,6 +108,24 @@ pub(super) fn register_pen(e: &mut Engine) {
     e.register_fn("gcode", |t: &mut Turtle, s: &str| -> Res<()> {
         t.gcode(s).map_err(err)
     });
+    e.register_fn(
+        "set_travel_speed",
+        |t: &mut Turtle, v: Dynamic| -> Res<()> {
+            t.set_travel_speed(num(&v, "travel speed")?).map_err(err)
+        },
+    );
+    e.register_fn("set_primer", |t: &mut Turtle, p: &str| -> Res<()> {
+        t.set_primer(Primer::parse(p)?).map_err(err)
+    });
+    e.register_fn("annotate", |t: &mut Turtle, label: &str| -> Res<()> {
+        t.annotate(None, label).map_err(err)
+    });
+    e.register_fn(
+        "annotate",
+        |t: &mut Turtle, p: Dynamic, label: &str| -> Res<()> {
+            t.annotate(Some(pt(&p, "annotate")?), label).map_err(err)
+        },
+    );
     e.register_fn("pause", |t: &mut Turtle| t.pause(false));
     e.register_fn("pause_now", |t: &mut Turtle| t.pause(true));
     e.register_get("position", |t: &mut Turtle| arr3(t.state().pos));

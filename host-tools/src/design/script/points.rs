@@ -5,6 +5,7 @@
 
 use super::args::{arr3, count, err, num, vec3_of, Opts, Res};
 use crate::design::points::{self, PointsError};
+use crate::design::transform::{self, Transform};
 use glam::DVec3;
 use rhai::{Array, Dynamic, Engine, Map};
 
@@ -331,6 +332,7 @@ pub(super) fn register_points(e: &mut Engine) {
             array_of(points::copied(&p, pt(&v, "vector")?, count(&n, "copies")?))
         },
     );
+    register_transforms(e);
     e.register_fn(
         "reflect_xy",
         |a: Array, p1: Dynamic, p2: Dynamic| -> Res<Array> {
@@ -351,6 +353,92 @@ pub(super) fn register_points(e: &mut Engine) {
                     .map(|p| points::reflect_xy(p, p1, p2))
                     .collect(),
             )
+        },
+    );
+}
+
+/// True when the array is one point (`[x, y, z]` of numbers), not a path.
+fn is_point(a: &Array) -> bool {
+    a.len() == 3 && a.iter().all(|d| d.as_float().is_ok() || d.as_int().is_ok())
+}
+
+/// A point or a path transformed (a point stays a point).
+fn transformed(a: Array, t: &Transform, what: &str) -> Res<Array> {
+    if is_point(&a) {
+        let p = pt(&Dynamic::from_array(a), what)?;
+        t.validate().map_err(err)?;
+        let q = t.apply(p);
+        return Ok(vec![
+            Dynamic::from_float(q.x),
+            Dynamic::from_float(q.y),
+            Dynamic::from_float(q.z),
+        ]);
+    }
+    let p = path_of(&a, what)?;
+    Ok(transform::path(&p, t)
+        .map_err(err)?
+        .into_iter()
+        .map(arr3)
+        .collect())
+}
+
+/// A scale factor: one number (uniform) or `[kx, ky, kz]`.
+pub(super) fn factor(d: &Dynamic) -> Res<DVec3> {
+    if d.is_array() {
+        vec3_of(d, "scale factors")
+    } else {
+        Ok(DVec3::splat(num(d, "scale factor")?))
+    }
+}
+
+/// `rotate_xy`, `scale` and `move_polar` on points and paths.
+fn register_transforms(e: &mut Engine) {
+    e.register_fn(
+        "rotate_xy",
+        |a: Array, c: Dynamic, angle: Dynamic| -> Res<Array> {
+            let t = Transform::RotateXy {
+                centre: pt(&c, "centre")?.truncate(),
+                angle: num(&angle, "angle")?,
+            };
+            transformed(a, &t, "rotate_xy")
+        },
+    );
+    e.register_fn("scale", |a: Array, c: Dynamic, k: Dynamic| -> Res<Array> {
+        let t = Transform::Scale {
+            centre: pt(&c, "centre")?,
+            k: factor(&k)?,
+        };
+        transformed(a, &t, "scale")
+    });
+    let polar = |c: &Dynamic, r: &Dynamic, angle: &Dynamic| -> Res<Transform> {
+        Ok(Transform::Polar {
+            centre: pt(c, "centre")?.truncate(),
+            radius: num(r, "radius")?,
+            angle: num(angle, "angle")?,
+        })
+    };
+    e.register_fn(
+        "move_polar",
+        move |a: Array, c: Dynamic, r: Dynamic, angle: Dynamic| -> Res<Array> {
+            transformed(a, &polar(&c, &r, &angle)?, "move_polar")
+        },
+    );
+    e.register_fn(
+        "move_polar",
+        move |a: Array, c: Dynamic, r: Dynamic, angle: Dynamic, n: Dynamic| -> Res<Array> {
+            let p = if is_point(&a) {
+                vec![pt(&Dynamic::from_array(a), "move_polar")?]
+            } else {
+                path_of(&a, "move_polar")?
+            };
+            let out = transform::copies(
+                &p,
+                &polar(&c, &r, &angle)?,
+                count(&n, "copies")?,
+                points::MAX_POINTS,
+            )
+            .map_err(err)?;
+            Ok(out.into_iter().map(arr3).collect())
         },
     );
 }

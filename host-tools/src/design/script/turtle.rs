@@ -1,13 +1,71 @@
 //! Script functions of the `Turtle` (Kanada's interface): creating one, moving and turning,
 //! pen and speed changes, the layer/turn marks, and its position getters.
 
-use super::args::{err, num, Res};
+use super::args::{err, num, vec3_of, Opts, Res};
+use crate::design::init::InitOptions;
+use crate::design::pen::AreaModel;
+use crate::design::profile::{Primer, Profile};
 use crate::design::turtle::Turtle;
 use glam::DVec3;
-use rhai::{Dynamic, Engine};
+use rhai::{Dynamic, Engine, Map};
 
-pub(super) fn register_turtle(e: &mut Engine) {
+/// The named `init`'s keys (FullControl's `initialization_data` names; speeds in mm/s).
+const INIT_KEYS: &[&str] = &[
+    "start",
+    "nozzle_temp",
+    "bed_temp",
+    "fan_percent",
+    "print_speed",
+    "travel_speed",
+    "extrusion_width",
+    "extrusion_height",
+    "area_model",
+    "cross_section",
+    "dia_feed",
+    "primer",
+];
+
+fn init_options(o: &Map) -> Res<InitOptions> {
+    let o = Opts::new(o, "init", INIT_KEYS)?;
+    let f = |k: &str| -> Res<Option<f64>> {
+        o.get(k).map(|d| num(d, &format!("init.{k}"))).transpose()
+    };
+    let s = |k: &str| -> Res<Option<String>> {
+        o.get(k)
+            .map(|d| {
+                d.clone()
+                    .into_string()
+                    .map_err(|t| format!("init.{k}: expected a string, got {t}").into())
+            })
+            .transpose()
+    };
+    Ok(InitOptions {
+        start: o
+            .get("start")
+            .map(|d| vec3_of(d, "init.start"))
+            .transpose()?,
+        nozzle_temp_c: f("nozzle_temp")?,
+        bed_temp_c: f("bed_temp")?,
+        fan_percent: f("fan_percent")?,
+        print_speed_mm_s: f("print_speed")?,
+        travel_speed_mm_s: f("travel_speed")?,
+        width_mm: f("extrusion_width")?,
+        height_mm: f("extrusion_height")?,
+        area_model: match s("area_model")? {
+            Some(m) => AreaModel::parse(&m).map_err(err)?,
+            None => AreaModel::Rectangle,
+        },
+        cross_mm2: f("cross_section")?,
+        filament_mm: f("dia_feed")?,
+        primer: s("primer")?.map(|p| Primer::parse(&p)).transpose()?,
+    })
+}
+
+pub(super) fn register_turtle(e: &mut Engine, profile: Profile) {
     e.register_type_with_name::<Turtle>("Turtle");
+    e.register_fn("init", move |o: Map| -> Res<Turtle> {
+        Turtle::init_with(&init_options(&o)?, &profile).map_err(err)
+    });
     e.register_fn(
         "init",
         |fd: Dynamic,

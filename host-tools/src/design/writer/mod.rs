@@ -17,7 +17,8 @@
 //! `emission` orders and thins the steps, `validate` refuses what cannot be printed.
 
 use crate::design::model::{Model, StateChange, Step};
-use crate::design::profile::{EMode, Markers, Profile, Retraction, TemplateValues};
+use crate::design::profile::{EMode, Markers, Primer, Profile, Retraction, TemplateValues};
+use crate::design::raw::RawTracker;
 use glam::DVec3;
 use std::io::Write;
 
@@ -100,14 +101,20 @@ struct State {
     pos_f: Option<DVec3>,
     /// Running E total (exact).
     e_total: f64,
-    /// Last written rounded E total (integer units).
+    /// Last written E (integer units): the absolute E word, or the rounded total the next
+    /// relative E word is measured from.
     e_written: i64,
+    /// Absolute E: written E = rounded total + this (raw lines that move or set E shift it).
+    e_shift: i64,
     /// Current feed in 0.1 mm/min units.
     f: Option<i64>,
     area: f64,
     retracted: bool,
     /// Retraction in force (the profile's until a design's `StateChange::Retraction`).
     retraction: Retraction,
+    /// Speed of travels without their own, mm/s (the profile's until a design's
+    /// `StateChange::TravelSpeed`).
+    travel_speed_mm_s: f64,
 }
 
 impl<'p> GcodeWriter<'p> {
@@ -148,18 +155,12 @@ impl<'p> GcodeWriter<'p> {
         // About 28 bytes per string (the globe: 1.5 MB for 45,000): one allocation.
         buf.reserve(steps.len() * 30 + 4096);
 
-        // Temperatures set before the first string feed the start code instead of being
-        // written twice.
-        let mut hotend_c = p.hotend_c;
-        let mut bed_c = p.bed_c;
-        for s in steps {
-            match s {
-                Step::String(_) | Step::Travel { .. } => break,
-                Step::State(StateChange::HotendTemp { celsius, .. }) => hotend_c = *celsius,
-                Step::State(StateChange::BedTemp { celsius, .. }) => bed_c = *celsius,
-                _ => {}
-            }
-        }
+        // The design's state is final, the profile's a default: temperatures set before the
+        // first move feed the start code instead of being written twice, the primer chosen
+        // there decides the start code's purge, and a fan set there replaces the profile's.
+        let lead = lead_in(steps);
+        let hotend_c = lead.hotend_c.unwrap_or(p.hotend_c);
+        let bed_c = lead.bed_c.unwrap_or(p.bed_c);
         if let Some(h) = &self.opts.header {
             for line in h.lines() {
                 buf.extend_from_slice(b"; ");
@@ -173,7 +174,11 @@ impl<'p> GcodeWriter<'p> {
             hotend_c,
             bed_c,
             top_z_mm: (!self.opts.bare).then(|| model.bbox().max.z),
+            primer: lead.primer,
         };
+        // The profile's fan comes on (after the start code or at its layer) only while the
+        // design has not set the fan itself.
+        let mut fan_set = lead.fan;
         let mut progress_at: Vec<usize> = Vec::new();
         let progress = p.progress && !self.opts.bare;
         if !self.opts.bare {
@@ -190,7 +195,7 @@ impl<'p> GcodeWriter<'p> {
             if !buf.ends_with(b"\n") {
                 buf.push(b'\n');
             }
-            if p.fan > 0.0 && p.fan_off_layers == 0 {
+            if p.fan > 0.0 && p.fan_off_layers == 0 && !fan_set {
                 push_fan(buf, p.fan);
             }
         }
@@ -208,10 +213,12 @@ impl<'p> GcodeWriter<'p> {
             pos_f: None,
             e_total: 0.0,
             e_written: 0,
+            e_shift: 0,
             f: None,
             area: p.filament_area_mm2(),
             retracted: false,
             retraction: p.retraction,
+            travel_speed_mm_s: p.travel_speed_mm_s,
         };
         // Thinning merges strings on the fly (no second copy of the model).
         let mut emission = Emission::new(steps, model.emission.thin_min_len_mm);
@@ -274,6 +281,7 @@ impl<'p> GcodeWriter<'p> {
                         && p.fan > 0.0
                         && sum.markers == p.fan_off_layers as usize + 1
                         && p.fan_off_layers > 0
+                        && !fan_set
                     {
                         push_fan(buf, p.fan);
                     }
@@ -293,15 +301,26 @@ impl<'p> GcodeWriter<'p> {
                     {
                         continue; // already in the start code
                     }
-                    if let StateChange::Retraction(r) = sc {
-                        // Prime with the old length before the new one applies.
-                        if st.retracted {
-                            self.retract(buf, &mut st, scale, false);
+                    match sc {
+                        StateChange::Retraction(r) => {
+                            // Prime with the old length before the new one applies.
+                            if st.retracted {
+                                self.retract(buf, &mut st, scale, false);
+                            }
+                            st.retraction = *r;
                         }
-                        st.retraction = *r;
-                        continue;
+                        StateChange::TravelSpeed(v) => st.travel_speed_mm_s = *v,
+                        StateChange::Primer(_) => {} // decided the start code
+                        StateChange::Gcode(text) => {
+                            write_state(buf, &mut st, sc, dec);
+                            fan_set |= self.follow_raw(buf, &mut st, text, scale);
+                        }
+                        StateChange::Fan(_) => {
+                            fan_set = true;
+                            write_state(buf, &mut st, sc, dec);
+                        }
+                        _ => write_state(buf, &mut st, sc, dec),
                     }
-                    write_state(buf, &mut st, sc, dec);
                 }
             }
         }
@@ -317,10 +336,83 @@ impl<'p> GcodeWriter<'p> {
             }
         }
         if progress {
-            crate::design::progress::insert_m73(buf, body_start, &progress_at, p)?;
+            crate::design::progress::insert_m73(buf, body_start, &progress_at, p).map_err(|e| {
+                WriteError::BadStep {
+                    index: 0,
+                    msg: format!("progress estimate: the written G-code does not read back: {e}"),
+                }
+            })?;
         }
         sum.bytes = buf.len() - start_len;
         Ok(sum)
+    }
+}
+
+/// What a design sets before its first move: the start code's temperatures and primer, and
+/// whether it sets the fan itself.
+struct LeadIn {
+    hotend_c: Option<f64>,
+    bed_c: Option<f64>,
+    primer: Primer,
+    fan: bool,
+}
+
+fn lead_in(steps: &[Step]) -> LeadIn {
+    let mut l = LeadIn {
+        hotend_c: None,
+        bed_c: None,
+        primer: Primer::Profile,
+        fan: false,
+    };
+    for s in steps {
+        match s {
+            Step::String(_) | Step::Travel { .. } => break,
+            Step::State(StateChange::HotendTemp { celsius, .. }) => l.hotend_c = Some(*celsius),
+            Step::State(StateChange::BedTemp { celsius, .. }) => l.bed_c = Some(*celsius),
+            Step::State(StateChange::Primer(p)) => l.primer = *p,
+            Step::State(StateChange::Fan(_)) => l.fan = true,
+            Step::State(StateChange::Gcode(g)) => {
+                l.fan |= RawTracker::new([None; 3], 0.0, true, DVec3::ZERO)
+                    .apply(g)
+                    .fan
+            }
+            _ => {}
+        }
+    }
+    l
+}
+
+impl GcodeWriter<'_> {
+    /// After raw lines: the position, feed and E they leave (the writer continues from
+    /// there, see `design::raw`). Returns true when they set the fan.
+    fn follow_raw(&self, buf: &mut Vec<u8>, st: &mut State, text: &str, scale: f64) -> bool {
+        let abs_e = self.profile.e_mode == EMode::Absolute;
+        let pos = st
+            .pos_f
+            .map_or([None; 3], |p| [Some(p.x), Some(p.y), Some(p.z)]);
+        let mut t = RawTracker::new(pos, st.e_written as f64 / scale, abs_e, DVec3::ZERO);
+        let fx = t.apply(text);
+        if fx.modes {
+            // Marlin's G90/G91 switch E as well: the profile's E mode again.
+            buf.extend_from_slice(if abs_e { b"M82\n" } else { b"M83\n" });
+        }
+        if fx.moved {
+            st.pos_f = t.position();
+            st.pos = match st.pos_f {
+                Some(p) => quant(p, scale).map(Some),
+                None => [None; 3],
+            };
+        }
+        if fx.feed {
+            st.f = None;
+        }
+        if fx.e_changed && abs_e {
+            // Later E words continue from the E the raw lines left.
+            let e_i = numbers::round_i64(t.e_mm * scale);
+            st.e_shift = e_i - numbers::round_i64(st.e_total * scale);
+            st.e_written = e_i;
+        }
+        fx.fan
     }
 }
 

@@ -55,11 +55,11 @@ impl<'p> GcodeWriter<'p> {
 
     fn push_e(&self, buf: &mut Vec<u8>, st: &mut State, scale: f64) {
         let e_i = round_i64(st.e_total * scale);
-        let v = match self.profile.e_mode {
-            EMode::Absolute => e_i,
-            EMode::Relative => e_i - st.e_written,
+        let (v, written) = match self.profile.e_mode {
+            EMode::Absolute => (e_i + st.e_shift, e_i + st.e_shift),
+            EMode::Relative => (e_i - st.e_written, e_i),
         };
-        st.e_written = e_i;
+        st.e_written = written;
         buf.extend_from_slice(b" E");
         push_scaled(buf, v, self.profile.decimals);
     }
@@ -73,7 +73,6 @@ impl<'p> GcodeWriter<'p> {
         scale: f64,
         sum: &mut WriteSummary,
     ) {
-        let p = self.profile;
         let dist = st.pos_f.map(|f| f.distance(to)).unwrap_or(f64::INFINITY);
         let retract = st.retraction.length_mm > 0.0
             && st.pos_f.is_some()
@@ -85,7 +84,7 @@ impl<'p> GcodeWriter<'p> {
             sum.retractions += 1;
         }
         buf.extend_from_slice(b"G0");
-        self.push_f(buf, st, speed.unwrap_or(p.travel_speed_mm_s));
+        self.push_f(buf, st, speed.unwrap_or(st.travel_speed_mm_s));
         self.push_axes(buf, st, to, scale);
         buf.push(b'\n');
         sum.travels += 1;
@@ -185,7 +184,8 @@ pub(super) fn write_state(buf: &mut Vec<u8>, st: &mut State, sc: &StateChange, d
         StateChange::Pause { now } => {
             buf.extend_from_slice(if *now { b"M601 S1" } else { b"M601" });
         }
-        StateChange::Retraction(_) => return, // applied by the caller
+        // Applied by the caller.
+        StateChange::Retraction(_) | StateChange::TravelSpeed(_) | StateChange::Primer(_) => return,
     }
     buf.push(b'\n');
 }

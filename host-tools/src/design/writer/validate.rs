@@ -8,7 +8,9 @@ use crate::design::model::{Model, StateChange, Step};
 /// cross-sections or filament diameters).
 pub fn validate(model: &Model) -> Result<(), WriteError> {
     let bad = |index: usize, msg: String| Err(WriteError::BadStep { index, msg });
+    let mut moved = false;
     for (i, s) in model.steps.iter().enumerate() {
+        moved |= matches!(s, Step::String(_) | Step::Travel { .. });
         match s {
             Step::String(s) => {
                 if !(s.start.is_finite() && s.end.is_finite()) {
@@ -72,6 +74,22 @@ pub fn validate(model: &Model) -> Result<(), WriteError> {
                     .any(|c| !(c.is_ascii_graphic() || c == ' ' || c == '\n'))
                 {
                     return bad(i, format!("raw G-code {g:?}: only printable ASCII lines"));
+                }
+                if let Err(e) = crate::design::raw::check_text(g) {
+                    return bad(i, e.to_string());
+                }
+            }
+            Step::State(StateChange::TravelSpeed(v)) => {
+                if !(v.is_finite() && *v > 0.0) {
+                    return bad(i, format!("travel speed {v} mm/s is invalid"));
+                }
+            }
+            Step::State(StateChange::Primer(_)) => {
+                if moved {
+                    return bad(
+                        i,
+                        "the primer is chosen before the design's first move (it is part of the start code)".into(),
+                    );
                 }
             }
             Step::State(StateChange::Pause { .. }) => {}

@@ -7,6 +7,9 @@
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
+mod template;
+pub use template::{Primer, TemplateValues, PLACEHOLDERS};
+
 /// Absolute (M82) or relative (M83) extrusion.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -85,6 +88,11 @@ pub struct GcodeTemplates {
     pub start: String,
     /// Written after the design.
     pub end: String,
+    /// The purge line, written where the start code has `{primer}` (on a line of its own)
+    /// unless the design asks for none ([`Primer::None`]); empty when the start code has no
+    /// purge of its own (e.g. a Klipper macro purges).
+    #[serde(default)]
+    pub primer: String,
 }
 
 /// The firmware family the profile's start/end code is written for (what the printer runs;
@@ -186,64 +194,29 @@ fn default_nozzle_mm() -> f64 {
     0.4
 }
 
-/// Placeholders of start/end code, with what they become.
-pub const PLACEHOLDERS: &[(&str, &str)] = &[
-    (
-        "hotend_c",
-        "hotend temperature, °C (the design's, else the profile's)",
-    ),
-    (
-        "bed_c",
-        "bed temperature, °C (the design's, else the profile's)",
-    ),
-    ("nozzle_mm", "nozzle diameter, mm"),
-    ("bed_x_min", "lowest X of the bed, mm"),
-    ("bed_x_max", "highest X of the bed, mm"),
-    ("bed_y_min", "lowest Y of the bed, mm"),
-    ("bed_y_max", "highest Y of the bed, mm"),
-    ("z_max", "highest Z, mm"),
-    (
-        "lift_z",
-        "top of the print + 2 mm, at most z_max (end code: clear the part)",
-    ),
-    (
-        "park_z",
-        "top of the print + 50 mm, at most z_max (end code: present the part)",
-    ),
-    ("travel_f", "travel feed, mm/min"),
-];
-
-/// Values the placeholders take in one write.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct TemplateValues {
-    /// Hotend temperature, °C.
-    pub hotend_c: f64,
-    /// Bed temperature, °C.
-    pub bed_c: f64,
-    /// Highest Z the print reaches, mm (`None`: unknown, the lifts go to `z_max`).
-    pub top_z_mm: Option<f64>,
-}
-
 /// The built-in profiles: name and TOML text (`host-tools/profiles/<name>.toml`).
 const BUILTIN_TOML: &[(&str, &str)] = &[
-    ("ender3", include_str!("../../profiles/ender3.toml")),
-    ("ender3v2", include_str!("../../profiles/ender3v2.toml")),
-    ("ender3s1", include_str!("../../profiles/ender3s1.toml")),
-    ("cr10", include_str!("../../profiles/cr10.toml")),
-    ("i3mega", include_str!("../../profiles/i3mega.toml")),
-    ("mk3s", include_str!("../../profiles/mk3s.toml")),
-    ("mk4", include_str!("../../profiles/mk4.toml")),
+    ("ender3", include_str!("../../../profiles/ender3.toml")),
+    ("ender3v2", include_str!("../../../profiles/ender3v2.toml")),
+    ("ender3s1", include_str!("../../../profiles/ender3s1.toml")),
+    ("cr10", include_str!("../../../profiles/cr10.toml")),
+    ("i3mega", include_str!("../../../profiles/i3mega.toml")),
+    ("mk3s", include_str!("../../../profiles/mk3s.toml")),
+    ("mk4", include_str!("../../../profiles/mk4.toml")),
     (
         "voron24-350",
-        include_str!("../../profiles/voron24-350.toml"),
+        include_str!("../../../profiles/voron24-350.toml"),
     ),
-    ("skr2", include_str!("../../profiles/skr2.toml")),
-    ("paste", include_str!("../../profiles/paste.toml")),
-    ("eazao-zero", include_str!("../../profiles/eazao-zero.toml")),
+    ("skr2", include_str!("../../../profiles/skr2.toml")),
+    ("paste", include_str!("../../../profiles/paste.toml")),
+    (
+        "eazao-zero",
+        include_str!("../../../profiles/eazao-zero.toml"),
+    ),
 ];
 
 /// The reference profile behind [`Profile::ender3`].
-const REFERENCE_TOML: &str = include_str!("../../profiles/reference.toml");
+const REFERENCE_TOML: &str = include_str!("../../../profiles/reference.toml");
 
 /// Names of the built-in profiles, in listing order.
 pub const BUILTIN: &[&str] = &[
@@ -383,14 +356,13 @@ impl Profile {
         if !(self.nozzle_diameter_mm.is_finite() && self.nozzle_diameter_mm > 0.0) {
             anyhow::bail!("profile {}: nozzle_diameter_mm must be > 0", self.name);
         }
-        for (part, t) in [
-            ("gcode.start", &self.gcode.start),
-            ("gcode.end", &self.gcode.end),
+        for (part, t, primer_allowed) in [
+            ("gcode.start", &self.gcode.start, true),
+            ("gcode.end", &self.gcode.end, false),
+            ("gcode.primer", &self.gcode.primer, false),
         ] {
-            expand(t, &mut |n| {
-                PLACEHOLDERS.iter().any(|(k, _)| *k == n).then(String::new)
-            })
-            .map_err(|e| anyhow::anyhow!("profile {}: {part}: {e}", self.name))?;
+            template::validate(t, primer_allowed)
+                .map_err(|e| anyhow::anyhow!("profile {}: {part}: {e}", self.name))?;
         }
         Ok(())
     }
@@ -412,11 +384,7 @@ impl Profile {
     pub fn start_code(&self, hotend_c: f64, bed_c: f64) -> String {
         self.fill(
             &self.gcode.start,
-            &TemplateValues {
-                hotend_c,
-                bed_c,
-                top_z_mm: None,
-            },
+            &TemplateValues::temperatures(hotend_c, bed_c),
         )
     }
 
@@ -425,48 +393,8 @@ impl Profile {
     pub fn end_code(&self, hotend_c: f64, bed_c: f64) -> String {
         self.fill(
             &self.gcode.end,
-            &TemplateValues {
-                hotend_c,
-                bed_c,
-                top_z_mm: None,
-            },
+            &TemplateValues::temperatures(hotend_c, bed_c),
         )
-    }
-
-    /// A template with its placeholders filled in. Templates were checked when the profile
-    /// was loaded; an unknown placeholder in a hand-built profile is left as written.
-    pub fn fill(&self, template: &str, v: &TemplateValues) -> String {
-        let b = &self.bed;
-        let zmax = b.z_max_mm;
-        let lift = |dz: f64| match v.top_z_mm {
-            Some(top) if top.is_finite() && zmax > 0.0 => (top + dz).min(zmax),
-            Some(top) if top.is_finite() => top + dz,
-            _ => zmax,
-        };
-        let num = |x: f64| {
-            let r = (x * 1000.0).round() / 1000.0;
-            format!("{r}")
-        };
-        let value = |name: &str| -> Option<String> {
-            Some(match name {
-                "hotend_c" => format!("{}", v.hotend_c.round() as i64),
-                "bed_c" => format!("{}", v.bed_c.round() as i64),
-                "nozzle_mm" => num(self.nozzle_diameter_mm),
-                "bed_x_min" => num(b.x_min_mm),
-                "bed_x_max" => num(b.x_max_mm),
-                "bed_y_min" => num(b.y_min_mm),
-                "bed_y_max" => num(b.y_max_mm),
-                "z_max" => num(zmax),
-                "lift_z" => num(lift(2.0)),
-                "park_z" => num(lift(50.0)),
-                "travel_f" => format!("{}", (self.travel_speed_mm_s * 60.0).round() as i64),
-                _ => return None,
-            })
-        };
-        match expand(template, &mut |n| value(n)) {
-            Ok(s) => s,
-            Err(_) => template.to_string(),
-        }
     }
 }
 
@@ -498,50 +426,6 @@ pub fn listing() -> String {
 /// Area of a filament of diameter `d_mm`, mm².
 pub fn filament_area_mm2(d_mm: f64) -> f64 {
     std::f64::consts::PI * 0.25 * d_mm * d_mm
-}
-
-/// Expands `{name}` placeholders with `value`; `{{`/`}}` are literal braces. Errors name an
-/// unknown placeholder or an unclosed brace.
-fn expand(t: &str, value: &mut dyn FnMut(&str) -> Option<String>) -> Result<String, String> {
-    let mut out = String::with_capacity(t.len() + 16);
-    let mut rest = t;
-    while let Some(i) = rest.find(['{', '}']) {
-        out.push_str(&rest[..i]);
-        let tail = &rest[i..];
-        if let Some(r) = tail.strip_prefix("{{") {
-            out.push('{');
-            rest = r;
-        } else if let Some(r) = tail.strip_prefix("}}") {
-            out.push('}');
-            rest = r;
-        } else if tail.starts_with('}') {
-            return Err("a lone `}` (write `}}` for a literal brace)".into());
-        } else {
-            let Some(end) = tail.find('}') else {
-                return Err(format!(
-                    "unclosed placeholder `{}` (write `{{{{` for a literal brace)",
-                    tail.lines().next().unwrap_or(tail)
-                ));
-            };
-            let name = &tail[1..end];
-            match value(name) {
-                Some(v) => out.push_str(&v),
-                None => {
-                    return Err(format!(
-                        "unknown placeholder `{{{name}}}` (known: {})",
-                        PLACEHOLDERS
-                            .iter()
-                            .map(|(n, _)| *n)
-                            .collect::<Vec<_>>()
-                            .join(", ")
-                    ))
-                }
-            }
-            rest = &tail[end + 1..];
-        }
-    }
-    out.push_str(rest);
-    Ok(out)
 }
 
 #[cfg(test)]
@@ -615,9 +499,8 @@ mod tests {
     fn placeholders_fill() {
         let p = Profile::builtin("mk3s").expect("mk3s");
         let v = TemplateValues {
-            hotend_c: 214.6,
-            bed_c: 59.5,
             top_z_mm: Some(20.0),
+            ..TemplateValues::temperatures(214.6, 59.5)
         };
         let end = p.fill(&p.gcode.end, &v);
         assert!(end.contains("G1 Z22 F720"), "{end}");
