@@ -185,10 +185,11 @@ fn octoprint_with_printcore_on_the_tft_port_then_a_long_pause_and_a_reconnect() 
     // loaded machine it can stop mid-way in the first layer with no layer (`stop_layer: null`).
     // That is the firmware's documented end-of-stream rule (`LAYER_PAUSE_IDLE_US`: a layer
     // pause whose queues ran dry with no line for 2 s of printer time stops where the stream
-    // ended), met because OctoPrint, busy starting the print (its G-code analysis runs then),
-    // answered an `ok` late and `--host-paced` runs the clock at full `--speed` once a host
-    // owes a reply for 100 ms of real time. Not the layer count across jobs: the stock session
-    // (one job) stopped the same way in the same run (fix1's report).
+    // ended; a stop with no layer comes from no other path of a layer pause), most likely met
+    // because OctoPrint, busy starting the print (its G-code analysis runs then), answered an
+    // `ok` late and `--host-paced` runs the clock at full `--speed` once a host owes a reply
+    // for 100 ms of real time (inferred, not measured). Not the layer count across jobs: the
+    // stock session (one job) stopped the same way in the same run (fix1's report).
     assert!(layer[2]["parked_s"].is_number(), "{}", layer[2]);
     eprintln!(
         "third pause: at a boundary by the firmware's record: {}; before layerref's layer {:?}",
