@@ -77,7 +77,8 @@ pub enum LayerSource {
 /// the previous layer. The planner keeps these in its queue so a pause can stop exactly here.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct LayerMark {
-    /// Layer number of the layer that starts here (0-based, as counted by the detector).
+    /// Number of the layer that starts here: the n-th layer printed in the job, from 1
+    /// (docs/planner.md, "What a layer is").
     pub layer: u32,
     /// Height of the new layer in micrometres, when known.
     pub z_um: Option<i32>,

@@ -248,3 +248,40 @@ pub fn judge_schedule(o: &Outcome, n: u32, job: &Job) -> Result<(), String> {
         ))
     }
 }
+
+/// Every place a stop at a reference layer boundary can be, as X Y Z steps: the position the
+/// firmware's machine state (`cfg`) commands after each line from the last extrusion of one
+/// `layerref` layer up to, not including, the first extrusion of the next layer of the same job,
+/// each with the number of that next layer. For a record that has only a stop position (a
+/// `sim serve` session): a stop whose X Y Z is in this list is at that boundary, judged by the
+/// reference, not by the firmware's detector. The machine state gives only the positions.
+pub fn boundary_positions_xyz(
+    text: &str,
+    comments: Comments,
+    cfg: &firmware::config::MachineConfig,
+) -> Vec<(u32, [i32; 3])> {
+    let model = Model::of_lines(text.lines(), comments);
+    let mut ranges: Vec<(usize, usize, u32)> = model
+        .layers()
+        .windows(2)
+        .filter(|w| w[0].job == w[1].job && w[1].number > 0)
+        .map(|w| (w[0].last_line, w[1].first_line, w[1].number))
+        .collect();
+    ranges.sort_unstable();
+    let mut m = firmware::machine::MachineState::new(cfg);
+    let mut out = Vec::new();
+    for (i, l) in text.lines().enumerate() {
+        if let Ok(line) = firmware::gcode::parse_line(l.as_bytes()) {
+            if let Some(c) = &line.command {
+                let _ = m.apply(c, cfg);
+            }
+        }
+        for &(from, to, n) in &ranges {
+            if (from..to).contains(&i) {
+                let p = m.position_steps(cfg);
+                out.push((n, [p[0], p[1], p[2]]));
+            }
+        }
+    }
+    out
+}

@@ -30,10 +30,15 @@
 mod hosts_common;
 
 use hosts_common::{host_python, run_bounded, Sim};
+use layerref::Comments;
 use std::process::Command;
 use std::time::Duration;
+use tests::judge::boundary_positions_xyz;
 
 const SPEED: u64 = 100;
+
+/// The job OctoPrint prints (it strips the comments).
+const FILE: &str = "tests/fixtures/slicer/prusaslicer.gcode";
 
 /// Virtual seconds of the long pause: 15 min in CI (OctoPrint stops streaming when paused, so
 /// nothing accumulates: the pause's length changes only how many terminal lines are sent).
@@ -60,7 +65,7 @@ fn octoprint(device: &str, mode: &str) -> Command {
         "--port",
         device,
         "--file",
-        "tests/fixtures/slicer/prusaslicer.gcode",
+        FILE,
         "--layers",
         "99",
         "--wait",
@@ -155,18 +160,42 @@ fn octoprint_with_printcore_on_the_tft_port_then_a_long_pause_and_a_reconnect() 
         3,
         "two by the two hosts, one before the reconnect: {r}"
     );
+    // Where each stop is by the independent reference: the stop's X Y Z is the stripped file's
+    // commanded position between the last extrusion of one `layerref` layer and the first of
+    // the next (the sim's verdict needs the extrusion after the stop; the third job is
+    // cancelled while parked).
+    let file = std::fs::read_to_string(tests::workspace_root().join(FILE)).expect(FILE);
+    let cfg = firmware::config::MachineConfig::ENDER3;
+    let boundaries = boundary_positions_xyz(&file, Comments::Strip, &cfg);
+    let before_layer = |q: &serde_json::Value| {
+        let p = &q["pause_point_steps"];
+        let at = |i: usize| p[i].as_i64().and_then(|v| i32::try_from(v).ok());
+        let xyz = [at(0), at(1), at(2)].map(|v| v.expect("pause point"));
+        boundaries.iter().find(|(_, b)| *b == xyz).map(|(n, _)| *n)
+    };
     for q in &layer[..2] {
         assert_eq!(q["first_boundary_after_request"], true, "{q}");
+        assert!(before_layer(q).is_some(), "at no layerref boundary: {q}");
         assert_eq!(q["resume_position_error_steps"], 0, "{q}");
     }
-    // The third pause is in the session's second job, which starts again at the first layer's
-    // height: the sim's first-boundary verdict, derived from the extrusion heights of the
-    // whole session, does not apply there (the firmware's layer count goes on across the
-    // two jobs too: OctoPrint strips the slicer's markers, the height rule counts on). It
-    // stopped at a boundary in the CI runs, but once mid-layer in the first layer (the
-    // eight-hour run, with a build loading the machine; not explained yet, noted in the
-    // report): judged here is that it parked, below by the head's height after the cancel.
+    // The third pause is in the session's second job (OctoPrint's `M110 N0` restarts the
+    // layer count). Judged here is that it parked (below, by the head's height after the
+    // cancel), not where: in most runs it stops at a boundary (the record's
+    // `stopped_at_layer_boundary`, and `layerref`: before layer 2 of the new job), but on the
+    // loaded machine it can stop mid-way in the first layer with no layer (`stop_layer: null`).
+    // That is the firmware's documented end-of-stream rule (`LAYER_PAUSE_IDLE_US`: a layer
+    // pause whose queues ran dry with no line for 2 s of printer time stops where the stream
+    // ended; a stop with no layer comes from no other path of a layer pause), most likely met
+    // because OctoPrint, busy starting the print (its G-code analysis runs then), answered an
+    // `ok` late and `--host-paced` runs the clock at full `--speed` once a host owes a reply
+    // for 100 ms of real time (inferred, not measured). Not the layer count across jobs: the
+    // stock session (one job) stopped the same way in the same run (fix1's report).
     assert!(layer[2]["parked_s"].is_number(), "{}", layer[2]);
+    eprintln!(
+        "third pause: at a boundary by the firmware's record: {}; before layerref's layer {:?}",
+        layer[2]["stopped_at_layer_boundary"],
+        before_layer(layer[2])
+    );
 
     // The long pause: the terminal's lines answered, every line while parked within 2 s.
     let sc = &d["scenarios"]["reconnect"];

@@ -16,6 +16,8 @@ use firmware::config::MachineConfig;
 use firmware::gcode::parse_line;
 use firmware::machine::MachineState;
 use host_tools::job::{ops, Job};
+use layerref::Comments;
+use tests::judge::boundary_positions_xyz;
 use tests::pty::reachable;
 use tests::workspace_root;
 
@@ -150,14 +152,38 @@ fn final_position(job: &Job) -> [i32; 4] {
     m.position_steps(&cfg)
 }
 
-/// Where the firmware's machine state is after every line before layer `n` of `job`.
-fn position_before_layer(job: &Job, n: usize) -> [i32; 4] {
+/// Where the firmware's machine state is after every line before layer `n` of `job` (the
+/// n-th layer printed, from 1: docs/planner.md, "What a layer is").
+fn position_before_layer(job: &Job, n: u32) -> [i32; 4] {
+    let i = job.index_of_layer(n).expect("layer in the job");
     final_position(&Job {
         start: job.start.clone(),
-        layers: job.layers[..n].to_vec(),
+        layers: job.layers[..i].to_vec(),
         end: vec![],
         warnings: vec![],
     })
+}
+
+/// The independent judge (`layerref`, which shares no code with the firmware's layer detector)
+/// of "the boundary before layer `n`" in the file `rel` as sent (comments kept): the X Y Z
+/// (steps) a stop at that boundary can have.
+fn reference_boundary_xyz(rel: &str, n: u32) -> Vec<[i32; 3]> {
+    let text = std::fs::read_to_string(workspace_root().join(rel)).expect(rel);
+    let all = boundary_positions_xyz(&text, Comments::Keep, &MachineConfig::ENDER3);
+    let at: Vec<[i32; 3]> = all
+        .into_iter()
+        .filter(|(k, _)| *k == n)
+        .map(|(_, p)| p)
+        .collect();
+    assert!(!at.is_empty(), "{rel}: no boundary before layer {n}");
+    at
+}
+
+/// The stop point's X Y Z from a pause record.
+fn stop_xyz(r: &serde_json::Value) -> [i32; 3] {
+    let p = &r["pause_point_steps"];
+    let at = |i: usize| p[i].as_i64().and_then(|v| i32::try_from(v).ok());
+    [at(0), at(1), at(2)].map(|v| v.expect("pause point"))
 }
 
 /// Total motor steps (all axes) the firmware's machine state commands for a job.
@@ -215,13 +241,18 @@ fn send_pauses_at_a_layer_swaps_the_infill_and_finishes() {
     assert_eq!(rec.len(), 1, "{rec:?}");
     let r = &rec[0];
     // The head stopped exactly where layer 11 ends: the position the firmware's machine state
-    // commands after every line before layer 12's mark.
+    // commands after every line before layer 12's mark — a boundary before layer 12 as the
+    // independent reference numbers the layers (layers from 1, docs/planner.md).
     let base = load(BASE);
     let want_stop = position_before_layer(&base, 12);
     let p = &r["pause_point_steps"];
     for (i, w) in want_stop.iter().enumerate().take(3) {
         assert_eq!(p[i].as_i64(), Some(i64::from(*w)), "axis {i}: {r}");
     }
+    assert!(
+        reference_boundary_xyz(BASE, 12).contains(&stop_xyz(r)),
+        "not at layerref's boundary before layer 12: {r}"
+    );
     // The sim's own record says so too (from the firmware's Stopped record): at the end of
     // layer 11, the boundary before layer 12.
     assert_eq!(r["stopped_at_layer_boundary"], true, "{r}");
@@ -233,7 +264,8 @@ fn send_pauses_at_a_layer_swaps_the_infill_and_finishes() {
     // The printer executed the new infill from layer 12 on: its step count is the swapped
     // job's plus the park and return (computed from the pause point), not the original job's.
     let mut swapped = base.clone();
-    ops::continue_with(&mut swapped, 12, &load(SWAP)).expect("swap");
+    let at = base.index_of_layer(12).expect("layer 12");
+    ops::continue_with(&mut swapped, at, &load(SWAP)).expect("swap");
     let want = commanded_steps(&swapped) as f64;
     let orig = commanded_steps(&base) as f64;
     let got = r["steps"].as_f64().expect("steps");
@@ -300,4 +332,8 @@ fn send_fallback_on_fifo_firmware_pauses_at_the_layer_end() {
     for (i, w) in want_stop.iter().enumerate().take(2) {
         assert_eq!(p[i].as_i64(), Some(i64::from(*w)), "axis {i}: {r}");
     }
+    assert!(
+        reference_boundary_xyz(BASE, 12).contains(&stop_xyz(r)),
+        "not at layerref's boundary before layer 12: {r}"
+    );
 }

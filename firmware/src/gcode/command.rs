@@ -90,7 +90,8 @@ impl PauseParams {
 pub enum PauseSchedule {
     /// `M761`: report the scheduled pause.
     Report,
-    /// `M761 L<n>`: pause at the start of layer n (as counted by [`crate::layer`], 0-based).
+    /// `M761 L<n>`: pause at the start of layer n (the n-th layer printed in the job, from 1, as
+    /// [`crate::layer`] counts: docs/planner.md, "What a layer is").
     Layer(u32),
     /// `M761 Z<mm>`: pause at the first layer at or above this height.
     Z(f32),

@@ -40,10 +40,10 @@ pub struct Args {
     /// Baud rate.
     #[arg(long, default_value_t = 115200)]
     pub baud: u32,
-    /// Pause before layer N starts (0-based, as the firmware counts layers; `M761 L<n>` uses the
-    /// same numbering).
+    /// Pause before layer N starts: the n-th layer printed, from 1 (the slicer preview's number;
+    /// `M761 L<n>`, `M27` and the sim count the same way: docs/planner.md, "What a layer is").
     #[arg(long)]
-    pub pause_at_layer: Option<usize>,
+    pub pause_at_layer: Option<u32>,
     /// Pause now (mid-layer) this many seconds after the job starts.
     #[arg(long)]
     pub pause_now_at: Option<f64>,
@@ -108,15 +108,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Some(p) => Some(load_job(p)?),
         None => None,
     };
-    if let Some(n) = args.pause_at_layer {
-        if n >= job.layers.len() {
-            bail!(
-                "--pause-at-layer {n}: the job has {} layers (0..{})",
+    let pause_at = match args.pause_at_layer {
+        Some(n) => match job.index_of_layer(n) {
+            Some(i) => Some(i),
+            None => bail!(
+                "--pause-at-layer {n}: the job has {} layers (1..{}; layers count from 1)",
                 job.layers.len(),
-                job.layers.len().saturating_sub(1)
-            );
-        }
-    }
+                job.layers.len()
+            ),
+        },
+        None => None,
+    };
     let mut hp = HostPause {
         split_mm: args.split_mm,
         ..HostPause::default()
@@ -186,8 +188,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .unwrap_or_default();
     let mut session = Session::new(port, job, opts);
     session.set_rx_log(args.verbose);
-    if let Some(n) = args.pause_at_layer {
-        session.pause_before_layer(n);
+    if let Some(i) = pause_at {
+        session.pause_before_layer(i);
     }
     let use_tui = !args.plain && std::io::stdout().is_terminal();
     let mut ui = if use_tui { Some(Tui::start()?) } else { None };
@@ -272,7 +274,7 @@ fn snapshot<P: std::io::Read + std::io::Write>(
     let p = s.progress();
     Snapshot {
         file: file.to_string(),
-        state: state_text(s.state()),
+        state: state_text(s.state(), s.job()),
         method: match s.method() {
             Some(PauseMethod::Firmware) => "firmware layer pause".into(),
             Some(PauseMethod::HostSide) => "host-side pause (stock firmware)".into(),
@@ -298,12 +300,15 @@ fn snapshot<P: std::io::Read + std::io::Write>(
     }
 }
 
-fn state_text(s: &State) -> String {
+fn state_text(s: &State, job: &Job) -> String {
     match s {
         State::Paused {
             boundary: Some(b),
             prompt: None,
-        } => format!("paused before layer {b} (0-based); the rest of the job can be edited"),
+        } => format!(
+            "paused before {}; the rest of the job can be edited",
+            job.boundary_name(*b)
+        ),
         State::Paused {
             prompt: Some(p), ..
         } => format!("waiting for you: {p} (r to resume)"),
@@ -347,7 +352,8 @@ impl Driver {
             }
             Event::Layer(i) => {
                 let n = s.job().layers.len();
-                self.log(now, format!("sending layer {i} ({}/{n})", i + 1));
+                let name = s.job().boundary_name(i);
+                self.log(now, format!("sending {name} ({}/{n})", i + 1));
             }
             Event::Pausing => self.log(now, "pausing".into()),
             Event::Paused(b) => {
@@ -355,9 +361,15 @@ impl Driver {
                 match b {
                     Some(b) if s.pause_was_now() => self.log(
                         now,
-                        format!("paused now (mid-layer); edits apply from layer {b}, the first not yet sent"),
+                        format!(
+                            "paused now (mid-layer); edits apply from {}, the first not yet sent",
+                            s.job().boundary_name(b)
+                        ),
                     ),
-                    Some(b) => self.log(now, format!("paused at the boundary before layer {b}")),
+                    Some(b) => self.log(
+                        now,
+                        format!("paused at the boundary before {}", s.job().boundary_name(b)),
+                    ),
                     None => self.log(now, "paused".into()),
                 }
                 if let (Some(new), Some(_)) = (self.swap.take(), b) {
@@ -366,8 +378,8 @@ impl Driver {
                         Ok(r) => self.log(
                             now,
                             format!(
-                                "swapped in the re-sliced file: printed top Z {:.3} mm, continuing with its layer {} ({} covered layers skipped, flow x{:.2}, {} layers)",
-                                r.top_mm, r.first_new_layer, r.skipped_covered, r.flow_factor, r.layers_added
+                                "swapped in the re-sliced file: printed top Z {:.3} mm, continuing with its {} ({} covered layers skipped, flow x{:.2}, {} layers)",
+                                r.top_mm, new.boundary_name(r.first_new_layer), r.skipped_covered, r.flow_factor, r.layers_added
                             ),
                         ),
                         Err(e) => bail!("cannot swap in the re-sliced file: {e}"),
@@ -436,8 +448,9 @@ impl Driver {
                     .edit_job(|job, at| ops::continue_with(job, at, &new))
                     .map(|r| {
                         format!(
-                            "continuing with {path} from its layer {} (flow x{:.2})",
-                            r.first_new_layer, r.flow_factor
+                            "continuing with {path} from its {} (flow x{:.2})",
+                            new.boundary_name(r.first_new_layer),
+                            r.flow_factor
                         )
                     })
                     .map_err(|e| e.to_string()),

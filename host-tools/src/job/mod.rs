@@ -153,6 +153,22 @@ impl Job {
         Ok(job)
     }
 
+    /// Index in [`Job::layers`] of the layer the firmware numbers `number` (the n-th layer
+    /// printed, from 1: docs/planner.md, "What a layer is"); the first such layer when the file
+    /// holds more than one job.
+    pub fn index_of_layer(&self, number: u32) -> Option<usize> {
+        self.layers.iter().position(|l| l.number == number)
+    }
+
+    /// The boundary before layer index `at` in words, with the firmware's number: `layer 12`,
+    /// or `the end code` at the end (what the sender tells the user).
+    pub fn boundary_name(&self, at: usize) -> String {
+        match self.layers.get(at) {
+            Some(l) => format!("layer {}", l.number),
+            None => "the end code".into(),
+        }
+    }
+
     /// Number of lines in the whole job.
     pub fn line_count(&self) -> usize {
         self.start.len() + self.layers.iter().map(|l| l.lines.len()).sum::<usize>() + self.end.len()
