@@ -509,7 +509,8 @@ fn the_kept_job_is_announced_only_when_written() {
     assert!(out.contains("//action:paused"), "{out}");
     let kept = out
         .lines()
-        .find(|l| l.contains("power-cut resume: keeping job at layer 1, host line"))
+        // Paused at the end of the first layer printed (numbered 1): the job goes on with layer 2.
+        .find(|l| l.contains("power-cut resume: keeping job at layer 2, host line"))
         .unwrap_or_else(|| panic!("{out}"));
     assert!(kept.contains("erased first"), "{kept}");
     assert!(!out.contains("not kept"), "{out}");
@@ -522,7 +523,7 @@ fn the_kept_job_is_announced_only_when_written() {
     assert!(out.contains("//action:paused"), "{out}");
     assert!(!out.contains("keeping job"), "{out}");
     assert!(
-        out.contains("echo:power-cut resume: job at layer 1 not kept: flash error"),
+        out.contains("echo:power-cut resume: job at layer 2 not kept: flash error"),
         "{out}"
     );
 }
