@@ -151,8 +151,12 @@ fn check_job(
         }
         if o.report.first_reachable_boundary != Some(true) {
             failures.push(format!(
-                "{tag}: the sim reports first_reachable_boundary {:?} (stop layer {:?}, request layer {:?})",
-                o.report.first_reachable_boundary, o.report.stop_layer, o.report.request_layer
+                "{tag}: the sim reports first_reachable_boundary {:?} (stop layer {:?}, request layer {:?}; {} lines refused, first {:?})",
+                o.report.first_reachable_boundary,
+                o.report.stop_layer,
+                o.report.request_layer,
+                o.refused.count,
+                o.refused.first.first().map(|r| &r.reply)
             ));
             ok = false;
         }
@@ -187,8 +191,10 @@ fn check_job(
         }
         if !o.report.first_boundary_after_request {
             failures.push(format!(
-                "{tag}: the sim reports first_boundary_after_request false ({:?})",
-                o.report.stop_layer
+                "{tag}: the sim reports first_boundary_after_request false ({:?}; {} lines refused, first {:?})",
+                o.report.stop_layer,
+                o.refused.count,
+                o.refused.first.first().map(|r| &r.reply)
             ));
             ok = false;
         }
