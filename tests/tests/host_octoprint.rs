@@ -7,8 +7,9 @@
 //! judges where the firmware stopped (layers from the extrusion heights) and that nothing was
 //! lost; the slicer's own `;Z:` lines and `sim run --pause-at-layer N` on the same file say
 //! where layer N is. Needs `bash scripts/setup-hosts.sh`. One session ≈ 60–90 s (the reprint
-//! adds ≈ 40 s). `sim serve --speed 20` (OctoPrint still sees
-//! 21 distinct temperatures during the heat-up); the two sessions run in parallel.
+//! adds ≈ 40 s). `sim serve --speed 10`: at 20× the first print ended before the layer
+//! scenario (the pause at the layer two above the counter's) could run. The two sessions run
+//! in parallel.
 
 mod hosts_common;
 
@@ -35,7 +36,7 @@ enum Reprint {
 fn session(tag: &str, reprint: Reprint) -> (serde_json::Value, serde_json::Value) {
     let py = host_python("octoprint");
     let octoprint = py.with_file_name("octoprint");
-    let sim = Sim::start(tag, "20", "300");
+    let sim = Sim::start(tag, "10", "300");
     let mut cmd = Command::new(py);
     cmd.args([
         "tests/hosts/octoprint_drive.py",

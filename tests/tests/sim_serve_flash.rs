@@ -103,7 +103,8 @@ fn settings_saved_in_one_session_are_reported_in_the_next() {
 }
 
 /// A numbered job of 4 layers (Cura markers). Returns the lines (with `N` and checksum) and, per
-/// layer, the `N` of its first motion line.
+/// layer, the `N` of its first motion line (index 0: layer 1 in the one numbering, the n-th
+/// layer printed from 1).
 fn numbered_job() -> (Vec<String>, Vec<u32>) {
     let mut body: Vec<String> = ["G28", "M83", "G92 E0"].map(String::from).to_vec();
     let mut first = Vec::new();
@@ -140,19 +141,21 @@ fn a_paused_job_kept_in_one_session_is_announced_in_the_next() {
         .iter()
         .find(|l| l.contains("power-cut resume: keeping job at layer"))
         .unwrap_or_else(|| panic!("{seen:?}"));
-    // "… keeping job at layer L, host line N": N is the first motion line of layer L.
+    // "… keeping job at layer L, host line N": N is the first motion line of layer L (layers
+    // numbered from 1: `first[L - 1]`).
     let words: Vec<&str> = kept.split([' ', ',']).collect();
     let layer: usize = words[words.iter().position(|w| *w == "layer").unwrap() + 1]
         .parse()
         .unwrap();
     let line: u32 = words.last().unwrap().parse().unwrap();
-    assert_eq!(line, first[layer], "{kept}");
+    assert!(layer >= 1, "{kept}");
+    assert_eq!(line, first[layer - 1], "{kept}");
 
     // The power goes (the session ends while paused); the next session announces the job.
     let next = session(&file, &["M105"]);
     let want = format!(
         "//action:notification Paused job kept: layer {layer} at Z{:.3}, continue from host line {line}",
-        0.2 * (layer + 1) as f32
+        0.2 * layer as f32
     );
     assert!(
         next.iter().any(|l| l.starts_with(&want)),
