@@ -299,6 +299,22 @@ impl StepGen {
         self.exec = Some(e);
     }
 
+    /// When `pb`, loaded at `now_ns`, starts: at the last step of the previous block when it is
+    /// entered at speed (the motion is continuous, whatever the caller's clock says), or no
+    /// earlier than `now_ns` when the machine stood still in between. [`Self::load`] uses it.
+    pub fn start_ns(&self, pb: &PlannedBlock, now_ns: u64) -> u64 {
+        let at_speed = if self.braking {
+            self.v_end > 0.0
+        } else {
+            pb.entry_v2 > 0.0
+        };
+        if at_speed {
+            self.t_last_ns
+        } else {
+            self.t_last_ns.max(now_ns)
+        }
+    }
+
     /// Load the next block; it starts at the end of the previous one, or at `now_ns` when the
     /// machine stood still in between. While braking, the block continues the deceleration.
     pub fn load(&mut self, pb: PlannedBlock, now_ns: u64) {
@@ -332,11 +348,7 @@ impl StepGen {
                 a,
             )
         };
-        let start = if v0 > 0.0 {
-            self.t_last_ns
-        } else {
-            self.t_last_ns.max(now_ns)
-        };
+        let start = self.start_ns(&pb, now_ns);
         let mut e = ExecBlock {
             planned: pb,
             n,

@@ -18,7 +18,7 @@
 
 mod support;
 
-use firmware::printer::Record;
+use firmware::printer::{Record, State};
 use support::*;
 
 /// How a slicer writes its layer change: header lines, and the lines before layer `n`'s Z
@@ -251,4 +251,70 @@ fn every_marker_family_pauses_at_the_end_of_the_layer_with_a_full_queue() {
         }
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// A host loop that polls late, as a loaded simulator does: its clock jumps 250 ms, then it
+/// plays the steps due up to it. A layer's record must still carry the time its first block
+/// started on the motion timeline (no earlier than the end of the block before it, no later
+/// than the end of its own first block), not the time of the poll that loaded the block: the
+/// sim judges which layer a move belongs to by these times, and a late stamp put layer 12's
+/// first extrusion into layer 11 (a CI failure of `send_sim` on a loaded machine).
+#[test]
+fn a_layer_record_carries_its_first_blocks_start_however_late_the_poll() {
+    const TICK_US: u64 = 250_000;
+    for f in families() {
+        let (kept, _) = job(&f);
+        let mut p = printer();
+        let mut records = Vec::new();
+        let (mut now, mut next, mut out) = (0u64, 0usize, String::new());
+        while now < 600_000_000 {
+            now += TICK_US;
+            p.poll(now);
+            // A fast host: the next line as soon as the last one's `ok` is out.
+            while next < kept.len() {
+                let l = format!("{}\n", kept[next]);
+                assert_eq!(p.receive(l.as_bytes(), now), l.len(), "{l:?}");
+                next += 1;
+                out.clear();
+                let _ = p.write_output(&mut out);
+                if !out.lines().any(|l| l.starts_with("ok")) {
+                    break;
+                }
+            }
+            while p.next_step_ns().is_some_and(|t| t <= now * 1000) {
+                p.next_step();
+            }
+            while let Some(r) = p.pop_record() {
+                records.push(r);
+            }
+            if next >= kept.len() && p.next_step_ns().is_none() && p.status().state == State::Idle
+            {
+                break;
+            }
+        }
+        let block_ends: Vec<(usize, u64)> = records
+            .iter()
+            .enumerate()
+            .filter_map(|(i, r)| match *r {
+                Record::Executed { t_us, .. } => Some((i, t_us)),
+                _ => None,
+            })
+            .collect();
+        let mut layers = 0;
+        for (i, r) in records.iter().enumerate() {
+            let Record::Layer { layer, t_us } = *r else {
+                continue;
+            };
+            layers += 1;
+            let before = block_ends.iter().rev().find(|(j, _)| *j < i).map(|x| x.1);
+            let after = block_ends.iter().find(|(j, _)| *j > i).map(|x| x.1);
+            assert!(
+                before.is_none_or(|b| b <= t_us) && after.is_none_or(|a| t_us <= a),
+                "{}: layer {layer} stamped {t_us} µs, its first block runs from after {before:?} \
+                 to {after:?}",
+                f.name
+            );
+        }
+        assert_eq!(layers, LAYERS, "{}", f.name);
+    }
 }

@@ -129,9 +129,13 @@ impl Printer {
     pub(super) fn job_block(&mut self) -> Option<PlannedBlock> {
         let pb = self.planner.pop()?;
         self.planner.refill();
+        // The layer started when its first block starts on the motion timeline, which runs
+        // ahead of or behind the caller's clock (a block entered at speed continues from the
+        // last step however late the poll that loads it).
+        let start_us = crate::stepgen::div_small(self.stepgen.start_ns(&pb, self.now_ns()), 1000).0;
         while let Some(m) = self.planner.take_mark_before(pb.block.id) {
             self.layer_crossed(&m);
-            let t_us = self.t_us();
+            let t_us = start_us;
             self.record(Record::Layer {
                 layer: m.layer,
                 t_us,
