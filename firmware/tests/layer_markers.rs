@@ -287,8 +287,7 @@ fn a_layer_record_carries_its_first_blocks_start_however_late_the_poll() {
             while let Some(r) = p.pop_record() {
                 records.push(r);
             }
-            if next >= kept.len() && p.next_step_ns().is_none() && p.status().state == State::Idle
-            {
+            if next >= kept.len() && p.next_step_ns().is_none() && p.status().state == State::Idle {
                 break;
             }
         }

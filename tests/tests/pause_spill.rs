@@ -499,6 +499,22 @@ fn a_session_that_ends_orphans_the_job() {
         "{first:?}"
     );
     assert!(first.contains(&"//action:paused"), "{first:?}");
+    // It names the layer the held job starts with: one above the last the head started, and
+    // the one at whose height (0.2 mm per layer) or below it the head stopped (parked Z less
+    // the lift; the boundary lies between two layers' extrusions, the Z move on either side).
+    let next = rig.layers.last().expect("layers crossed") + 1;
+    let lift_steps = (rig.p.config().pause.lift_z_mm * 400.0).round() as i32;
+    let stop_z = parked_z - lift_steps;
+    assert!(
+        [80 * (next as i32 - 1), 80 * next as i32].contains(&stop_z),
+        "stop Z {stop_z} steps, layer {next} next"
+    );
+    assert!(
+        first
+            .iter()
+            .any(|l| l.contains(&format!("job held before layer {next};"))),
+        "{first:?}"
+    );
     h2.pri.push_back("M602".into());
     let mut out = Vec::new();
     for _ in 0..200 {

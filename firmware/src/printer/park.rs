@@ -111,6 +111,7 @@ impl Printer {
                     pos,
                     retracted_steps: 0,
                     mode: how.mode(),
+                    before_layer: layer,
                 };
                 match then {
                     AfterStop::Continue => self.release(held.block),

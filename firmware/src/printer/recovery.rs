@@ -250,6 +250,7 @@ impl Printer {
                 pos: j.boundary_steps,
                 retracted_steps: steps(&self.cfg, Axis::E, j.retract_mm),
                 mode: PauseMode::Layer,
+                before_layer: Some(j.layer),
             },
             manual: None,
         };

@@ -73,12 +73,21 @@ impl Printer {
         {
             return;
         }
-        let layer = self.layer;
+        // Before the layer the held job starts with (a stop at a boundary), else in the layer
+        // the head stopped in: M27's counter is the last layer crossed, one below the next.
+        let before = match &self.pause {
+            Pause::Stopping {
+                how: super::state::Stop::Barrier { layer },
+                ..
+            } => *layer,
+            p => p.held().and_then(|h| h.before_layer),
+        };
         let mut t: heapless::String<{ super::LINE_LEN }> = heapless::String::new();
         use core::fmt::Write as _;
-        let _ = match layer {
-            Some(l) => write!(t, "paused: job held before layer {l}; "),
-            None => write!(t, "paused: job held; "),
+        let _ = match (before, self.layer) {
+            (Some(n), _) => write!(t, "paused: job held before layer {n}; "),
+            (None, Some(l)) => write!(t, "paused: job held in layer {l}; "),
+            (None, None) => write!(t, "paused: job held; "),
         };
         let _ = if self.lines.orphaned {
             t.write_str("its host went away, so M602 cannot continue it: M524 ends it")

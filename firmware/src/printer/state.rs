@@ -142,6 +142,10 @@ pub(super) struct Held {
     pub(super) retracted_steps: i32,
     /// The pause's mode (reported).
     pub(super) mode: PauseMode,
+    /// The layer the held job starts with when the head stopped at a layer boundary (the
+    /// barrier's mark); `None` after a stop inside a layer (feed hold, a conventional
+    /// firmware's tail stop). What a host that connects to the parked printer is told.
+    pub(super) before_layer: Option<u32>,
 }
 
 impl Pause {
