@@ -12,6 +12,8 @@ use super::{
 pub(super) fn build_known(code: (u8, u16), w: &Words<'_>) -> Option<Result<Command, ParseError>> {
     let r = (|| -> Result<Option<Command>, ParseError> {
         let none = || -> Result<(), ParseError> { w.check(b"", b"") };
+        // Marlin's handler reads no parameter: words are taken and ignored (`M400 P100`).
+        let ignore = || w.ignore_all();
         let c = match code {
             (b'G', n @ (0 | 1)) => {
                 w.check(b"XYZEF", b"")?;
@@ -22,13 +24,19 @@ pub(super) fn build_known(code: (u8, u16), w: &Words<'_>) -> Option<Result<Comma
                 }
             }
             (b'G', n @ (2 | 3)) => {
-                w.check(b"XYZEFIJR", b"")?;
+                w.check(b"XYZEFIJRP", b"")?;
+                // P: whole circles, 0..=100 as Marlin's G2_G3.cpp allows.
+                let circles = w.u8(b'P')?.unwrap_or(0);
+                if circles > crate::machine::ARC_MAX_CIRCLES {
+                    return Err(err(ParseErrorKind::OutOfRange, 0));
+                }
                 Command::Arc {
                     clockwise: n == 2,
                     axes: w.axes()?,
                     i: w.f32(b'I')?,
                     j: w.f32(b'J')?,
                     r: w.f32(b'R')?,
+                    circles,
                     feed: w.f32(b'F')?,
                 }
             }
@@ -40,19 +48,19 @@ pub(super) fn build_known(code: (u8, u16), w: &Words<'_>) -> Option<Result<Comma
                 }
             }
             (b'G', 10) => {
-                none()?;
+                ignore()?;
                 Command::Retract
             }
             (b'G', 11) => {
-                none()?;
+                ignore()?;
                 Command::Recover
             }
             (b'G', 20) => {
-                none()?;
+                ignore()?;
                 Command::Inches
             }
             (b'G', 21) => {
-                none()?;
+                ignore()?;
                 Command::Millimetres
             }
             (b'G', 28) => {
@@ -62,11 +70,11 @@ pub(super) fn build_known(code: (u8, u16), w: &Words<'_>) -> Option<Result<Comma
                 Command::Home(w.flags())
             }
             (b'G', 90) => {
-                none()?;
+                ignore()?;
                 Command::Absolute
             }
             (b'G', 91) => {
-                none()?;
+                ignore()?;
                 Command::Relative
             }
             (b'G', 92) => {
@@ -105,11 +113,11 @@ pub(super) fn build_known(code: (u8, u16), w: &Words<'_>) -> Option<Result<Comma
                 }
             }
             (b'M', 82) => {
-                none()?;
+                ignore()?;
                 Command::AbsoluteE
             }
             (b'M', 83) => {
-                none()?;
+                ignore()?;
                 Command::RelativeE
             }
             (b'M', n @ (104 | 109 | 140 | 190)) => {
@@ -150,7 +158,7 @@ pub(super) fn build_known(code: (u8, u16), w: &Words<'_>) -> Option<Result<Comma
                 Command::FanOff { fan: w.u8(b'P')? }
             }
             (b'M', 108) => {
-                none()?;
+                ignore()?;
                 Command::BreakWait
             }
             (b'M', 110) => {
@@ -168,7 +176,7 @@ pub(super) fn build_known(code: (u8, u16), w: &Words<'_>) -> Option<Result<Comma
                 Command::SetLineNumber(n)
             }
             (b'M', 112) => {
-                none()?;
+                ignore()?;
                 Command::EmergencyStop
             }
             (b'M', 114) => {
@@ -177,7 +185,7 @@ pub(super) fn build_known(code: (u8, u16), w: &Words<'_>) -> Option<Result<Comma
                 Command::ReportPosition
             }
             (b'M', 115) => {
-                none()?;
+                ignore()?;
                 Command::FirmwareInfo
             }
             (b'M', 73) => {
@@ -209,15 +217,15 @@ pub(super) fn build_known(code: (u8, u16), w: &Words<'_>) -> Option<Result<Comma
                 Command::FlowOverride(w.f32(b'S')?)
             }
             (b'M', 400) => {
-                none()?;
+                ignore()?;
                 Command::WaitMoves
             }
             (b'M', 410) => {
-                none()?;
+                ignore()?;
                 Command::QuickStop
             }
             (b'M', 524) => {
-                none()?;
+                ignore()?;
                 Command::Cancel
             }
             (b'M', 600) => {
@@ -296,7 +304,7 @@ pub(super) fn build_known(code: (u8, u16), w: &Words<'_>) -> Option<Result<Comma
                 }
             }
             (b'M', 119) => {
-                none()?;
+                ignore()?;
                 Command::ReportEndstops
             }
             (b'M', n) if settings::is_settings_code(n) => Command::Settings(settings::build(n, w)?),

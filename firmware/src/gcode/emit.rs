@@ -64,6 +64,7 @@ pub fn write_command<W: Write>(w: &mut W, c: &Command) -> fmt::Result {
             i,
             j,
             r,
+            circles,
             feed,
         } => {
             w.write_str(if *clockwise { "G2" } else { "G3" })?;
@@ -71,6 +72,9 @@ pub fn write_command<W: Write>(w: &mut W, c: &Command) -> fmt::Result {
             opt(w, 'I', *i)?;
             opt(w, 'J', *j)?;
             opt(w, 'R', *r)?;
+            if *circles > 0 {
+                write!(w, " P{circles}")?;
+            }
             opt(w, 'F', *feed)
         }
         Command::Dwell { ms, s } => {

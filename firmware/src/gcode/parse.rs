@@ -14,6 +14,10 @@ pub struct Line<'a> {
     /// The text after `;` (without the `;`, trailing whitespace removed), or else the text of
     /// the first `( … )` comment. Raw bytes: slicers write comments in any encoding.
     pub comment: Option<&'a [u8]>,
+    /// Parameter letters taken and ignored, bit `n` = letter `'A' + n`: words of a command that
+    /// reads none (`M400 P100` from BambuStudio), which Marlin ignores too; the executive says so
+    /// with an `echo:` line. 0 for every other line.
+    pub ignored: u32,
 }
 
 /// Remove trailing spaces, tabs, CR and LF.
@@ -61,12 +65,14 @@ pub fn parse_line(line: &[u8]) -> Result<Line<'_>, ParseError> {
             return Ok(Line {
                 command: None,
                 comment: paren_comment,
+                ignored: 0,
             })
         }
         Some(b';') => {
             return Ok(Line {
                 command: None,
                 comment: Some(trim_end(line.get(i + 1..).unwrap_or(&[]))),
+                ignored: 0,
             })
         }
         Some(&c) => c,
@@ -74,8 +80,9 @@ pub fn parse_line(line: &[u8]) -> Result<Line<'_>, ParseError> {
     let second = line.get(i + 1).copied().filter(|c| *c != b';');
     let upper = first.to_ascii_uppercase();
     let gmt = matches!(upper, b'G' | b'M' | b'T');
+    let mut ignored = 0;
     let (command, semi) = if gmt && second.is_none_or(|c| c.is_ascii_digit() || is_space(c)) {
-        parse_classic(line, i, &mut paren_comment)?
+        parse_classic(line, i, &mut paren_comment, &mut ignored)?
     } else if (first.is_ascii_alphabetic() || first == b'_')
         && second.is_some_and(|c| c.is_ascii_alphabetic() || c == b'_')
     {
@@ -87,6 +94,7 @@ pub fn parse_line(line: &[u8]) -> Result<Line<'_>, ParseError> {
     Ok(Line {
         command: Some(command),
         comment: semi.or(paren_comment),
+        ignored,
     })
 }
 
@@ -96,6 +104,7 @@ fn parse_classic<'a>(
     line: &'a [u8],
     start: usize,
     paren_comment: &mut Option<&'a [u8]>,
+    ignored: &mut u32,
 ) -> Result<(Command, Option<&'a [u8]>), ParseError> {
     let code = line;
     let letter = code.get(start).map_or(b'G', u8::to_ascii_uppercase);
@@ -170,7 +179,10 @@ fn parse_classic<'a>(
     };
     let semi = semi_at.map(|p| trim_end(line.get(p + 1..).unwrap_or(&[])));
     let c = match build_known(cmd_code, &words) {
-        Some(r) => r?,
+        Some(r) => {
+            *ignored = words.ignored.get();
+            r?
+        }
         None => {
             let code = line.get(..semi_at.unwrap_or(line.len())).unwrap_or(line);
             unknown(code, start)?

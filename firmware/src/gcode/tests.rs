@@ -285,6 +285,35 @@ fn every_listed_code_is_known() {
     }
 }
 
+/// Words of a command whose Marlin handler reads none are taken and reported, as Marlin's
+/// parser takes any word and the handler never looks (BambuStudio's `M400 P100`); commands
+/// that read parameters still refuse a letter they do not take.
+#[test]
+fn words_of_parameterless_commands_are_ignored() {
+    let bit = |c: u8| 1u32 << (c - b'A');
+    for (s, want, ignored) in [
+        ("M400 P100", Command::WaitMoves, bit(b'P')),
+        ("M400", Command::WaitMoves, 0),
+        ("G90 X", Command::Absolute, bit(b'X')),
+        ("M83 S1 T2", Command::RelativeE, bit(b'S') | bit(b'T')),
+        ("M112 Q", Command::EmergencyStop, bit(b'Q')),
+    ] {
+        let l = parse_line(s.as_bytes()).unwrap();
+        assert_eq!((l.command, l.ignored), (Some(want), ignored), "{s}");
+    }
+    // Lines with nothing ignored say so.
+    assert_eq!(parse_line(b"G1 X1").unwrap().ignored, 0);
+    // M24 S<pos> means "resume at this file position" in Marlin: not ignored.
+    assert_eq!(kind("M24 S100"), ParseErrorKind::UnexpectedLetter);
+    assert_eq!(kind("G1 X1 P2"), ParseErrorKind::UnexpectedLetter);
+    assert_eq!(kind("M104 S200 Q1"), ParseErrorKind::UnexpectedLetter);
+    // G2/G3 P: circles, emitted and read back.
+    let c = cmd("G3 Z.88 I-.86 J.861 P1  F30000");
+    assert!(matches!(c, Command::Arc { circles: 1, .. }), "{c:?}");
+    assert_eq!(emit(&c).as_str(), "G3 Z0.88 I-0.86 J0.861 P1 F30000");
+    assert_eq!(cmd(&emit(&c)), c);
+}
+
 /// Numbers as G-code writes them: up to 5 decimals, within a printer's range.
 fn num() -> impl Strategy<Value = f32> {
     (-10_000_000i64..10_000_000, 0u32..6).prop_map(|(m, s)| {
@@ -317,16 +346,22 @@ fn command() -> impl Strategy<Value = Command> {
             axes,
             feed
         }),
-        (any::<bool>(), axes(), onum(), onum(), onum(), onum()).prop_map(
-            |(clockwise, axes, i, j, r, feed)| Command::Arc {
+        (
+            any::<bool>(),
+            axes(),
+            (onum(), onum(), onum()),
+            0..=crate::machine::ARC_MAX_CIRCLES,
+            onum()
+        )
+            .prop_map(|(clockwise, axes, (i, j, r), circles, feed)| Command::Arc {
                 clockwise,
                 axes,
                 i,
                 j,
                 r,
+                circles,
                 feed
-            }
-        ),
+            }),
         (onum(), onum()).prop_map(|(ms, s)| Command::Dwell { ms, s }),
         flags().prop_map(|mut f| {
             f.0[3] = false;

@@ -27,6 +27,8 @@ pub(super) struct Words<'a> {
     pub(super) words: heapless::Vec<Word, MAX_WORDS>,
     /// Position of the first repeated letter, reported by `check` after the per-word errors.
     pub(super) dup: Option<usize>,
+    /// Letters taken and ignored ([`Words::ignore_all`]), for [`super::Line::ignored`].
+    pub(super) ignored: core::cell::Cell<u32>,
 }
 
 impl<'a> Words<'a> {
@@ -37,6 +39,7 @@ impl<'a> Words<'a> {
             slot: [0; 26],
             words: heapless::Vec::new(),
             dup: None,
+            ignored: core::cell::Cell::new(0),
         }
     }
 }
@@ -83,6 +86,14 @@ impl<'a> Words<'a> {
             Some(at) => Err(err(ParseErrorKind::DuplicateLetter, at)),
             None => Ok(()),
         }
+    }
+
+    /// For a command whose Marlin handler reads no parameter (M400, G90, ...): Marlin's parser
+    /// takes any words and the handler never looks at them, so every word is taken (numbers or
+    /// not, repeated or not) and reported as ignored rather than refused.
+    pub(super) fn ignore_all(&self) -> Result<(), ParseError> {
+        self.ignored.set(self.mask);
+        Ok(())
     }
 
     pub(super) fn f32(&self, c: u8) -> Result<Option<f32>, ParseError> {

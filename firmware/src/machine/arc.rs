@@ -7,6 +7,14 @@
 //! to steps on its own, and the last one is exactly the commanded end point, so nothing drifts.
 //! Z (helix) and E move linearly with the angle. An end point slightly off the circle (text
 //! rounding) is absorbed by letting the radius change linearly along the arc.
+//!
+//! `P<n>` (Marlin's `ARC_P_CIRCLES`, `Marlin/src/gcode/motion/G2_G3.cpp`): n complete circles
+//! before the arc, so the sweep gains n·360° in the arc's direction (a full circle, end = start,
+//! is 360° and becomes (n + 1)·360°); Z and E are shared out in proportion to the angle, as
+//! Marlin's per-circle share `360° / total` does. n ≤ [`ARC_MAX_CIRCLES`], Marlin's bound. The
+//! segment cap stays [`ARC_MAX_SEGMENTS`] for the whole sweep, so neither the work per arc nor
+//! its bounds check grows with n (many turns of a large circle then deviate more, by the
+//! formula above).
 
 use super::{check_axis, MachineError};
 use crate::config::MachineConfig;
@@ -21,6 +29,10 @@ pub const ARC_MIN_SEGMENT_MM: f64 = 0.1;
 
 /// Most segments per arc.
 pub const ARC_MAX_SEGMENTS: u32 = 2048;
+
+/// Most extra circles of `G2`/`G3 P<n>` (Marlin refuses n outside 0..=100 with `G2/G3 bad
+/// parameters`; a larger P is a parse error here, the line changes nothing).
+pub const ARC_MAX_CIRCLES: u8 = 100;
 
 /// How far, mm, the end point's distance from the centre may differ from the start point's
 /// before the arc is refused (plus 2 % of the radius).
@@ -52,6 +64,7 @@ pub(super) fn plan(
     end: &[f64; AXES],
     centre: Centre,
     clockwise: bool,
+    circles: u8,
 ) -> Result<Plan, MachineError> {
     let (sx, sy, ex, ey) = (start[0], start[1], end[0], end[1]);
     let c = match centre {
@@ -95,6 +108,8 @@ pub(super) fn plan(
     } else if sweep <= 1e-12 {
         sweep += TAU;
     }
+    // P: whole turns more, the same way round.
+    sweep += sweep.signum() * TAU * f64::from(circles);
     let rmax = r0.max(r1);
     let len = sweep.abs() * rmax;
     let per_seg = if rmax > ARC_CHORD_TOLERANCE_MM {

@@ -46,7 +46,9 @@ mod error;
 mod interp;
 mod limits;
 
-pub use arc::{ArcMoves, ARC_CHORD_TOLERANCE_MM, ARC_MAX_SEGMENTS, ARC_MIN_SEGMENT_MM};
+pub use arc::{
+    ArcMoves, ARC_CHORD_TOLERANCE_MM, ARC_MAX_CIRCLES, ARC_MAX_SEGMENTS, ARC_MIN_SEGMENT_MM,
+};
 pub use error::MachineError;
 pub use interp::{Interpreter, Step};
 pub use limits::{dwell_ms, BOUNDS_TOLERANCE_MM, OVERRIDE_RANGE_PCT};
@@ -138,8 +140,9 @@ impl MachineState {
                 i,
                 j,
                 r,
+                circles,
                 feed,
-            } => self.arc(*clockwise, axes, *i, *j, *r, *feed, cfg),
+            } => self.arc(*clockwise, axes, (*i, *j, *r), *circles, *feed, cfg),
             Command::Dwell { ms, s } => {
                 let ms = dwell_ms(*ms, *s)?;
                 Ok(Action::Dwell { ms })
@@ -292,14 +295,12 @@ impl MachineState {
         }))
     }
 
-    #[allow(clippy::too_many_arguments)]
     fn arc(
         &mut self,
         clockwise: bool,
         axes: &AxisWords,
-        i: Option<f32>,
-        j: Option<f32>,
-        r: Option<f32>,
+        (i, j, r): (Option<f32>, Option<f32>, Option<f32>),
+        circles: u8,
         feed: Option<f32>,
         cfg: &MachineConfig,
     ) -> Result<Action, MachineError> {
@@ -313,7 +314,7 @@ impl MachineState {
             }
             (None, Some(r)) => arc::Centre::Radius(self.units(r)),
         };
-        let plan = arc::plan(&self.pos_mm, &end, centre, clockwise)?;
+        let plan = arc::plan(&self.pos_mm, &end, centre, clockwise, circles)?;
         check_bounds(&end, cfg)?;
         let end_steps = to_steps(&end, cfg)?;
         let moves = ArcMoves::new(

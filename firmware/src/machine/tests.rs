@@ -268,9 +268,136 @@ fn set_position_steps_keeps_offsets() {
     assert!((l[3] - 1.0).abs() < 1e-9);
 }
 
+/// The points of an arc in mm (X Y Z E), and its centre's unwrapped angle at each, turns
+/// counted (positive counter-clockwise), from the start point.
+fn arc_path(arc: ArcMoves, start: [f64; 4], centre: [f64; 2]) -> Vec<([f64; 4], f64)> {
+    let spm = [80.0, 80.0, 400.0, 93.0];
+    let angle = |p: &[f64; 4]| libm::atan2(p[1] - centre[1], p[0] - centre[0]);
+    let (mut prev, mut turned) = (angle(&start), 0.0);
+    arc.map(|r| {
+        let p: [f64; 4] = core::array::from_fn(|k| f64::from(r.target[k]) / spm[k]);
+        let a = angle(&p);
+        // Steps between segment ends are far below half a turn: unwrap by the short way.
+        let mut d = a - prev;
+        while d > core::f64::consts::PI {
+            d -= core::f64::consts::TAU;
+        }
+        while d < -core::f64::consts::PI {
+            d += core::f64::consts::TAU;
+        }
+        turned += d;
+        prev = a;
+        (p, turned)
+    })
+    .collect()
+}
+
+/// `G3 … P1` with end = start (BambuStudio's spiral Z lift, `G3 Z.88 I-.86 J.861 P1`): Marlin's
+/// `plan_arc` makes the full circle 360° and `P1` adds one more, so two turns; Z rises
+/// linearly with the angle. Hand-derived for r = 10 mm: the chord tolerance allows
+/// 2·acos(1 − 0.005/10) = 0.0632482 rad per segment, 4π / 0.0632482 = 198.68 → 199 segments
+/// (the 0.1 mm minimum would allow 1256); the chords sum to 199·2·10·sin(4π/398) = 125.643 mm.
+#[test]
+fn arc_p_full_circle_makes_p_plus_one_turns() {
+    let mut m = MachineState::new(&CFG);
+    mv(&mut m, "G1 X110 Y100 Z1 E0");
+    let Ok(Action::Arc(arc)) = run(&mut m, "G3 Z1.2 I-10 P1") else {
+        panic!()
+    };
+    assert_eq!(arc.segments(), 199);
+    let pts = arc_path(arc, [110.0, 100.0, 1.0, 0.0], [100.0, 100.0]);
+    assert_eq!(pts.len(), 199);
+    let (end, turned) = pts[198];
+    assert_eq!(end, [110.0, 100.0, 1.2, 0.0]);
+    assert!(
+        (turned / core::f64::consts::TAU - 2.0).abs() < 1e-3,
+        "{turned}"
+    );
+    let mut len = 0.0;
+    let mut prev = [110.0, 100.0];
+    for (p, turned) in &pts {
+        len += libm::hypot(p[0] - prev[0], p[1] - prev[1]);
+        prev = [p[0], p[1]];
+        // Z linear in the angle (to the step, 1/400 mm).
+        let z = 1.0 + 0.2 * turned / (2.0 * core::f64::consts::TAU);
+        assert!((p[2] - z).abs() <= 0.5 / 400.0 + 1e-9, "{p:?} {z}");
+    }
+    // Step rounding (1/80 mm) moves each vertex; the sum stays within a few hundredths.
+    assert!((len - 125.643).abs() < 0.05, "{len}");
+    assert_eq!(m.position_steps(&CFG), [8800, 8000, 480, 0]);
+}
+
+/// `G2 … P2` on a quarter arc: clockwise from (100, 100) about (110, 100) to (110, 110) is
+/// −π/2; two circles more make −(π/2 + 4π) = −4.5π, 2.25 turns. E is shared out by angle
+/// (Marlin's per-circle share 360° / total): E at any point = 3 mm × turned / −4.5π.
+/// Segments: 4.5π / 0.0632482 = 223.5 → 224.
+#[test]
+fn arc_p_adds_whole_turns_to_a_partial_arc() {
+    let mut m = MachineState::new(&CFG);
+    mv(&mut m, "G1 X100 Y100 Z1 E0");
+    let Ok(Action::Arc(arc)) = run(&mut m, "G2 X110 Y110 I10 J0 E3 P2") else {
+        panic!()
+    };
+    assert_eq!(arc.segments(), 224);
+    let pts = arc_path(arc, [100.0, 100.0, 1.0, 0.0], [110.0, 100.0]);
+    let (end, turned) = pts[pts.len() - 1];
+    assert_eq!(end, [110.0, 110.0, 1.0, 3.0]);
+    assert!(
+        (turned + 4.5 * core::f64::consts::PI).abs() < 1e-3,
+        "{turned}"
+    );
+    for (p, turned) in &pts {
+        assert!((libm::hypot(p[0] - 110.0, p[1] - 100.0) - 10.0).abs() < 0.02);
+        let e = 3.0 * turned / (-4.5 * core::f64::consts::PI);
+        assert!((p[3] - e).abs() <= 0.5 / 93.0 + 1e-9, "{p:?} {e}");
+    }
+    // P0 is the plain arc.
+    mv(&mut m, "G1 X100 Y100");
+    let Ok(Action::Arc(plain)) = run(&mut m, "G2 X110 Y110 I10 J0 P0") else {
+        panic!()
+    };
+    let pts = arc_path(plain, [100.0, 100.0, 1.0, 3.0], [110.0, 100.0]);
+    assert!((pts[pts.len() - 1].1 + core::f64::consts::FRAC_PI_2).abs() < 1e-3);
+}
+
+/// The bound: P at most 100 (Marlin's `WITHIN(circles_to_do, 0, 100)`); a larger, negative or
+/// fractional P is a parse error (the line changes nothing). P100 of a 100 mm circle (63 m of
+/// path) is still at most ARC_MAX_SEGMENTS segments, so the bounds check and the iteration
+/// cost what any arc costs; it ends exactly and winds 101 times.
+#[test]
+fn arc_p_is_bounded() {
+    use crate::gcode::ParseErrorKind;
+    for (line, kind) in [
+        ("G2 I5 P101", ParseErrorKind::OutOfRange),
+        ("G2 I5 P255", ParseErrorKind::OutOfRange),
+        ("G2 I5 P4294967296", ParseErrorKind::OutOfRange),
+        ("G2 I5 P-1", ParseErrorKind::Negative),
+        ("G2 I5 P1.5", ParseErrorKind::NotWhole),
+    ] {
+        assert_eq!(
+            parse_line(line.as_bytes()).map(|_| ()).unwrap_err().kind,
+            kind,
+            "{line}"
+        );
+    }
+    let mut m = MachineState::new(&CFG);
+    mv(&mut m, "G1 X17 Y117 Z1");
+    let Ok(Action::Arc(arc)) = run(&mut m, "G2 I100 P100") else {
+        panic!()
+    };
+    assert_eq!(arc.segments(), ARC_MAX_SEGMENTS);
+    let pts = arc_path(arc, [17.0, 117.0, 1.0, 0.0], [117.0, 117.0]);
+    let (end, turned) = pts[pts.len() - 1];
+    assert_eq!(end, [17.0, 117.0, 1.0, 0.0]);
+    assert!(
+        (turned / core::f64::consts::TAU + 101.0).abs() < 1e-3,
+        "{turned}"
+    );
+}
+
 fn line() -> impl Strategy<Value = String> {
     prop_oneof![
-        "G[0-3]( [XYZEIJR]-?[0-9]{1,3}(\\.[0-9]{1,3})?){0,5}( F[0-9]{1,4})?",
+        "G[0-3]( [XYZEIJR]-?[0-9]{1,3}(\\.[0-9]{1,3})?){0,5}( P[0-9]{1,3})?( F[0-9]{1,4})?",
         Just("G90".to_string()),
         Just("G91".to_string()),
         Just("M82".to_string()),

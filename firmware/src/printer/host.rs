@@ -417,6 +417,21 @@ impl Printer {
         self.link.respond(Response::Echo(&t));
     }
 
+    /// Words of a command that reads none, taken as Marlin takes them:
+    /// `echo:ignored P: not used by this command` (not `refused:`: the line is executed).
+    fn note_ignored(&mut self, letters: u32) {
+        let mut t: String<LINE_LEN> = String::new();
+        let _ = t.write_str("ignored");
+        for (n, c) in (b'A'..=b'Z').enumerate() {
+            if letters & (1 << n) != 0 {
+                let _ = t.write_char(' ');
+                let _ = t.write_char(char::from(c));
+            }
+        }
+        let _ = t.write_str(": not used by this command");
+        self.link.respond(Response::Echo(&t));
+    }
+
     pub(super) fn handle_line(&mut self, line: &ReceivedLine, manual: bool) {
         let parsed = match line.parse() {
             Ok(l) => l,
@@ -426,6 +441,9 @@ impl Printer {
                 return;
             }
         };
+        if parsed.ignored != 0 {
+            self.note_ignored(parsed.ignored);
+        }
         let modal_before = self.machine;
         let saved = self.machine;
         let action = match &parsed.command {

@@ -145,12 +145,16 @@ mod backend {
                 i,
                 j,
                 r,
+                circles,
                 feed,
             } => {
                 axes(&mut p, a);
                 opt(&mut p, 'I', *i);
                 opt(&mut p, 'J', *j);
                 opt(&mut p, 'R', *r);
+                if *circles > 0 {
+                    opt(&mut p, 'P', Some(f32::from(*circles)));
+                }
                 opt(&mut p, 'F', *feed);
                 ('G', if *clockwise { 2 } else { 3 })
             }
@@ -221,6 +225,7 @@ mod backend {
             i: cmd.get('I').map(|v| v as f32),
             j: cmd.get('J').map(|v| v as f32),
             r: cmd.get('R').map(|v| v as f32),
+            circles: cmd.get('P').map_or(0, |v| v.clamp(0.0, 255.0) as u8),
             feed: None,
         };
         let moves = match m.apply(&arc, &cfg).map_err(err)? {

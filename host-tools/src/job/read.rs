@@ -219,8 +219,7 @@ fn arc_center(
 fn expand_arc(
     from: Pos4,
     to: Pos4,
-    c: (f64, f64),
-    ccw: bool,
+    (c, ccw, circles): ((f64, f64), bool, u8),
     seg_mm: f64,
     feed_mm_s: f64,
     line: u32,
@@ -238,6 +237,8 @@ fn expand_arc(
     } else if sweep >= -1e-9 {
         sweep -= std::f64::consts::TAU;
     }
+    // `P<n>`: n whole turns more, the same way round (Marlin's ARC_P_CIRCLES).
+    sweep += sweep.signum() * std::f64::consts::TAU * f64::from(circles);
     let n = ((sweep.abs() * r / seg_mm).ceil() as usize).clamp(1, 10_000);
     let mut prev = from;
     for k in 1..=n {
@@ -272,8 +273,9 @@ enum Action {
     Line(Pos4),
     /// The head goes to this point without a move to plan (homing: how far is unknown).
     Jump(Pos4),
-    /// An arc to this point about this centre, counter-clockwise or not.
-    Arc(Pos4, (f64, f64), bool),
+    /// An arc to this point about this centre, counter-clockwise or not, with this many extra
+    /// whole circles (`P`).
+    Arc(Pos4, ((f64, f64), bool, u8)),
     /// An event to pass on as it is.
     Event(Event),
 }
@@ -326,6 +328,7 @@ impl FirmwareReader {
                 i,
                 j,
                 r,
+                circles,
                 feed,
             } => {
                 self.set_feed(feed);
@@ -344,7 +347,7 @@ impl FirmwareReader {
                     r.map(|r| f64::from(r) * scale),
                     !clockwise,
                 )?;
-                Action::Arc(to, c, !clockwise)
+                Action::Arc(to, (c, !clockwise, circles))
             }
             Command::Dwell { ms, s } => {
                 let t = f64::from(s.unwrap_or(0.0)) + f64::from(ms.unwrap_or(0.0)) / 1000.0;
@@ -533,11 +536,10 @@ impl GcodeReader for FirmwareReader {
                         });
                     }
                 }
-                Action::Arc(to, c, ccw) => expand_arc(
+                Action::Arc(to, arc) => expand_arc(
                     from,
                     to,
-                    c,
-                    ccw,
+                    arc,
                     self.arc_seg_mm,
                     self.feed_mm_s,
                     line_no,
