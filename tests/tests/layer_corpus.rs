@@ -18,9 +18,16 @@
 //! Prints "layer-mode results right (<mode>): X of Y" (today 71 of 71 kept, 71 of 71
 //! stripped, 8 of 8 on the host compiler's helix; docs/planner.md, "Corpus results").
 //!
+//! `bambu_orca_lines_are_all_taken`: the corpus's BambuStudio/Orca files, printed by `sim run
+//! --json` kept and stripped, have no refused line (counted from the sim's JSON, which counts
+//! the printer's `echo:refused:` replies on the wire): `G3 … P1` and `M400 P100` were refused
+//! before (docs/frontend.md, "Slicer lines"). ≈ 2 s more.
+//!
 //! Cost: ≈ 110 s of CPU in CI (debug build; 222 s wall measured on the shared 2-core machine
 //! with the two comment modes in parallel; each file is printed on virtual time
 //! 1 + 2 × (requests + schedules) times per comment mode).
+
+mod hosts_common;
 
 use layerref::Comments;
 use sim::exec::PrinterFactory;
@@ -374,5 +381,53 @@ fn a_request_in_the_last_layer_stops_before_the_end_code() {
         let p = o.report.pause_point_steps.expect("pause point");
         assert!(p[0] > 0, "{comments:?}: X homed before the stop: {p:?}");
         assert!(o.report.finished, "{comments:?}");
+    }
+}
+
+/// The BambuStudio/OrcaSlicer files of the corpus (an Orca file goes here when one is added).
+const BAMBU_ORCA: &[&str] = &["bambu-cube.gcode"];
+
+/// Every line of the Bambu/Orca files is taken: `sim run --json`, comments kept and stripped,
+/// reports no refused line. The count is the sim host's own, from the replies on the wire
+/// (`echo:refused: …`), not a firmware counter; the test also checks that the file has the
+/// lines that were refused before (`G3 … P1`, `M400 P100`), so it cannot pass vacuously.
+#[test]
+fn bambu_orca_lines_are_all_taken() {
+    let sim = hosts_common::bin("sim", "sim");
+    for name in BAMBU_ORCA {
+        let path = format!("{}/fixtures/corpus/{name}", env!("CARGO_MANIFEST_DIR"));
+        let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
+        let code = |l: &str| l.split(';').next().unwrap_or("").trim().to_string();
+        assert!(
+            text.lines()
+                .any(|l| code(l).starts_with("G3") && code(l).contains(" P1")),
+            "{name}: no G3 … P1 line"
+        );
+        assert!(
+            text.lines().any(|l| code(l) == "M400 P100"),
+            "{name}: no M400 P100 line"
+        );
+        for keep in [false, true] {
+            let mut c = std::process::Command::new(&sim);
+            c.args(["run", "--json", "--allow-refused", "--resume-after", "-1"]);
+            if keep {
+                c.arg("--keep-comments");
+            }
+            let out = c.arg(&path).output().expect("sim run");
+            let stdout = String::from_utf8_lossy(&out.stdout);
+            assert!(
+                out.status.success(),
+                "{name} keep={keep}: {}\n{stdout}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+            let v: serde_json::Value = serde_json::from_str(&stdout)
+                .unwrap_or_else(|e| panic!("{name} keep={keep}: {e}: {stdout}"));
+            let refused = &v["refused_lines"];
+            assert_eq!(
+                refused["count"].as_u64(),
+                Some(0),
+                "{name} keep={keep}: refused {refused}"
+            );
+        }
     }
 }
