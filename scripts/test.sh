@@ -6,5 +6,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
-cargo test --workspace
+# The end-to-end tests use the sim and host-tools binaries this run builds (with the
+# workspace's features) instead of rebuilding them for `-p sim -p host-tools` alone (≈ 2 min;
+# tests/tests/hosts_common/mod.rs, `bin`).
+LAYERPAUSE_WORKSPACE_BINS=1 cargo test --workspace
 bash scripts/qemu-test.sh

@@ -484,7 +484,10 @@ fn erase_during_a_pause(lsi_hz: u32) {
     assert_eq!(got, want);
 }
 
+/// Outside CI (≈ 35 virtual s on the emulated board): at the slowest LSI the watchdog allows
+/// 6.9 s, so the 2 s erase is further from a reset than at the fastest LSI, which CI runs.
 #[test]
+#[ignore = "the lenient LSI corner, outside CI for its time: `cargo test -p board-emu --test emulated -- --include-ignored`"]
 fn a_flash_erase_during_a_pause_at_the_slowest_lsi() {
     erase_during_a_pause(17_000);
 }

@@ -25,9 +25,25 @@ fn profile_dir() -> PathBuf {
 /// started: a later `cargo build -p <one package>` may rebuild shared crates with another
 /// feature set (tens of seconds), and a `sim serve` already started would see an idle host
 /// and end meanwhile.
+///
+/// `LAYERPAUSE_WORKSPACE_BINS=1` (set by `scripts/test.sh`) says the binaries in this target
+/// directory were just built by the `cargo test --workspace` running this test (it builds the
+/// bins of `sim` and `host-tools` for their own integration tests before it runs any test):
+/// they are used as they are. `cargo build -p sim -p host-tools` would resolve features for
+/// those two packages alone (no `tmc-model` from board-emu, no dev-dependency features),
+/// rebuild most of their dependency tree and overwrite them: ≈ 2 min of CI's test time.
 pub fn bin(_package: &str, name: &str) -> PathBuf {
     static BUILT: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
     let dir = profile_dir();
+    if std::env::var_os("LAYERPAUSE_WORKSPACE_BINS").is_some_and(|v| v == "1") {
+        let path = dir.join(name);
+        assert!(
+            path.exists(),
+            "LAYERPAUSE_WORKSPACE_BINS=1 but {} is missing: run `cargo test --workspace`",
+            path.display()
+        );
+        return path;
+    }
     let built = BUILT.get_or_init(|| {
         let target = dir.parent().expect("target root");
         let mut c = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
