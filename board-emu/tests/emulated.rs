@@ -154,13 +154,7 @@ fn a_job_makes_exactly_the_steps_of_its_gcode() {
     o.job = THREE_LAYERS.iter().map(|s| s.to_string()).collect();
     let r = run(&o);
     let want = expected_net_steps(THREE_LAYERS, o.start_mm);
-    let got = [
-        r.net_steps["X"],
-        r.net_steps["Y"],
-        r.net_steps["Z"],
-        r.net_steps["E"],
-    ];
-    assert_eq!(got, want, "{:?}", lines_after(&r, "SD init"));
+    assert_eq!(net_steps(&r), want, "{:?}", lines_after(&r, "SD init"));
     assert!(r.faults.is_empty() && r.resets.is_empty());
     assert_rates_within_limits(&r);
 }
@@ -184,14 +178,7 @@ fn a_layer_pause_stops_where_sim_run_stops() {
     let want: Vec<i64> = want.iter().map(|&v| i64::from(v)).collect();
     assert_eq!(got.to_vec(), want, "emulated vs sim run: {:?}", r.lines);
     // Resumed and finished: the whole job's steps, as without the pause.
-    let full = expected_net_steps(THREE_LAYERS, o.start_mm);
-    let end = [
-        r.net_steps["X"],
-        r.net_steps["Y"],
-        r.net_steps["Z"],
-        r.net_steps["E"],
-    ];
-    assert_eq!(end, full);
+    assert_eq!(net_steps(&r), expected_net_steps(THREE_LAYERS, o.start_mm));
 }
 
 #[test]
@@ -316,11 +303,31 @@ fn a_driver_plugged_in_backwards_is_never_powered() {
     );
 }
 
-#[test]
-fn a_print_from_the_card_pauses_at_its_layer_and_finishes() {
-    let img = temp("card.img");
+/// A card image (at `temp(name)`) holding `JOB.GCO`: the three-layer job without its first
+/// line, `M302 P1` (the card tests send it as a command before `M23`).
+fn card_with_the_job(name: &str) -> PathBuf {
+    let img = temp(name);
     let job: String = THREE_LAYERS[1..].iter().map(|l| format!("{l}\n")).collect();
     sim::sd::write_image(&img, &[("JOB.GCO".into(), job.into_bytes())]).expect("card image");
+    img
+}
+
+/// The card's job ([`card_with_the_job`]) printed to its end, with every step of its G-code.
+fn assert_the_card_job_done(r: &board_emu::report::Report, o: &board_emu::scenario::Options) {
+    assert!(
+        r.lines.iter().any(|l| l.contains("Done printing")),
+        "{:?} {:?} {:?}",
+        r.lines,
+        r.notes,
+        r.flash_erases
+    );
+    let want = expected_net_steps(&THREE_LAYERS[1..], o.start_mm);
+    assert_eq!(net_steps(r), want);
+}
+
+#[test]
+fn a_print_from_the_card_pauses_at_its_layer_and_finishes() {
+    let img = card_with_the_job("card.img");
     let mut o = options();
     o.sd_image = Some(img.clone());
     o.commands = vec![
@@ -340,21 +347,7 @@ fn a_print_from_the_card_pauses_at_its_layer_and_finishes() {
         "paused at layer 2: {:?}",
         r.lines
     );
-    assert!(
-        r.lines.iter().any(|l| l.contains("Done printing")),
-        "{:?} {:?} {:?}",
-        r.lines,
-        r.notes,
-        r.flash_erases
-    );
-    let want = expected_net_steps(&THREE_LAYERS[1..], o.start_mm);
-    let got = [
-        r.net_steps["X"],
-        r.net_steps["Y"],
-        r.net_steps["Z"],
-        r.net_steps["E"],
-    ];
-    assert_eq!(got, want);
+    assert_the_card_job_done(&r, &o);
     assert!(r.pause_point_steps.is_some());
 }
 
@@ -388,9 +381,7 @@ fn nearly_full_settings_area(name: &str) -> PathBuf {
 /// the watchdog's longest timeout, 6.9 s; 47 kHz: its shortest, 2.5 s). The test checks the
 /// erase falls between `//action:paused` and `//action:resumed`, not which save made it.
 fn erase_during_a_pause(lsi_hz: u32) {
-    let img = temp(&format!("erase-{lsi_hz}.img"));
-    let job: String = THREE_LAYERS[1..].iter().map(|l| format!("{l}\n")).collect();
-    sim::sd::write_image(&img, &[("JOB.GCO".into(), job.into_bytes())]).expect("card image");
+    let img = card_with_the_job(&format!("erase-{lsi_hz}.img"));
     let flash = nearly_full_settings_area(&format!("nearly-full-{lsi_hz}.bin"));
     let mut o = options();
     o.sd_image = Some(img.clone());
@@ -467,21 +458,7 @@ fn erase_during_a_pause(lsi_hz: u32) {
         r.max_temp_c
     );
     // The pause resumed and the print finished with every step.
-    assert!(
-        r.lines.iter().any(|l| l.contains("Done printing")),
-        "{:?} {:?} {:?}",
-        r.lines,
-        r.notes,
-        r.flash_erases
-    );
-    let want = expected_net_steps(&THREE_LAYERS[1..], o.start_mm);
-    let got = [
-        r.net_steps["X"],
-        r.net_steps["Y"],
-        r.net_steps["Z"],
-        r.net_steps["E"],
-    ];
-    assert_eq!(got, want);
+    assert_the_card_job_done(&r, &o);
 }
 
 /// Outside CI (≈ 35 virtual s on the emulated board): at the slowest LSI the watchdog allows

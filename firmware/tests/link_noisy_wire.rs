@@ -64,6 +64,33 @@ fn numbered(n: usize, cmd: &str) -> Vec<u8> {
     format!("{body}*{}\n", checksum(body.as_bytes())).into_bytes()
 }
 
+/// The executive's 1 ms main-loop tick at `now` µs: poll, take the steps due before the
+/// tick's end, and add to `executed` the end position of each job move finished (its last
+/// segment).
+fn tick_1ms(p: &mut Printer, now: u64, executed: &mut Vec<StepPos>) {
+    p.poll(now);
+    while let Some(t) = p.next_step_ns() {
+        if t > (now + 1000) * 1000 {
+            break;
+        }
+        p.next_step();
+    }
+    while let Some(r) = p.pop_record() {
+        if let Record::Executed {
+            seg,
+            segs,
+            kind: BlockKind::Job,
+            pos,
+            ..
+        } = r
+        {
+            if seg + 1 == segs {
+                executed.push(pos);
+            }
+        }
+    }
+}
+
 /// Runs the case; returns the end position of each executed job move, in order.
 fn run(c: &Case) -> Result<Vec<StepPos>, TestCaseError> {
     let cfg = MachineConfig::ENDER3;
@@ -112,27 +139,7 @@ fn run(c: &Case) -> Result<Vec<StepPos>, TestCaseError> {
             let taken = p.receive(&wire[..n], now);
             wire.drain(..taken);
         }
-        p.poll(now);
-        while let Some(t) = p.next_step_ns() {
-            if t > (now + 1000) * 1000 {
-                break;
-            }
-            p.next_step();
-        }
-        while let Some(r) = p.pop_record() {
-            if let Record::Executed {
-                seg,
-                segs,
-                kind: BlockKind::Job,
-                pos,
-                ..
-            } = r
-            {
-                if seg + 1 == segs {
-                    executed.push(pos);
-                }
-            }
-        }
+        tick_1ms(&mut p, now, &mut executed);
         // The host reads its answers.
         out.clear();
         p.write_output(&mut out).unwrap();
@@ -317,27 +324,7 @@ fn run_two_ports(usb: &Case, tft: &Case) -> Result<Vec<StepPos>, TestCaseError> 
         for h in hosts.iter_mut() {
             h.send(&mut p, now);
         }
-        p.poll(now);
-        while let Some(t) = p.next_step_ns() {
-            if t > (now + 1000) * 1000 {
-                break;
-            }
-            p.next_step();
-        }
-        while let Some(r) = p.pop_record() {
-            if let Record::Executed {
-                seg,
-                segs,
-                kind: BlockKind::Job,
-                pos,
-                ..
-            } = r
-            {
-                if seg + 1 == segs {
-                    executed.push(pos);
-                }
-            }
-        }
+        tick_1ms(&mut p, now, &mut executed);
         for h in hosts.iter_mut() {
             h.read(&mut p, now)?;
         }

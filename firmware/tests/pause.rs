@@ -6,20 +6,9 @@ use firmware::motion::{PauseMode, Realtime};
 use firmware::printer::Record;
 use support::*;
 
-/// Square perimeters per layer, E absolute, 0.2 mm layers.
+/// Square perimeters to (40.0, 40.0) mm, 1.2 mm of filament a side, 0.2 mm layers.
 fn job(layers: u32) -> Vec<Item> {
-    let mut v = Vec::new();
-    let mut e = 0.0;
-    for l in 0..layers {
-        v.push(Item::Layer(l));
-        let z = 0.2 * (l + 1) as f32;
-        v.push(Item::Move([10.0, 10.0, z, e], 30.0));
-        for (x, y) in [(40.0, 10.0), (40.0, 40.0), (10.0, 40.0), (10.0, 10.0)] {
-            e += 1.2;
-            v.push(Item::Move([x, y, z, e], 40.0));
-        }
-    }
-    v
+    square_layers(layers, 40.0, 1.2)
 }
 
 fn stopped(r: &Run) -> Option<(firmware::motion::StepPos, Option<u32>, bool, u64)> {
@@ -101,18 +90,7 @@ fn now_pause_brakes_within_braking_distance() {
     assert_eq!(r.end, base.end);
     let (pos, _, mid, t_stop) = stopped(&r).expect("stopped");
     assert!(mid);
-    let (v, a) = r
-        .records
-        .iter()
-        .find_map(|x| match *x {
-            Record::Brake {
-                v_mm_s,
-                accel_mm_s2,
-                ..
-            } => Some((v_mm_s, accel_mm_s2)),
-            _ => None,
-        })
-        .unwrap();
+    let (v, a) = r.brake().unwrap();
     // Position at request time.
     let at_req = r
         .trace

@@ -8,19 +8,9 @@ use firmware::printer::{Command, PausedLines, Policy, Printer, Record, Schedule,
 use firmware::thermal::HeaterId;
 use support::*;
 
+/// Square perimeters to (60.0, 60.0) mm, 2.0 mm of filament a side, 0.2 mm layers.
 fn job(layers: u32) -> Vec<Item> {
-    let mut v = Vec::new();
-    let mut e = 0.0;
-    for l in 0..layers {
-        v.push(Item::Layer(l));
-        let z = 0.2 * (l + 1) as f32;
-        v.push(Item::Move([10.0, 10.0, z, e], 30.0));
-        for (x, y) in [(60.0, 10.0), (60.0, 60.0), (10.0, 60.0), (10.0, 10.0)] {
-            e += 2.0;
-            v.push(Item::Move([x, y, z, e], 40.0));
-        }
-    }
-    v
+    square_layers(layers, 60.0, 2.0)
 }
 
 fn req(t_us: u64, req: Realtime) -> Req {

@@ -155,18 +155,7 @@ fn check(items: &[Item], policy: Policy, mode: PauseMode, frac_permille: u64, wa
         );
     }
     if mode == PauseMode::Now && !policy.pause_at_tail {
-        let (v, a) = r
-            .records
-            .iter()
-            .find_map(|x| match *x {
-                Record::Brake {
-                    v_mm_s,
-                    accel_mm_s2,
-                    ..
-                } => Some((v_mm_s, accel_mm_s2)),
-                _ => None,
-            })
-            .unwrap();
+        let (v, a) = r.brake().unwrap();
         // Path travelled from the request to the stop, in the planner's own metric: a move
         // from A to B cut into n segments has segments of |AB|/n, and inside a block the head's
         // progress is the fraction of its major-axis steps done (Bresenham). The step lattice

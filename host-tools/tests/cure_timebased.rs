@@ -3,7 +3,7 @@
 use glam::DVec3;
 use host_tools::design::motion::{MotionLimits, Trajectory};
 use host_tools::design::profile::Profile;
-use host_tools::paste::cure::{check, heat_map_svg, CureParams};
+use host_tools::paste::cure::{check, heat_map_svg, CureParams, CureReport};
 use host_tools::paste::timebased::{
     is_timebased, read_timebased, write_timebased, Sample, TimedPath,
 };
@@ -194,6 +194,34 @@ fn timebased_file_round_trip() {
     assert!(read_timebased(cut.as_bytes()).is_err());
 }
 
+/// One loop of `G1` moves through `corners` (absolute E: `e_mm` grows by `de_mm` a side), at
+/// `f_mm_min`.
+fn push_loop(g: &mut String, corners: [(u32, u32); 4], e_mm: &mut f64, de_mm: f64, f_mm_min: u32) {
+    for (x, y) in corners {
+        *e_mm += de_mm;
+        g.push_str(&format!("G1 X{x} Y{y} E{e_mm} F{f_mm_min}\n"));
+    }
+}
+
+/// `gcode` through the real motion model (the Ender-3's limits) sampled every 100 ms, and the
+/// cure check of those samples: 20 s cure time, spots below within `radius_mm`.
+fn cure_20s_of_gcode(gcode: &str, radius_mm: f64) -> (Vec<Sample>, CureReport) {
+    let profile = Profile::ender3();
+    let traj =
+        Trajectory::from_gcode(gcode.as_bytes(), MotionLimits::from_profile(&profile)).unwrap();
+    let samples = traj.samples(0.1);
+    let r = check(
+        &samples,
+        &CureParams {
+            period_s: 0.1,
+            cure_s: 20.0,
+            radius_mm,
+            min_dz_mm: 0.1,
+        },
+    );
+    (samples, r)
+}
+
 #[test]
 fn resampling_real_gcode_times_a_layer() {
     // Two layers of a 40 mm square at 10 mm/s: one layer takes 16 s plus the acceleration
@@ -204,23 +232,15 @@ fn resampling_real_gcode_times_a_layer() {
         if layer == 1 {
             g.push_str(";LAYER_CHANGE\n;Z:0.4\nG0 Z0.4\n");
         }
-        for (x, y) in [(50, 10), (50, 50), (10, 50), (10, 10)] {
-            e += 1.0;
-            g.push_str(&format!("G1 X{x} Y{y} E{e} F600\n"));
-        }
+        push_loop(
+            &mut g,
+            [(50, 10), (50, 50), (10, 50), (10, 10)],
+            &mut e,
+            1.0,
+            600,
+        );
     }
-    let profile = Profile::ender3();
-    let traj = Trajectory::from_gcode(g.as_bytes(), MotionLimits::from_profile(&profile)).unwrap();
-    let samples = traj.samples(0.1);
-    let r = check(
-        &samples,
-        &CureParams {
-            period_s: 0.1,
-            cure_s: 20.0,
-            radius_mm: 0.6,
-            min_dz_mm: 0.1,
-        },
-    );
+    let (samples, r) = cure_20s_of_gcode(&g, 0.6);
     // Away from the seam at (10, 10), the spot below was laid one layer time earlier.
     let mid: Vec<_> = r
         .violations
@@ -360,23 +380,15 @@ fn squares_every_six_seconds_flag_every_spot_above_the_first_layer() {
     for layer in 0..3 {
         let z = 0.2 * (layer + 1) as f64;
         g.push_str(&format!(";LAYER_CHANGE\n;Z:{z}\nG0 Z{z}\n"));
-        for (x, y) in [(160, 100), (160, 160), (100, 160), (100, 100)] {
-            e += 2.0;
-            g.push_str(&format!("G1 X{x} Y{y} E{e} F2400\n"));
-        }
+        push_loop(
+            &mut g,
+            [(160, 100), (160, 160), (100, 160), (100, 100)],
+            &mut e,
+            2.0,
+            2400,
+        );
     }
-    let profile = Profile::ender3();
-    let traj = Trajectory::from_gcode(g.as_bytes(), MotionLimits::from_profile(&profile)).unwrap();
-    let samples = traj.samples(0.1);
-    let r = check(
-        &samples,
-        &CureParams {
-            period_s: 0.1,
-            cure_s: 20.0,
-            radius_mm: 1.0,
-            min_dz_mm: 0.1,
-        },
-    );
+    let (samples, r) = cure_20s_of_gcode(&g, 1.0);
     let first_layer = samples
         .iter()
         .filter(|s| s.extruding)

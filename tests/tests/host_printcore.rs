@@ -21,6 +21,36 @@ use std::time::Duration;
 /// three more prints, each asked `M27` at job line 800 (in layer 3) and cancelled.
 /// Returns the driver's report and the sim's record.
 fn session(tag: &str) -> (serde_json::Value, serde_json::Value) {
+    drive(
+        tag,
+        "tests/fixtures/slicer/prusaslicer.gcode",
+        &[
+            "--layers",
+            "5",
+            "--pause-line",
+            "150",
+            "--layer-request-line",
+            "250",
+            "--pause-layer",
+            "3",
+            "--host-pause-line",
+            "800",
+            "--cancel-line",
+            "1000",
+            "--wait",
+            "20",
+            "--repeat",
+            "3",
+            "--m27-line",
+            "800",
+        ],
+    )
+}
+
+/// `tests/hosts/printcore_drive.py` printing `file` (relative to the workspace root) to a
+/// fresh `sim serve` (×20, ending after 60 idle s) with the driver's further `args`.
+/// Returns the driver's report and the sim's record.
+fn drive(tag: &str, file: &str, args: &[&str]) -> (serde_json::Value, serde_json::Value) {
     let py = host_python("printrun");
     let sim = Sim::start(tag, "20", "60");
     let mut cmd = Command::new(py);
@@ -29,26 +59,9 @@ fn session(tag: &str) -> (serde_json::Value, serde_json::Value) {
         "--port",
         &sim.device,
         "--file",
-        "tests/fixtures/slicer/prusaslicer.gcode",
-        "--layers",
-        "5",
-        "--pause-line",
-        "150",
-        "--layer-request-line",
-        "250",
-        "--pause-layer",
-        "3",
-        "--host-pause-line",
-        "800",
-        "--cancel-line",
-        "1000",
-        "--wait",
-        "20",
-        "--repeat",
-        "3",
-        "--m27-line",
-        "800",
-    ]);
+        file,
+    ])
+    .args(args);
     let (ok, out, err) = run_bounded(cmd, Duration::from_secs(300));
     let record = sim.finish();
     assert!(ok, "driver failed: {out}\n{err}");
@@ -144,34 +157,25 @@ fn printcore_pauses_resumes_and_cancels_through_send_now_while_streaming() {
 #[test]
 fn printcore_pause_at_layer_on_a_marker_file_names_the_sim_run_layer() {
     const FILE: &str = "tests/fixtures/corpus/family-m73.gcode";
-    let py = host_python("printrun");
-    let sim = Sim::start("pc_m73", "20", "60");
-    let mut cmd = Command::new(py);
     // Lines (the file's): layer 1 from 24, 2 from 304, 3 from 529, 4 from 752, 5 from 842.
-    cmd.args([
-        "tests/hosts/printcore_drive.py",
-        "--port",
-        &sim.device,
-        "--file",
+    let (d, r) = drive(
+        "pc_m73",
         FILE,
-        "--layers",
-        "6",
-        "--pause-line",
-        "100",
-        "--layer-request-line",
-        "400",
-        "--pause-layer",
-        "4",
-        "--cancel-line",
-        "900",
-        "--wait",
-        "20",
-    ]);
-    let (ok, out, err) = run_bounded(cmd, Duration::from_secs(300));
-    let r = sim.finish();
-    assert!(ok, "driver failed: {out}\n{err}");
-    let d: serde_json::Value = serde_json::from_str(out.trim()).expect("driver JSON");
-    eprintln!("driver: {d}\nrecord: {r}");
+        &[
+            "--layers",
+            "6",
+            "--pause-line",
+            "100",
+            "--layer-request-line",
+            "400",
+            "--pause-layer",
+            "4",
+            "--cancel-line",
+            "900",
+            "--wait",
+            "20",
+        ],
+    );
     let sc = &d["scenarios"]["layer"];
     assert_eq!(sc["paused"], true, "{d}");
     assert_eq!(sc["resumed"], true, "{d}");

@@ -37,6 +37,7 @@ mod hosts_common;
 use layerref::Comments;
 use sim::exec::PrinterFactory;
 use sim::run::{self, PauseWhen};
+use tests::compile_example;
 use tests::judge::{job_line, judge_request, judge_schedule, stop_of, Job};
 
 /// (file, layer pauses at random times, `M761` schedules), per comment mode: the full grid
@@ -71,26 +72,6 @@ fn load(name: &str, comments: Comments) -> Job {
     let path = format!("{}/fixtures/corpus/{name}", env!("CARGO_MANIFEST_DIR"));
     let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
     Job::new(text.lines().map(str::to_string).collect(), comments)
-}
-
-/// A host-tools example compiled for the Ender-3 (our writer's markers: `;LAYER_CHANGE` per
-/// layer, or per turn of a helix).
-fn compile(name: &str) -> Vec<String> {
-    use host_tools::design::profile::Profile;
-    use host_tools::design::script::ScriptRunner;
-    use host_tools::design::writer::{GcodeWriter, WriteOptions};
-    let p = Profile::ender3();
-    let path = format!(
-        "{}/../host-tools/examples/{name}",
-        env!("CARGO_MANIFEST_DIR")
-    );
-    let out = ScriptRunner::new(p.clone())
-        .run_file(std::path::Path::new(&path))
-        .unwrap_or_else(|e| panic!("{name}: {e}"));
-    let (g, _) = GcodeWriter::new(&p, WriteOptions::default())
-        .to_string(&out.model)
-        .unwrap_or_else(|e| panic!("{name}: {e}"));
-    g.lines().map(str::to_string).collect()
 }
 
 /// A small fixed-seed generator (xorshift64*): request times and schedules.
@@ -277,7 +258,7 @@ fn corpus_comments_stripped_full_grid() {
 /// helical example, kept and stripped (then the turns come from the path).
 #[test]
 fn host_compiler_helix() {
-    let lines = compile("spiral_cylinder.rhai");
+    let lines = compile_example("spiral_cylinder.rhai");
     let mut rng = Rng(0x5EED_0003);
     let (mut right, mut total, mut failures) = (0, 0, Vec::new());
     for comments in [Comments::Keep, Comments::Strip] {

@@ -6,26 +6,9 @@
 //! (`;FLAVOR:Marlin`) put first, which names a marker family that then never comes, so the
 //! firmware's height rule stays off and the job queues no mark (see `firmware::layer`).
 
-use host_tools::design::profile::Profile;
-use host_tools::design::script::ScriptRunner;
-use host_tools::design::writer::{GcodeWriter, WriteOptions};
 use sim::exec::PrinterFactory;
 use sim::run::{self, Mode, Policy, Scenario};
-
-fn compile(name: &str) -> Vec<String> {
-    let p = Profile::ender3();
-    let path = format!(
-        "{}/../host-tools/examples/{name}",
-        env!("CARGO_MANIFEST_DIR")
-    );
-    let out = ScriptRunner::new(p.clone())
-        .run_file(std::path::Path::new(&path))
-        .unwrap_or_else(|e| panic!("{name}: {e}"));
-    let (g, _) = GcodeWriter::new(&p, WriteOptions::default())
-        .to_string(&out.model)
-        .unwrap_or_else(|e| panic!("{name}: {e}"));
-    g.lines().map(str::to_string).collect()
-}
+use tests::compile_example;
 
 /// Print time and number of layer marks crossed, comments sent.
 fn print_time(job: &[String]) -> (f64, usize) {
@@ -46,7 +29,7 @@ fn print_time(job: &[String]) -> (f64, usize) {
 #[test]
 fn helical_examples_print_as_fast_with_their_turn_markers() {
     for name in ["spiral_cylinder.rhai", "twisted_vase.rhai"] {
-        let with = compile(name);
+        let with = compile_example(name);
         let mut without = vec![";FLAVOR:Marlin".to_string()];
         without.extend(
             with.iter()

@@ -95,6 +95,11 @@ pub fn lines_after<'a>(r: &'a Report, marker: &str) -> &'a [String] {
     &r.lines[i..]
 }
 
+/// The net steps the run made, X Y Z E (the order of [`expected_net_steps`]).
+pub fn net_steps(r: &Report) -> [i64; 4] {
+    ["X", "Y", "Z", "E"].map(|axis| r.net_steps[axis])
+}
+
 /// Steps per mm X, Y, Z, E of the Ender-3: Marlin's `DEFAULT_AXIS_STEPS_PER_UNIT { 80, 80,
 /// 400, 93 }` (config/examples/Creality/Ender-3, Configuration.h), written here rather than
 /// read from the firmware's `MachineConfig`, so the count below is independent of its code.

@@ -83,6 +83,23 @@ impl PauseParams {
     pub fn is_empty(&self) -> bool {
         *self == PauseParams::default()
     }
+
+    /// The M760 that sets the pause values `c` (every word given; the park feed in mm/min, as
+    /// written) and `nozzle_timeout_s` (`T`, kept apart: it is the heaters' setting, not
+    /// saved with the pause values).
+    pub fn from_config(c: &crate::config::PauseConfig, nozzle_timeout_s: Option<f32>) -> Self {
+        PauseParams {
+            retract_mm: Some(c.retract_mm),
+            lift_z_mm: Some(c.lift_z_mm),
+            park_x_mm: Some(c.park_x_mm),
+            park_y_mm: Some(c.park_y_mm),
+            park_feed_mm_min: Some(c.park_feed_mm_s * 60.0),
+            speedup_factor: Some(c.speedup_factor),
+            max_volumetric_mm3_s: Some(c.max_volumetric_mm3_s),
+            segment_len_mm: Some(c.segment_len_mm),
+            nozzle_timeout_s,
+        }
+    }
 }
 
 /// M761: when to pause.

@@ -106,24 +106,15 @@ pub(super) fn write<W: Write>(w: &mut W, c: &DriverCommand) -> fmt::Result {
 
 #[cfg(test)]
 mod tests {
-    use super::super::{parse_line, write_command, Command};
+    use super::super::tests::kind;
+    use super::super::{write_command, Command};
     use super::*;
     use proptest::prelude::*;
 
     fn cmd(s: &str) -> DriverCommand {
-        match parse_line(s.as_bytes()) {
-            Ok(l) => match l.command {
-                Some(Command::Driver(c)) => c,
-                other => panic!("{s:?}: {other:?}"),
-            },
-            Err(e) => panic!("{s:?}: {e:?}"),
-        }
-    }
-
-    fn kind(s: &str) -> ParseErrorKind {
-        match parse_line(s.as_bytes()) {
-            Err(e) => e.kind,
-            Ok(l) => panic!("{s:?} parsed: {l:?}"),
+        match super::super::tests::cmd(s) {
+            Command::Driver(c) => c,
+            other => panic!("{s:?}: {other:?}"),
         }
     }
 

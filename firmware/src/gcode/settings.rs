@@ -146,24 +146,15 @@ pub(super) fn write<W: Write>(w: &mut W, c: &SettingsCommand) -> fmt::Result {
 
 #[cfg(test)]
 mod tests {
-    use super::super::{parse_line, Command, ParseErrorKind};
+    use super::super::tests::kind;
+    use super::super::{Command, ParseErrorKind};
     use super::*;
     use proptest::prelude::*;
 
     fn cmd(s: &str) -> SettingsCommand {
-        match parse_line(s.as_bytes()) {
-            Ok(l) => match l.command {
-                Some(Command::Settings(c)) => c,
-                other => panic!("{s:?}: {other:?}"),
-            },
-            Err(e) => panic!("{s:?}: {e:?}"),
-        }
-    }
-
-    fn kind(s: &str) -> ParseErrorKind {
-        match parse_line(s.as_bytes()) {
-            Err(e) => e.kind,
-            Ok(l) => panic!("{s:?} parsed: {l:?}"),
+        match super::super::tests::cmd(s) {
+            Command::Settings(c) => c,
+            other => panic!("{s:?}: {other:?}"),
         }
     }
 

@@ -1,7 +1,8 @@
 use super::*;
 use proptest::prelude::*;
 
-fn cmd(s: &str) -> Command {
+/// The command `s` parses to (panics, naming `s`, if it parses to none or to an error).
+pub(super) fn cmd(s: &str) -> Command {
     match parse_line(s.as_bytes()) {
         Ok(Line {
             command: Some(c), ..
@@ -10,7 +11,8 @@ fn cmd(s: &str) -> Command {
     }
 }
 
-fn kind(s: &str) -> ParseErrorKind {
+/// The kind of error `s` parses to (panics, naming `s`, if it parses).
+pub(super) fn kind(s: &str) -> ParseErrorKind {
     match parse_line(s.as_bytes()) {
         Err(e) => e.kind,
         Ok(l) => panic!("{s:?} parsed: {l:?}"),

@@ -202,21 +202,8 @@ pub fn check_pause_config(
     p: &crate::config::PauseConfig,
     cfg: &MachineConfig,
 ) -> Result<(), Refusal> {
-    check_pause_params(
-        &PauseParams {
-            retract_mm: Some(p.retract_mm),
-            lift_z_mm: Some(p.lift_z_mm),
-            park_x_mm: Some(p.park_x_mm),
-            park_y_mm: Some(p.park_y_mm),
-            park_feed_mm_min: Some(p.park_feed_mm_s * 60.0),
-            speedup_factor: Some(p.speedup_factor),
-            max_volumetric_mm3_s: Some(p.max_volumetric_mm3_s),
-            segment_len_mm: Some(p.segment_len_mm),
-            // Not saved by M500 (the timeout is Marlin's configuration, set per session).
-            nozzle_timeout_s: None,
-        },
-        cfg,
-    )
+    // No nozzle timeout: not saved by M500 (Marlin's configuration, set per session).
+    check_pause_params(&PauseParams::from_config(p, None), cfg)
 }
 
 /// `mm` on `axis`, moved inside the axis's travel (for positions from the configuration,

@@ -496,21 +496,10 @@ impl Printer {
         }
         let c = self.current("M906");
         self.report_line(&c);
-        let p = self.cfg.pause;
-        self.report_line(&gcode::Command::PauseParams(PauseParams {
-            retract_mm: Some(p.retract_mm),
-            lift_z_mm: Some(p.lift_z_mm),
-            park_x_mm: Some(p.park_x_mm),
-            park_y_mm: Some(p.park_y_mm),
-            park_feed_mm_min: Some(p.park_feed_mm_s * 60.0),
-            speedup_factor: Some(p.speedup_factor),
-            max_volumetric_mm3_s: Some(p.max_volumetric_mm3_s),
-            segment_len_mm: Some(p.segment_len_mm),
-            nozzle_timeout_s: Some(
-                self.thermal
-                    .idle_config()
-                    .map_or(0.0, |i| i.timeout_s as f32),
-            ),
-        }));
+        let timeout_s = self.thermal.idle_config().map_or(0, |i| i.timeout_s);
+        self.report_line(&gcode::Command::PauseParams(PauseParams::from_config(
+            &self.cfg.pause,
+            Some(timeout_s as f32),
+        )));
     }
 }

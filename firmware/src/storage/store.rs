@@ -295,6 +295,41 @@ pub(crate) mod tests {
         SettingsStore::new(Small::new(bytes), SMALL_RANGE).unwrap()
     }
 
+    /// `len` bytes of a fixed-seed xorshift32 generator.
+    fn noise(mut seed: u32, len: usize) -> Vec<u8> {
+        (0..len)
+            .map(|_| {
+                seed ^= seed << 13;
+                seed ^= seed >> 17;
+                seed ^= seed << 5;
+                seed as u8
+            })
+            .collect()
+    }
+
+    /// `op` on a store over the area `bytes` with the power cut at its `n`-th flash write or
+    /// erase (letting `kind` of it through). `None` when `op` succeeded, so `n` is past its
+    /// last operation (the power then never went off); else the flash as the cut left it,
+    /// powered again.
+    fn cut_during(
+        bytes: &[u8],
+        n: u32,
+        kind: Cut,
+        op: impl FnOnce(&mut SettingsStore<Small>) -> Result<Stored, StoreError>,
+    ) -> Option<Small> {
+        let mut flash = Small::new(bytes.to_vec());
+        flash.cut_power(n, kind);
+        let mut st = SettingsStore::new(flash, SMALL_RANGE).unwrap();
+        let done = op(&mut st).is_ok();
+        let mut flash = st.into_flash();
+        if done {
+            assert!(!flash.is_off(), "op {n}: succeeded with the power off");
+            return None;
+        }
+        flash.restore_power();
+        Some(flash)
+    }
+
     #[test]
     fn an_empty_area_loads_nothing_and_a_save_loads_back() {
         let mut st = small_store(vec![0xFF; 3 * 1024]);
@@ -413,16 +448,7 @@ pub(crate) mod tests {
         st.store(SETTINGS_KEY, &old).unwrap();
         assert_eq!(st.load(), Err(StoreError::Record(RecordError::Version(0))));
         // Every byte of the area garbage: never a panic, never settings.
-        let mut seed = 0x1234_5678u32;
-        let garbage: Vec<u8> = (0..3 * 1024)
-            .map(|_| {
-                seed ^= seed << 13;
-                seed ^= seed >> 17;
-                seed ^= seed << 5;
-                seed as u8
-            })
-            .collect();
-        let mut st = small_store(garbage);
+        let mut st = small_store(noise(0x1234_5678, 3 * 1024));
         assert!(!matches!(st.load(), Ok(Some(_))));
         // And the store can be used again after that (sequential-storage repairs it, or the
         // save reclaims the area).
@@ -433,15 +459,7 @@ pub(crate) mod tests {
     /// Areas sequential-storage cannot use: zeros, random bytes, a half-erased sector over
     /// zeros, zeros with the last sector erased.
     fn foreign() -> Vec<(&'static str, Vec<u8>)> {
-        let mut seed = 0x0bad_f1a5u32;
-        let random = (0..3 * 1024)
-            .map(|_| {
-                seed ^= seed << 13;
-                seed ^= seed >> 17;
-                seed ^= seed << 5;
-                seed as u8
-            })
-            .collect();
+        let random = noise(0x0bad_f1a5, 3 * 1024);
         let mut half = vec![0u8; 3 * 1024];
         half[..512].fill(0xFF);
         let mut last = vec![0u8; 3 * 1024];
@@ -481,15 +499,10 @@ pub(crate) mod tests {
             assert_eq!(st.save(&nth(2)), Ok(Stored::Appended), "{what}");
             for kind in [Cut::Partial, Cut::PartialTail, Cut::Before] {
                 for n in 0.. {
-                    let mut flash = Small::new(bytes.clone());
-                    flash.cut_power(n, kind);
-                    let mut st = SettingsStore::new(flash, SMALL_RANGE).unwrap();
-                    if st.save(&nth(1)).is_ok() {
+                    let Some(flash) = cut_during(&bytes, n, kind, |st| st.save(&nth(1))) else {
                         break;
-                    }
+                    };
                     cuts += 1;
-                    let mut flash = st.into_flash();
-                    flash.restore_power();
                     let after_cut = flash.into_inner();
                     let mut st = small_store(after_cut.clone());
                     let got = st.load();
@@ -505,15 +518,11 @@ pub(crate) mod tests {
                     // The next save is cut too, at each of its operations in turn; the one
                     // after it works.
                     for m in 0.. {
-                        let mut flash = Small::new(after_cut.clone());
-                        flash.cut_power(m, kind);
-                        let mut st = SettingsStore::new(flash, SMALL_RANGE).unwrap();
-                        if st.save(&nth(3)).is_ok() {
+                        let Some(flash) = cut_during(&after_cut, m, kind, |st| st.save(&nth(3)))
+                        else {
                             break;
-                        }
+                        };
                         twice += 1;
-                        let mut flash = st.into_flash();
-                        flash.restore_power();
                         let mut st = SettingsStore::new(flash, SMALL_RANGE).unwrap();
                         // Old or new again: once the reclaim has written its record, a
                         // cut in the next save never leaves nothing.
@@ -558,20 +567,14 @@ pub(crate) mod tests {
             // 0: save a job, 1: clear the job, 2: save settings.
             for what in 0..3 {
                 for n in 0.. {
-                    let mut flash = Small::new(base.clone());
-                    flash.cut_power(n, Cut::Partial);
-                    let mut st = SettingsStore::new(flash, SMALL_RANGE).unwrap();
-                    let r = match what {
+                    let Some(flash) = cut_during(&base, n, Cut::Partial, |st| match what {
                         0 => st.save_job(&j_new),
                         1 => st.clear_job(),
                         _ => st.save(&s_new),
-                    };
-                    if r.is_ok() {
+                    }) else {
                         break;
-                    }
+                    };
                     cuts += 1;
-                    let mut flash = st.into_flash();
-                    flash.restore_power();
                     let mut st = SettingsStore::new(flash, SMALL_RANGE).unwrap();
                     let s = st.load().unwrap();
                     let j = st.load_job().unwrap();
@@ -633,20 +636,14 @@ pub(crate) mod tests {
             let old = nth(before - 1);
             let new = nth(before);
             for n in 0.. {
-                let mut flash = Small::new(base.clone());
-                flash.cut_power(n, kind);
-                let mut st = SettingsStore::new(flash, SMALL_RANGE).unwrap();
-                let saved = st.save(&new);
-                let mut flash = st.into_flash();
-                if saved.is_ok() {
-                    assert!(!flash.is_off());
-                    break; // n is past the save's last operation
-                }
+                // None: n is past the save's last operation.
+                let Some(flash) = cut_during(&base, n, kind, |st| st.save(&new)) else {
+                    break;
+                };
                 cuts += 1;
                 if flash.cut_op() == Some(FlashOp::Erase) {
                     erases_cut += 1;
                 }
-                flash.restore_power();
                 let mut st = SettingsStore::new(flash, SMALL_RANGE).unwrap();
                 let got = st.load().unwrap_or_else(|e| {
                     panic!("{before} saves, {kind:?} cut at op {n}: load failed: {e}")

@@ -78,6 +78,42 @@ impl Run {
     pub fn stop(&self) -> Option<Stop> {
         self.stops().first().copied()
     }
+
+    /// The speed (mm/s) and deceleration (mm/s²) of the first braking (a `now` pause's feed
+    /// hold).
+    pub fn brake(&self) -> Option<(f32, f32)> {
+        self.records.iter().find_map(|x| match *x {
+            Record::Brake {
+                v_mm_s,
+                accel_mm_s2,
+                ..
+            } => Some((v_mm_s, accel_mm_s2)),
+            _ => None,
+        })
+    }
+}
+
+/// `layers` layers 0.2 mm apart, each its layer mark, a travel to (10, 10) at 30 mm/s, and a
+/// square perimeter to (`far_mm`, `far_mm`) and back at 40 mm/s feeding `e_per_side_mm` a
+/// side (E absolute).
+pub fn square_layers(layers: u32, far_mm: f32, e_per_side_mm: f32) -> Vec<Item> {
+    let mut v = Vec::new();
+    let mut e = 0.0;
+    for l in 0..layers {
+        v.push(Item::Layer(l));
+        let z = 0.2 * (l + 1) as f32;
+        v.push(Item::Move([10.0, 10.0, z, e], 30.0));
+        for (x, y) in [
+            (far_mm, 10.0),
+            (far_mm, far_mm),
+            (10.0, far_mm),
+            (10.0, 10.0),
+        ] {
+            e += e_per_side_mm;
+            v.push(Item::Move([x, y, z, e], 40.0));
+        }
+    }
+    v
 }
 
 /// Convert mm to steps with the Ender-3 scale.

@@ -120,21 +120,14 @@ fn seg_dist(q: DVec3, a: DVec3, b: DVec3) -> f64 {
     q.distance(a + ab * t)
 }
 
-/// XY distance from `q` to the segment `a`–`b`.
+/// XY distance from `q` to the segment `a`–`b`: [`seg_dist`] with all three at Z 0 (a zero
+/// Z adds exactly nothing to any sum, so this is the 2D distance to the bit).
 fn seg_dist_xy(q: DVec3, a: [f64; 2], b: [f64; 3]) -> f64 {
-    let (a, b, q) = (
-        glam::DVec2::from(a),
-        glam::DVec2::new(b[0], b[1]),
-        q.truncate(),
-    );
-    let ab = b - a;
-    let l2 = ab.length_squared();
-    let t = if l2 > 0.0 {
-        ((q - a).dot(ab) / l2).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    q.distance(a + ab * t)
+    seg_dist(
+        q.with_z(0.0),
+        DVec3::new(a[0], a[1], 0.0),
+        DVec3::new(b[0], b[1], 0.0),
+    )
 }
 
 /// The width of a string's end near the bed: over the string below when there is one, else

@@ -3,12 +3,12 @@
 //! and the bitmap modulations (`modulate`, `globe`).
 
 use super::args::{count, err, num, vec3_of, Opts, Res};
-use super::points::{factor, pt};
+use super::points::{polar, pt, rotation, scaling};
 use super::{describe, fn_label, Shared};
 use crate::design::deform::{self, DeformError};
 use crate::design::model::{Model, Step};
 use crate::design::modulate::{self, Bitmap};
-use crate::design::transform::{self, Transform};
+use crate::design::transform;
 use glam::DVec3;
 use rhai::{Dynamic, Engine, FnPtr, Map, NativeCallContext};
 use std::sync::{Arc, Mutex};
@@ -238,36 +238,21 @@ pub(super) fn register_model_geometry(e: &mut Engine) {
     e.register_fn(
         "rotate_xy",
         |m: Model, c: Dynamic, angle: Dynamic| -> Res<Model> {
-            let t = Transform::RotateXy {
-                centre: pt(&c, "centre")?.truncate(),
-                angle: num(&angle, "angle")?,
-            };
-            transform::model(m, &t).map_err(err)
+            transform::model(m, &rotation(&c, &angle)?).map_err(err)
         },
     );
     e.register_fn("scale", |m: Model, c: Dynamic, k: Dynamic| -> Res<Model> {
-        let t = Transform::Scale {
-            centre: pt(&c, "centre")?,
-            k: factor(&k)?,
-        };
-        transform::model(m, &t).map_err(err)
+        transform::model(m, &scaling(&c, &k)?).map_err(err)
     });
-    let polar = |c: &Dynamic, r: &Dynamic, angle: &Dynamic| -> Res<Transform> {
-        Ok(Transform::Polar {
-            centre: pt(c, "centre")?.truncate(),
-            radius: num(r, "radius")?,
-            angle: num(angle, "angle")?,
-        })
-    };
     e.register_fn(
         "move_polar",
-        move |m: Model, c: Dynamic, r: Dynamic, angle: Dynamic| -> Res<Model> {
+        |m: Model, c: Dynamic, r: Dynamic, angle: Dynamic| -> Res<Model> {
             transform::model(m, &polar(&c, &r, &angle)?).map_err(err)
         },
     );
     e.register_fn(
         "move_polar",
-        move |m: Model, c: Dynamic, r: Dynamic, angle: Dynamic, n: Dynamic| -> Res<Model> {
+        |m: Model, c: Dynamic, r: Dynamic, angle: Dynamic, n: Dynamic| -> Res<Model> {
             transform::model_copies(&m, &polar(&c, &r, &angle)?, count(&n, "copies")?).map_err(err)
         },
     );

@@ -338,14 +338,9 @@ pub(super) fn register_points(e: &mut Engine) {
         |a: Array, p1: Dynamic, p2: Dynamic| -> Res<Array> {
             let (p1, p2) = (pt(&p1, "mirror point 1")?, pt(&p2, "mirror point 2")?);
             // One point ([x, y, z]) or a path of points.
-            if a.len() == 3 && a.iter().all(|d| d.as_float().is_ok() || d.as_int().is_ok()) {
+            if is_point(&a) {
                 let p = pt(&Dynamic::from_array(a), "point")?;
-                let r = points::reflect_xy(p, p1, p2).map_err(err)?;
-                return Ok(vec![
-                    Dynamic::from_float(r.x),
-                    Dynamic::from_float(r.y),
-                    Dynamic::from_float(r.z),
-                ]);
+                return Ok(xyz(points::reflect_xy(p, p1, p2).map_err(err)?));
             }
             let p = path_of(&a, "reflect_xy")?;
             array_of(
@@ -355,6 +350,15 @@ pub(super) fn register_points(e: &mut Engine) {
             )
         },
     );
+}
+
+/// A point as the array `[x, y, z]` (not wrapped in a `Dynamic`, as [`arr3`] does).
+fn xyz(p: DVec3) -> Array {
+    vec![
+        Dynamic::from_float(p.x),
+        Dynamic::from_float(p.y),
+        Dynamic::from_float(p.z),
+    ]
 }
 
 /// True when the array is one point (`[x, y, z]` of numbers), not a path.
@@ -367,12 +371,7 @@ fn transformed(a: Array, t: &Transform, what: &str) -> Res<Array> {
     if is_point(&a) {
         let p = pt(&Dynamic::from_array(a), what)?;
         t.validate().map_err(err)?;
-        let q = t.apply(p);
-        return Ok(vec![
-            Dynamic::from_float(q.x),
-            Dynamic::from_float(q.y),
-            Dynamic::from_float(q.z),
-        ]);
+        return Ok(xyz(t.apply(p)));
     }
     let p = path_of(&a, what)?;
     Ok(transform::path(&p, t)
@@ -383,7 +382,7 @@ fn transformed(a: Array, t: &Transform, what: &str) -> Res<Array> {
 }
 
 /// A scale factor: one number (uniform) or `[kx, ky, kz]`.
-pub(super) fn factor(d: &Dynamic) -> Res<DVec3> {
+fn factor(d: &Dynamic) -> Res<DVec3> {
     if d.is_array() {
         vec3_of(d, "scale factors")
     } else {
@@ -391,41 +390,52 @@ pub(super) fn factor(d: &Dynamic) -> Res<DVec3> {
     }
 }
 
+/// The transform of `rotate_xy(.., centre, angle)` (on points, paths and models).
+pub(super) fn rotation(c: &Dynamic, angle: &Dynamic) -> Res<Transform> {
+    Ok(Transform::RotateXy {
+        centre: pt(c, "centre")?.truncate(),
+        angle: num(angle, "angle")?,
+    })
+}
+
+/// The transform of `scale(.., centre, k)` (on points, paths and models).
+pub(super) fn scaling(c: &Dynamic, k: &Dynamic) -> Res<Transform> {
+    Ok(Transform::Scale {
+        centre: pt(c, "centre")?,
+        k: factor(k)?,
+    })
+}
+
+/// The transform of `move_polar(.., centre, radius, angle[, copies])` (on points, paths and
+/// models).
+pub(super) fn polar(c: &Dynamic, r: &Dynamic, angle: &Dynamic) -> Res<Transform> {
+    Ok(Transform::Polar {
+        centre: pt(c, "centre")?.truncate(),
+        radius: num(r, "radius")?,
+        angle: num(angle, "angle")?,
+    })
+}
+
 /// `rotate_xy`, `scale` and `move_polar` on points and paths.
 fn register_transforms(e: &mut Engine) {
     e.register_fn(
         "rotate_xy",
         |a: Array, c: Dynamic, angle: Dynamic| -> Res<Array> {
-            let t = Transform::RotateXy {
-                centre: pt(&c, "centre")?.truncate(),
-                angle: num(&angle, "angle")?,
-            };
-            transformed(a, &t, "rotate_xy")
+            transformed(a, &rotation(&c, &angle)?, "rotate_xy")
         },
     );
     e.register_fn("scale", |a: Array, c: Dynamic, k: Dynamic| -> Res<Array> {
-        let t = Transform::Scale {
-            centre: pt(&c, "centre")?,
-            k: factor(&k)?,
-        };
-        transformed(a, &t, "scale")
+        transformed(a, &scaling(&c, &k)?, "scale")
     });
-    let polar = |c: &Dynamic, r: &Dynamic, angle: &Dynamic| -> Res<Transform> {
-        Ok(Transform::Polar {
-            centre: pt(c, "centre")?.truncate(),
-            radius: num(r, "radius")?,
-            angle: num(angle, "angle")?,
-        })
-    };
     e.register_fn(
         "move_polar",
-        move |a: Array, c: Dynamic, r: Dynamic, angle: Dynamic| -> Res<Array> {
+        |a: Array, c: Dynamic, r: Dynamic, angle: Dynamic| -> Res<Array> {
             transformed(a, &polar(&c, &r, &angle)?, "move_polar")
         },
     );
     e.register_fn(
         "move_polar",
-        move |a: Array, c: Dynamic, r: Dynamic, angle: Dynamic, n: Dynamic| -> Res<Array> {
+        |a: Array, c: Dynamic, r: Dynamic, angle: Dynamic, n: Dynamic| -> Res<Array> {
             let p = if is_point(&a) {
                 vec![pt(&Dynamic::from_array(a), "move_polar")?]
             } else {
