@@ -158,9 +158,11 @@ impl<F: NorFlash> SettingsStore<F> {
     }
 
     /// Store `bytes` under `key` (the previous value stays current until this one is whole);
-    /// an area sequential-storage cannot use is reclaimed first (module documentation).
+    /// foreign data in the area is cleared first, or by a reclaim when sequential-storage
+    /// refuses the save, never erasing a readable record (module documentation).
     pub fn store(&mut self, key: u8, bytes: &[u8]) -> Result<Stored, StoreError> {
         self.used = true;
+        self.guard_next_sector()?;
         match block_on(self.map.store_item(&mut self.buf.0, &key, &bytes)) {
             Ok(()) => Ok(Stored::Appended),
             Err(
@@ -171,28 +173,9 @@ impl<F: NorFlash> SettingsStore<F> {
         }
     }
 
-    /// Erase the whole area and store `bytes` under `key`, keeping the other record if it
-    /// can be read.
-    fn reclaim(&mut self, key: u8, bytes: &[u8]) -> Result<Stored, StoreError> {
-        let other = if key == SETTINGS_KEY {
-            JOB_KEY
-        } else {
-            SETTINGS_KEY
-        };
-        let mut kept = [0u8; BUF_LEN];
-        let kept_len = match block_on(self.map.fetch_item::<&[u8]>(&mut self.buf.0, &other)) {
-            Ok(Some(b)) => kept.get_mut(..b.len()).map(|k| {
-                k.copy_from_slice(b);
-                b.len()
-            }),
-            _ => None,
-        };
-        block_on(self.map.erase_all()).map_err(store_error)?;
-        if let Some(k) = kept_len.and_then(|n| kept.get(..n)) {
-            block_on(self.map.store_item(&mut self.buf.0, &other, &k)).map_err(store_error)?;
-        }
-        block_on(self.map.store_item(&mut self.buf.0, &key, &bytes)).map_err(store_error)?;
-        Ok(Stored::Reclaimed)
+    /// sequential-storage's save, as is.
+    pub(super) fn store_item(&mut self, key: u8, bytes: &[u8]) -> Result<(), StoreError> {
+        block_on(self.map.store_item(&mut self.buf.0, &key, &bytes)).map_err(store_error)
     }
 
     /// True when some record (of any key) can be read.
@@ -243,7 +226,7 @@ impl<F: NorFlash> SettingsStore<F> {
 }
 
 /// True when every byte of `range` reads `0xFF` (a read error counts as written).
-fn is_erased<F: NorFlash>(flash: &mut F, range: core::ops::Range<u32>) -> bool {
+pub(super) fn is_erased<F: NorFlash>(flash: &mut F, range: core::ops::Range<u32>) -> bool {
     let mut chunk = [0u8; 64];
     let mut at = range.start;
     while at < range.end {
@@ -536,6 +519,115 @@ pub(crate) mod tests {
         assert!(reclaimed >= 1, "{reclaimed} of 4 areas reclaimed");
         println!(
             "reclaim power-fail sweep: {reclaimed} of 4 foreign areas reclaimed, {cuts} cuts, {twice} second cuts"
+        );
+    }
+
+    /// The board's two sectors, small: a record kept in one, the other foreign.
+    type Two = NorFlashModel<Vec<u8>, 4, 1024>;
+    const TWO_RANGE: core::ops::Range<u32> = 0..2 * 1024;
+
+    /// Foreign data over one sector of a two-sector area whose records are whole (the other
+    /// firmware's, zeros, random bytes, an erase cut half-way either way), then a save of the
+    /// one record, cut at every write and erase (every kind of cut), and once whole: every
+    /// record that could be read before the save can be read after it, the saved one old or
+    /// new, the other unchanged. Before, sequential-storage's repair took a foreign sector
+    /// after the open one for a migration's source and erased the records in the open one
+    /// (no power cut needed), and the reclaim of an area it refused erased it whole with a
+    /// record in RAM (lost if cut there).
+    #[test]
+    fn foreign_data_beside_the_records_never_costs_a_readable_one() {
+        use crate::storage::job::tests::sample;
+        let mut seed = 0x5eed_0001u32;
+        let mut patterns: Vec<(&str, Vec<u8>)> = vec![("zeros", vec![0; 1024])];
+        let random = (0..1024)
+            .map(|_| {
+                seed ^= seed << 13;
+                seed ^= seed >> 17;
+                seed ^= seed << 5;
+                seed as u8
+            })
+            .collect();
+        patterns.push(("random", random));
+        let mut head = vec![0u8; 1024];
+        head[..512].fill(0xFF);
+        patterns.push(("erased head", head));
+        let mut tail = vec![0u8; 1024];
+        tail[512..].fill(0xFF);
+        patterns.push(("erased tail", tail));
+        let (mut cases, mut cuts, mut reclaimed, mut tail_windows) = (0, 0, 0, 0);
+        for pre in [0u32, 4] {
+            let mut st = SettingsStore::new(Two::erased(vec![0; 2048]), TWO_RANGE).unwrap();
+            for k in 0..=pre {
+                st.save(&nth(k)).unwrap();
+            }
+            st.save_job(&sample(7, false)).unwrap();
+            let clean = st.into_flash().into_inner();
+            for sector in 0..2 {
+                for (what, pattern) in &patterns {
+                    let mut bytes = clean.clone();
+                    bytes[sector * 1024..][..1024].copy_from_slice(pattern);
+                    let mut st = SettingsStore::new(Two::new(bytes.clone()), TWO_RANGE).unwrap();
+                    let (s0, j0) = (st.load().ok().flatten(), st.load_job().ok().flatten());
+                    if s0.is_none() && j0.is_none() {
+                        continue; // the pattern hit the records: nothing readable to keep
+                    }
+                    cases += 1;
+                    let new = nth(100);
+                    let check = |st: &mut SettingsStore<Two>, ctx: &str| {
+                        let s = st.load().ok().flatten();
+                        assert!(s == s0 || s == Some(new), "{ctx}: settings {s:?}");
+                        if s0.is_some() {
+                            assert!(s.is_some(), "{ctx}: settings lost");
+                        }
+                        assert_eq!(st.load_job().ok().flatten(), j0, "{ctx}: job");
+                    };
+                    let ctx = format!("{what} over sector {sector} after {pre} saves");
+                    let how = st.save(&new);
+                    assert!(how.is_ok(), "{ctx}: {how:?}");
+                    reclaimed += usize::from(how == Ok(Stored::Reclaimed));
+                    assert_eq!(st.load(), Ok(Some(new)), "{ctx}");
+                    check(&mut st, &ctx);
+                    for kind in [Cut::Partial, Cut::PartialTail, Cut::Before] {
+                        for n in 0.. {
+                            let mut flash = Two::new(bytes.clone());
+                            flash.cut_power(n, kind);
+                            let mut st = SettingsStore::new(flash, TWO_RANGE).unwrap();
+                            if st.save(&new).is_ok() {
+                                break;
+                            }
+                            cuts += 1;
+                            let mut flash = st.into_flash();
+                            flash.restore_power();
+                            let tail_erase =
+                                kind == Cut::PartialTail && flash.cut_op() == Some(FlashOp::Erase);
+                            let mut st = SettingsStore::new(flash, TWO_RANGE).unwrap();
+                            let ctx = format!("{ctx}, {kind:?} cut at op {n}");
+                            // The window that remains (module documentation of
+                            // `storage::reclaim`): an erase cut that leaves the sector's first
+                            // half as it was and erases the second makes a foreign sector
+                            // below the records' one read as sequential-storage's open page;
+                            // it reads that one first and finds nothing, and its repair then
+                            // fails (its own sector switch has the same exposure). Counted,
+                            // not asserted.
+                            let st_s = st.load().ok().flatten();
+                            let st_j = st.load_job().ok().flatten();
+                            if tail_erase && (st_s != s0 && st_s != Some(new) || st_j != j0) {
+                                tail_windows += 1;
+                                continue;
+                            }
+                            check(&mut st, &ctx);
+                            // The next save works and keeps the job.
+                            assert!(st.save(&nth(200)).is_ok(), "{ctx}");
+                            assert_eq!(st.load(), Ok(Some(nth(200))), "{ctx}");
+                            assert_eq!(st.load_job().ok().flatten(), j0, "{ctx}: job");
+                        }
+                    }
+                }
+            }
+        }
+        assert!(cases >= 6 && cuts > 50, "{cases} cases, {cuts} cuts");
+        println!(
+            "foreign sector beside records: {cases} areas ({reclaimed} reclaimed), {cuts} cuts, {tail_windows} half-erase windows"
         );
     }
 
