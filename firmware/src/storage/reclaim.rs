@@ -39,6 +39,11 @@ struct Kept {
     len: usize,
 }
 
+/// A page marker's word (sequential-storage marks with zeros), 4-byte aligned for drivers that
+/// need aligned sources.
+#[repr(align(4))]
+struct Marker([u8; 32]);
+
 impl Kept {
     fn bytes(&self) -> &[u8] {
         self.data.get(..self.len).unwrap_or(&[])
@@ -123,26 +128,61 @@ impl<F: NorFlash> SettingsStore<F> {
         Ok(())
     }
 
+    /// The first sector sequential-storage reads as its open page (first word written, last
+    /// erased), and the sector after it.
+    fn open_pair(&mut self) -> Option<(u32, u32)> {
+        let mut sectors = self.sectors().chain(self.sectors().take(1));
+        let mut prev = sectors.next()?;
+        for next in sectors {
+            if self.marked(prev) == (true, false) {
+                return Some((prev, next));
+            }
+            prev = next;
+        }
+        None
+    }
+
+    /// More than one sector reads as an open page, a state sequential-storage never leaves (an
+    /// erase cut with the first half of the sector left as it was, or foreign data): it reads
+    /// the first and never the others, and its repair cannot migrate from a page that is not
+    /// closed. Close the others (their last word written, as sequential-storage closes a
+    /// page): their records are read again, after those of the first, and the next save's
+    /// repair migrates them (module documentation). A word write per such sector, never an
+    /// erase; on loads too.
+    pub(super) fn settle(&mut self) -> Result<(), StoreError> {
+        let word = F::WRITE_SIZE.max(F::READ_SIZE);
+        let zeros = Marker([0; 32]);
+        let marker = zeros.0.get(..word).ok_or(StoreError::Config)?;
+        let mut first = true;
+        for sector in self.sectors() {
+            if self.marked(sector) == (true, false) {
+                if !first {
+                    let end = sector + F::ERASE_SIZE as u32;
+                    let flash = &mut self.map.flash().0;
+                    flash
+                        .write(end - word as u32, marker)
+                        .map_err(|_| StoreError::Flash)?;
+                }
+                first = false;
+            }
+        }
+        Ok(())
+    }
+
     /// Before a save: the sector after the open one is not erased and does not hold every
     /// readable record: erase it (module documentation).
     pub(super) fn guard_next_sector(&mut self) -> Result<(), StoreError> {
-        let mut sectors = self.sectors().chain(self.sectors().take(1));
-        let Some(mut prev) = sectors.next() else {
+        self.settle()?;
+        let Some((_, next)) = self.open_pair() else {
             return Ok(());
         };
-        for next in sectors {
-            if self.marked(prev) == (true, false) {
-                if self.marked(next) == (false, false) {
-                    return Ok(());
-                }
-                for kept in self.readable().iter().flatten() {
-                    if !self.holds(next, kept)? {
-                        return self.erase_sector(next);
-                    }
-                }
-                return Ok(());
+        if self.marked(next) == (false, false) {
+            return Ok(());
+        }
+        for kept in self.readable().iter().flatten() {
+            if !self.holds(next, kept)? {
+                return self.erase_sector(next);
             }
-            prev = next;
         }
         Ok(())
     }
