@@ -114,18 +114,18 @@ impl<F: NorFlash> SettingsStore<F> {
         Ok(false)
     }
 
-    /// Erase `sector` behind sequential-storage's back, then look a filler up: a key pointer
-    /// its cache kept into the erased sector finds no item there and drops the whole cache
-    /// (the records' pointers are never into it: they are where the records were read).
+    /// Erase `sector` behind sequential-storage's back.
     fn erase_sector(&mut self, sector: u32) -> Result<(), StoreError> {
         let end = sector + F::ERASE_SIZE as u32;
-        self.map
-            .flash()
-            .0
-            .erase(sector, end)
-            .map_err(|_| StoreError::Flash)?;
+        let flash = &mut self.map.flash().0;
+        flash.erase(sector, end).map_err(|_| StoreError::Flash)
+    }
+
+    /// After erasing behind sequential-storage's back, look a filler up: a key pointer its
+    /// cache kept into an erased sector finds no item there and drops the whole cache (the
+    /// records' pointers are never into one: they are where the records were read).
+    fn forget_erased(&mut self) {
         let _ = self.fetch(PAD_KEY, |_| Ok(()));
-        Ok(())
     }
 
     /// The first sector sequential-storage reads as its open page (first word written, last
@@ -142,38 +142,47 @@ impl<F: NorFlash> SettingsStore<F> {
         None
     }
 
-    /// More than one sector reads as an open page, a state sequential-storage never leaves (an
-    /// erase cut with the first half of the sector left as it was, or foreign data): it reads
-    /// the first and never the others, and its repair cannot migrate from a page that is not
-    /// closed. Close the others (their last word written, as sequential-storage closes a
-    /// page): their records are read again, after those of the first, and the next save's
-    /// repair migrates them (module documentation). A word write per such sector, never an
-    /// erase; on loads too.
-    pub(super) fn settle(&mut self) -> Result<(), StoreError> {
+    /// Put the page markers in a state sequential-storage's repair cannot turn against a
+    /// readable record (module documentation), before any of its operations:
+    /// 1. a sector whose last word is written and first erased (an erase cut half-way) is
+    ///    erased, as its repair would, but before its repair looks for a cut migration;
+    /// 2. every sector but the first that reads as an open page (first word written, last
+    ///    erased: an erase cut leaving the first half, or foreign data) is closed, its last
+    ///    word written as sequential-storage closes a page: it reads only the first, and
+    ///    cannot migrate from a page that is not closed; closed, its records are read again,
+    ///    after the first's, and the next save's repair migrates them;
+    /// 3. with `before_save`: the sector after the open one is not erased and does not hold
+    ///    every readable record: it is erased (it cannot be a migration's source, which holds
+    ///    them all); otherwise sequential-storage's repair migrates from it, as designed.
+    ///
+    /// Common path: reads the page markers (two words a sector), writes and erases nothing.
+    pub(super) fn prepare(&mut self, before_save: bool) -> Result<(), StoreError> {
         let word = F::WRITE_SIZE.max(F::READ_SIZE);
         let zeros = Marker([0; 32]);
         let marker = zeros.0.get(..word).ok_or(StoreError::Config)?;
         let mut first = true;
+        let mut erased = false;
         for sector in self.sectors() {
-            if self.marked(sector) == (true, false) {
-                if !first {
+            match self.marked(sector) {
+                (false, true) => {
+                    self.erase_sector(sector)?;
+                    erased = true;
+                }
+                (true, false) if !first => {
                     let end = sector + F::ERASE_SIZE as u32;
                     let flash = &mut self.map.flash().0;
                     flash
                         .write(end - word as u32, marker)
                         .map_err(|_| StoreError::Flash)?;
                 }
-                first = false;
+                (true, false) => first = false,
+                _ => {}
             }
         }
-        Ok(())
-    }
-
-    /// Before a save: the sector after the open one is not erased and does not hold every
-    /// readable record: erase it (module documentation).
-    pub(super) fn guard_next_sector(&mut self) -> Result<(), StoreError> {
-        self.settle()?;
-        let Some((_, next)) = self.open_pair() else {
+        if erased {
+            self.forget_erased();
+        }
+        let Some((_, next)) = self.open_pair().filter(|_| before_save) else {
             return Ok(());
         };
         if self.marked(next) == (false, false) {
@@ -181,7 +190,9 @@ impl<F: NorFlash> SettingsStore<F> {
         }
         for kept in self.readable().iter().flatten() {
             if !self.holds(next, kept)? {
-                return self.erase_sector(next);
+                self.erase_sector(next)?;
+                self.forget_erased();
+                return Ok(());
             }
         }
         Ok(())
@@ -191,6 +202,7 @@ impl<F: NorFlash> SettingsStore<F> {
     /// save again; if that fails too, erase the area and write the readable records back
     /// (module documentation).
     pub(super) fn reclaim(&mut self, key: u8, bytes: &[u8]) -> Result<Stored, StoreError> {
+        self.prepare(true)?;
         let kept = self.readable();
         for sector in self.sectors() {
             let mut held = false;
@@ -202,6 +214,7 @@ impl<F: NorFlash> SettingsStore<F> {
                 self.erase_sector(sector)?;
             }
         }
+        self.forget_erased();
         if self.store_item(key, bytes).is_ok() {
             return Ok(Stored::Reclaimed);
         }
@@ -210,7 +223,7 @@ impl<F: NorFlash> SettingsStore<F> {
         flash
             .erase(range.start, range.end)
             .map_err(|_| StoreError::Flash)?;
-        let _ = self.fetch(PAD_KEY, |_| Ok(()));
+        self.forget_erased();
         for k in kept.iter().flatten() {
             if let Some((other, value)) = k.bytes().split_first() {
                 if *other != key {

@@ -162,7 +162,7 @@ impl<F: NorFlash> SettingsStore<F> {
     /// refuses the save, never erasing a readable record (module documentation).
     pub fn store(&mut self, key: u8, bytes: &[u8]) -> Result<Stored, StoreError> {
         self.used = true;
-        self.guard_next_sector()?;
+        self.prepare(true)?;
         match block_on(self.map.store_item(&mut self.buf.0, &key, &bytes)) {
             Ok(()) => Ok(Stored::Appended),
             Err(
@@ -188,7 +188,7 @@ impl<F: NorFlash> SettingsStore<F> {
     /// The saved settings: `Ok(None)` when none were ever saved, an error when what is there
     /// cannot be read or is refused (the caller falls back to the factory defaults).
     pub fn load(&mut self) -> Result<Option<Settings>, StoreError> {
-        let _ = self.settle();
+        let _ = self.prepare(false);
         match self.fetch(SETTINGS_KEY, Settings::decode)? {
             Some(s) => Ok(Some(s)),
             // Written, but no readable record at all: the settings item was damaged.
@@ -205,7 +205,7 @@ impl<F: NorFlash> SettingsStore<F> {
 
     /// The paused job kept for a power-cut resume (None: none, or cleared).
     pub fn load_job(&mut self) -> Result<Option<PausedJob>, StoreError> {
-        let _ = self.settle();
+        let _ = self.prepare(false);
         let got = self.fetch(JOB_KEY, |b| {
             if b == NO_JOB {
                 Ok(None)
@@ -561,20 +561,58 @@ pub(crate) mod tests {
         );
     }
 
+    /// The reclaim itself, on areas whose records can be read: the foreign areas with a job
+    /// beside them, and whole areas holding settings and a job (saves reach the reclaim only
+    /// once sequential-storage refuses them, which the guard above leaves rare; this drives it
+    /// directly, as a state nobody foresaw would). A cut at any of its writes and erases (every
+    /// kind) keeps the job and leaves the settings old or new; the next save works and keeps
+    /// the job. The old reclaim erased the area whole first: a cut there lost both.
+    #[test]
+    fn a_cut_anywhere_in_a_reclaim_keeps_every_readable_record() {
+        let new = nth(50);
+        let (mut tested, mut cuts) = (0, 0);
+        for (what, bytes) in beside_areas() {
+            let mut st = SettingsStore::new(Two::new(bytes.clone()), TWO_RANGE).unwrap();
+            let (s0, j0) = (st.load().ok().flatten(), st.load_job().ok().flatten());
+            if j0.is_none() {
+                continue;
+            }
+            tested += 1;
+            for kind in [Cut::Partial, Cut::PartialTail, Cut::Before] {
+                for n in 0.. {
+                    let mut flash = Two::new(bytes.clone());
+                    flash.cut_power(n, kind);
+                    let mut st = SettingsStore::new(flash, TWO_RANGE).unwrap();
+                    if st.reclaim(SETTINGS_KEY, &new.encode()).is_ok() {
+                        assert_eq!(st.load(), Ok(Some(new)), "{what}");
+                        assert_eq!(st.load_job().ok().flatten(), j0, "{what}");
+                        break;
+                    }
+                    cuts += 1;
+                    let mut flash = st.into_flash();
+                    flash.restore_power();
+                    let mut st = SettingsStore::new(flash, TWO_RANGE).unwrap();
+                    let ctx = format!("{what}, {kind:?} cut at op {n}");
+                    let s = st.load().ok().flatten();
+                    assert!(s == s0 || s == Some(new), "{ctx}: settings {s:?}");
+                    assert_eq!(st.load_job().ok().flatten(), j0, "{ctx}: job");
+                    assert!(st.save(&nth(60)).is_ok(), "{ctx}");
+                    assert_eq!(st.load(), Ok(Some(nth(60))), "{ctx}");
+                    assert_eq!(st.load_job().ok().flatten(), j0, "{ctx}: job after a save");
+                }
+            }
+        }
+        assert!(tested >= 10 && cuts > 40, "{tested} areas, {cuts} cuts");
+        println!("reclaim with records: {tested} areas, {cuts} cuts");
+    }
+
     /// The board's two sectors, small: a record kept in one, the other foreign.
     type Two = NorFlashModel<Vec<u8>, 4, 1024>;
     const TWO_RANGE: core::ops::Range<u32> = 0..2 * 1024;
 
-    /// Foreign data over one sector of a two-sector area whose records are whole (the other
-    /// firmware's, zeros, random bytes, an erase cut half-way either way), then a save of the
-    /// one record, cut at every write and erase (every kind of cut), and once whole: every
-    /// record that could be read before the save can be read after it, the saved one old or
-    /// new, the other unchanged. Before, sequential-storage's repair took a foreign sector
-    /// after the open one for a migration's source and erased the records in the open one
-    /// (no power cut needed), and the reclaim of an area it refused erased it whole with a
-    /// record in RAM (lost if cut there).
-    #[test]
-    fn foreign_data_beside_the_records_never_costs_a_readable_one() {
+    /// Two-sector areas whose settings and job are whole, with foreign data (zeros, random
+    /// bytes, an erase cut half-way either way) over one sector, its records' or the other.
+    fn beside_areas() -> Vec<(String, Vec<u8>)> {
         use crate::storage::job::tests::sample;
         let mut seed = 0x5eed_0001u32;
         let mut patterns: Vec<(&str, Vec<u8>)> = vec![("zeros", vec![0; 1024])];
@@ -593,7 +631,7 @@ pub(crate) mod tests {
         let mut tail = vec![0u8; 1024];
         tail[512..].fill(0xFF);
         patterns.push(("erased tail", tail));
-        let (mut cases, mut cuts, mut reclaimed) = (0, 0, 0);
+        let mut areas = Vec::new();
         for pre in [0u32, 4] {
             let mut st = SettingsStore::new(Two::erased(vec![0; 2048]), TWO_RANGE).unwrap();
             for k in 0..=pre {
@@ -601,10 +639,35 @@ pub(crate) mod tests {
             }
             st.save_job(&sample(7, false)).unwrap();
             let clean = st.into_flash().into_inner();
+            areas.push((format!("{pre} saves, no foreign data"), clean.clone()));
             for sector in 0..2 {
                 for (what, pattern) in &patterns {
                     let mut bytes = clean.clone();
                     bytes[sector * 1024..][..1024].copy_from_slice(pattern);
+                    areas.push((
+                        format!("{what} over sector {sector} after {pre} saves"),
+                        bytes,
+                    ));
+                }
+            }
+        }
+        areas
+    }
+
+    /// Foreign data over one sector of a two-sector area whose records are whole (the other
+    /// firmware's, zeros, random bytes, an erase cut half-way either way), then a save of the
+    /// one record, cut at every write and erase (every kind of cut), and once whole: every
+    /// record that could be read before the save can be read after it, the saved one old or
+    /// new, the other unchanged. Before, sequential-storage's repair took a foreign sector
+    /// after the open one for a migration's source and erased the records in the open one
+    /// (no power cut needed), and the reclaim of an area it refused erased it whole with a
+    /// record in RAM (lost if cut there).
+    #[test]
+    fn foreign_data_beside_the_records_never_costs_a_readable_one() {
+        let (mut cases, mut cuts, mut reclaimed) = (0, 0, 0);
+        for (what, bytes) in beside_areas() {
+            {
+                {
                     let mut st = SettingsStore::new(Two::new(bytes.clone()), TWO_RANGE).unwrap();
                     let (s0, j0) = (st.load().ok().flatten(), st.load_job().ok().flatten());
                     if s0.is_none() && j0.is_none() {
@@ -620,7 +683,7 @@ pub(crate) mod tests {
                         }
                         assert_eq!(st.load_job().ok().flatten(), j0, "{ctx}: job");
                     };
-                    let ctx = format!("{what} over sector {sector} after {pre} saves");
+                    let ctx = what.clone();
                     let how = st.save(&new);
                     assert!(how.is_ok(), "{ctx}: {how:?}");
                     reclaimed += usize::from(how == Ok(Stored::Reclaimed));
