@@ -1,34 +1,52 @@
 //! Foreign data in the store's area, cleared without losing a record that can still be read.
 //!
-//! sequential-storage reads its area through page markers: the open sector (first word
-//! written, last word erased) takes the saves, the sector after it must be erased. A sector
-//! after the open one that is *not* erased means, to its repair, a migration cut by a power
-//! loss: it erases the open sector and copies the items back from the next one. When that next
-//! sector holds data of another firmware, zeros or a half-erased pattern instead, the repair
-//! erased the records in the open sector with no power cut at all (measured on the NOR model:
-//! a paused job stored, the other sector overwritten, the next settings save lost the job).
-//! And an area sequential-storage cannot use at all was erased whole by the old reclaim, with
-//! the record kept aside in RAM until rewritten.
+//! sequential-storage reads its area through page markers: a sector whose first word is written
+//! and last erased is the open page (the first such one from the start is taken), a sector with
+//! both written is closed, both erased is open for use; the sector after the open one must be
+//! erased. Three of its rules turn against records when the area holds data it did not write
+//! (another firmware's, zeros, random bytes) or an erase was cut half-way:
+//! - a sector after the open one that is not erased is, to its repair (run whenever an
+//!   operation meets `Corrupted`), a migration cut by a power loss: it erases the open sector
+//!   and copies the items back from that one. A foreign sector there cost the records in the
+//!   open one on the next save, no power cut needed (measured: a paused job stored, the other
+//!   sector overwritten with zeros, the next M500 lost the job);
+//! - a second sector that reads as open (an erase cut that left the first half as it was, or
+//!   foreign data) is never read when it comes after the first, and shadows the records when
+//!   it comes before;
+//! - an area it refuses outright was erased whole by the old reclaim, the record kept in RAM
+//!   until rewritten: lost if the power went between.
 //!
-//! Both are now done without ever erasing a sector that holds a record that can be read:
-//! - before a save ([`SettingsStore::guard_next_sector`]), if the sector after the open one is
-//!   not erased and does not hold every record that can be read, it is erased (it cannot be the
-//!   source of a migration, whose every current record it would hold); otherwise
-//!   sequential-storage's repair redoes its migration from it, as designed.
-//! - a save sequential-storage still refuses ([`SettingsStore::reclaim`]) erases each sector
-//!   that holds no readable record, then saves again (sequential-storage then appends, or
-//!   migrates the kept records with its own power-safe copy); only if that fails too is the
-//!   area erased whole and the records kept in RAM written back (the one remaining window; the
-//!   tests never reach it).
+//! [`SettingsStore::prepare`] runs before every load and save: it erases a sector whose last
+//! word is written and first is not (an erase cut half-way: sequential-storage's own repair
+//! erases it, but only after it has looked for a cut migration), closes every sector but the
+//! first that reads as open (one word written, as sequential-storage closes a page: its records
+//! are read again, and the next save migrates them), and, before a save, erases the sector
+//! after the open one if it is not erased and does not hold every readable record (a
+//! migration's source holds them all; a foreign sector does not; otherwise sequential-storage's
+//! repair migrates, as designed). [`SettingsStore::reclaim`], for a save sequential-storage
+//! still refuses, runs it, erases each sector that holds no readable record and saves again;
+//! only if that fails too is the whole area erased and the readable records written back from
+//! RAM (the one window left; no test reaches it).
 //!
-//! "Holds a record" is a search of the sector for the record's item data (its key byte and its
-//! bytes) at every word-aligned address, where sequential-storage places item data; the record's
-//! own CRC makes a false match by foreign data negligible. The searches read at most a sector
-//! per record and run only in these rare states; the common path reads the page markers (a few
-//! words) and erases nothing more than before.
+//! "Holds a record" is a search of the sector for the record's item data (its key byte then
+//! its bytes) at every word-aligned address, where sequential-storage places item data; the
+//! record's own CRC makes a false match by foreign data negligible. The searches read at most
+//! a sector per record and run only in these rare states: the common path reads two words per
+//! sector and writes or erases nothing more than before.
+//!
+//! Limits: the guarantees are checked on two-sector areas (the board's sectors 10 and 11, the
+//! sim's file); with three or more sectors, a cut erase of a foreign sector below the records'
+//! one that leaves its first half can still hide them, because sequential-storage walks back
+//! from the first open-looking sector only through the sectors just before it. Its own sector
+//! switch, cut in its erase of the old sector in that same way (the model's
+//! `Cut::PartialTail`), can load an older value when the old sector comes first: not changed
+//! here (`a_power_cut_at_any_flash_operation_of_a_save_keeps_old_or_new` cuts in the other two
+//! ways).
 
 use super::reserve::PAD_KEY;
-use super::store::{is_erased, SettingsStore, StoreError, Stored, BUF_LEN, JOB_KEY, SETTINGS_KEY};
+use super::store::{
+    is_erased, present, SettingsStore, StoreError, Stored, BUF_LEN, JOB_KEY, SETTINGS_KEY,
+};
 use super::RecordError;
 use embedded_storage::nor_flash::NorFlash;
 
@@ -51,25 +69,23 @@ impl Kept {
 }
 
 impl<F: NorFlash> SettingsStore<F> {
-    /// The records that can be read now (settings, paused job).
-    fn readable(&mut self) -> [Option<Kept>; 2] {
-        [SETTINGS_KEY, JOB_KEY].map(|key| {
-            let mut kept = Kept {
-                data: [0; BUF_LEN],
-                len: 0,
-            };
-            let n = self
-                .fetch(key, |b| {
-                    let dst = kept.data.get_mut(1..1 + b.len());
-                    dst.ok_or(RecordError::Truncated)?.copy_from_slice(b);
-                    Ok(b.len())
-                })
-                .ok()
-                .flatten()?;
-            *kept.data.first_mut()? = key;
-            kept.len = n + 1;
-            Some(kept)
-        })
+    /// The records that can be read now (settings, paused job); an empty one where none can.
+    fn readable(&mut self) -> [Kept; 2] {
+        let mut kept = [SETTINGS_KEY, JOB_KEY].map(|key| {
+            let mut data = [0; BUF_LEN];
+            data[0] = key;
+            Kept { data, len: 0 }
+        });
+        for k in &mut kept {
+            let key = k.data[0];
+            let got = self.fetch(key, |b| {
+                let dst = k.data.get_mut(1..1 + b.len());
+                dst.ok_or(RecordError::Truncated)?.copy_from_slice(b);
+                Ok(b.len() + 1)
+            });
+            k.len = got.ok().flatten().unwrap_or(0);
+        }
+        kept
     }
 
     /// Start of each sector of the area.
@@ -125,12 +141,12 @@ impl<F: NorFlash> SettingsStore<F> {
     /// cache kept into an erased sector finds no item there and drops the whole cache (the
     /// records' pointers are never into one: they are where the records were read).
     fn forget_erased(&mut self) {
-        let _ = self.fetch(PAD_KEY, |_| Ok(()));
+        let _ = self.fetch(PAD_KEY, present);
     }
 
     /// The first sector sequential-storage reads as its open page (first word written, last
     /// erased), and the sector after it.
-    fn open_pair(&mut self) -> Option<(u32, u32)> {
+    pub(super) fn open_pair(&mut self) -> Option<(u32, u32)> {
         let mut sectors = self.sectors().chain(self.sectors().take(1));
         let mut prev = sectors.next()?;
         for next in sectors {
@@ -188,7 +204,7 @@ impl<F: NorFlash> SettingsStore<F> {
         if self.marked(next) == (false, false) {
             return Ok(());
         }
-        for kept in self.readable().iter().flatten() {
+        for kept in self.readable().iter().filter(|k| k.len > 0) {
             if !self.holds(next, kept)? {
                 self.erase_sector(next)?;
                 self.forget_erased();
@@ -206,7 +222,7 @@ impl<F: NorFlash> SettingsStore<F> {
         let kept = self.readable();
         for sector in self.sectors() {
             let mut held = false;
-            for k in kept.iter().flatten() {
+            for k in kept.iter().filter(|k| k.len > 0) {
                 held |= self.holds(sector, k)?;
             }
             let end = sector + F::ERASE_SIZE as u32;
@@ -224,7 +240,7 @@ impl<F: NorFlash> SettingsStore<F> {
             .erase(range.start, range.end)
             .map_err(|_| StoreError::Flash)?;
         self.forget_erased();
-        for k in kept.iter().flatten() {
+        for k in &kept {
             if let Some((other, value)) = k.bytes().split_first() {
                 if *other != key {
                     self.store_item(*other, value)?;
