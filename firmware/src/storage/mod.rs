@@ -10,7 +10,6 @@
 
 mod flash;
 mod job;
-mod reclaim;
 mod record;
 // Erase ahead while idle: saves during a print find erased room.
 mod reserve;

@@ -61,15 +61,23 @@ impl<F: NorFlash> SettingsStore<F> {
     /// Free bytes left in the open sector (`None`: no open sector, e.g. an area never
     /// written, which has a whole sector free and needs no erase for the first one).
     pub fn open_sector_free(&mut self) -> Result<Option<u32>, StoreError> {
-        let Some((start, _)) = self.open_pair() else {
-            return Ok(None);
-        };
-        let end = start + F::ERASE_SIZE as u32;
-        let word = F::WRITE_SIZE.max(F::READ_SIZE) as u32;
+        let range = self.map.flash_range();
         let flash = &mut self.map.flash().0;
-        let used_to = last_written(flash, start + word, end - word)?;
-        let used_to = used_to.div_ceil(word) * word;
-        Ok(Some((end - word).saturating_sub(used_to)))
+        let sector = F::ERASE_SIZE as u32;
+        let word = F::WRITE_SIZE.max(F::READ_SIZE) as u32;
+        let mut start = range.start;
+        while start + sector <= range.end {
+            let end = start + sector;
+            let first = written(flash, start, start + word)?;
+            let last = written(flash, end - word, end)?;
+            if first && !last {
+                let used_to = last_written(flash, start + word, end - word)?;
+                let used_to = used_to.div_ceil(word) * word;
+                return Ok(Some((end - word).saturating_sub(used_to)));
+            }
+            start = end;
+        }
+        Ok(None)
     }
 
     /// If the open sector has less than [`Self::reserve_bytes`] free, move to the next sector
@@ -98,6 +106,22 @@ impl<F: NorFlash> SettingsStore<F> {
         }
         Err(StoreError::Full)
     }
+}
+
+/// Some byte of `from..to` is not erased (0xFF).
+fn written<F: NorFlash>(flash: &mut F, from: u32, to: u32) -> Result<bool, StoreError> {
+    let mut chunk = [0u8; 64];
+    let mut at = from;
+    while at < to {
+        let n = (to - at).min(chunk.len() as u32) as usize;
+        let part = chunk.get_mut(..n).ok_or(StoreError::Other)?;
+        flash.read(at, part).map_err(|_| StoreError::Flash)?;
+        if part.iter().any(|b| *b != 0xFF) {
+            return Ok(true);
+        }
+        at += n as u32;
+    }
+    Ok(false)
 }
 
 /// One past the last byte of `from..to` that is not erased (`from` if all are), reading from

@@ -6,21 +6,16 @@
 //! The store is generic over the blocking [`NorFlash`] traits: the board passes its flash
 //! sectors, the sim a file-backed model, the tests [`super::NorFlashModel`].
 //!
-//! **Foreign data never costs a record that can be read** ([`super::reclaim`]): sectors left by
-//! another firmware, zeros, random bytes or a half-erased sector make sequential-storage answer
-//! `Corrupted` or `FullStorage` for ever, and worse, its repair takes a foreign sector after
-//! the open one for the source of a migration cut by a power loss and erases the open sector,
-//! records and all (measured on the NOR model with no power cut). Before each load and save
-//! the store puts the page markers in a state that repair cannot turn against a readable
-//! record (erasing only a sector that holds none of them); a save sequential-storage still
-//! refuses reclaims the area: the sectors holding no readable record are erased and the save
-//! is done again ([`Stored::Reclaimed`]). Loading an area with nothing readable falls back to
-//! the factory values (the executive says so). On a two-sector area (the board's, the sim's),
-//! a power cut at any write or erase of a load, a save or a reclaim, of every kind the model
-//! has, leaves every record that could be read before it readable, the one being saved old or
-//! new (the tests below); the one path left with a window is a reclaim whose second try
-//! sequential-storage still refuses, which erases the whole area and writes the records back
-//! from RAM (no test reaches it).
+//! **An area it cannot use is reclaimed by the next write**: sectors left by another firmware,
+//! zeros, random bytes or a half-erased sector make sequential-storage answer `Corrupted` or
+//! `FullStorage` even after its own repair, for ever, and no command would erase them. Loading
+//! then falls back to the factory values (the executive says so); the next store keeps aside
+//! the other record if it can still be read, erases the whole area, writes that record back
+//! and then the new one ([`Stored::Reclaimed`]). A power cut during the reclaim leaves the area
+//! unreadable or erased (the factory values load, as before the reclaim) or the new record, and
+//! the next store reclaims again if needed; a record kept aside is lost if the power goes
+//! between the erase and its rewrite (the record was in an area nothing else could be written
+//! to).
 
 use super::flash::{block_on, Blocking};
 use super::job::{PausedJob, JOB_RECORD_LEN};
@@ -92,8 +87,8 @@ fn store_error<E>(e: sequential_storage::Error<E>) -> StoreError {
 pub enum Stored {
     /// Appended to the area (the usual way).
     Appended,
-    /// The area held data the store could not use: the sectors holding no readable record
-    /// were erased first (see the module documentation).
+    /// The area held data the store could not use: it was erased first (see the module
+    /// documentation).
     Reclaimed,
 }
 
@@ -163,11 +158,9 @@ impl<F: NorFlash> SettingsStore<F> {
     }
 
     /// Store `bytes` under `key` (the previous value stays current until this one is whole);
-    /// foreign data in the area is cleared first, or by a reclaim when sequential-storage
-    /// refuses the save, never erasing a readable record (module documentation).
+    /// an area sequential-storage cannot use is reclaimed first (module documentation).
     pub fn store(&mut self, key: u8, bytes: &[u8]) -> Result<Stored, StoreError> {
         self.used = true;
-        self.prepare(true)?;
         match block_on(self.map.store_item(&mut self.buf.0, &key, &bytes)) {
             Ok(()) => Ok(Stored::Appended),
             Err(
@@ -178,22 +171,40 @@ impl<F: NorFlash> SettingsStore<F> {
         }
     }
 
-    /// sequential-storage's save, as is.
-    pub(super) fn store_item(&mut self, key: u8, bytes: &[u8]) -> Result<(), StoreError> {
-        block_on(self.map.store_item(&mut self.buf.0, &key, &bytes)).map_err(store_error)
+    /// Erase the whole area and store `bytes` under `key`, keeping the other record if it
+    /// can be read.
+    fn reclaim(&mut self, key: u8, bytes: &[u8]) -> Result<Stored, StoreError> {
+        let other = if key == SETTINGS_KEY {
+            JOB_KEY
+        } else {
+            SETTINGS_KEY
+        };
+        let mut kept = [0u8; BUF_LEN];
+        let kept_len = match block_on(self.map.fetch_item::<&[u8]>(&mut self.buf.0, &other)) {
+            Ok(Some(b)) => kept.get_mut(..b.len()).map(|k| {
+                k.copy_from_slice(b);
+                b.len()
+            }),
+            _ => None,
+        };
+        block_on(self.map.erase_all()).map_err(store_error)?;
+        if let Some(k) = kept_len.and_then(|n| kept.get(..n)) {
+            block_on(self.map.store_item(&mut self.buf.0, &other, &k)).map_err(store_error)?;
+        }
+        block_on(self.map.store_item(&mut self.buf.0, &key, &bytes)).map_err(store_error)?;
+        Ok(Stored::Reclaimed)
     }
 
     /// True when some record (of any key) can be read.
     fn any_record(&mut self) -> bool {
         [SETTINGS_KEY, JOB_KEY, super::reserve::PAD_KEY]
             .into_iter()
-            .any(|k| matches!(self.fetch(k, present), Ok(Some(()))))
+            .any(|k| matches!(self.fetch(k, |_| Ok(())), Ok(Some(()))))
     }
 
     /// The saved settings: `Ok(None)` when none were ever saved, an error when what is there
     /// cannot be read or is refused (the caller falls back to the factory defaults).
     pub fn load(&mut self) -> Result<Option<Settings>, StoreError> {
-        let _ = self.prepare(false);
         match self.fetch(SETTINGS_KEY, Settings::decode)? {
             Some(s) => Ok(Some(s)),
             // Written, but no readable record at all: the settings item was damaged.
@@ -210,7 +221,6 @@ impl<F: NorFlash> SettingsStore<F> {
 
     /// The paused job kept for a power-cut resume (None: none, or cleared).
     pub fn load_job(&mut self) -> Result<Option<PausedJob>, StoreError> {
-        let _ = self.prepare(false);
         let got = self.fetch(JOB_KEY, |b| {
             if b == NO_JOB {
                 Ok(None)
@@ -232,14 +242,8 @@ impl<F: NorFlash> SettingsStore<F> {
     }
 }
 
-/// A decoder that only notes an item is there (one instance of [`SettingsStore::fetch`] for
-/// every such look-up: flash is tight).
-pub(super) fn present(_: &[u8]) -> Result<(), RecordError> {
-    Ok(())
-}
-
 /// True when every byte of `range` reads `0xFF` (a read error counts as written).
-pub(super) fn is_erased<F: NorFlash>(flash: &mut F, range: core::ops::Range<u32>) -> bool {
+fn is_erased<F: NorFlash>(flash: &mut F, range: core::ops::Range<u32>) -> bool {
     let mut chunk = [0u8; 64];
     let mut at = range.start;
     while at < range.end {
@@ -468,27 +472,6 @@ pub(crate) mod tests {
         ]
     }
 
-    /// The foreign areas, alone and with a paused job beside the foreign data: the sector of
-    /// an area where only that job was saved, copied over each sector in turn.
-    fn foreign_with_jobs() -> Vec<(String, Vec<u8>, Option<PausedJob>)> {
-        use crate::storage::job::tests::sample;
-        let job = sample(5, true);
-        let mut st = small_store(vec![0xFF; 3 * 1024]);
-        st.save_job(&job).unwrap();
-        let alone = st.into_flash().into_inner();
-        let mut areas = Vec::new();
-        for (what, bytes) in foreign() {
-            for sector in 0..3 {
-                let mut planted = bytes.clone();
-                planted[sector * 1024..][..1024].copy_from_slice(&alone[..1024]);
-                let what = format!("{what}, a job in sector {sector}");
-                areas.push((what, planted, Some(job.clone())));
-            }
-            areas.push((what.to_string(), bytes, None));
-        }
-        areas
-    }
-
     /// Issue 24: a foreign area answered `Corrupted` or `FullStorage` to every save, for ever.
     /// Now the save reclaims it; and a power cut at any write or erase of that reclaim (every
     /// kind of cut) leaves either no readable settings (the factory values load, as before
@@ -500,30 +483,19 @@ pub(crate) mod tests {
         let mut cuts = 0;
         let mut twice = 0;
         let mut reclaimed = 0;
-        let (mut kept, mut with_job) = (0, 0);
-        for (what, bytes, job) in foreign_with_jobs() {
+        for (what, bytes) in foreign() {
             let mut st = small_store(bytes.clone());
             assert!(!matches!(st.load(), Ok(Some(_))), "{what}");
-            // The paused job planted beside the foreign data, where it can be read.
-            let job = job.filter(|j| st.load_job() == Ok(Some(j.clone())));
-            with_job += usize::from(job.is_some());
-            let job_kept = |st: &mut SettingsStore<Small>, ctx: &str| {
-                if let Some(j) = &job {
-                    assert_eq!(st.load_job().as_ref(), Ok(&Some(j.clone())), "{ctx}: job");
-                }
-            };
             // sequential-storage's own repair handles some patterns (random bytes here); the
             // rest is reclaimed.
             let how = st.save(&nth(1));
             assert!(how.is_ok(), "{what}: {how:?}");
-            if what == "zeros" && job.is_none() {
+            if what == "zeros" {
                 // Every sector looks closed and full: only a reclaim makes room.
                 assert_eq!(how, Ok(Stored::Reclaimed), "{what}");
             }
             reclaimed += usize::from(how == Ok(Stored::Reclaimed));
-            kept += usize::from(how == Ok(Stored::Reclaimed) && job.is_some());
             assert_eq!(st.load(), Ok(Some(nth(1))), "{what}");
-            job_kept(&mut st, &what);
             assert_eq!(st.save(&nth(2)), Ok(Stored::Appended), "{what}");
             for kind in [Cut::Partial, Cut::PartialTail, Cut::Before] {
                 for n in 0.. {
@@ -543,7 +515,6 @@ pub(crate) mod tests {
                         }
                         _ => None,
                     };
-                    job_kept(&mut st, &ctx);
                     // The next save is cut too, at each of its operations in turn; the one
                     // after it works.
                     for m in 0.. {
@@ -564,177 +535,16 @@ pub(crate) mod tests {
                             }
                             (_, None) => {}
                         }
-                        job_kept(&mut st, &format!("{ctx}, then cut at {m}"));
                         assert!(st.save(&nth(4)).is_ok(), "{ctx}, then cut at {m}");
                         assert_eq!(st.load(), Ok(Some(nth(4))), "{ctx}, then cut at {m}");
-                        job_kept(&mut st, &format!("{ctx}, then cut at {m}, saved again"));
                     }
                 }
             }
         }
         assert!(cuts > 20, "{cuts}");
-        assert!(reclaimed >= 1, "{reclaimed} areas reclaimed");
-        assert!(with_job >= 6, "{with_job} areas with a readable job");
+        assert!(reclaimed >= 1, "{reclaimed} of 4 areas reclaimed");
         println!(
-            "reclaim power-fail sweep: {reclaimed} of {} areas reclaimed ({kept} keeping a job), {with_job} with a readable job, {cuts} cuts, {twice} second cuts",
-            foreign_with_jobs().len()
-        );
-    }
-
-    /// The reclaim itself, on areas whose records can be read: the foreign areas with a job
-    /// beside them, and whole areas holding settings and a job (saves reach the reclaim only
-    /// once sequential-storage refuses them, which the guard above leaves rare; this drives it
-    /// directly, as a state nobody foresaw would). A cut at any of its writes and erases (every
-    /// kind) keeps the job and leaves the settings old or new; the next save works and keeps
-    /// the job. The old reclaim erased the area whole first: a cut there lost both.
-    #[test]
-    fn a_cut_anywhere_in_a_reclaim_keeps_every_readable_record() {
-        let new = nth(50);
-        let (mut tested, mut cuts) = (0, 0);
-        for (what, bytes) in beside_areas() {
-            let mut st = SettingsStore::new(Two::new(bytes.clone()), TWO_RANGE).unwrap();
-            let (s0, j0) = (st.load().ok().flatten(), st.load_job().ok().flatten());
-            if j0.is_none() {
-                continue;
-            }
-            tested += 1;
-            for kind in [Cut::Partial, Cut::PartialTail, Cut::Before] {
-                for n in 0.. {
-                    let mut flash = Two::new(bytes.clone());
-                    flash.cut_power(n, kind);
-                    let mut st = SettingsStore::new(flash, TWO_RANGE).unwrap();
-                    if st.reclaim(SETTINGS_KEY, &new.encode()).is_ok() {
-                        assert_eq!(st.load(), Ok(Some(new)), "{what}");
-                        assert_eq!(st.load_job().ok().flatten(), j0, "{what}");
-                        break;
-                    }
-                    cuts += 1;
-                    let mut flash = st.into_flash();
-                    flash.restore_power();
-                    let mut st = SettingsStore::new(flash, TWO_RANGE).unwrap();
-                    let ctx = format!("{what}, {kind:?} cut at op {n}");
-                    let s = st.load().ok().flatten();
-                    assert!(s == s0 || s == Some(new), "{ctx}: settings {s:?}");
-                    assert_eq!(st.load_job().ok().flatten(), j0, "{ctx}: job");
-                    assert!(st.save(&nth(60)).is_ok(), "{ctx}");
-                    assert_eq!(st.load(), Ok(Some(nth(60))), "{ctx}");
-                    assert_eq!(st.load_job().ok().flatten(), j0, "{ctx}: job after a save");
-                }
-            }
-        }
-        assert!(tested >= 10 && cuts > 40, "{tested} areas, {cuts} cuts");
-        println!("reclaim with records: {tested} areas, {cuts} cuts");
-    }
-
-    /// The board's two sectors, small: a record kept in one, the other foreign.
-    type Two = NorFlashModel<Vec<u8>, 4, 1024>;
-    const TWO_RANGE: core::ops::Range<u32> = 0..2 * 1024;
-
-    /// Two-sector areas whose settings and job are whole, with foreign data (zeros, random
-    /// bytes, an erase cut half-way either way) over one sector, its records' or the other.
-    fn beside_areas() -> Vec<(String, Vec<u8>)> {
-        use crate::storage::job::tests::sample;
-        let mut seed = 0x5eed_0001u32;
-        let mut patterns: Vec<(&str, Vec<u8>)> = vec![("zeros", vec![0; 1024])];
-        let random = (0..1024)
-            .map(|_| {
-                seed ^= seed << 13;
-                seed ^= seed >> 17;
-                seed ^= seed << 5;
-                seed as u8
-            })
-            .collect();
-        patterns.push(("random", random));
-        let mut head = vec![0u8; 1024];
-        head[..512].fill(0xFF);
-        patterns.push(("erased head", head));
-        let mut tail = vec![0u8; 1024];
-        tail[512..].fill(0xFF);
-        patterns.push(("erased tail", tail));
-        let mut areas = Vec::new();
-        for pre in [0u32, 4] {
-            let mut st = SettingsStore::new(Two::erased(vec![0; 2048]), TWO_RANGE).unwrap();
-            for k in 0..=pre {
-                st.save(&nth(k)).unwrap();
-            }
-            st.save_job(&sample(7, false)).unwrap();
-            let clean = st.into_flash().into_inner();
-            areas.push((format!("{pre} saves, no foreign data"), clean.clone()));
-            for sector in 0..2 {
-                for (what, pattern) in &patterns {
-                    let mut bytes = clean.clone();
-                    bytes[sector * 1024..][..1024].copy_from_slice(pattern);
-                    areas.push((
-                        format!("{what} over sector {sector} after {pre} saves"),
-                        bytes,
-                    ));
-                }
-            }
-        }
-        areas
-    }
-
-    /// Foreign data over one sector of a two-sector area whose records are whole (the other
-    /// firmware's, zeros, random bytes, an erase cut half-way either way), then a save of the
-    /// one record, cut at every write and erase (every kind of cut), and once whole: every
-    /// record that could be read before the save can be read after it, the saved one old or
-    /// new, the other unchanged. Before, sequential-storage's repair took a foreign sector
-    /// after the open one for a migration's source and erased the records in the open one
-    /// (no power cut needed), and the reclaim of an area it refused erased it whole with a
-    /// record in RAM (lost if cut there).
-    #[test]
-    fn foreign_data_beside_the_records_never_costs_a_readable_one() {
-        let (mut cases, mut cuts, mut reclaimed) = (0, 0, 0);
-        for (what, bytes) in beside_areas() {
-            {
-                {
-                    let mut st = SettingsStore::new(Two::new(bytes.clone()), TWO_RANGE).unwrap();
-                    let (s0, j0) = (st.load().ok().flatten(), st.load_job().ok().flatten());
-                    if s0.is_none() && j0.is_none() {
-                        continue; // the pattern hit the records: nothing readable to keep
-                    }
-                    cases += 1;
-                    let new = nth(100);
-                    let check = |st: &mut SettingsStore<Two>, ctx: &str| {
-                        let s = st.load().ok().flatten();
-                        assert!(s == s0 || s == Some(new), "{ctx}: settings {s:?}");
-                        if s0.is_some() {
-                            assert!(s.is_some(), "{ctx}: settings lost");
-                        }
-                        assert_eq!(st.load_job().ok().flatten(), j0, "{ctx}: job");
-                    };
-                    let ctx = what.clone();
-                    let how = st.save(&new);
-                    assert!(how.is_ok(), "{ctx}: {how:?}");
-                    reclaimed += usize::from(how == Ok(Stored::Reclaimed));
-                    assert_eq!(st.load(), Ok(Some(new)), "{ctx}");
-                    check(&mut st, &ctx);
-                    for kind in [Cut::Partial, Cut::PartialTail, Cut::Before] {
-                        for n in 0.. {
-                            let mut flash = Two::new(bytes.clone());
-                            flash.cut_power(n, kind);
-                            let mut st = SettingsStore::new(flash, TWO_RANGE).unwrap();
-                            if st.save(&new).is_ok() {
-                                break;
-                            }
-                            cuts += 1;
-                            let mut flash = st.into_flash();
-                            flash.restore_power();
-                            let mut st = SettingsStore::new(flash, TWO_RANGE).unwrap();
-                            let ctx = format!("{ctx}, {kind:?} cut at op {n}");
-                            check(&mut st, &ctx);
-                            // The next save works and keeps the job.
-                            assert!(st.save(&nth(200)).is_ok(), "{ctx}");
-                            assert_eq!(st.load(), Ok(Some(nth(200))), "{ctx}");
-                            assert_eq!(st.load_job().ok().flatten(), j0, "{ctx}: job");
-                        }
-                    }
-                }
-            }
-        }
-        assert!(cases >= 8 && cuts > 50, "{cases} cases, {cuts} cuts");
-        println!(
-            "foreign sector beside records: {cases} areas ({reclaimed} reclaimed), {cuts} cuts"
+            "reclaim power-fail sweep: {reclaimed} of 4 foreign areas reclaimed, {cuts} cuts, {twice} second cuts"
         );
     }
 
