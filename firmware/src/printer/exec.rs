@@ -132,10 +132,13 @@ impl Printer {
         // The layer started when its first block starts on the motion timeline, which runs
         // ahead of or behind the caller's clock (a block entered at speed continues from the
         // last step however late the poll that loads it).
-        let start_us = crate::stepgen::div_small(self.stepgen.start_ns(&pb, self.now_ns()), 1000).0;
+        // (Worked out only for a block with a mark: this runs for every block.)
+        let mut start_us = None;
         while let Some(m) = self.planner.take_mark_before(pb.block.id) {
             self.layer_crossed(&m);
-            let t_us = start_us;
+            let t_us = *start_us.get_or_insert_with(|| {
+                crate::stepgen::div_small(self.stepgen.start_ns(&pb, self.now_ns()), 1000).0
+            });
             self.record(Record::Layer {
                 layer: m.layer,
                 t_us,
