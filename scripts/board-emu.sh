@@ -7,14 +7,15 @@
 # Honours CARGO_TARGET_DIR. Needs arm-none-eabi-objcopy (scripts/setup.sh).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+source scripts/fw-env.sh
 target_dir="${CARGO_TARGET_DIR:-target}"
-features=board
+features=f407
 chip=f407
 args=()
 for a in "$@"; do
-  if [ "$a" = "--f429" ]; then features=board-f429; chip=f429; args+=("--f429"); else args+=("$a"); fi
+  if [ "$a" = "--f429" ]; then features=f429; chip=f429; args+=("--f429"); else args+=("$a"); fi
 done
-cargo build --quiet -p firmware --bin skr2 --features "$features" --target thumbv7em-none-eabihf --profile fw
+cargo build --quiet -p skr2 --features "$features" --target thumbv7em-none-eabihf --profile fw
 elf="$target_dir/thumbv7em-none-eabihf/fw/skr2"
 mkdir -p "$target_dir/board-emu"
 cp "$elf" "$target_dir/board-emu/skr2-$chip.elf"

@@ -1,22 +1,23 @@
 #!/usr/bin/env bash
-# Builds the SKR 2 images, one per MCU the board has shipped with: STM32F407VG (`--features
-# board`, the `cargo fw` alias) and STM32F429VG (`--features board-f429`, boards sold since late
-# 2021). Writes target/firmware-f407.bin and target/firmware-f429.bin for the SD-card bootloader
+# Builds the SKR 2 images (crate `firmware/skr2`), one per MCU the board has shipped with:
+# STM32F407VG (`--features f407`, the `cargo fw` alias) and STM32F429VG (`--features f429`,
+# boards sold since late 2021). Writes target/firmware-f407.bin and target/firmware-f429.bin for the SD-card bootloader
 # (copy the one for your chip to the card as firmware.bin; docs/board.md), keeps each ELF next to
-# it, and prints each image's flash and static RAM use against the targets (flash <= 256 KiB,
+# it, and prints each image's flash and static RAM use against the targets (flash <= 384 KiB,
 # static RAM <= 64 KiB), and fails if a loadable ELF segment would touch the bootloader or the
 # settings sectors. Honours CARGO_TARGET_DIR. Needs arm-none-eabi-objcopy/size and readelf
 # (Debian: binutils-arm-none-eabi and binutils, installed by scripts/setup.sh).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+source scripts/fw-env.sh
 target_dir="${CARGO_TARGET_DIR:-target}"
 elf="$target_dir/thumbv7em-none-eabihf/fw/skr2"
 for chip in f407 f429; do
   case "$chip" in
-    f407) features=board ;;
-    f429) features=board-f429 ;;
+    f407) features=f407 ;;
+    f429) features=f429 ;;
   esac
-  cargo build -p firmware --bin skr2 --features "$features" --target thumbv7em-none-eabihf --profile fw
+  cargo build -p skr2 --features "$features" --target thumbv7em-none-eabihf --profile fw
   cp "$elf" "$target_dir/skr2-$chip.elf"
   bin="$target_dir/firmware-$chip.bin"
   arm-none-eabi-objcopy -O binary "$elf" "$bin"
@@ -25,8 +26,8 @@ for chip in f407 f429; do
     $1==".data"||$1==".bss"||$1==".uninit" {ram+=$2}
     $1==".vector_table" {vt=$3}
     END {
-      printf "firmware image %s: flash %.1f KiB (target <= 256 KiB), static RAM %.1f KiB (target <= 64 KiB), vector table at 0x%08x\n", chip, flash/1024, ram/1024, vt
-      if (flash > 256*1024 || ram > 64*1024) { print "firmware image: OVER BUDGET"; exit 1 }
+      printf "firmware image %s: flash %.1f KiB (target <= 384 KiB), static RAM %.1f KiB (target <= 64 KiB), vector table at 0x%08x\n", chip, flash/1024, ram/1024, vt
+      if (flash > 384*1024 || ram > 64*1024) { print "firmware image: OVER BUDGET"; exit 1 }
       if (vt != 134250496) { print "firmware image: vector table not at 0x08008000"; exit 1 }
     }'
   # No loadable segment may reach into the SD bootloader (0x08000000-0x08007FFF, sectors 0-1)

@@ -5,6 +5,7 @@
 # digest must equal the host's.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+source scripts/fw-env.sh
 bash scripts/setup.sh
 # The end-to-end tests use the sim and host-tools binaries this run builds (with the
 # workspace's features) instead of rebuilding them for `-p sim -p host-tools` alone (≈ 2 min;

@@ -204,16 +204,6 @@ impl MachineConfig {
         &self.axes[axis.index()]
     }
 
-    /// The TMC2209 settings of `axis`'s driver: its microsteps, M906 current and M569 mode,
-    /// BigTreeTech's 0.11 Ω sense resistor, hold at half the run current.
-    pub fn driver_settings(&self, axis: Axis) -> crate::drivers::tmc2209::DriverSettings {
-        let i = axis.index();
-        let mut s = crate::drivers::tmc2209::DriverSettings::ender3(self.driver_current_ma[i]);
-        s.microsteps = self.axes[i].microsteps;
-        s.stealthchop = self.driver_stealthchop[i];
-        s
-    }
-
     /// Bit i set: DIR high moves axis i in the positive direction (what the step pins need).
     pub fn dir_high_positive_mask(&self) -> u8 {
         self.axes

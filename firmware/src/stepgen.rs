@@ -452,15 +452,7 @@ impl StepGen {
     /// Time of the next step event, µs, if a step is due in the loaded block.
     #[inline(always)]
     pub fn peek_time_ns(&mut self) -> Option<u64> {
-        let e = self.exec.as_mut()?;
-        // `slice_end <= stop_at` always (a slice never runs past the stop, and every change
-        // of `stop_at` restarts the slice at `done`): inside a slice, one compare suffices.
-        if e.done >= e.slice_end {
-            if e.done >= e.stop_at {
-                return None;
-            }
-            Self::prepare_slice(e, self.t_last_ns);
-        }
+        let e = slice_ready(&mut self.exec, self.t_last_ns)?;
         let mut t = self.t_last_ns + e.slice_dt_ns;
         if e.slice_acc + e.slice_rem >= e.slice_m {
             t += 1;
@@ -497,15 +489,7 @@ impl StepGen {
     /// held): then unload/load the next block.
     #[inline(always)]
     pub fn next_event(&mut self) -> Option<StepEvent> {
-        let e = self.exec.as_mut()?;
-        // `slice_end <= stop_at` always (a slice never runs past the stop, and every change
-        // of `stop_at` restarts the slice at `done`): inside a slice, one compare suffices.
-        if e.done >= e.slice_end {
-            if e.done >= e.stop_at {
-                return None;
-            }
-            Self::prepare_slice(e, self.t_last_ns);
-        }
+        let e = slice_ready(&mut self.exec, self.t_last_ns)?;
         let mut t = self.t_last_ns + e.slice_dt_ns;
         e.slice_acc += e.slice_rem;
         if e.slice_acc >= e.slice_m {
@@ -536,4 +520,22 @@ impl StepGen {
             kind: e.planned.block.kind,
         })
     }
+}
+
+/// The loaded block with a slice ready for its next step — the next slice is prepared when the
+/// current one is used up —, or `None` when the block has no step left: the set-up shared by
+/// [`StepGen::peek_time_ns`] and [`StepGen::next_event`] (a function of the field, so the caller
+/// keeps its other fields).
+#[inline(always)]
+fn slice_ready(exec: &mut Option<ExecBlock>, t_last_ns: u64) -> Option<&mut ExecBlock> {
+    let e = exec.as_mut()?;
+    // `slice_end <= stop_at` always (a slice never runs past the stop, and every change of
+    // `stop_at` restarts the slice at `done`): inside a slice, one compare suffices.
+    if e.done >= e.slice_end {
+        if e.done >= e.stop_at {
+            return None;
+        }
+        StepGen::prepare_slice(e, t_last_ns);
+    }
+    Some(e)
 }

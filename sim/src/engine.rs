@@ -7,7 +7,7 @@
 //! request). Nothing here knows about motion planning.
 
 use crate::hostlink::{Host, Origin};
-use crate::port::{Executive, Lane, RunState, StepEvent};
+use crate::port::{BlockTag, Executive, Lane, State, StepEvent};
 use crate::recorder::Recorder;
 use crate::thermal::Heaters;
 
@@ -198,7 +198,7 @@ impl<E: Executive> Engine<E> {
             && self.host.rx.is_idle()
             && self.rx_pending.is_empty()
             && self.fw.next_step_us(self.now_us).is_none()
-            && matches!(st, RunState::Idle | RunState::Cancelled | RunState::Halted)
+            && matches!(st, State::Idle | State::Cancelled | State::Halted)
     }
 
     /// Run events until `deadline_us` (inclusive of events at that time), until finished, or
@@ -215,7 +215,7 @@ impl<E: Executive> Engine<E> {
                 || t_rx.is_some()
                 || !self.host.done()
                 || !self.rx_pending.is_empty()
-                || state != RunState::Idle;
+                || state != State::Idle;
             if !busy {
                 return Stop::Finished;
             }
@@ -257,10 +257,10 @@ impl<E: Executive> Engine<E> {
                 if let Some(ev) = self.fw.pop_step(self.now_us) {
                     let new_block = self.rec.on_step(&ev);
                     if new_block {
-                        if !self.rec.keep_records && ev.tag.lane == Lane::Job {
+                        if !self.rec.keep_records && BlockTag::of(&ev).lane == Lane::Job {
                             // Nothing will ask where an executed block came from: memory
                             // stays flat with job length.
-                            self.seqs.forget_before(ev.tag.seq);
+                            self.seqs.forget_before(ev.seq);
                         }
                         self.poll_fw();
                     }

@@ -2,14 +2,14 @@
 //! [`Factory`] that configures it per policy (the conventional policies are the same code with
 //! segmentation off, the pause queued at the tail, and 16 queued moves).
 
-use crate::port::{BlockTag, ExecStatus, Executive, FirmwareKnobs, Lane, RunState, StepEvent};
+use crate::port::{ExecStatus, Executive, FirmwareKnobs, StepEvent};
 use crate::run::Factory;
 use firmware::config::MachineConfig;
 use firmware::homing::HomingConfig;
 use firmware::motion::Axis;
 use firmware::motion::Realtime;
 use firmware::planner::BlockKind;
-use firmware::printer::{Policy, Printer, Record, State};
+use firmware::printer::{Policy, Printer, Record};
 use firmware::thermal::HeaterId;
 
 /// A notable record from the firmware (speed-up, brake, stop, layer), kept for timelines.
@@ -126,18 +126,6 @@ impl PrinterExec {
     }
 }
 
-fn state_of(s: State) -> RunState {
-    match s {
-        State::Idle => RunState::Idle,
-        State::Printing => RunState::Printing,
-        State::Pausing => RunState::Pausing,
-        State::Paused => RunState::Paused,
-        State::Resuming => RunState::Resuming,
-        State::Cancelled => RunState::Cancelled,
-        State::Halted => RunState::Halted,
-    }
-}
-
 impl Executive for PrinterExec {
     fn receive(&mut self, bytes: &[u8], now_us: u64) -> usize {
         let n = self.printer.receive(bytes, now_us);
@@ -167,20 +155,7 @@ impl Executive for PrinterExec {
             e.step(ev.axis_mask, ev.dir_mask);
             e.report(&mut self.printer);
         }
-        Some(StepEvent {
-            t_us: ev.t_us,
-            t_ns: ev.t_ns,
-            axis_mask: ev.axis_mask,
-            dir_mask: ev.dir_mask,
-            tag: BlockTag {
-                seq: ev.seq,
-                segment: ev.seg,
-                lane: match ev.kind {
-                    BlockKind::Service => Lane::Service,
-                    BlockKind::Job | BlockKind::Homing => Lane::Job,
-                },
-            },
-        })
+        Some(ev)
     }
 
     fn take_output(&mut self, out: &mut String) {
@@ -190,7 +165,7 @@ impl Executive for PrinterExec {
     fn status(&self) -> ExecStatus {
         let s = self.printer.status();
         ExecStatus {
-            state: state_of(s.state),
+            state: s.state,
             pos_steps: s.position,
             layer: s.layer,
             queue_depth: s.queue_depth,
@@ -248,6 +223,7 @@ impl Factory for PrinterFactory {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::port::State;
 
     /// G28 in the sim with endstops: every axis ends exactly at its switch, whatever the
     /// firmware believed at power-on.
@@ -268,7 +244,7 @@ mod tests {
             }
             e.take_output(&mut out);
             now += 1000;
-            if now > 1_000_000 && e.status().state == RunState::Idle {
+            if now > 1_000_000 && e.status().state == State::Idle {
                 break;
             }
         }

@@ -4,6 +4,10 @@
 //! Nothing here plans motion or decides a pause: that is the firmware's job.
 
 use firmware::motion::{Realtime, StepPos};
+use firmware::planner::BlockKind;
+/// The executive's run state and its step events, as the firmware defines them.
+pub use firmware::printer::State;
+pub use firmware::stepgen::StepEvent;
 
 /// Which lane a step belongs to.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -25,52 +29,31 @@ pub struct BlockTag {
     pub lane: Lane,
 }
 
-/// One step event: the axes in `axis_mask` step at once.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct StepEvent {
-    /// When the step pulses happen, µs of virtual time.
-    pub t_us: u64,
-    /// The same instant in ns.
-    pub t_ns: u64,
-    /// Bit `i` set: axis `i` (X=0, Y=1, Z=2, E=3) steps.
-    pub axis_mask: u8,
-    /// Bit `i` set: axis `i` moves in the positive direction.
-    pub dir_mask: u8,
-    /// The block the steps belong to.
-    pub tag: BlockTag,
-}
-
-impl StepEvent {
-    /// Same time, axes and directions (the block tag is not compared).
-    pub fn same_motion(&self, o: &StepEvent) -> bool {
-        self.t_ns == o.t_ns && self.axis_mask == o.axis_mask && self.dir_mask == o.dir_mask
+impl BlockTag {
+    /// The block `ev` belongs to (homing moves are job moves to the sim: the job commanded
+    /// them).
+    pub fn of(ev: &StepEvent) -> Self {
+        BlockTag {
+            seq: ev.seq,
+            segment: ev.seg,
+            lane: match ev.kind {
+                BlockKind::Service => Lane::Service,
+                BlockKind::Job | BlockKind::Homing => Lane::Job,
+            },
+        }
     }
 }
 
-/// The executive's run state, as the sim sees it.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
-pub enum RunState {
-    /// Nothing to do.
-    Idle,
-    /// Printing the job.
-    Printing,
-    /// A pause was requested and is taking hold (speed-up, braking, pause sequence).
-    Pausing,
-    /// Paused and parked.
-    Paused,
-    /// Returning from the park position.
-    Resuming,
-    /// The job was cancelled.
-    Cancelled,
-    /// Emergency stop or fault: halted until reset.
-    Halted,
+/// Whether two step events are the same motion: time, axes and directions (not the block).
+pub fn same_motion(a: &StepEvent, b: &StepEvent) -> bool {
+    a.t_ns == b.t_ns && a.axis_mask == b.axis_mask && a.dir_mask == b.dir_mask
 }
 
 /// What the sim reads of the executive's state.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ExecStatus {
     /// Run state.
-    pub state: RunState,
+    pub state: State,
     /// Position in steps (where the stepper is now).
     pub pos_steps: StepPos,
     /// Current layer, when known.

@@ -6,7 +6,7 @@
 //! resume therefore appears twice, with the service moves in between; the metrics treat the two
 //! parts as one execution.
 
-use crate::port::{BlockTag, ExecStatus, Lane, RunState, StepEvent};
+use crate::port::{BlockTag, ExecStatus, Lane, State, StepEvent};
 use firmware::motion::StepPos;
 
 /// One executed block (or the part of one executed between two other blocks).
@@ -32,7 +32,7 @@ pub struct StateChange {
     /// When the sim saw it, µs.
     pub t_us: u64,
     /// The new state.
-    pub state: RunState,
+    pub state: State,
     /// Position then.
     pub pos: StepPos,
 }
@@ -72,12 +72,13 @@ impl Recorder {
     /// Take one step event. Returns true when it starts a new block.
     #[inline]
     pub fn on_step(&mut self, ev: &StepEvent) -> bool {
-        let new_block = self.cur != Some(ev.tag);
+        let tag = BlockTag::of(ev);
+        let new_block = self.cur != Some(tag);
         if new_block {
-            self.cur = Some(ev.tag);
+            self.cur = Some(tag);
             if self.keep_records {
                 self.records.push(SegRecord {
-                    tag: ev.tag,
+                    tag,
                     t_start_us: ev.t_us,
                     t_end_us: ev.t_us,
                     start: self.pos,
@@ -137,7 +138,7 @@ impl Recorder {
     }
 
     /// Time of the first change into `state` at or after `from_us`.
-    pub fn first_state_after(&self, state: RunState, from_us: u64) -> Option<u64> {
+    pub fn first_state_after(&self, state: State, from_us: u64) -> Option<u64> {
         self.states
             .iter()
             .find(|s| s.state == state && s.t_us >= from_us)
@@ -203,11 +204,9 @@ mod tests {
             t_ns: t * 1000,
             axis_mask: 1 << axis,
             dir_mask: if dir > 0 { 1 << axis } else { 0 },
-            tag: BlockTag {
-                seq,
-                segment: 0,
-                lane: Lane::Job,
-            },
+            seq,
+            seg: 0,
+            kind: firmware::planner::BlockKind::Job,
         }
     }
 

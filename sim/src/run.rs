@@ -19,7 +19,7 @@ use crate::engine::{Engine, Stop};
 use crate::hostlink::{Host, Refusals};
 use crate::job::{HostState, JobInfo, JobLines};
 use crate::metrics::{self, PauseReport, RunFacts, RunView};
-use crate::port::{Executive, FirmwareKnobs, RunState};
+use crate::port::{Executive, FirmwareKnobs, State};
 use crate::split;
 use crate::stream::{self, Compare, LineEnds, Side};
 use drive::{
@@ -284,7 +284,7 @@ impl<'s, E: Executive> Run<'s, E> {
                 break;
             }
             b.advance(next, false);
-            let pausing = matches!(a.fw.status().state, RunState::Pausing | RunState::Paused);
+            let pausing = matches!(a.fw.status().state, State::Pausing | State::Paused);
             if pausing || matches!(stop, Stop::Finished | Stop::Stalled) || next >= until {
                 break;
             }

@@ -8,7 +8,7 @@ use firmware::config::MachineConfig;
 use firmware::link::PortId;
 use firmware::printer::Printer;
 use sim::exec::PrinterExec;
-use sim::port::{Executive, RunState};
+use sim::port::{Executive, State};
 use sim::thermal::Heaters;
 
 struct Rig {
@@ -67,7 +67,7 @@ impl Rig {
         }
     }
 
-    fn state(&self) -> RunState {
+    fn state(&self) -> State {
         self.fw.status().state
     }
 }
@@ -101,11 +101,11 @@ fn paused_rig(timeout: Option<&str>) -> Rig {
     r.run(2_000_000, |_, _| {});
     r.send("M601");
     let mut n = 0;
-    while r.state() != RunState::Paused && n < 60_000 {
+    while r.state() != State::Paused && n < 60_000 {
         r.run(1_000, |_, _| {});
         n += 1;
     }
-    assert_eq!(r.state(), RunState::Paused, "{}", r.out);
+    assert_eq!(r.state(), State::Paused, "{}", r.out);
     r
 }
 

@@ -248,7 +248,7 @@ impl Board {
                 t_ns: ev.t_ns,
                 axis_mask: ev.axis_mask,
                 dir_mask: ev.dir_mask,
-                flags: EventFlags::of(&self.p, &ev),
+                flags: EventFlags::of(self.p.homing_watch(), &ev),
             };
             if let Err(e) = self.queue.push_back(e) {
                 self.held = Some(e);

@@ -21,7 +21,7 @@
 //!
 //! This module only sequences pins (embedded-hal traits, a delay): the board wires its pins;
 //! the report (`Error:X driver is backward!`, Marlin's `stepper_driver_backward_error`) and
-//! the halt are [`crate::printer::Printer::drivers_backward`].
+//! the halt are `Printer::drivers_backward`.
 
 use embedded_hal::delay::DelayNs;
 use embedded_hal::digital::{InputPin, OutputPin};

@@ -3,7 +3,7 @@
 //! approach's switch before each of the approach's events, as Marlin's stepper ISR checks its
 //! endstops, and when the switch is pressed it takes no more steps: that event and every event
 //! still queued are dropped and counted ([`Trip::undone`]). The motion loop takes the trip
-//! ([`EndstopWatch::take`]) and hands it to [`crate::printer::Printer::endstop_trip`], which ends
+//! ([`EndstopWatch::take`]) and hands it to `Printer::endstop_trip`, which ends
 //! the move and moves the executive's position back by what was never taken.
 //!
 //! Each queued event carries [`EventFlags`]: whether it belongs to a homing move (allowed
@@ -13,7 +13,6 @@
 use crate::homing::Endstops;
 use crate::motion::{Axis, AXES};
 use crate::planner::BlockKind;
-use crate::printer::Printer;
 use crate::stepgen::StepEvent;
 
 /// Per-event flags of the board's step queue (one byte).
@@ -24,11 +23,11 @@ impl EventFlags {
     /// A homing move: allowed on axes not homed yet, outside the software limits.
     pub const HOMING: u8 = 1 << 7;
 
-    /// The flags of `ev`, taken from `p` (call right after [`Printer::next_step`]: the homing
-    /// move cannot change in between).
-    pub fn of(p: &Printer, ev: &StepEvent) -> Self {
+    /// The flags of `ev`; `watch` is the executive's `Printer::homing_watch()` mask, read
+    /// right after `Printer::next_step` (the homing move cannot change in between).
+    pub fn of(watch: u8, ev: &StepEvent) -> Self {
         if ev.kind == BlockKind::Homing {
-            EventFlags(Self::HOMING | (p.homing_watch() & 0b111))
+            EventFlags(Self::HOMING | (watch & 0b111))
         } else {
             EventFlags(0)
         }

@@ -273,6 +273,16 @@ impl DriverSettings {
         }
     }
 
+    /// The settings of `axis`'s driver in `cfg`: its microsteps, M906 current and M569 mode,
+    /// BigTreeTech's 0.11 Ω sense resistor, hold at half the run current.
+    pub fn of_axis(cfg: &crate::config::MachineConfig, axis: crate::motion::Axis) -> Self {
+        let i = axis.index();
+        let mut s = Self::ender3(cfg.driver_current_ma[i]);
+        s.microsteps = cfg.axes[i].microsteps;
+        s.stealthchop = cfg.driver_stealthchop[i];
+        s
+    }
+
     /// The register values, in the order they are written.
     pub fn registers(&self) -> [(u8, u32); 5] {
         let (vsense, irun) = current_scale(self.run_ma, self.rsense_ohm);

@@ -171,7 +171,7 @@ pub enum Command {
         /// `R`: radius (instead of I/J); negative picks the larger arc.
         r: Option<f32>,
         /// `P`: complete extra circles before the arc (Marlin's `ARC_P_CIRCLES`), 0 when not
-        /// given, at most [`crate::machine::ARC_MAX_CIRCLES`].
+        /// given, at most [`crate::gcode::ARC_MAX_CIRCLES`].
         circles: u8,
         /// `F`: feed rate, units/min.
         feed: Option<f32>,

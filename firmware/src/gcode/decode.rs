@@ -27,7 +27,7 @@ pub(super) fn build_known(code: (u8, u16), w: &Words<'_>) -> Option<Result<Comma
                 w.check(b"XYZEFIJRP", b"")?;
                 // P: whole circles, 0..=100 as Marlin's G2_G3.cpp allows.
                 let circles = w.u8(b'P')?.unwrap_or(0);
-                if circles > crate::machine::ARC_MAX_CIRCLES {
+                if circles > crate::gcode::ARC_MAX_CIRCLES {
                     return Err(err(ParseErrorKind::OutOfRange, 0));
                 }
                 Command::Arc {

@@ -77,6 +77,10 @@ pub use error::{ParseError, ParseErrorKind};
 pub(crate) use number::decimal;
 pub use number::{MAX_ABS_VALUE, MAX_NUMBER_LEN, MAX_SIG_DIGITS, MIN_ABS_VALUE};
 pub use parse::{parse_line, Line};
+
+/// Most extra circles of `G2`/`G3 P<n>` (Marlin's `ARC_P_CIRCLES` refuses n outside 0..=100
+/// with `G2/G3 bad parameters`; a larger P is a parse error here, the line changes nothing).
+pub const ARC_MAX_CIRCLES: u8 = 100;
 use words::Words;
 
 #[cfg(test)]

@@ -352,7 +352,7 @@ fn command() -> impl Strategy<Value = Command> {
             any::<bool>(),
             axes(),
             (onum(), onum(), onum()),
-            0..=crate::machine::ARC_MAX_CIRCLES,
+            0..=crate::gcode::ARC_MAX_CIRCLES,
             onum()
         )
             .prop_map(|(clockwise, axes, (i, j, r), circles, feed)| Command::Arc {

@@ -30,9 +30,8 @@ pub const ARC_MIN_SEGMENT_MM: f64 = 0.1;
 /// Most segments per arc.
 pub const ARC_MAX_SEGMENTS: u32 = 2048;
 
-/// Most extra circles of `G2`/`G3 P<n>` (Marlin refuses n outside 0..=100 with `G2/G3 bad
-/// parameters`; a larger P is a parse error here, the line changes nothing).
-pub const ARC_MAX_CIRCLES: u8 = 100;
+/// Most extra circles of `G2`/`G3 P<n>`: the bound the G-code reader enforces.
+pub use crate::gcode::ARC_MAX_CIRCLES;
 
 /// How far, mm, the end point's distance from the centre may differ from the start point's
 /// before the arc is refused (plus 2 % of the radius).

@@ -62,7 +62,7 @@ impl Printer {
     /// What the driver of `axis` should be set to, from the configuration (microsteps, M906
     /// current, M569 mode).
     pub fn driver_settings(&self, axis: Axis) -> DriverSettings {
-        self.cfg.driver_settings(axis)
+        DriverSettings::of_axis(&self.cfg, axis)
     }
 
     /// The board's outcome of configuring the driver of `axis`, on every host port (it comes at

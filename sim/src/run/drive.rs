@@ -5,7 +5,7 @@ use super::{Factory, Policy, Scenario};
 use crate::engine::{Engine, Stop};
 use crate::hostlink::{Host, Origin};
 use crate::job::JobLines;
-use crate::port::{Executive, RunState};
+use crate::port::{Executive, State};
 use crate::stream::{self, Compare, LineEnds, Side};
 
 pub(super) fn new_engine<F: Factory>(f: &F, sc: &Scenario, job: JobLines) -> Engine<F::Exec> {
@@ -29,7 +29,7 @@ pub(super) fn line_time<F: Factory>(
         match e.advance(sc.max_time_us, true) {
             Stop::Step(ev) => {
                 let here = matches!(
-                    e.origin_of_seq(ev.tag.seq),
+                    e.origin_of_seq(ev.seq),
                     Some(Origin::Job(l)) if lines.contains(&l)
                 );
                 match (t0, here) {
@@ -106,7 +106,7 @@ pub(super) fn lockstep<E: Executive>(
         match b.advance(max_us, true) {
             Stop::Step(eb) => match a.advance(eb.t_us, true) {
                 Stop::Step(ea) => {
-                    if !ea.same_motion(&eb) {
+                    if !crate::port::same_motion(&ea, &eb) {
                         return Some(ea.t_us.min(eb.t_us));
                     }
                 }
@@ -131,7 +131,7 @@ pub(super) fn wait_parked<E: Executive>(a: &mut Engine<E>, sc: &Scenario) -> Opt
         let st = a.fw.status().state;
         let idle_motion = a.fw.next_step_us(a.now_us).is_none();
         let parked = match sc.policy {
-            Policy::Fifo | Policy::Firmware => st == RunState::Paused && idle_motion,
+            Policy::Fifo | Policy::Firmware => st == State::Paused && idle_motion,
             Policy::HostSplit => {
                 a.host.holding()
                     && a.host.inserts_done()

@@ -4,7 +4,7 @@
 
 use super::ServeArgs;
 use crate::exec::{PrinterExec, PrinterFactory};
-use crate::port::{Executive, RunState};
+use crate::port::{Executive, State};
 use crate::recorder::Recorder;
 use crate::run::{Factory, Scenario};
 use crate::thermal::Heaters;
@@ -109,7 +109,7 @@ impl Machine {
         let idle = self.fw.next_step_us(now_us).is_none()
             && !matches!(
                 st,
-                RunState::Printing | RunState::Pausing | RunState::Resuming
+                State::Printing | State::Pausing | State::Resuming
             );
         if idle {
             self.keep()?;

@@ -4,7 +4,7 @@
 use super::track::PauseTrack;
 use crate::exec::PrinterExec;
 use crate::metrics::{max_abs_diff, PauseReport};
-use crate::port::{Executive, Lane, RunState};
+use crate::port::{Executive, Lane, State};
 use crate::recorder::{Recorder, Scale};
 use crate::run::Scenario;
 use crate::session::{extrusion_layers, first_boundary_after, SessionReport};
@@ -70,7 +70,7 @@ pub(super) fn reports(
         duplicated_segments: moves.duplicated.1,
         executed_in_order: moves.lost.1 == 0 && moves.duplicated.1 == 0,
         print_time_s: end_us.saturating_sub(t0_us) as f64 * 1e-6,
-        finished: fw.status().state == RunState::Idle
+        finished: fw.status().state == State::Idle
             && !cancelled_last
             && !moves.running_at_end
             && moves.lost.0 == 0,
@@ -318,7 +318,7 @@ pub(super) fn session_record(
             cancelled_moves: moves.cancelled,
             running_at_end: moves.running_at_end,
             cancelled: !seen.cancel_marks.is_empty(),
-            finished: fw.status().state == RunState::Idle
+            finished: fw.status().state == State::Idle
                 && !cancelled_last
                 && !moves.running_at_end
                 && moves.lost.0 == 0

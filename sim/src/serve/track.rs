@@ -2,7 +2,7 @@
 //! pause tracked through the firmware's records from request to resume.
 
 use crate::exec::PrinterExec;
-use crate::port::{Executive, Lane, RunState};
+use crate::port::{Executive, Lane, State};
 use crate::recorder::Recorder;
 use firmware::motion::{PauseMode, Realtime};
 use firmware::printer::Record;
@@ -146,7 +146,7 @@ pub(super) fn note_request(
             // (also from an idle printer inside a streamed job, e.g. at a boundary the host
             // drained with M400); a refused one leaves it as it was.
             let state = fw.status().state;
-            if !active && matches!(state, RunState::Pausing | RunState::Paused) {
+            if !active && matches!(state, State::Pausing | State::Paused) {
                 pauses.push(PauseTrack {
                     mode: Some(mode),
                     t_req_us: now_us,

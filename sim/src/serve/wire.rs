@@ -137,7 +137,7 @@ impl PtyPort {
             if !self.rx_pending.is_empty() {
                 let n = fw.receive_on(self.id, &self.rx_pending, now_us);
                 let mut reqs = Vec::new();
-                let parked = fw.status().state == crate::port::RunState::Paused;
+                let parked = fw.status().state == crate::port::State::Paused;
                 self.sniff
                     .feed(&self.rx_pending[..n], &mut reqs, self.rx_read_us, parked);
                 self.rx_pending.drain(..n);

@@ -62,7 +62,7 @@ fn feed_steps(
             break;
         }
         let Some(ev) = p.next_step() else { break };
-        let flags = EventFlags::of(p, &ev);
+        let flags = EventFlags::of(p.homing_watch(), &ev);
         if producer.enqueue(to_pin(&ev, flags)).is_err() {
             *held = Some((ev, flags));
             break;
