@@ -12,14 +12,6 @@ use crate::link::Response;
 use crate::motion::{Axis, AXES};
 use core::fmt::Write;
 
-impl Printer {
-    /// A board notice on every port as an `echo:` line: why the last reset happened (a
-    /// firmware fault or the watchdog; Marlin prints `echo: Watchdog Reset` at start-up).
-    pub fn board_notice(&mut self, text: &str) {
-        self.link.notify(Response::Echo(text));
-    }
-}
-
 /// Requests queued for the board (oldest dropped when full: each one re-reads the config).
 pub const DRIVER_REQ_CAPACITY: usize = 4;
 
@@ -49,20 +41,13 @@ fn mask_of(f: &AxisFlags) -> u8 {
 impl Printer {
     /// The next request for the board.
     pub fn take_driver_request(&mut self) -> Option<DriverRequest> {
-        self.driver_reqs.pop_front()
-    }
-
-    pub(super) fn push_driver_request(&mut self, r: DriverRequest) {
-        if self.driver_reqs.is_full() {
-            let _ = self.driver_reqs.pop_front();
-        }
-        let _ = self.driver_reqs.push_back(r);
+        self.board.take_driver_request()
     }
 
     /// What the driver of `axis` should be set to, from the configuration (microsteps, M906
     /// current, M569 mode).
     pub fn driver_settings(&self, axis: Axis) -> DriverSettings {
-        DriverSettings::of_axis(&self.cfg, axis)
+        DriverSettings::of_axis(self.settings.cfg(), axis)
     }
 
     /// The board's outcome of configuring the driver of `axis`, on every host port (it comes at
@@ -85,7 +70,7 @@ impl Printer {
                         "spreadCycle"
                     }
                 );
-                self.link.notify(Response::Echo(&t));
+                self.host.notify(Response::Echo(&t));
             }
             Err(e) => {
                 let _ = write!(
@@ -93,7 +78,7 @@ impl Printer {
                     "TMC2209 {letter}: {e}: motion disabled. Check that the driver sits in its \
                      socket, its UART jumper is fitted and the 24 V supply is on"
                 );
-                self.link.notify(Response::Error(&t));
+                self.host.notify(Response::Error(&t));
             }
         }
     }
@@ -133,7 +118,7 @@ impl Printer {
             }
             Err(e) => write!(t, "{letter}: TMC2209 {e}"),
         };
-        self.link.respond(Response::Echo(&t));
+        self.host.respond(Response::Echo(&t));
     }
 
     /// M569, M350, M122.
@@ -144,29 +129,31 @@ impl Printer {
                 match stealthchop {
                     Some(on) => {
                         for i in (0..AXES).filter(|i| mask & 1 << i != 0) {
-                            self.cfg.driver_stealthchop[i] = *on;
+                            self.settings.cfg_mut().driver_stealthchop[i] = *on;
                         }
-                        self.push_driver_request(DriverRequest::Apply { mask });
+                        self.board
+                            .push_driver_request(DriverRequest::Apply { mask });
                     }
                     None => {
                         let mut t: heapless::String<96> = heapless::String::new();
                         let _ = t.push_str("M569:");
                         for i in (0..AXES).filter(|i| mask & 1 << i != 0) {
-                            let mode = if self.cfg.driver_stealthchop[i] {
+                            let mode = if self.settings.cfg().driver_stealthchop[i] {
                                 "stealthChop"
                             } else {
                                 "spreadCycle"
                             };
                             let _ = write!(t, " {}:{mode}", LETTERS[i]);
                         }
-                        self.link.respond(Response::Echo(&t));
+                        self.host.respond(Response::Echo(&t));
                     }
                 }
             }
             DriverCommand::Microsteps { all, axes } => self.m350(*all, axes.0),
             DriverCommand::Report(axes) => {
                 let mask = mask_of(axes);
-                self.push_driver_request(DriverRequest::Report { mask });
+                self.board
+                    .push_driver_request(DriverRequest::Report { mask });
             }
         }
     }
@@ -178,20 +165,20 @@ impl Printer {
         if want.iter().all(Option::is_none) {
             let mut t: heapless::String<96> = heapless::String::new();
             let _ = t.push_str("M350");
-            for (i, a) in self.cfg.axes.iter().enumerate() {
+            for (i, a) in self.settings.cfg().axes.iter().enumerate() {
                 let _ = write!(t, " {}{}", LETTERS[i], a.microsteps);
             }
-            self.link.respond(Response::Echo(&t));
+            self.host.respond(Response::Echo(&t));
             return;
         }
-        let mut next = self.cfg;
+        let mut next = *self.settings.cfg();
         for (i, v) in want.iter().enumerate() {
             let Some(v) = v else { continue };
             let ok = libm::truncf(*v) == *v
                 && (1.0..=256.0).contains(v)
                 && next.set_microsteps(Axis::ALL[i], *v as u16);
             if !ok {
-                self.say(format_args!(
+                self.host.say(format_args!(
                     "refused: M350 {}{v}: microsteps must be 1, 2, 4, ... or 256",
                     LETTERS[i]
                 ));
@@ -201,16 +188,17 @@ impl Printer {
         let mut s = self.settings();
         s.steps_per_mm = core::array::from_fn(|i| next.axes[i].steps_per_mm);
         if let Err(e) = self.apply_settings(&s) {
-            self.say(format_args!("refused: M350: {e}"));
+            self.host.say(format_args!("refused: M350: {e}"));
             return;
         }
         let mut mask = 0;
         for (i, v) in want.iter().enumerate() {
             if v.is_some() {
-                self.cfg.axes[i].microsteps = next.axes[i].microsteps;
+                self.settings.cfg_mut().axes[i].microsteps = next.axes[i].microsteps;
                 mask |= 1 << i;
             }
         }
-        self.push_driver_request(DriverRequest::Apply { mask });
+        self.board
+            .push_driver_request(DriverRequest::Apply { mask });
     }
 }

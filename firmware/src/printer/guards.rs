@@ -18,12 +18,9 @@
 //! an `echo:` line (never `Error:`, which makes OctoPrint end the print) and nothing changes:
 //! the machine state is restored, nothing is queued.
 
-use super::Printer;
 use crate::config::MachineConfig;
 use crate::gcode::PauseParams;
-use crate::machine::{Action, MachineState};
-use crate::motion::{Axis, MoveRequest, StepPos};
-use crate::thermal::HeaterId;
+use crate::motion::Axis;
 use core::fmt;
 
 /// Marlin's `EXTRUDE_MINTEMP` in its Ender-3 example configurations, °C.
@@ -62,7 +59,7 @@ impl ExtrusionGuard {
 
     /// May a move feed `de_mm` of filament (either direction), the hotend at `hotend_c` with
     /// its target `target_c`? Cold with a target at or above the minimum is heating: allowed
-    /// here, the queue holds the move until the hotend is hot ([`Printer::waits_for_heat`]).
+    /// here, the queue holds the move until the hotend is hot (the heat part's `waits_for_heat`).
     pub fn check(&self, de_mm: f32, hotend_c: f32, target_c: f32) -> Result<(), Refusal> {
         if de_mm == 0.0 {
             return Ok(());
@@ -214,80 +211,6 @@ pub fn within_travel(cfg: &MachineConfig, axis: Axis, mm: f32) -> f32 {
         return a.min_mm;
     }
     mm.clamp(a.min_mm, a.max_mm)
-}
-
-impl Printer {
-    /// Cold/long-extrusion settings (M302). Test and simulator drivers that model motion
-    /// without heaters set `allow_cold`, as M302 P1 would.
-    pub fn extrusion_guard(&self) -> &ExtrusionGuard {
-        &self.guard
-    }
-
-    /// Change the cold/long-extrusion settings.
-    pub fn extrusion_guard_mut(&mut self) -> &mut ExtrusionGuard {
-        &mut self.guard
-    }
-
-    fn hotend_c(&self) -> f32 {
-        if self.thermal.has_sample(HeaterId::Hotend) {
-            self.thermal.temperature_c(HeaterId::Hotend)
-        } else {
-            f32::NAN
-        }
-    }
-
-    /// Check the action a line produced; `before` is the machine state before the line.
-    pub(super) fn check_action(
-        &self,
-        action: &Action,
-        before: &MachineState,
-    ) -> Result<(), Refusal> {
-        let e = Axis::E.index();
-        let from = before.position_steps(&self.cfg)[e];
-        let to = match action {
-            Action::Move(m) => m.target[e],
-            Action::Arc(_) => self.machine.position_steps(&self.cfg)[e],
-            _ => return Ok(()),
-        };
-        let spm = self.cfg.axis(Axis::E).steps_per_mm;
-        let de_mm = (i64::from(to) - i64::from(from)) as f32 / spm;
-        let target = self.thermal.target_c(HeaterId::Hotend);
-        self.guard.check(de_mm, self.hotend_c(), target)
-    }
-
-    /// A queued move that moves E waits before the planner while the hotend heats towards the
-    /// minimum (taken while heating, see [`ExtrusionGuard::check`]); `from` is where the
-    /// planner's queue ends.
-    pub(super) fn waits_for_heat(&self, req: &MoveRequest, from: &StepPos) -> bool {
-        let e = Axis::E.index();
-        req.target[e] != from[e]
-            && self.guard.too_cold(self.hotend_c())
-            && !self.guard.too_cold(self.thermal.target_c(HeaterId::Hotend))
-            && self.thermal.fault().is_none()
-    }
-
-    /// M302: set, or (without parameters) report, the cold-extrusion protection.
-    pub(super) fn m302(&mut self, min_temp_c: Option<f32>, allow: Option<bool>) {
-        if let Some(t) = min_temp_c {
-            if !(0.0..=400.0).contains(&t) {
-                self.warn(format_args!("M302 S{t:.0} outside 0..400 C"));
-                return;
-            }
-            self.guard.min_temp_c = t;
-        }
-        if let Some(a) = allow {
-            self.guard.allow_cold = a;
-        }
-        if min_temp_c.is_none() && allow.is_none() {
-            // Marlin: "Cold extrudes are enabled|disabled (min temp 170C)".
-            let g = self.guard;
-            self.say(format_args!(
-                "Cold extrudes are {} (min temp {:.0}C)",
-                if g.allow_cold { "enabled" } else { "disabled" },
-                g.min_temp_c
-            ));
-        }
-    }
 }
 
 #[cfg(test)]

@@ -2,12 +2,13 @@
 //! builds it directly in caller-provided memory (the board's `static`), because Rust has no
 //! placement construction: `static.write(Printer::new(..))` builds the 35 KiB value on the
 //! stack first and copies it (the SKR 2 image's start-up frame was 72 KiB, over half its RAM).
-//! Here each field is written through a raw pointer into the slot; the field values are small
-//! or `const` (the big rings are `heapless::Deque::new()`, uninitialised storage), so nothing
-//! large passes through the stack.
+//! Here each part is written through a raw pointer into the slot; the parts' values are small
+//! or `const` (the big rings are `heapless::Deque::new()`, uninitialised storage), and the
+//! intake, which is neither, writes its own fields in place, so nothing large passes through
+//! the stack.
 //!
-//! The one list of fields is [`Printer::init_in_place`]; [`fields_listed`] destructures a
-//! `Printer` exhaustively, so adding a field without writing it here fails to compile.
+//! The one list of parts is [`Printer::init_in_place`]; [`fields_listed`] destructures a
+//! `Printer` exhaustively, so adding a part without writing it here fails to compile.
 
 use super::*;
 use core::mem::MaybeUninit;
@@ -35,44 +36,18 @@ impl Printer {
         // memory is made), and every field is written (checked by `fields_listed`) before the
         // slot is used as a `Printer`.
         unsafe {
-            addr_of_mut!((*p).cfg).write(cfg);
             addr_of_mut!((*p).policy).write(policy);
-            addr_of_mut!((*p).planner).write(Planner::new());
-            addr_of_mut!((*p).stepgen).write(StepGen::new());
-            addr_of_mut!((*p).cmds).write(Deque::new());
-            addr_of_mut!((*p).service).write(Deque::new());
-            addr_of_mut!((*p).pause).write(Pause::Run);
-            addr_of_mut!((*p).lines).write(HostLines::default());
-            addr_of_mut!((*p).schedule).write(None);
-            addr_of_mut!((*p).layer).write(None);
-            addr_of_mut!((*p).dwell_until_us).write(None);
-            addr_of_mut!((*p).break_wait).write(false);
             addr_of_mut!((*p).now_us).write(0);
-            addr_of_mut!((*p).last_activity_us).write(0);
-            addr_of_mut!((*p).last_state).write(State::Idle);
-            addr_of_mut!((*p).records).write(Deque::new());
-            addr_of_mut!((*p).stepper_reqs).write(Deque::new());
-            addr_of_mut!((*p).driver_reqs).write(Deque::new());
-            addr_of_mut!((*p).records_dropped).write(0);
-            addr_of_mut!((*p).link).write(HostPorts::new());
-            addr_of_mut!((*p).machine).write(MachineState::new(&cfg));
-            addr_of_mut!((*p).layers).write(LayerDetector::new().with_end_mark());
-            addr_of_mut!((*p).arc).write(None);
-            addr_of_mut!((*p).thermal).write(Thermal::new(&ThermalConfig::ENDER3));
-            addr_of_mut!((*p).fan_pwm).write(0);
-            addr_of_mut!((*p).position_lost).write(0);
-            addr_of_mut!((*p).guard).write(ExtrusionGuard::MARLIN);
-            addr_of_mut!((*p).homing_cfg).write(None);
-            addr_of_mut!((*p).homing).write(None);
-            addr_of_mut!((*p).endstops).write(0);
-            addr_of_mut!((*p).steps_in_flight).write(false);
-            addr_of_mut!((*p).homed).write(homing::HomedAxes::NONE);
-            addr_of_mut!((*p).settings).write(settings::SettingsLink::new());
-            addr_of_mut!((*p).reports).write(report::Reports::new());
+            addr_of_mut!((*p).host).write(Host::new());
+            Intake::init_in_place(addr_of_mut!((*p).intake), &cfg);
+            addr_of_mut!((*p).motion).write(Motion::new());
+            addr_of_mut!((*p).pause).write(PauseCtl::new());
+            addr_of_mut!((*p).heat).write(Heat::new());
+            addr_of_mut!((*p).records).write(Records::new());
+            addr_of_mut!((*p).settings).write(settings::SettingsLink::new(cfg));
             addr_of_mut!((*p).job).write(job::JobLink::new());
             addr_of_mut!((*p).sd).write(sd::SdLink::new());
             addr_of_mut!((*p).board).write(board::BoardLink::new());
-            addr_of_mut!((*p).spill).write(spill::Spill::new());
             let me = &mut *p;
             me.set_policy(policy);
             me.set_factory_settings();
@@ -86,44 +61,18 @@ impl Printer {
 #[allow(dead_code)]
 fn fields_listed(p: &Printer) {
     let Printer {
-        cfg: _,
         policy: _,
-        planner: _,
-        stepgen: _,
-        cmds: _,
-        service: _,
-        pause: _,
-        lines: _,
-        schedule: _,
-        layer: _,
-        dwell_until_us: _,
-        break_wait: _,
         now_us: _,
-        last_activity_us: _,
-        last_state: _,
+        host: _,
+        intake: _,
+        motion: _,
+        pause: _,
+        heat: _,
         records: _,
-        stepper_reqs: _,
-        driver_reqs: _,
-        records_dropped: _,
-        link: _,
-        machine: _,
-        layers: _,
-        arc: _,
-        thermal: _,
-        fan_pwm: _,
-        position_lost: _,
-        guard: _,
-        homing_cfg: _,
-        homing: _,
-        endstops: _,
-        steps_in_flight: _,
-        homed: _,
         settings: _,
-        reports: _,
         job: _,
         sd: _,
         board: _,
-        spill: _,
     } = p;
 }
 

@@ -1,7 +1,8 @@
-//! The paused-job record in the executive: when a layer pause has parked at a boundary, the
-//! job's position and state there are kept in flash ([`crate::storage::PausedJob`]), and
-//! forgotten when the job resumes or is cancelled. The driver's store carries both out
-//! ([`Printer::service_store`]).
+//! The job's record in the executive: its layer counter (M27's layer, the layer the head last
+//! crossed), the layer boundaries of the host's or the card's stream, and the paused-job
+//! record — when a layer pause has parked at a boundary, the job's position and state there
+//! are kept in flash ([`crate::storage::PausedJob`]), and forgotten when the job resumes or is
+//! cancelled. The driver's store carries the requests out ([`Printer::service_store`]).
 //!
 //! Where the boundary is in the host's stream: when the layer detector marks a boundary, the
 //! line that produced the mark (its `N` number) and the modal state before that line are noted
@@ -13,10 +14,10 @@
 //! file ([`Printer::sd_line_offset`]): the lines read ahead into the queue are after it, so
 //! continuing the file from that offset runs every line after the boundary once.
 
-use super::state::Pause;
+use super::pause::Pause;
 use super::Printer;
 use crate::machine::MachineState;
-use crate::motion::{Axis, PauseMode};
+use crate::motion::{Axis, LayerMark, LayerSource, PauseMode};
 use crate::storage::{JobSource, PausedJob};
 use crate::thermal::HeaterId;
 use heapless::Deque;
@@ -26,7 +27,7 @@ pub const BOUNDARY_NOTES: usize = 8;
 
 /// What the executive knows about a boundary in the host's stream.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub(super) struct BoundaryNote {
+struct BoundaryNote {
     layer: u32,
     z_um: Option<i32>,
     /// `N` of the line that produced the mark (the first line of the new layer).
@@ -49,28 +50,31 @@ pub(super) enum JobRequest {
     Clear,
 }
 
-/// The executive's paused-job state.
+/// The job part (see the module documentation).
 #[derive(Clone, Debug, PartialEq)]
 pub(super) struct JobLink {
+    /// M27's layer: the last layer the head crossed in this job.
+    layer: Option<u32>,
     notes: Deque<BoundaryNote, BOUNDARY_NOTES>,
-    pub(super) request: Option<JobRequest>,
+    request: Option<JobRequest>,
     /// A record was asked to be saved (so resuming or cancelling must clear it).
-    pub(super) saved: bool,
+    saved: bool,
     /// A driver with a store has booted the printer (`Printer::load_settings`): records are
     /// kept only then, so a driver without a store never waits for one.
-    pub(super) attached: bool,
+    attached: bool,
     /// The record found at power-up, until M1000 resumes it or it is discarded.
-    pub(super) kept: Option<PausedJob>,
+    kept: Option<PausedJob>,
     /// M1000 is under way (its heater waits and homing are queued).
-    pub(super) recovering: bool,
+    recovering: bool,
     /// M1000 continues a job from the start of this layer: the next job start (the host's
     /// `M110`, the SD file's start) numbers its layers from here (`layers.rs`).
-    pub(super) continue_at: Option<u32>,
+    continue_at: Option<u32>,
 }
 
 impl JobLink {
     pub(super) const fn new() -> Self {
         Self {
+            layer: None,
             notes: Deque::new(),
             request: None,
             saved: false,
@@ -79,6 +83,144 @@ impl JobLink {
             recovering: false,
             continue_at: None,
         }
+    }
+
+    /// M27's layer.
+    pub(super) fn layer(&self) -> Option<u32> {
+        self.layer
+    }
+
+    /// The head crossed `mark`: M27's layer. The end mark is no layer (the job has ended).
+    pub(super) fn layer_crossed(&mut self, mark: &LayerMark) {
+        self.layer = (mark.source != LayerSource::End).then_some(mark.layer);
+    }
+
+    /// A job starts: the layer it numbers from (1, or the kept layer after M1000); `ended`:
+    /// nothing of an earlier job is still to print, so M27 has no layer until this one's
+    /// first mark runs.
+    pub(super) fn start(&mut self, ended: bool) -> u32 {
+        if ended {
+            self.layer = None;
+        }
+        self.continue_at.take().unwrap_or(1)
+    }
+
+    /// M1000 continues a kept job from the start of `layer`.
+    pub(super) fn continue_at(&mut self, layer: u32) {
+        self.continue_at = Some(layer);
+    }
+
+    /// A job line after M1000 without the host's M110: the continuation has begun.
+    pub(super) fn continuation_begun(&mut self) {
+        self.continue_at = None;
+    }
+
+    /// Note a layer boundary produced by the host line numbered `line` (or the card's line at
+    /// `sd_offset`), with the modal state before it.
+    pub(super) fn note_boundary(
+        &mut self,
+        mark: &LayerMark,
+        line: Option<u32>,
+        modal: &MachineState,
+        sd_offset: Option<u32>,
+    ) {
+        if self.notes.is_full() {
+            let _ = self.notes.pop_front();
+        }
+        let _ = self.notes.push_back(BoundaryNote {
+            layer: mark.layer,
+            z_um: mark.z_um,
+            line,
+            sd_offset,
+            modal: *modal,
+        });
+    }
+
+    /// The store's request, taken by its service.
+    pub(super) fn take_request(&mut self) -> Option<JobRequest> {
+        self.request.take()
+    }
+
+    /// A request waits for the store.
+    pub(super) fn request_pending(&self) -> bool {
+        self.request.is_some()
+    }
+
+    /// A driver with a store booted the printer: records are kept from now on.
+    pub(super) fn attach(&mut self) {
+        self.attached = true;
+    }
+
+    /// The record found at power-up, announced: kept until resumed or discarded.
+    pub(super) fn keep(&mut self, j: PausedJob) {
+        self.saved = true;
+        self.kept = Some(j);
+    }
+
+    /// The kept record.
+    pub(super) fn kept(&self) -> Option<&PausedJob> {
+        self.kept.as_ref()
+    }
+
+    /// Take the kept record (M1000's last step resumes it).
+    pub(super) fn take_kept(&mut self) -> Option<PausedJob> {
+        self.kept.take()
+    }
+
+    /// M1000 is under way.
+    pub(super) fn recovering(&self) -> bool {
+        self.recovering
+    }
+
+    /// M1000 began (`true`) or reached its last step.
+    pub(super) fn set_recovering(&mut self, on: bool) {
+        self.recovering = on;
+    }
+
+    /// The job continues or ends (resume, cancel): forget its record.
+    pub(super) fn continues(&mut self) {
+        if core::mem::take(&mut self.saved) {
+            self.request = Some(JobRequest::Clear);
+        }
+    }
+
+    /// Forget the kept record in flash (M1000 C, a new job).
+    pub(super) fn forget_kept(&mut self) {
+        self.kept = None;
+        self.saved = false;
+        self.request = Some(JobRequest::Clear);
+    }
+
+    /// The resume of a kept record clears it before the head leaves.
+    pub(super) fn resumed_from_kept(&mut self) {
+        self.saved = true;
+    }
+
+    /// A job move is queued: while a kept record waits and no M1000 is under way, this is
+    /// another job and the record goes; whether it did.
+    pub(super) fn superseded(&mut self) -> bool {
+        if self.kept.is_some() && !self.recovering {
+            self.forget_kept();
+            return true;
+        }
+        false
+    }
+
+    /// The head waits at the park position until the record is cleared: a power cut after the
+    /// return started must not offer to resume a job that moved on.
+    pub(super) fn clear_waits(&self, pause: &Pause) -> bool {
+        matches!(pause, Pause::Returning { .. }) && self.request == Some(JobRequest::Clear)
+    }
+
+    /// Keep `j` (a layer pause parked at a noted boundary), if a store is attached.
+    fn save(&mut self, j: PausedJob) {
+        self.request = Some(JobRequest::Save(j));
+        self.saved = true;
+    }
+
+    /// The note of the boundary before `layer`.
+    fn note(&self, layer: u32) -> Option<&BoundaryNote> {
+        self.notes.iter().rev().find(|n| n.layer == layer)
     }
 }
 
@@ -102,54 +244,32 @@ impl Printer {
                         Where(&j.source)
                     ),
                 );
-                self.link.respond(crate::link::Response::Action(
+                self.host.respond(crate::link::Response::Action(
                     crate::link::HostAction::Notification,
                     &t,
                 ));
                 // M1000 resumes it; M1000 C, a new job's first move, the next layer pause of a
                 // new job or a cancel forgets it.
-                self.job.saved = true;
-                self.job.kept = Some(j);
+                self.job.keep(j);
             }
             Ok(None) => {}
-            Err(e) => self.say(format_args!("power-cut resume record unusable: {e}")),
+            Err(e) => self
+                .host
+                .say(format_args!("power-cut resume record unusable: {e}")),
         }
-    }
-
-    /// Note a layer boundary produced by the host line numbered `line` (hook in `host.rs`).
-    pub(super) fn note_boundary(
-        &mut self,
-        mark: &crate::motion::LayerMark,
-        line: Option<u32>,
-        modal: &MachineState,
-    ) {
-        let sd_offset = self.sd_line_offset();
-        let n = &mut self.job.notes;
-        if n.is_full() {
-            let _ = n.pop_front();
-        }
-        let _ = n.push_back(BoundaryNote {
-            layer: mark.layer,
-            z_um: mark.z_um,
-            line,
-            sd_offset,
-            modal: *modal,
-        });
     }
 
     /// The record for the job parked now, if it stopped at a noted boundary of a numbered
     /// host stream or of the SD file printing.
     pub fn paused_job(&self) -> Option<PausedJob> {
-        if !matches!(self.pause, Pause::Parked { .. })
-            || self.pause.mode() != Some(PauseMode::Layer)
-        {
+        let pause = self.pause.state();
+        if !matches!(pause, Pause::Parked { .. }) || pause.mode() != Some(PauseMode::Layer) {
             return None;
         }
-        let held = *self.pause.held()?;
+        let held = *pause.held()?;
         // The barrier stood at the first queued mark: the boundary before that layer.
-        let (_, mark) = self.planner.first_mark()?;
-        let layer = mark.layer;
-        let note = self.job.notes.iter().rev().find(|n| n.layer == layer)?;
+        let layer = self.motion.first_mark()?.layer;
+        let note = self.job.note(layer)?;
         let source = match (note.sd_offset, note.line) {
             (Some(offset), _) => JobSource::Sd {
                 path: heapless::String::try_from(self.sd_file_path()?).ok()?,
@@ -159,79 +279,44 @@ impl Printer {
             (None, Some(line)) => JobSource::Host { line },
             (None, None) => return None,
         };
-        let spm = |a: Axis| self.cfg.axis(a).steps_per_mm;
+        let cfg = self.settings.cfg();
+        let spm = |a: Axis| cfg.axis(a).steps_per_mm;
         let z_um = note.z_um.unwrap_or_else(|| {
             let z = held.pos[Axis::Z.index()] as f32 / spm(Axis::Z) * 1000.0;
             libm::roundf(z) as i32
         });
+        let t = self.heat.thermal();
         Some(PausedJob {
             source,
             layer,
             boundary_z_um: z_um,
             boundary_steps: held.pos,
-            park_steps: self.stepgen.position(),
+            park_steps: self.motion.position(),
             modal: note.modal.modal(),
             retract_mm: held.retracted_steps as f32 / spm(Axis::E),
-            hotend_c: self.thermal.target_c(HeaterId::Hotend),
-            bed_c: self.thermal.target_c(HeaterId::Bed),
-            fan_pwm: self.fan_pwm,
+            hotend_c: t.target_c(HeaterId::Hotend),
+            bed_c: t.target_c(HeaterId::Bed),
+            fan_pwm: self.heat.fan_pwm(),
         })
     }
 
-    /// A pause has parked (hook in `pause.rs`): keep the job's record for a power-cut resume.
+    /// A layer pause has parked: keep the job's record for a power-cut resume.
     pub(super) fn on_parked(&mut self) {
-        if self.pause.mode() != Some(PauseMode::Layer) || !self.job.attached {
+        if !self.job.attached {
             return;
         }
         match self.paused_job() {
-            Some(j) => {
-                // Announced once it is in flash (`job_saved`).
-                self.job.request = Some(JobRequest::Save(j));
-                self.job.saved = true;
-            }
-            None => self.say(format_args!(
+            // Announced once it is in flash (`job_saved`).
+            Some(j) => self.job.save(j),
+            None => self.host.say(format_args!(
                 "power-cut resume: not kept (no numbered host line or SD file at this boundary)"
             )),
         }
     }
 
-    /// The driver's store has written `j` (or failed to): say which (`service_store`). Only
-    /// a record in flash is announced as kept.
-    pub(super) fn job_saved(
-        &mut self,
-        j: &PausedJob,
-        saved: Result<crate::storage::Stored, crate::storage::StoreError>,
-    ) {
-        let mut t = PlaceText::new();
-        let _ = match saved {
-            Ok(how) => core::fmt::Write::write_fmt(
-                &mut t,
-                format_args!(
-                    "power-cut resume: keeping job at layer {}, {}{}",
-                    j.layer,
-                    Where(&j.source),
-                    super::settings::Reclaim(how)
-                ),
-            ),
-            Err(e) => core::fmt::Write::write_fmt(
-                &mut t,
-                format_args!("power-cut resume: job at layer {} not kept: {e}", j.layer),
-            ),
-        };
-        self.link.respond(crate::link::Response::Echo(&t));
-    }
-
-    /// The job continues or ends (resume, cancel; hook in `pause.rs`): forget its record.
+    /// The job continues or ends (resume, cancel): forget its record.
     pub(super) fn on_job_continues(&mut self) {
-        if core::mem::take(&mut self.job.saved) {
-            self.job.request = Some(JobRequest::Clear);
-        }
-    }
-
-    /// The head waits at the park position until the record is cleared (hook in `mod.rs`):
-    /// a power cut after the return started must not offer to resume a job that moved on.
-    pub(super) fn job_clear_waits(&self) -> bool {
-        matches!(self.pause, Pause::Returning { .. }) && self.job.request == Some(JobRequest::Clear)
+        self.job.continues();
     }
 }
 

@@ -34,10 +34,12 @@
 //! A job move queued while a record is kept and no M1000 is under way starts another job:
 //! the record is discarded then (with an `echo:`), so a stale job is never offered again.
 
+use super::intake::CMD_CAPACITY;
 use super::job::{PlaceText, Where};
+use super::motion::homing::steps_at;
+use super::pause::Held;
 use super::sd::ReopenError;
-use super::state::{Held, Pause};
-use super::{job::JobRequest, steps, Command, Printer, CMD_CAPACITY, LINE_LEN};
+use super::{Command, Printer, LINE_LEN};
 use crate::gcode::RecoveryCommand;
 use crate::link::{PortId, Response};
 use crate::machine::{MachineError, MachineState};
@@ -87,7 +89,7 @@ impl core::fmt::Display for Refusal {
 impl Printer {
     /// The record kept at power-up and not yet resumed or discarded.
     pub fn kept_job(&self) -> Option<&crate::storage::PausedJob> {
-        self.job.kept.as_ref()
+        self.job.kept()
     }
 
     /// M1000 / M1000 C. Returns true when the `ok` is owed: M1000 of an SD job answers once
@@ -95,13 +97,16 @@ impl Printer {
     pub(super) fn recovery_command(&mut self, c: &RecoveryCommand) -> bool {
         match c {
             RecoveryCommand::Discard => {
-                if self.job.recovering {
-                    self.say(format_args!("refused: M1000 C: the resume is under way"));
-                } else if self.job.kept.take().is_some() {
-                    self.forget_kept_job();
-                    self.say(format_args!("power-cut resume: kept job discarded"));
+                if self.job.recovering() {
+                    self.host
+                        .say(format_args!("refused: M1000 C: the resume is under way"));
+                } else if self.job.kept().is_some() {
+                    self.job.forget_kept();
+                    self.host
+                        .say(format_args!("power-cut resume: kept job discarded"));
                 } else {
-                    self.say(format_args!("refused: M1000 C: no paused job kept"));
+                    self.host
+                        .say(format_args!("refused: M1000 C: no paused job kept"));
                 }
                 false
             }
@@ -109,14 +114,8 @@ impl Printer {
         }
     }
 
-    /// Clear the record in flash (driver's store) and forget that one was saved.
-    fn forget_kept_job(&mut self) {
-        self.job.saved = false;
-        self.job.request = Some(JobRequest::Clear);
-    }
-
     fn m1000(&mut self) -> bool {
-        let planned = match self.job.kept.clone() {
+        let planned = match self.job.kept().cloned() {
             Some(j) => self.recovery_plan(&j).map(|m| (j, m)),
             None => Err(Refusal::NothingKept),
         };
@@ -124,7 +123,7 @@ impl Printer {
             Ok((j, machine)) => match &j.source {
                 JobSource::Host { line } => match self.begin_recovery(&j, machine) {
                     Ok(()) => {
-                        self.say(format_args!(
+                        self.host.say(format_args!(
                             "power-cut resume: layer {} at Z{:.3}: send the job from host line {line} (M110 N{} first)",
                             j.layer,
                             j.boundary_z_um as f32 / 1000.0,
@@ -143,47 +142,46 @@ impl Printer {
             },
             Err(r) => r,
         };
-        self.say(format_args!("refused: M1000: {refusal}"));
+        self.host.say(format_args!("refused: M1000: {refusal}"));
         false
     }
 
     /// What M1000 checks before it changes anything: idle, queue room, the state fits.
     fn recovery_plan(&self, j: &PausedJob) -> Result<MachineState, Refusal> {
-        if self.job.recovering
-            || !matches!(self.pause, Pause::Run)
-            || self.has_work()
-            || self.sd_printing()
-        {
+        if self.job.recovering() || !self.pause.running() || self.has_work() || self.sd_printing() {
             return Err(Refusal::Busy);
         }
-        if CMD_CAPACITY - self.cmds.len() < RECOVERY_COMMANDS {
+        if CMD_CAPACITY.saturating_sub(self.intake.len()) < RECOVERY_COMMANDS {
             return Err(Refusal::QueueFull);
         }
-        MachineState::from_modal(&j.modal, &self.cfg).map_err(Refusal::DoesNotFit)
+        MachineState::from_modal(&j.modal, self.settings.cfg()).map_err(Refusal::DoesNotFit)
     }
 
     /// Set the kept heater targets and fan, the modal state of the boundary, and queue the
     /// recovery's steps (see the module documentation).
     fn begin_recovery(&mut self, j: &PausedJob, machine: MachineState) -> Result<(), Refusal> {
         for (id, t) in [(HeaterId::Hotend, j.hotend_c), (HeaterId::Bed, j.bed_c)] {
-            self.thermal.set_target(id, t).map_err(Refusal::Heater)?;
+            self.heat
+                .thermal_mut()
+                .set_target(id, t)
+                .map_err(Refusal::Heater)?;
         }
-        self.fan_pwm = j.fan_pwm;
+        self.heat.restore_fan(j.fan_pwm);
         // Job lines from the boundary on are interpreted in the job's modes.
-        self.machine = machine;
-        let mut pos = self.stepgen.position();
+        self.intake.restore_machine(machine);
+        let mut pos = self.motion.position();
         for ax in [Axis::Z, Axis::E] {
             pos[ax.index()] = j.park_steps[ax.index()];
         }
-        let _ = self.cmds.push_back(Command::SetPosition(pos));
+        self.intake.push(Command::SetPosition(pos));
         for (id, t) in [(HeaterId::Bed, j.bed_c), (HeaterId::Hotend, j.hotend_c)] {
             if t > 0.0 {
-                let _ = self.cmds.push_back(Command::WaitHeater(id));
+                self.intake.push(Command::WaitHeater(id));
             }
         }
-        let _ = self.cmds.push_back(Command::Home { mask: 0b011 });
-        let _ = self.cmds.push_back(Command::Recover);
-        self.job.recovering = true;
+        self.intake.push(Command::Home { mask: 0b011 });
+        self.intake.push(Command::Recover);
+        self.job.set_recovering(true);
         // The continued job's layers number from the kept one on.
         self.continue_job_at(j.layer);
         Ok(())
@@ -196,7 +194,7 @@ impl Printer {
     where
         D::Error: core::fmt::Debug,
     {
-        let refusal = match self.job.kept.clone() {
+        let refusal = match self.job.kept().cloned() {
             None => Some(Refusal::NothingKept),
             Some(j) => match (self.recovery_plan(&j), &j.source) {
                 (Err(r), _) => Some(r),
@@ -238,35 +236,31 @@ impl Printer {
     /// M1000's last step, at the front of the queue with the motion idle (X/Y homed): the
     /// printer is parked at the saved park position with the boundary held, and resumes.
     pub(super) fn recover_now(&mut self) {
-        self.job.recovering = false;
-        let Some(j) = self.job.kept.take() else {
+        self.job.set_recovering(false);
+        let Some(j) = self.job.take_kept() else {
             return;
         };
         // Job moves start at the boundary; the head returns there first (service lane).
-        self.planner.set_position(j.boundary_steps);
-        self.pause = Pause::Parked {
-            held: Held {
-                block: None,
-                pos: j.boundary_steps,
-                retracted_steps: steps(&self.cfg, Axis::E, j.retract_mm),
-                mode: PauseMode::Layer,
-                before_layer: Some(j.layer),
-            },
-            manual: None,
+        self.motion.set_planner_position(j.boundary_steps);
+        let held = Held {
+            block: None,
+            pos: j.boundary_steps,
+            retracted_steps: steps_at(self.settings.cfg(), Axis::E, j.retract_mm),
+            mode: PauseMode::Layer,
+            before_layer: Some(j.layer),
         };
         // The resume clears the record before the head leaves (`on_job_continues`).
-        self.job.saved = true;
-        self.start_resume();
+        self.job.resumed_from_kept();
+        let ev = self.pause.resume_kept(held, cx!(self));
+        self.route(ev);
         self.update_state_record();
     }
 
-    /// A job move is queued (hook in `host.rs`): while a kept record waits and no M1000 is
+    /// A job move is queued (hook in `lines.rs`): while a kept record waits and no M1000 is
     /// under way, this is another job, and the record is discarded.
     pub(super) fn kept_job_superseded(&mut self) {
-        if self.job.kept.is_some() && !self.job.recovering {
-            self.job.kept = None;
-            self.forget_kept_job();
-            self.say(format_args!(
+        if self.job.superseded() {
+            self.host.say(format_args!(
                 "power-cut resume: kept job discarded (a new job moves the head)"
             ));
         }

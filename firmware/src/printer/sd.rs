@@ -236,14 +236,14 @@ impl Printer {
         if self.sd.line_origin.is_some() {
             None
         } else {
-            Some(self.link.reply_port())
+            Some(self.host.reply_port())
         }
     }
 
     /// M24 (hook in `request`): starts the selected file when no pause is to be resumed.
     /// Returns whether it did.
     pub(super) fn sd_start_on_resume(&mut self) -> bool {
-        if !matches!(self.pause, super::state::Pause::Run) {
+        if !self.pause.running() {
             return false;
         }
         let SdJob::Selected { file, start_at } = &self.sd.job else {
@@ -257,13 +257,13 @@ impl Printer {
             eof: false,
         };
         self.sd.next_report_us = self.now_us.saturating_add(self.sd.auto_report_us);
-        self.lines.after_cancel = None;
+        self.intake.forget_cancel();
         self.sd.cancelled = false;
         // A card job is a job of its own: its layers count from 1 (or from the kept layer).
         self.job_start();
         let mut t: String<{ LINE_LEN + LONG_NAME_CAP }> = String::new();
         let _ = write!(t, "SD printing {} from byte {at}", file.name);
-        self.link
+        self.host
             .notify(Response::Action(HostAction::Notification, &t));
         true
     }
@@ -276,7 +276,7 @@ impl Printer {
         self.sd.job = SdJob::None;
         self.sd.seek(0);
         self.sd.cancelled = true;
-        self.link.notify(Response::Action(
+        self.host.notify(Response::Action(
             HostAction::Notification,
             "SD print cancelled",
         ));
@@ -292,10 +292,10 @@ impl Printer {
     {
         self.set_now(now_us);
         self.sd.attached = true;
-        if self.is_halted() {
+        if self.pause.halted() {
             return;
         }
-        if self.sd.cancelled && matches!(self.pause, super::state::Pause::Run) && self.has_work() {
+        if self.sd.cancelled && self.pause.running() && self.has_work() {
             // Something new runs (the cancel's own stop and park are not `Run`).
             self.sd.cancelled = false;
         }
@@ -311,11 +311,11 @@ impl Printer {
     pub(super) fn answer_to(&mut self, port: Option<PortId>, r: Response<'_>) {
         match port {
             Some(p) => {
-                self.link.respond_on(p, r);
+                self.host.respond_on(p, r);
             }
             None => {
                 if !matches!(r, Response::Ok) {
-                    self.link.notify(r);
+                    self.host.notify(r);
                 }
             }
         }
@@ -331,9 +331,9 @@ impl Printer {
         if let CardRequest::Mount { port: Some(port) } | CardRequest::Release { port: Some(port) } =
             req
         {
-            if self.spill.pending() > 0 {
+            if self.intake.spilled() > 0 {
                 // The card holds job lines the host was told were taken.
-                let n = self.spill.pending();
+                let n = self.intake.spilled();
                 self.sd.request = None;
                 let mut t: String<LINE_LEN> = String::new();
                 let _ = write!(
@@ -388,7 +388,8 @@ impl Printer {
         D::Error: core::fmt::Debug,
     {
         if self.sd_printing() {
-            self.say(format_args!("SD print stopped: card released"));
+            self.host
+                .say(format_args!("SD print stopped: card released"));
         }
         self.sd.job = SdJob::None;
         card.close();
@@ -397,13 +398,13 @@ impl Printer {
     /// Whether a file line could be handled now: as a host line (queue room, nothing owed,
     /// no cancel parking), and no host line waiting for room.
     fn file_line_room(&self) -> bool {
-        !self.is_halted()
-            && self.arc.is_none()
-            && !self.lines.sync_ok_owed
-            && self.lines.held_line.is_none()
-            && !self.pause.cancelling()
+        !self.pause.halted()
+            && !self.intake.cutting_arc()
+            && !self.intake.sync_owed()
+            && !self.intake.has_held_line()
+            && !self.pause.state().cancelling()
             && self.sd.request.is_none()
-            && self.line_room()
+            && self.intake.line_room(self.pause.state())
     }
 
     fn feed_card_lines<D: BlockDevice>(&mut self, card: &mut Card<D>)
@@ -421,7 +422,7 @@ impl Printer {
                 Err(e) => {
                     let mut t: String<LINE_LEN> = String::new();
                     let _ = write!(t, "SD read error ({e}): print stopped");
-                    self.link.notify(Response::Echo(&t));
+                    self.host.notify(Response::Echo(&t));
                     self.sd.job = SdJob::None;
                     card.close();
                     return;
@@ -477,8 +478,8 @@ impl Printer {
     }
 
     fn handle_file_line(&mut self, line: FileLine, at: u32) {
-        self.link.answer_file();
-        self.last_activity_us = self.now_us;
+        self.host.answer_file();
+        self.intake.touch(self.now_us);
         match line {
             FileLine::Line(l) => {
                 self.sd.line_origin = Some(at);
@@ -490,7 +491,7 @@ impl Printer {
                 let now = self.now_us;
                 self.request(rt, now);
             }
-            FileLine::TooLong => self.say(format_args!(
+            FileLine::TooLong => self.host.say(format_args!(
                 "Line too long (max 128 bytes), ignored (SD byte {at})"
             )),
         }
@@ -503,14 +504,14 @@ impl Printer {
         D::Error: core::fmt::Debug,
     {
         let done = matches!(self.sd.job, SdJob::Printing { eof: true, .. })
-            && matches!(self.pause, super::state::Pause::Run)
+            && self.pause.running()
             && !self.has_work()
-            && self.arc.is_none();
+            && !self.intake.cutting_arc();
         if done {
             self.sd.job = SdJob::None;
             card.close();
-            self.link.notify(Response::Plain("Done printing file"));
-            self.link.notify(Response::Action(
+            self.host.notify(Response::Plain("Done printing file"));
+            self.host.notify(Response::Action(
                 HostAction::Notification,
                 "Done printing file",
             ));
@@ -526,7 +527,7 @@ impl Printer {
         if let Some((a, b)) = self.sd_progress() {
             let mut t: String<LINE_LEN> = String::new();
             let _ = write!(t, "SD printing byte {a}/{b}");
-            self.link.notify(Response::Plain(&t));
+            self.host.notify(Response::Plain(&t));
         }
     }
 }

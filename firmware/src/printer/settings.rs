@@ -1,5 +1,5 @@
 //! The settings M-codes in the executive: M92 M201 M203 M205 M206 M851 M906 change the
-//! configuration at once (M204 M301 M304 M760 are handled in `host.rs`); M500/M501 are
+//! configuration at once (M204 and M760's pause values are set here too; M301/M304 are the heat part's); M500/M501 are
 //! requests the driver carries out with its flash ([`Printer::service_store`]); M502 restores
 //! the factory values; M503 reports every setting as G-code that can be sent back.
 //!
@@ -9,18 +9,16 @@
 //! while nothing is queued or moving: the position is re-expressed in the new steps then, as
 //! Marlin's M92 does, so no move jumps.
 
-use super::state::Pause;
+use super::host::Host;
 use super::Printer;
 use crate::gcode::{self, AxisWords, Heater, PauseParams, SettingsCommand};
 use crate::link::Response;
 use crate::motion::{Axis, AXES};
 use crate::storage::{
-    Bound, Settings, SettingsStore, StoreError, Stored, ACCEL, DRIVER_CURRENT, HOME_OFFSET,
-    JUNCTION_DEVIATION, MAX_FEED, STEPS_PER_MM,
+    Bound, Settings, DRIVER_CURRENT, HOME_OFFSET, JUNCTION_DEVIATION, MAX_FEED, STEPS_PER_MM,
 };
 use crate::thermal::HeaterId;
 use core::fmt::Write as _;
-use embedded_storage::nor_flash::NorFlash;
 use heapless::String;
 
 /// A request for the driver's settings store.
@@ -35,6 +33,8 @@ pub(super) enum StoreRequest {
 /// The executive's settings state: the factory values and a pending store request.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) struct SettingsLink {
+    /// The machine's configuration (what the settings commands change).
+    cfg: crate::config::MachineConfig,
     factory: Option<Settings>,
     request: Option<StoreRequest>,
     /// Idle since (µs), for the store's erase-ahead.
@@ -44,31 +44,126 @@ pub(super) struct SettingsLink {
 }
 
 impl SettingsLink {
-    pub(super) const fn new() -> Self {
+    pub(super) const fn new(cfg: crate::config::MachineConfig) -> Self {
         Self {
+            cfg,
             factory: None,
             request: None,
             idle_since_us: None,
             reserve_checked: false,
         }
     }
-}
 
-/// What a store says when it had to reclaim the area (nothing when it appended).
-pub(super) struct Reclaim(pub(super) Stored);
+    /// The machine's configuration.
+    pub(super) fn cfg(&self) -> &crate::config::MachineConfig {
+        &self.cfg
+    }
 
-impl core::fmt::Display for Reclaim {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        match self.0 {
-            Stored::Appended => Ok(()),
-            Stored::Reclaimed => f.write_str("; the unreadable settings area was erased first"),
+    /// The configuration, to change (the driver's configuration, M760's pause values).
+    pub(super) fn cfg_mut(&mut self) -> &mut crate::config::MachineConfig {
+        &mut self.cfg
+    }
+
+    /// The factory values are known.
+    pub(super) fn has_factory(&self) -> bool {
+        self.factory.is_some()
+    }
+
+    /// The store's request, for its service (which re-checks the reserve afterwards).
+    pub(super) fn take_request(&mut self) -> Option<StoreRequest> {
+        self.reserve_checked = false;
+        self.request.take()
+    }
+
+    /// An M500/M501 waits for the store.
+    pub(super) fn request_pending(&self) -> bool {
+        self.request.is_some()
+    }
+
+    /// Whether the store's erase-ahead is due: the printer has been `idle` for `period_us`
+    /// and it was not done in this idle period (then it counts as done).
+    pub(super) fn erase_ahead_due(&mut self, idle: bool, now_us: u64, period_us: u64) -> bool {
+        if !idle {
+            self.idle_since_us = None;
+            return false;
+        }
+        let since = *self.idle_since_us.get_or_insert(now_us);
+        if self.reserve_checked || now_us.saturating_sub(since) < period_us {
+            return false;
+        }
+        self.reserve_checked = true;
+        true
+    }
+
+    /// M204: set the accelerations given (S sets print and travel), all or nothing: a value
+    /// outside the settings store's range (one table) refuses the whole line.
+    pub(super) fn m204(
+        &mut self,
+        print: Option<f32>,
+        retract: Option<f32>,
+        travel: Option<f32>,
+        s: Option<f32>,
+        host: &mut Host,
+    ) {
+        let b = crate::ranges::ACCEL;
+        let given = [('S', s), ('P', print), ('R', retract), ('T', travel)];
+        if let Some((l, Some(v))) = given
+            .iter()
+            .find(|(_, v)| v.is_some_and(|v| !b.contains(v)))
+        {
+            host.say(format_args!(
+                "refused: M204 {l}{v}: {} out of range ({}..{} {}); nothing changed",
+                b.name, b.min, b.max, b.unit
+            ));
+            return;
+        }
+        let c = &mut self.cfg;
+        if let Some(a) = s {
+            c.accel_print_mm_s2 = a;
+            c.accel_travel_mm_s2 = a;
+        }
+        if let Some(a) = print {
+            c.accel_print_mm_s2 = a;
+        }
+        if let Some(a) = retract {
+            c.accel_retract_mm_s2 = a;
+        }
+        if let Some(a) = travel {
+            c.accel_travel_mm_s2 = a;
+        }
+    }
+
+    /// M760's pause values (checked against the machine by the caller).
+    pub(super) fn m760(&mut self, p: &PauseParams) {
+        let pos = |v: Option<f32>| v.filter(|x| x.is_finite() && *x >= 0.0);
+        let c = &mut self.cfg.pause;
+        if let Some(v) = pos(p.retract_mm) {
+            c.retract_mm = v.min(20.0);
+        }
+        if let Some(v) = pos(p.lift_z_mm) {
+            c.lift_z_mm = v;
+        }
+        if let Some(v) = pos(p.park_x_mm) {
+            c.park_x_mm = v;
+        }
+        if let Some(v) = pos(p.park_y_mm) {
+            c.park_y_mm = v;
+        }
+        if let Some(v) = pos(p.park_feed_mm_min).filter(|v| *v > 0.0) {
+            c.park_feed_mm_s = v / 60.0;
+        }
+        if let Some(v) = pos(p.speedup_factor).filter(|v| *v >= 1.0) {
+            c.speedup_factor = v;
+        }
+        if let Some(v) = pos(p.max_volumetric_mm3_s).filter(|v| *v > 0.0) {
+            c.max_volumetric_mm3_s = v;
+        }
+        if let Some(v) = pos(p.segment_len_mm) {
+            // 0 turns segmentation off; tiny values would flood the ring.
+            c.segment_len_mm = if v == 0.0 { 0.0 } else { v.max(0.05) };
         }
     }
 }
-
-/// How long the printer must have been idle before the store may erase a sector ahead, µs
-/// (`storage::reserve`: the erase stalls the MCU for up to 2 s, heaters off meanwhile).
-pub const ERASE_AHEAD_IDLE_US: u64 = 10_000_000;
 
 /// Longest M503 line (`echo:  ` and a command with every number at full length).
 const REPORT_LEN: usize = 192;
@@ -78,10 +173,11 @@ const LETTERS: [char; AXES] = ['X', 'Y', 'Z', 'E'];
 impl Printer {
     /// The current settings (what M500 would save).
     pub fn settings(&self) -> Settings {
+        let t = self.heat.thermal();
         Settings::from_config(
-            &self.cfg,
-            self.thermal.pid(HeaterId::Hotend),
-            self.thermal.pid(HeaterId::Bed),
+            &self.settings.cfg,
+            t.pid(HeaterId::Hotend),
+            t.pid(HeaterId::Bed),
         )
     }
 
@@ -99,7 +195,7 @@ impl Printer {
     /// True when nothing is queued or moving and no pause is under way: steps per mm may
     /// change.
     fn settings_idle(&self) -> bool {
-        matches!(self.pause, Pause::Run) && !self.has_work()
+        self.pause.running() && !self.has_work()
     }
 
     /// Apply `s`. Refused (nothing changes) when the steps per mm differ while motion is
@@ -107,9 +203,10 @@ impl Printer {
     pub fn apply_settings(&mut self, s: &Settings) -> Result<(), &'static str> {
         s.validate().map_err(|_| "settings out of range")?;
         // The pause values as M760 would take them on this machine (park inside the travel).
-        super::guards::check_pause_config(&s.pause, &self.cfg)
+        super::guards::check_pause_config(&s.pause, &self.settings.cfg)
             .map_err(|_| "pause values outside this machine's limits")?;
         let steps_change = self
+            .settings
             .cfg
             .axes
             .iter()
@@ -119,7 +216,7 @@ impl Printer {
             return Err("steps/mm change only while idle (send M400 first)");
         }
         let old = self.settings();
-        s.apply_to(&mut self.cfg);
+        s.apply_to(&mut self.settings.cfg);
         // M350/M569 values changed: the board writes them to the drivers.
         let mask = (0..AXES)
             .filter(|&i| {
@@ -127,12 +224,13 @@ impl Printer {
             })
             .fold(0u8, |m, i| m | 1 << i);
         if mask != 0 {
-            self.push_driver_request(super::DriverRequest::Apply { mask });
+            self.board
+                .push_driver_request(super::DriverRequest::Apply { mask });
         }
         for (id, pid) in [(HeaterId::Hotend, s.hotend_pid), (HeaterId::Bed, s.bed_pid)] {
             if let Some(g) = pid {
                 // Checked by validate(): in range, so set_pid accepts it.
-                let _ = self.thermal.set_pid(id, g);
+                let _ = self.heat.thermal_mut().set_pid(id, g);
             }
         }
         if steps_change {
@@ -144,137 +242,19 @@ impl Printer {
     /// Re-express the commanded position in the current steps per mm (after M92), as Marlin's
     /// `planner.refresh_positioning()`: the head does not move.
     fn restep_position(&mut self) {
-        let mm = self.machine.machine_mm();
+        let mm = self.intake.machine().machine_mm();
+        let cfg = &self.settings.cfg;
         let mut pos = [0i32; AXES];
         for ax in Axis::ALL {
-            let v = libm::round(mm[ax.index()] * f64::from(self.cfg.axis(ax).steps_per_mm));
+            let v = libm::round(mm[ax.index()] * f64::from(cfg.axis(ax).steps_per_mm));
             pos[ax.index()] = if v.is_finite() {
                 v.clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32
             } else {
                 0
             };
         }
-        self.machine.set_position_steps(&pos, &self.cfg);
-        self.planner.set_position(pos);
-        self.stepgen.set_position(pos);
-    }
-
-    /// Boot: load the saved settings and apply them. Nothing saved: the factory values stay,
-    /// silently. A store that cannot be read or a record that is refused (corrupt, another
-    /// format version, out of range): the factory values stay, with an `echo:` saying why.
-    pub fn load_settings<F: NorFlash>(&mut self, store: &mut SettingsStore<F>) {
-        if self.settings.factory.is_none() {
-            self.set_factory_settings();
-        }
-        self.job.attached = true;
-        self.load_and_apply(store, false);
-        self.announce_kept_job(store);
-    }
-
-    fn load_and_apply<F: NorFlash>(&mut self, store: &mut SettingsStore<F>, report_empty: bool) {
-        match store.load() {
-            Ok(Some(s)) => match self.apply_settings(&s) {
-                Ok(()) => self.say(format_args!("Settings loaded from flash")),
-                Err(e) => self.say(format_args!("saved settings not applied: {e}")),
-            },
-            Ok(None) => {
-                if report_empty {
-                    self.say(format_args!("no saved settings: nothing changed"));
-                }
-            }
-            Err(e) => self.fall_back(e),
-        }
-    }
-
-    fn fall_back(&mut self, e: StoreError) {
-        let f = self.factory_settings();
-        match self.apply_settings(&f) {
-            Ok(()) => self.say(format_args!(
-                "saved settings unusable ({e}): factory defaults loaded{}",
-                if matches!(e, StoreError::Corrupted | StoreError::Full) {
-                    " (M500 erases the area and saves)"
-                } else {
-                    ""
-                }
-            )),
-            Err(why) => self.say(format_args!(
-                "saved settings unusable ({e}); factory defaults not applied: {why}"
-            )),
-        }
-    }
-
-    /// Main loop: carry out a pending M500/M501 and paused-job save/clear with the driver's
-    /// store once nothing moves (a flash erase on the STM32F4 stalls every read of the flash,
-    /// so code running from it stalls too: never while stepping).
-    ///
-    /// With nothing to do, after [`ERASE_AHEAD_IDLE_US`] of idle (no job, nothing moving or
-    /// paused), once per idle period: the store's erase-ahead (`storage::reserve`), so the
-    /// saves of the next print (a power-cut record at every layer pause) find erased room.
-    pub fn service_store<F: NorFlash>(&mut self, store: &mut SettingsStore<F>) {
-        if !self.store_request_pending() {
-            self.erase_ahead_when_idle(store);
-            return;
-        }
-        if !self.still() {
-            return;
-        }
-        self.settings.reserve_checked = false;
-        match self.settings.request.take() {
-            Some(StoreRequest::Save(s)) => match store.save(&s) {
-                Ok(how) => self.say(format_args!(
-                    "Settings Stored ({} bytes, format {}{})",
-                    crate::storage::RECORD_LEN,
-                    crate::storage::FORMAT_VERSION,
-                    Reclaim(how)
-                )),
-                Err(e) => self.say(format_args!("settings not saved: {e}")),
-            },
-            Some(StoreRequest::Load) => self.load_and_apply(store, true),
-            None => {}
-        }
-        match self.job.request.take() {
-            Some(super::job::JobRequest::Save(j)) => {
-                let saved = store.save_job(&j);
-                self.job_saved(&j, saved);
-            }
-            Some(super::job::JobRequest::Clear) => {
-                if let Err(e) = store.clear_job() {
-                    self.say(format_args!(
-                        "power-cut resume: the kept job was not cleared: {e}"
-                    ));
-                }
-            }
-            None => {}
-        }
-    }
-
-    fn erase_ahead_when_idle<F: NorFlash>(&mut self, store: &mut SettingsStore<F>) {
-        if self.state() != super::State::Idle {
-            self.settings.idle_since_us = None;
-            return;
-        }
-        let since = *self.settings.idle_since_us.get_or_insert(self.now_us);
-        if self.settings.reserve_checked || self.now_us.saturating_sub(since) < ERASE_AHEAD_IDLE_US
-        {
-            return;
-        }
-        self.settings.reserve_checked = true;
-        if let Err(e) = store.erase_ahead() {
-            self.say(format_args!("settings flash: erase ahead failed: {e}"));
-        }
-    }
-
-    /// Nothing steps now: the printer is idle, or paused (the held job waits in the planner)
-    /// with no service move running (parked, or about to return and waiting for this store).
-    fn still(&self) -> bool {
-        self.stepgen.current().is_none()
-            && (self.planner.is_empty()
-                || matches!(self.pause, Pause::Parked { .. } | Pause::Returning { .. }))
-    }
-
-    /// True while an M500/M501 or a paused-job save/clear waits for the driver.
-    pub fn store_request_pending(&self) -> bool {
-        self.settings.request.is_some() || self.job.request.is_some()
+        self.intake.machine_at(&pos, &self.settings.cfg);
+        self.motion.set_position(pos);
     }
 
     /// Handle a settings command (the `ok` is sent by the caller).
@@ -282,7 +262,7 @@ impl Printer {
         use SettingsCommand as S;
         match c {
             S::StepsPerUnit(a) => self.m92(a),
-            S::MaxAccel(a) => self.set_axes("M201", a, &ACCEL, |cfg, i, v| {
+            S::MaxAccel(a) => self.set_axes("M201", a, &crate::storage::ACCEL, |cfg, i, v| {
                 cfg.axes[i].max_accel_mm_s2 = v
             }),
             S::MaxFeed(a) => self.set_axes("M203", a, &MAX_FEED, |cfg, i, v| {
@@ -295,7 +275,8 @@ impl Printer {
                 }
             }),
             S::ProbeOffset(_) => {
-                self.say(format_args!("refused: M851: this machine has no Z probe"));
+                self.host
+                    .say(format_args!("refused: M851: this machine has no Z probe"));
             }
             S::DriverCurrent(a) => self.m906(a),
             S::Save => self.settings.request = Some(StoreRequest::Save(self.settings())),
@@ -303,8 +284,10 @@ impl Printer {
             S::FactoryReset => {
                 let f = self.factory_settings();
                 match self.apply_settings(&f) {
-                    Ok(()) => self.say(format_args!("Hardcoded Default Settings Loaded")),
-                    Err(e) => self.say(format_args!("refused: M502: {e}")),
+                    Ok(()) => self
+                        .host
+                        .say(format_args!("Hardcoded Default Settings Loaded")),
+                    Err(e) => self.host.say(format_args!("refused: M502: {e}")),
                 }
             }
             S::Report => self.m503(),
@@ -320,7 +303,7 @@ impl Printer {
 
     fn refuse(&mut self, code: &str, axis: usize, v: f32, b: &Bound) {
         let l = LETTERS.get(axis).copied().unwrap_or('?');
-        self.say(format_args!(
+        self.host.say(format_args!(
             "refused: {code} {l}{v}: {} out of range ({}..{} {}); nothing changed",
             b.name, b.min, b.max, b.unit
         ));
@@ -344,7 +327,7 @@ impl Printer {
         }
         for (i, v) in a.0.iter().enumerate() {
             if let Some(v) = v {
-                set(&mut self.cfg, i, *v);
+                set(&mut self.settings.cfg, i, *v);
             }
         }
     }
@@ -365,7 +348,7 @@ impl Printer {
             }
         }
         if let Err(e) = self.apply_settings(&s) {
-            self.say(format_args!("refused: M92: {e}"));
+            self.host.say(format_args!("refused: M92: {e}"));
         }
     }
 
@@ -377,16 +360,16 @@ impl Printer {
         if let Some(j) = p.junction_mm {
             if !JUNCTION_DEVIATION.contains(j) {
                 let b = JUNCTION_DEVIATION;
-                self.say(format_args!(
+                self.host.say(format_args!(
                     "refused: M205 J{j}: {} out of range ({}..{} {}); nothing changed",
                     b.name, b.min, b.max, b.unit
                 ));
                 return;
             }
-            self.cfg.junction_deviation_mm = j;
+            self.settings.cfg.junction_deviation_mm = j;
         }
         if unused {
-            self.say(format_args!(
+            self.host.say(format_args!(
                 "refused: M205 X Y Z E (jerk), B, S, T: not used, corners are planned by junction deviation (J)"
             ));
         } else if p.junction_mm.is_none() {
@@ -406,14 +389,14 @@ impl Printer {
         for (i, v) in a.0.iter().enumerate() {
             if let Some(v) = v {
                 // In range (100..2000): the rounded value fits a u16.
-                self.cfg.driver_current_ma[i] = libm::roundf(*v) as u16;
+                self.settings.cfg.driver_current_ma[i] = libm::roundf(*v) as u16;
             }
         }
     }
 
     /// The current values of one settings M-code, as a command.
     fn current(&self, code: &str) -> gcode::Command {
-        let c = &self.cfg;
+        let c = &self.settings.cfg;
         let per_axis = |f: &dyn Fn(usize) -> f32| AxisWords([0, 1, 2, 3].map(|i| Some(f(i))));
         use SettingsCommand as S;
         gcode::Command::Settings(match code {
@@ -438,16 +421,16 @@ impl Printer {
     fn report_line(&mut self, c: &gcode::Command) {
         let mut t: String<REPORT_LEN> = String::new();
         let _ = write!(t, "  {c}");
-        self.link.respond(Response::Echo(&t));
+        self.host.respond(Response::Echo(&t));
     }
 
     /// M503: every setting as G-code a user can paste back (strip the `echo:`).
     fn m503(&mut self) {
-        self.say(format_args!(
+        self.host.say(format_args!(
             "; Settings (M500 saves, M501 loads, M502 factory):"
         ));
         // M350 before M92: sent back, M350 scales steps/mm, then M92 sets them exactly.
-        let c = &self.cfg;
+        let c = &self.settings.cfg;
         self.report_line(&gcode::Command::Driver(gcode::DriverCommand::Microsteps {
             all: None,
             axes: AxisWords(core::array::from_fn(|i| {
@@ -456,7 +439,7 @@ impl Printer {
         }));
         for on in [true, false] {
             let axes = gcode::AxisFlags(core::array::from_fn(|i| {
-                self.cfg.driver_stealthchop[i] == on
+                self.settings.cfg.driver_stealthchop[i] == on
             }));
             if axes.0.iter().any(|a| *a) {
                 self.report_line(&gcode::Command::Driver(gcode::DriverCommand::Chopper {
@@ -469,7 +452,7 @@ impl Printer {
             let c = self.current(code);
             self.report_line(&c);
         }
-        let c = &self.cfg;
+        let c = &self.settings.cfg;
         let accel = gcode::Command::SetAcceleration {
             print: Some(c.accel_print_mm_s2),
             retract: Some(c.accel_retract_mm_s2),
@@ -485,7 +468,7 @@ impl Printer {
             (HeaterId::Hotend, Heater::Hotend),
             (HeaterId::Bed, Heater::Bed),
         ] {
-            if let Some(g) = self.thermal.pid(id) {
+            if let Some(g) = self.heat.thermal().pid(id) {
                 self.report_line(&gcode::Command::SetPid {
                     heater,
                     p: Some(g.kp),
@@ -496,9 +479,9 @@ impl Printer {
         }
         let c = self.current("M906");
         self.report_line(&c);
-        let timeout_s = self.thermal.idle_config().map_or(0, |i| i.timeout_s);
+        let timeout_s = self.heat.thermal().idle_config().map_or(0, |i| i.timeout_s);
         self.report_line(&gcode::Command::PauseParams(PauseParams::from_config(
-            &self.cfg.pause,
+            &self.settings.cfg.pause,
             Some(timeout_s as f32),
         )));
     }

@@ -1,11 +1,16 @@
 //! The executive's public types: run state, commands, policies, execution records, status.
 
-use super::CMD_CAPACITY;
 use crate::motion::{LayerMark, MoveRequest, PauseMode, StepPos};
 use crate::planner::{BlockKind, RING_CAPACITY};
 use crate::thermal::HeaterId;
 
-/// Run state, as reported by [`Printer::status`].
+/// Longest message line the executive formats.
+pub const LINE_LEN: usize = 120;
+
+/// Command queue capacity (commands after parsing; each ≈ 32 B): the most a policy lets wait.
+pub const CMD_CAPACITY: usize = 32;
+
+/// Run state, as reported by [`super::Printer::status`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum State {
     /// Nothing queued, nothing moving.

@@ -107,10 +107,7 @@ impl Machine {
     pub(super) fn idle(&mut self, now_us: u64) -> anyhow::Result<bool> {
         let st = self.fw.status().state;
         let idle = self.fw.next_step_us(now_us).is_none()
-            && !matches!(
-                st,
-                State::Printing | State::Pausing | State::Resuming
-            );
+            && !matches!(st, State::Printing | State::Pausing | State::Resuming);
         if idle {
             self.keep()?;
         }

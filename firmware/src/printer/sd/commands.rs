@@ -26,7 +26,7 @@ impl Printer {
             SdCommand::Seek(_) | SdCommand::AutoReport(_) | SdCommand::CurrentFile
         );
         if needs_card && !self.sd.attached {
-            self.link.respond(Response::Echo("No media"));
+            self.host.respond(Response::Echo("No media"));
             return false;
         }
         match c {
@@ -41,7 +41,8 @@ impl Printer {
             }
             SdCommand::Select(name) | SdCommand::SelectAndStart(name) => {
                 if self.sd_printing() {
-                    self.warn(format_args!("SD printing: cancel it first (M524)"));
+                    self.host
+                        .warn(format_args!("SD printing: cancel it first (M524)"));
                     return false;
                 }
                 self.sd.request = Some(CardRequest::Open {
@@ -54,10 +55,14 @@ impl Printer {
             SdCommand::Seek(s) => {
                 match &mut self.sd.job {
                     SdJob::Selected { file, start_at } if *s <= file.size => *start_at = *s,
-                    SdJob::Selected { .. } => self.warn(format_args!("M26: beyond the file's end")),
-                    SdJob::Printing { .. } => self.warn(format_args!("M26: not while SD printing")),
+                    SdJob::Selected { .. } => {
+                        self.host.warn(format_args!("M26: beyond the file's end"))
+                    }
+                    SdJob::Printing { .. } => {
+                        self.host.warn(format_args!("M26: not while SD printing"))
+                    }
                     SdJob::None => {
-                        self.link.respond(Response::Echo("No file selected"));
+                        self.host.respond(Response::Echo("No file selected"));
                     }
                 }
                 return false;
@@ -77,7 +82,7 @@ impl Printer {
                         let _ = t.push_str("Current file: (no file)");
                     }
                 }
-                self.link.respond(Response::Echo(&t));
+                self.host.respond(Response::Echo(&t));
                 return false;
             }
         }
@@ -92,7 +97,7 @@ impl Printer {
         };
         let mut t: String<LINE_LEN> = String::new();
         let _ = write!(t, "SD printing byte {a}/{b}");
-        self.link.respond(Response::Plain(&t));
+        self.host.respond(Response::Plain(&t));
         true
     }
 
@@ -115,7 +120,7 @@ impl Printer {
         }
         // A list for every port (M20 in a file) does not wait for room: a port nobody reads
         // must not stall the card; what does not fit is dropped there (and counted).
-        let room = |p: &Self| port.map_or(usize::MAX / 2, |q| p.link.output_free_on(q));
+        let room = |p: &Self| port.map_or(usize::MAX / 2, |q| p.host.output_free_on(q));
         if next == 0 {
             if room(self) < LIST_ROOM {
                 self.sd.request = Some(CardRequest::List { port, long, next });

@@ -14,10 +14,10 @@
 //! - M27: without an SD card Marlin answers `Not SD printing`; this firmware adds its layer
 //!   counter, state and M73 progress on an `echo:` line (read by the OctoPrint plugin).
 
-use super::{Printer, State};
+use super::Host;
 use crate::gcode::{Progress, ReportCommand};
 use crate::link::{Response, TempReport};
-use crate::thermal::HeaterId;
+use crate::printer::types::State;
 
 /// One second, µs: the period of the temperature lines during heater waits (Marlin's).
 pub const WAIT_REPORT_US: u64 = 1_000_000;
@@ -33,7 +33,7 @@ pub(super) struct Reports {
     /// When the next temperature line of a heater wait is due.
     next_wait_us: u64,
     /// M113 period, µs (0 = no `busy:` lines).
-    pub(super) busy_us: u64,
+    busy_us: u64,
     /// The print job timer: µs counted so far, and the time of the last tick while running.
     job_us: u64,
     job_tick_us: Option<u64>,
@@ -53,6 +53,22 @@ impl Reports {
             progress_percent: None,
         }
     }
+
+    /// The `busy:` period (M113), µs.
+    pub(super) fn busy_us(&self) -> u64 {
+        self.busy_us
+    }
+}
+
+/// What M27 needs to know of the printer.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(in crate::printer) struct JobView {
+    /// The run state.
+    pub(in crate::printer) state: State,
+    /// M27's layer (the last one the head crossed).
+    pub(in crate::printer) layer: Option<u32>,
+    /// The card job's bytes read and size, when one prints.
+    pub(in crate::printer) sd_progress: Option<(u32, u32)>,
 }
 
 /// `1h 2m 3s` / `2m 3s` / `3s`, as Marlin's `duration_t::toString` writes M31's time.
@@ -74,24 +90,17 @@ impl core::fmt::Display for Duration {
     }
 }
 
-impl Printer {
-    /// The temperatures as M105 and the auto-report print them.
-    pub(super) fn temp_report(&self) -> TempReport {
-        TempReport {
-            hotend_c: self.thermal.temperature_c(HeaterId::Hotend),
-            hotend_target_c: self.thermal.target_c(HeaterId::Hotend),
-            bed_c: Some((
-                self.thermal.temperature_c(HeaterId::Bed),
-                self.thermal.target_c(HeaterId::Bed),
-            )),
-            hotend_duty: self.thermal.duty(HeaterId::Hotend),
-            bed_duty: self.thermal.duty(HeaterId::Bed),
-        }
+impl Host {
+    /// M105's answer: the temperatures with its `ok`.
+    pub(in crate::printer) fn temperatures(&mut self, report: TempReport) {
+        self.ports.respond(Response::Temperatures {
+            report,
+            with_ok: true,
+        });
     }
 
-    fn temp_line(&mut self) {
-        let report = self.temp_report();
-        self.link.respond(Response::Temperatures {
+    fn temp_line(&mut self, report: TempReport) {
+        self.ports.respond(Response::Temperatures {
             report,
             with_ok: false,
         });
@@ -99,35 +108,37 @@ impl Printer {
 
     /// Called while a line waits for a heater (M109/M190): a temperature line about once a
     /// second, and the print job timer starts.
-    pub(super) fn heater_wait_report(&mut self) {
-        if self.reports.job_tick_us.is_none() {
-            self.reports.job_tick_us = Some(self.now_us);
+    pub(in crate::printer) fn heater_wait_report(&mut self, now_us: u64, report: TempReport) {
+        let r = &mut self.reports;
+        if r.job_tick_us.is_none() {
+            r.job_tick_us = Some(now_us);
         }
-        if self.now_us >= self.reports.next_wait_us {
-            self.reports.next_wait_us = self.now_us + WAIT_REPORT_US;
-            self.temp_line();
+        if now_us >= r.next_wait_us {
+            r.next_wait_us = now_us + WAIT_REPORT_US;
+            self.temp_line(report);
         }
     }
 
-    /// Called every main-loop tick: the M155 auto-report and the print job timer.
-    pub(super) fn report_tick(&mut self) {
-        let now = self.now_us;
+    /// Called every main-loop tick: the M155 auto-report and the print job timer. The
+    /// temperatures and whether the heaters are off are asked for only when needed (the idle
+    /// tick stays cheap).
+    pub(in crate::printer) fn report_tick(
+        &mut self,
+        now: u64,
+        state: State,
+        temps: impl FnOnce() -> TempReport,
+        heaters_off: impl FnOnce() -> bool,
+    ) {
         let r = &mut self.reports;
         if r.auto_temp_us > 0 && now >= r.next_auto_us {
             r.next_auto_us = now + r.auto_temp_us;
-            self.temp_line();
+            self.temp_line(temps());
         }
-        let state = self.state();
         let r = &mut self.reports;
         match (r.job_tick_us, state) {
             (None, State::Printing) => r.job_tick_us = Some(now),
             (Some(_), State::Cancelled | State::Halted) => r.job_tick_us = None,
-            (Some(_), State::Idle)
-                if self.thermal.target_c(HeaterId::Hotend) <= 0.0
-                    && self.thermal.target_c(HeaterId::Bed) <= 0.0 =>
-            {
-                r.job_tick_us = None
-            }
+            (Some(_), State::Idle) if heaters_off() => r.job_tick_us = None,
             (Some(t), State::Paused) => r.job_tick_us = Some(t.max(now)),
             (Some(t), _) => {
                 r.job_us += now.saturating_sub(t);
@@ -138,18 +149,18 @@ impl Printer {
     }
 
     /// M73: remember the percent (reported by M27).
-    pub(super) fn note_progress(&mut self, p: &Progress) {
+    pub(in crate::printer) fn note_progress(&mut self, p: &Progress) {
         if let Some(pc) = p.percent.filter(|v| v.is_finite()) {
             self.reports.progress_percent = Some(pc.clamp(0.0, 100.0) as u8);
         }
     }
 
-    /// M155, M113, M31, M27.
-    pub(super) fn report_command(&mut self, c: &ReportCommand) {
+    /// M155, M113, M31, M27 (its layer line; the card's byte line is the SD part's).
+    pub(in crate::printer) fn report_command(&mut self, c: &ReportCommand, now: u64, job: JobView) {
         match *c {
             ReportCommand::AutoTemp(Some(s)) => {
                 self.reports.auto_temp_us = u64::from(s) * 1_000_000;
-                self.reports.next_auto_us = self.now_us;
+                self.reports.next_auto_us = now;
             }
             ReportCommand::AutoTemp(None) => {
                 let s = self.reports.auto_temp_us / 1_000_000;
@@ -167,10 +178,7 @@ impl Printer {
                 self.say(format_args!("Print time: {}", Duration(s)));
             }
             ReportCommand::JobStatus => {
-                if !self.sd_status() {
-                    self.say(format_args!("Not SD printing"));
-                }
-                let state = match self.state() {
+                let state = match job.state {
                     State::Idle => "idle",
                     State::Printing => "printing",
                     State::Pausing => "pausing",
@@ -181,11 +189,11 @@ impl Printer {
                 };
                 // M73's percent, else the card job's bytes read.
                 let progress = self.reports.progress_percent.or_else(|| {
-                    self.sd_progress()
+                    job.sd_progress
                         .filter(|(_, b)| *b > 0)
                         .map(|(a, b)| (u64::from(a) * 100 / u64::from(b)) as u8)
                 });
-                match (self.layer, progress) {
+                match (job.layer, progress) {
                     (Some(l), Some(p)) => {
                         self.say(format_args!("layer {l} state {state} progress {p}%"))
                     }

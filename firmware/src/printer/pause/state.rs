@@ -3,26 +3,28 @@
 //! stopping, a cancel and a withdrawal at once...) cannot be written.
 //!
 //! ```text
-//! Run ──pause/cancel──► Stopping{how, then} ──head stopped──► Parking{held, then}
+//! Run ──pause/cancel──► Stopping{how, mode, then} ──head stopped──► Parking{held, then}
 //!   ▲                      │ then = Continue: release, back to Run      │ then = Cancel
 //!   │                      ▼                                            ▼
-//!   └──── Returning{held, then} ◄──resume── Parked{held, manual}     Run (cancelled)
+//!   └──── Returning{held, then} ◄──resume── Parked{held}             Run (cancelled)
 //! any ──M112──► Halted
 //! ```
 
-use crate::machine::MachineState;
 use crate::motion::{PauseMode, StepPos};
 use crate::stepgen::ExecBlock;
 
 /// Where the pause machine is.
-#[derive(Clone, Debug)]
-pub(super) enum Pause {
+#[derive(Clone, Copy, Debug)]
+pub(in crate::printer) enum Pause {
     /// Printing or idle: no pause.
     Run,
     /// A pause (or a cancel) on its way: the head moves until it has stopped.
     Stopping {
         /// How it stops.
         how: Stop,
+        /// The mode it reports (what was asked; a conventional tail stop runs to its barrier
+        /// whatever was asked).
+        mode: PauseMode,
         /// What happens once it has stopped.
         then: AfterStop,
     },
@@ -37,9 +39,6 @@ pub(super) enum Pause {
     Parked {
         /// The held job.
         held: Held,
-        /// The modal state manual lines are interpreted in (a copy of the job's, at the parked
-        /// position; `None` when every line is a job line, [`super::PausedLines::Queue`]).
-        manual: Option<MachineState>,
     },
     /// Returning to the held position: XY, Z, un-retract, then the held job is released.
     Returning {
@@ -56,7 +55,7 @@ pub(super) enum Pause {
 
 /// How a stopping pause stops.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) enum Stop {
+pub(in crate::printer) enum Stop {
     /// At the layer barrier in the planner (layer pause, scheduled pause, M0/M600); `layer`
     /// is the mark the barrier stands at, once known.
     Barrier {
@@ -69,38 +68,27 @@ pub(super) enum Stop {
         /// Waiting for a homing move to finish before braking.
         after_homing: bool,
     },
-    /// Conventional firmware ([`super::Policy::pause_at_tail`]): after everything queued at
-    /// the request. `countdown`: commands still to enter the planner before the barrier is set
-    /// at the planner's tail.
+    /// Conventional firmware ([`crate::printer::Policy::pause_at_tail`]): after everything
+    /// queued at the request. `countdown`: commands still to enter the planner before the
+    /// barrier is set at the planner's tail.
     Tail {
-        /// Requested mode (reported; the stop is at the tail either way).
-        mode: PauseMode,
         /// Commands left before the tail barrier is set.
         countdown: Option<usize>,
     },
 }
 
 impl Stop {
-    /// The pause mode this stop reports.
-    pub(super) fn mode(self) -> PauseMode {
-        match self {
-            Stop::Barrier { .. } => PauseMode::Layer,
-            Stop::Hold { .. } => PauseMode::Now,
-            Stop::Tail { mode, .. } => mode,
-        }
-    }
-
     /// Whether this stop brakes the motion (a feed hold). A tail stop never does, whatever
     /// mode was asked for: it runs everything queued before it to its barrier, as a
     /// conventional firmware's pause does.
-    pub(super) fn brakes(self) -> bool {
+    pub(in crate::printer) fn brakes(self) -> bool {
         matches!(self, Stop::Hold { .. })
     }
 }
 
 /// What a stopping pause does once the head has stopped.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) enum AfterStop {
+pub(in crate::printer) enum AfterStop {
     /// Park (the pause).
     Park,
     /// The pause was withdrawn during a feed hold: continue from where it stopped.
@@ -111,7 +99,7 @@ pub(super) enum AfterStop {
 
 /// What a parking pause does once parked.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) enum AfterPark {
+pub(in crate::printer) enum AfterPark {
     /// Stay parked (announce `//action:paused`).
     Wait,
     /// A resume came while parking: return at once.
@@ -122,7 +110,7 @@ pub(super) enum AfterPark {
 
 /// What a returning pause does once back at the held position.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) enum AfterReturn {
+pub(in crate::printer) enum AfterReturn {
     /// Release the held job.
     Print,
     /// A pause came while returning: release, then pause again.
@@ -133,27 +121,27 @@ pub(super) enum AfterReturn {
 
 /// The job held by a pause: where it stopped and what it left.
 #[derive(Clone, Copy, Debug)]
-pub(super) struct Held {
+pub(in crate::printer) struct Held {
     /// The block interrupted mid-way (feed hold), to be finished on resume.
-    pub(super) block: Option<ExecBlock>,
+    pub(in crate::printer) block: Option<ExecBlock>,
     /// Where the head stopped, steps.
-    pub(super) pos: StepPos,
+    pub(in crate::printer) pos: StepPos,
     /// E retracted by the park, steps (given back by the return).
-    pub(super) retracted_steps: i32,
+    pub(in crate::printer) retracted_steps: i32,
     /// The pause's mode (reported).
-    pub(super) mode: PauseMode,
+    pub(in crate::printer) mode: PauseMode,
     /// The layer the held job starts with when the head stopped at a layer boundary (the
     /// barrier's mark); `None` after a stop inside a layer (feed hold, a conventional
     /// firmware's tail stop). What a host that connects to the parked printer is told.
-    pub(super) before_layer: Option<u32>,
+    pub(in crate::printer) before_layer: Option<u32>,
 }
 
 impl Pause {
     /// The held job, from the stop to the release.
-    pub(super) fn held(&self) -> Option<&Held> {
+    pub(in crate::printer) fn held(&self) -> Option<&Held> {
         match self {
             Pause::Parking { held, .. }
-            | Pause::Parked { held, .. }
+            | Pause::Parked { held }
             | Pause::Returning { held, .. } => Some(held),
             _ => None,
         }
@@ -163,22 +151,22 @@ impl Pause {
     pub(super) fn held_mut(&mut self) -> Option<&mut Held> {
         match self {
             Pause::Parking { held, .. }
-            | Pause::Parked { held, .. }
+            | Pause::Parked { held }
             | Pause::Returning { held, .. } => Some(held),
             _ => None,
         }
     }
 
     /// The current pause's mode, if a pause is in progress.
-    pub(super) fn mode(&self) -> Option<PauseMode> {
+    pub(in crate::printer) fn mode(&self) -> Option<PauseMode> {
         match self {
-            Pause::Stopping { how, .. } => Some(how.mode()),
+            Pause::Stopping { mode, .. } => Some(*mode),
             _ => self.held().map(|h| h.mode),
         }
     }
 
     /// A cancel is on its way (it completes when the head has stopped and parked).
-    pub(super) fn cancelling(&self) -> bool {
+    pub(in crate::printer) fn cancelling(&self) -> bool {
         matches!(
             self,
             Pause::Stopping {
@@ -194,14 +182,15 @@ impl Pause {
         )
     }
 
-    /// The tail barrier's countdown of the conventional policy, while stopping.
-    pub(super) fn tail_countdown(&mut self) -> Option<&mut Option<usize>> {
+    /// The layer a parked or stopping printer's held job starts with: the barrier's mark, or
+    /// `None` for a stop inside a layer.
+    pub(in crate::printer) fn before_layer(&self) -> Option<u32> {
         match self {
             Pause::Stopping {
-                how: Stop::Tail { countdown, .. },
+                how: Stop::Barrier { layer },
                 ..
-            } => Some(countdown),
-            _ => None,
+            } => *layer,
+            p => p.held().and_then(|h| h.before_layer),
         }
     }
 }
