@@ -4,6 +4,7 @@
 use std::path::PathBuf;
 
 pub mod gcode;
+pub mod imports;
 pub mod judge;
 pub mod pty;
 
