@@ -351,26 +351,24 @@ fn a_print_from_the_card_pauses_at_its_layer_and_finishes() {
     assert!(r.pause_point_steps.is_some());
 }
 
-/// A settings area whose open sector has less room than a paused-job record: the first save
-/// (the power-cut record kept at the park, or its clearing at the resume) moves the store to
-/// the other sector and erases this one, during the pause — what the erase-ahead avoids when
-/// the printer was idle long enough before the job (not here: the job starts at once). Written
-/// with the library's own store on its NOR-flash model of the SKR 2's area, as the image's
-/// saves would leave it.
+/// A settings area whose current sector (11) has less room than a paused-job record, sector 10
+/// holding the generation before: the first save while paused (the power-cut record kept at
+/// the park) switches to sector 10 and must erase it first, during the pause — what the
+/// erase-ahead avoids when the printer was idle long enough before the job (not here: the job
+/// starts at once). Written with the library's own store on its NOR-flash model of the SKR 2's
+/// area (raw job-key records, cleared at the end: no settings, no kept job).
 fn nearly_full_settings_area(name: &str) -> PathBuf {
-    use firmware::storage::{SettingsStore, Skr2FlashModel, PAD_KEY};
+    use firmware::storage::{Moment, SettingsStore, Skr2FlashModel, JOB_KEY};
     const LEN: u32 = 256 * 1024;
     let flash = Skr2FlashModel::new(vec![0xFFu8; LEN as usize]);
     let mut store = SettingsStore::new(flash, 0..LEN).expect("store");
-    let free = |s: &mut SettingsStore<_>| s.open_sector_free().expect("read").unwrap_or(LEN);
-    while free(&mut store) > 1024 {
-        store.store(PAD_KEY, &[0u8; 200]).expect("filler");
+    // Less than a job record's two frames (576 bytes) and a clear's (64) left after the clear.
+    while store.current_sector().expect("read") != Some(1)
+        || store.free_bytes().expect("read").unwrap_or(LEN) >= 704
+    {
+        store.write(JOB_KEY, &[0u8; 244], Moment::Idle).expect("filler");
     }
-    while free(&mut store) > 48 {
-        store.store(PAD_KEY, &[0u8; 4]).expect("filler");
-    }
-    let left = free(&mut store);
-    assert!(left <= 48, "{left}");
+    store.write(JOB_KEY, &[], Moment::Idle).expect("clear");
     let path = temp(name);
     std::fs::write(&path, store.into_flash().into_inner()).expect("write");
     path

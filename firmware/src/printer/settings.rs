@@ -15,12 +15,11 @@ use crate::gcode::{self, AxisWords, Heater, PauseParams, SettingsCommand};
 use crate::link::Response;
 use crate::motion::{Axis, AXES};
 use crate::storage::{
-    Bound, Settings, SettingsStore, StoreError, Stored, ACCEL, DRIVER_CURRENT, HOME_OFFSET,
+    Bound, Moment, RecordStore, Saved, Settings, StoreError, ACCEL, DRIVER_CURRENT, HOME_OFFSET,
     JUNCTION_DEVIATION, MAX_FEED, STEPS_PER_MM,
 };
 use crate::thermal::HeaterId;
 use core::fmt::Write as _;
-use embedded_storage::nor_flash::NorFlash;
 use heapless::String;
 
 /// A request for the driver's settings store.
@@ -54,14 +53,14 @@ impl SettingsLink {
     }
 }
 
-/// What a store says when it had to reclaim the area (nothing when it appended).
-pub(super) struct Reclaim(pub(super) Stored);
+/// What a save's message adds when it had to erase a sector first (nothing otherwise).
+pub(super) struct Erased(pub(super) Saved);
 
-impl core::fmt::Display for Reclaim {
+impl core::fmt::Display for Erased {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self.0 {
-            Stored::Appended => Ok(()),
-            Stored::Reclaimed => f.write_str("; the unreadable settings area was erased first"),
+            Saved::Written => Ok(()),
+            Saved::AfterErase => f.write_str("; a flash sector was erased first"),
         }
     }
 }
@@ -162,7 +161,7 @@ impl Printer {
     /// Boot: load the saved settings and apply them. Nothing saved: the factory values stay,
     /// silently. A store that cannot be read or a record that is refused (corrupt, another
     /// format version, out of range): the factory values stay, with an `echo:` saying why.
-    pub fn load_settings<F: NorFlash>(&mut self, store: &mut SettingsStore<F>) {
+    pub fn load_settings(&mut self, store: &mut dyn RecordStore) {
         if self.settings.factory.is_none() {
             self.set_factory_settings();
         }
@@ -171,8 +170,8 @@ impl Printer {
         self.announce_kept_job(store);
     }
 
-    fn load_and_apply<F: NorFlash>(&mut self, store: &mut SettingsStore<F>, report_empty: bool) {
-        match store.load() {
+    fn load_and_apply(&mut self, store: &mut dyn RecordStore, report_empty: bool) {
+        match store.load_settings() {
             Ok(Some(s)) => match self.apply_settings(&s) {
                 Ok(()) => self.say(format_args!("Settings loaded from flash")),
                 Err(e) => self.say(format_args!("saved settings not applied: {e}")),
@@ -189,13 +188,11 @@ impl Printer {
     fn fall_back(&mut self, e: StoreError) {
         let f = self.factory_settings();
         match self.apply_settings(&f) {
+            Ok(()) if e == StoreError::Foreign => self.say(format_args!(
+                "no saved settings: {e} (factory defaults; M500 saves over it)"
+            )),
             Ok(()) => self.say(format_args!(
-                "saved settings unusable ({e}): factory defaults loaded{}",
-                if matches!(e, StoreError::Corrupted | StoreError::Full) {
-                    " (M500 erases the area and saves)"
-                } else {
-                    ""
-                }
+                "saved settings unusable ({e}): factory defaults loaded"
             )),
             Err(why) => self.say(format_args!(
                 "saved settings unusable ({e}); factory defaults not applied: {why}"
@@ -210,7 +207,7 @@ impl Printer {
     /// With nothing to do, after [`ERASE_AHEAD_IDLE_US`] of idle (no job, nothing moving or
     /// paused), once per idle period: the store's erase-ahead (`storage::reserve`), so the
     /// saves of the next print (a power-cut record at every layer pause) find erased room.
-    pub fn service_store<F: NorFlash>(&mut self, store: &mut SettingsStore<F>) {
+    pub fn service_store(&mut self, store: &mut dyn RecordStore) {
         if !self.store_request_pending() {
             self.erase_ahead_when_idle(store);
             return;
@@ -219,13 +216,14 @@ impl Printer {
             return;
         }
         self.settings.reserve_checked = false;
+        let at = self.store_moment();
         match self.settings.request.take() {
-            Some(StoreRequest::Save(s)) => match store.save(&s) {
+            Some(StoreRequest::Save(s)) => match store.save_settings(&s, at) {
                 Ok(how) => self.say(format_args!(
                     "Settings Stored ({} bytes, format {}{})",
                     crate::storage::RECORD_LEN,
                     crate::storage::FORMAT_VERSION,
-                    Reclaim(how)
+                    Erased(how)
                 )),
                 Err(e) => self.say(format_args!("settings not saved: {e}")),
             },
@@ -234,11 +232,11 @@ impl Printer {
         }
         match self.job.request.take() {
             Some(super::job::JobRequest::Save(j)) => {
-                let saved = store.save_job(&j);
+                let saved = store.save_job(&j, at);
                 self.job_saved(&j, saved);
             }
             Some(super::job::JobRequest::Clear) => {
-                if let Err(e) = store.clear_job() {
+                if let Err(e) = store.clear_job(at) {
                     self.say(format_args!(
                         "power-cut resume: the kept job was not cleared: {e}"
                     ));
@@ -248,7 +246,20 @@ impl Printer {
         }
     }
 
-    fn erase_ahead_when_idle<F: NorFlash>(&mut self, store: &mut SettingsStore<F>) {
+    /// What a sector erase would cost now (`service_store` runs only when nothing steps):
+    /// parked in a pause; idle (nothing queued, no card print); or between the moves of a job
+    /// (lines queued, or a card print: never an erase then).
+    fn store_moment(&self) -> Moment {
+        match self.pause {
+            Pause::Parked { .. } | Pause::Returning { .. } => Moment::Paused,
+            Pause::Run if self.state() == super::State::Idle && !self.sd_printing() => {
+                Moment::Idle
+            }
+            _ => Moment::Printing,
+        }
+    }
+
+    fn erase_ahead_when_idle(&mut self, store: &mut dyn RecordStore) {
         if self.state() != super::State::Idle {
             self.settings.idle_since_us = None;
             return;

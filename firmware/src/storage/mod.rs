@@ -1,23 +1,30 @@
-//! Settings kept in flash: the record M500 saves ([`Settings`]), the store that keeps records
-//! power-safe in a NOR-flash area ([`SettingsStore`], through sequential-storage), and a
-//! NOR-flash model that can lose power at any operation ([`NorFlashModel`], for the sim and the
-//! tests).
+//! Settings kept in flash: the record M500 saves ([`Settings`]), the paused-job record
+//! ([`PausedJob`]), the store that keeps both power-safe in two NOR-flash sectors
+//! ([`SettingsStore`], behind the executive's interface [`RecordStore`]), and a NOR-flash model
+//! that can lose power at any operation ([`NorFlashModel`], for the sim and the tests).
+//!
+//! Layers, each using only those below it: `record`/`job` (the records' bytes), `format` (the
+//! on-flash layout), `sector` (reading it from a flash), `store` (writing it: saves, sector
+//! switches, erase-ahead), `api` (what the executive asks and gets back).
 //!
 //! On the SKR 2 (STM32F407VG, 1 MiB) the area is the last two 128 KiB sectors, 10 and 11
 //! (`0x080C_0000..0x0810_0000`; RM0090 table 5: sectors 5–11 are 128 KiB each on the 1 MiB
 //! parts, F407 and F429 alike); see [`SKR2_AREA`]. The image must end below it (`memory.x`).
 //! See `docs/settings.md` for the M-codes, the format and the power-fail guarantees.
 
+mod api;
 mod flash;
+mod format;
 mod job;
 mod record;
-// Erase ahead while idle: saves during a print find erased room.
-mod reserve;
 // SD-card printing: the FAT job source (embedded-sdmmc).
 pub mod sd;
+mod sector;
 mod store;
 
-pub use flash::{block_on, Blocking, Cut, FlashOp, ModelError, NorFlashModel};
+pub use api::{Ahead, Moment, RecordStore, Saved, StoreError};
+pub use flash::{Cut, FlashOp, ModelError, NorFlashModel};
+pub use format::{MAX_DATA, STORE_FORMAT};
 pub use job::{
     JobSource, ModalState, PausedJob, JOB_BODY_LEN, JOB_FORMAT_VERSION, JOB_PATH_CAP,
     JOB_RECORD_LEN,
@@ -29,8 +36,7 @@ pub use record::{
 pub use crate::ranges::{
     Bound, ACCEL, DRIVER_CURRENT, HOME_OFFSET, JUNCTION_DEVIATION, MAX_FEED, PID_GAIN, STEPS_PER_MM,
 };
-pub use reserve::{EraseAhead, PAD_KEY};
-pub use store::{SettingsStore, StoreError, Stored, BUF_LEN, JOB_KEY, SETTINGS_KEY};
+pub use store::{SettingsStore, JOB_KEY, SETTINGS_KEY};
 
 /// Where the settings live on the SKR 2: absolute addresses of the area in the STM32F407's
 /// flash, and its sector size.
