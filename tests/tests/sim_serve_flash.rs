@@ -281,24 +281,28 @@ fn records_beside_foreign_data_survive_m500_a_layer_pause_and_a_restart() {
             s.spawn(move || foreign_beside_records(k, what, area));
         }
     });
-    println!("sim serve --flash: {} variants, no record lost", variants.len());
+    println!(
+        "sim serve --flash: {} variants, no record lost",
+        variants.len()
+    );
 }
 
 /// One variant of the test above: `area` in a flash file of its own (`k`).
 fn foreign_beside_records(k: usize, what: &str, area: &[u8]) {
     use firmware::storage::{JobSource, RecordStore, SettingsStore, Skr2FlashModel};
     let (lines, first) = numbered_job();
-    let file = std::env::temp_dir().join(format!(
-        "sim-serve-foreign-{}-{k}.bin",
-        std::process::id()
-    ));
+    let file =
+        std::env::temp_dir().join(format!("sim-serve-foreign-{}-{k}.bin", std::process::id()));
     std::fs::write(&file, area).unwrap();
     let mut all = vec!["M503", "M203 Z12", "M500", "M110 N0"];
     all.extend(lines.iter().map(String::as_str));
     let seen = session_with(&file, &all, Some(12 + 3));
     let has = |seen: &[String], s: &str| seen.iter().any(|l| l.contains(s));
     assert!(has(&seen, "Paused job kept: layer 7"), "{what}: {seen:?}");
-    assert!(has(&seen, "echo:  M92 X81 Y80 Z400 E93"), "{what}: {seen:?}");
+    assert!(
+        has(&seen, "echo:  M92 X81 Y80 Z400 E93"),
+        "{what}: {seen:?}"
+    );
     assert!(has(&seen, "echo:Settings Stored"), "{what}: {seen:?}");
     let kept = seen
         .iter()
@@ -314,7 +318,11 @@ fn foreign_beside_records(k: usize, what: &str, area: &[u8]) {
     let bytes = std::fs::read(&file).unwrap();
     let mut st = SettingsStore::new(Skr2FlashModel::new(bytes), 0..2 * 128 * 1024).unwrap();
     let s = st.load_settings().unwrap().unwrap();
-    assert_eq!((s.steps_per_mm[0], s.max_feed_mm_s[2]), (81.0, 12.0), "{what}");
+    assert_eq!(
+        (s.steps_per_mm[0], s.max_feed_mm_s[2]),
+        (81.0, 12.0),
+        "{what}"
+    );
     let j = st.load_job().unwrap().unwrap();
     assert_eq!(j.source, JobSource::Host { line }, "{what}");
 
@@ -328,7 +336,10 @@ fn foreign_beside_records(k: usize, what: &str, area: &[u8]) {
             == 2,
         "{what}: M503 and M92 after M1000: {next:?}"
     );
-    assert!(has(&next, "echo:  M203 X500 Y500 Z12 E25"), "{what}: {next:?}");
+    assert!(
+        has(&next, "echo:  M203 X500 Y500 Z12 E25"),
+        "{what}: {next:?}"
+    );
     assert!(
         has(&next, &format!("Paused job kept: layer {layer} ")),
         "{what}: {next:?}"

@@ -52,6 +52,16 @@ pub const ERASE_MAX_US: u32 = 2_000_000;
 pub const ERASE_WHILE_PAUSED: bool = ERASE_MAX_US < super::watchdog::MIN_TIMEOUT_US;
 const _: () = assert!(ERASE_WHILE_PAUSED);
 
+// The sim's and the tests' model of this area has the driver's geometry: the store's layout
+// follows the program word and the sector size, so an area written by `sim serve --flash` or
+// crafted in a test reads the same here.
+const _: () = {
+    type Model = firmware::storage::Skr2FlashModel<[u8; 0]>;
+    assert!(<GuardedFlash as NorFlash>::WRITE_SIZE == <Model as NorFlash>::WRITE_SIZE);
+    assert!(<GuardedFlash as NorFlash>::ERASE_SIZE == <Model as NorFlash>::ERASE_SIZE);
+    assert!(SKR2_AREA.sector_bytes as usize == <Model as NorFlash>::ERASE_SIZE);
+};
+
 /// The chip's flash with the heater and watchdog guards around its erases and writes.
 pub struct GuardedFlash {
     flash: Flash<'static, Blocking>,

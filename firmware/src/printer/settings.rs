@@ -252,9 +252,7 @@ impl Printer {
     fn store_moment(&self) -> Moment {
         match self.pause {
             Pause::Parked { .. } | Pause::Returning { .. } => Moment::Paused,
-            Pause::Run if self.state() == super::State::Idle && !self.sd_printing() => {
-                Moment::Idle
-            }
+            Pause::Run if self.state() == super::State::Idle && !self.sd_printing() => Moment::Idle,
             _ => Moment::Printing,
         }
     }

@@ -77,7 +77,9 @@ impl core::fmt::Display for StoreError {
             StoreError::Config => "settings area misconfigured",
             StoreError::Flash => "flash error",
             StoreError::Foreign => "the flash area holds nothing this firmware saved whole",
-            StoreError::NoErasedRoom => "no erased flash room and no erase now (erased ahead when idle)",
+            StoreError::NoErasedRoom => {
+                "no erased flash room and no erase now (erased ahead when idle)"
+            }
             StoreError::Damaged => "record damaged or its save cut short",
             StoreError::EraseFailed => "a flash sector did not erase",
             StoreError::NotVerified => "record did not read back from flash",

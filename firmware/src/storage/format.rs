@@ -206,13 +206,30 @@ mod tests {
     #[test]
     fn sizes_follow_the_word() {
         assert_eq!((L4.head(), L4.commit(), L4.records_start()), (16, 8, 32));
-        assert_eq!((L16.head(), L16.commit(), L16.records_start()), (16, 16, 32));
+        assert_eq!(
+            (L16.head(), L16.commit(), L16.records_start()),
+            (16, 16, 32)
+        );
         let l32 = Layout { word: 32 };
         assert_eq!((l32.head(), l32.commit(), l32.frame_len(1)), (32, 32, 96));
-        // The board's frames: settings 208, paused job 288, a cleared job 32 bytes.
-        assert_eq!(L16.frame_len(super::super::RECORD_LEN as u32), 208);
-        assert_eq!(L16.frame_len(super::super::JOB_RECORD_LEN as u32), 288);
-        assert_eq!(L16.frame_len(0), 32);
+        // The board's frames (4-byte words): settings 188, paused job 268, a cleared job 24
+        // bytes; at 16-byte words 208, 288, 32.
+        let (settings, job) = (
+            super::super::RECORD_LEN as u32,
+            super::super::JOB_RECORD_LEN as u32,
+        );
+        assert_eq!(
+            [L4.frame_len(settings), L4.frame_len(job), L4.frame_len(0)],
+            [188, 268, 24]
+        );
+        assert_eq!(
+            [
+                L16.frame_len(settings),
+                L16.frame_len(job),
+                L16.frame_len(0)
+            ],
+            [208, 288, 32]
+        );
         assert!(l32.frame_len(MAX_DATA as u32) as usize <= FRAME_CAP);
     }
 

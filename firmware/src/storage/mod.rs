@@ -68,9 +68,13 @@ pub const SKR2_AREA: FlashArea = FlashArea {
     sector_bytes: 128 * 1024,
 };
 
-/// The flash model the sim uses for `--flash FILE`: the SKR 2's area geometry (two 128 KiB
-/// sectors, 16-byte program words as embassy-stm32 writes the F4's flash).
-pub type Skr2FlashModel<B> = NorFlashModel<B, 16, { 128 * 1024 }>;
+/// The flash model the sim uses for `--flash FILE`: the SKR 2's area geometry as the board's
+/// driver sees it (two 128 KiB sectors; 4-byte program words: embassy-stm32's `WRITE_SIZE`
+/// for the F4, which programs one 32-bit word at a time at x32 parallelism). The store's
+/// layout follows the word, so an area written with another word size is unreadable on the
+/// board: `board/flash.rs` checks at compile time that the two agree (issue 29 found the
+/// model at 16 bytes while the board used 4).
+pub type Skr2FlashModel<B> = NorFlashModel<B, 4, { 128 * 1024 }>;
 
 /// CRC-32 (IEEE 802.3, reflected, as zlib and crc32fast) of `bytes`, table-less: the stored
 /// records (settings, paused job) are small, and a table costs flash (see `Cargo.toml`).

@@ -166,6 +166,14 @@ impl<F: NorFlash> SettingsStore<F> {
         })
     }
 
+    /// Erased bytes a save of `len` data bytes takes in the current sector: its two frames,
+    /// and (but for a clear) the room every save leaves for a cleared job.
+    pub fn room_for(&self, len: usize) -> u32 {
+        let l = self.area.layout;
+        let clear = 2 * l.frame_len(0);
+        2 * l.frame_len(len as u32) + if len == 0 { 0 } else { clear }
+    }
+
     /// Free bytes the erase-ahead keeps in the current sector: an eighth of a sector (16 KiB
     /// of the SKR 2's 128 KiB: 25 pause/resume cycles at 640 bytes, with the other sector
     /// erased for 200 more).
@@ -273,9 +281,7 @@ impl<F: NorFlash> SettingsStore<F> {
     fn erase(&mut self, index: usize) -> Result<(), StoreError> {
         let from = self.area.start(index);
         let to = from + self.area.sector;
-        self.flash
-            .erase(from, to)
-            .map_err(|_| StoreError::Flash)?;
+        self.flash.erase(from, to).map_err(|_| StoreError::Flash)?;
         if sector::is_erased(&mut self.flash, from, to)? {
             Ok(())
         } else {
@@ -381,7 +387,11 @@ impl<F: NorFlash> SettingsStore<F> {
         let h = l.head() as usize;
         let len = match src {
             Source::Bytes(b) => {
-                let d = self.buf.0.get_mut(h..h + b.len()).ok_or(StoreError::TooLarge)?;
+                let d = self
+                    .buf
+                    .0
+                    .get_mut(h..h + b.len())
+                    .ok_or(StoreError::TooLarge)?;
                 d.copy_from_slice(b);
                 b.len()
             }
@@ -404,9 +414,7 @@ impl<F: NorFlash> SettingsStore<F> {
     /// written.
     fn program(&mut self, to: u32, part: core::ops::Range<usize>) -> Result<bool, StoreError> {
         let bytes = self.buf.0.get(part).ok_or(StoreError::TooLarge)?;
-        self.flash
-            .write(to, bytes)
-            .map_err(|_| StoreError::Flash)?;
+        self.flash.write(to, bytes).map_err(|_| StoreError::Flash)?;
         let mut back = [0u8; 32];
         for (k, want) in bytes.chunks(32).enumerate() {
             let got = &mut back[..want.len()];

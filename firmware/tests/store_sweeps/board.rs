@@ -34,9 +34,15 @@ fn pause_saves_find_erased_room_when_the_printer_erased_ahead_while_idle() {
         want = want.after(Op::Settings(print));
         for _ in 0..pauses {
             let r = st.save_job(&job(k), Moment::Paused);
-            assert!(matches!(r, Ok(Saved::Written)), "print {print}, pause {k}: {r:?}");
+            assert!(
+                matches!(r, Ok(Saved::Written)),
+                "print {print}, pause {k}: {r:?}"
+            );
             let r = st.clear_job(Moment::Paused);
-            assert!(matches!(r, Ok(Saved::Written)), "print {print}, resume {k}: {r:?}");
+            assert!(
+                matches!(r, Ok(Saved::Written)),
+                "print {print}, resume {k}: {r:?}"
+            );
             k += 1;
         }
         assert_eq!(erases(&mut st), before, "print {print}: a save erased");
@@ -68,9 +74,10 @@ pub fn nearly_full() -> (Vec<u8>, Want) {
     let mut st = board(vec![0xFF; LEN]);
     st.save_job(&job(3), Moment::Idle).unwrap();
     let mut k = 0;
-    // Room for a paused job's two frames (2 × 288 bytes) and a cleared job's (2 × 32) is
-    // what a job save needs: leave less.
-    while st.current_sector().unwrap() != Some(1) || st.free_bytes().unwrap().unwrap() >= 640 {
+    // Leave less room than a job save takes.
+    let job_needs = st.room_for(firmware::storage::JOB_RECORD_LEN);
+    while st.current_sector().unwrap() != Some(1) || st.free_bytes().unwrap().unwrap() >= job_needs
+    {
         st.save_settings(&settings(k), Moment::Idle).unwrap();
         k += 1;
     }
@@ -85,12 +92,18 @@ fn a_pause_save_with_no_erased_room_erases_only_if_the_moment_affords_it() {
     let job = job(9);
     // A driver that cannot guard an erase while paused: the record is not kept, and says why.
     let mut st = board(bytes.clone()).erase_while_paused(false);
-    assert_eq!(st.save_job(&job, Moment::Paused), Err(StoreError::NoErasedRoom));
+    assert_eq!(
+        st.save_job(&job, Moment::Paused),
+        Err(StoreError::NoErasedRoom)
+    );
     assert_eq!(erases(&mut st), 0);
     assert_eq!(Want::loaded(&mut st), Ok(want.clone()));
     // Nor while printing, whatever the driver.
     let mut st = board(bytes.clone());
-    assert_eq!(st.save_job(&job, Moment::Printing), Err(StoreError::NoErasedRoom));
+    assert_eq!(
+        st.save_job(&job, Moment::Printing),
+        Err(StoreError::NoErasedRoom)
+    );
     // The SKR 2 (heaters off, watchdog fed): one erase, of sector 10, and the record is kept.
     let mut st = board(bytes.clone());
     assert_eq!(st.save_job(&job, Moment::Paused), Ok(Saved::AfterErase));

@@ -2,8 +2,8 @@
 
 use firmware::config::MachineConfig;
 use firmware::storage::{
-    Cut, FlashOp, JobSource, ModalState, Moment, NorFlashModel, PausedJob, RecordStore, Saved, Settings,
-    SettingsStore, StoreError,
+    Cut, FlashOp, JobSource, ModalState, Moment, NorFlashModel, PausedJob, RecordStore, Saved,
+    Settings, SettingsStore, StoreError,
 };
 use firmware::thermal::pid::PidGains;
 

@@ -76,7 +76,12 @@ fn a_cut_in_the_save_after_a_cut_keeps_what_the_first_left_or_the_new() {
     for prefix in [3, 7, 11, 16, 22] {
         let (base, _) = area_after::<16>(prefix);
         for op in [Op::Settings(500), Op::Job(501)] {
-            for kind in [Cut::Partial, Cut::PartialTail, Cut::NearlyAll, Cut::Scattered(5)] {
+            for kind in [
+                Cut::Partial,
+                Cut::PartialTail,
+                Cut::NearlyAll,
+                Cut::Scattered(5),
+            ] {
                 for n in 0.. {
                     let Ok(first) = cut_during::<16>(&base, n, kind, Moment::Idle, op) else {
                         break;

@@ -9,7 +9,12 @@ use firmware::storage::{Cut, Moment, RecordStore, SettingsStore, StoreError};
 /// switch sectors (into the foreign one) at least once.
 fn saves() -> impl Iterator<Item = (Op, Moment)> {
     (0..12u32).map(|i| {
-        let at = [Moment::Paused, Moment::Paused, Moment::Idle, Moment::Printing][i as usize % 4];
+        let at = [
+            Moment::Paused,
+            Moment::Paused,
+            Moment::Idle,
+            Moment::Printing,
+        ][i as usize % 4];
         (Op::nth(i + 600), at)
     })
 }
@@ -35,7 +40,8 @@ fn saves_keep_everything(what: &str, area: Vec<u8>, want: Want) -> u32 {
                     break;
                 };
                 cuts += 1;
-                let got = Want::loaded(&mut store::<16>(cut)).unwrap_or_else(|e| panic!("{ctx}: {e}"));
+                let got =
+                    Want::loaded(&mut store::<16>(cut)).unwrap_or_else(|e| panic!("{ctx}: {e}"));
                 assert!(got == want || got == new, "{ctx}: {got:?}");
             }
         }
@@ -48,7 +54,11 @@ fn saves_keep_everything(what: &str, area: Vec<u8>, want: Want) -> u32 {
             Err(e) => panic!("{ctx}: {e}"),
         }
         bytes = st.into_flash().into_inner();
-        assert_eq!(Want::loaded(&mut store::<16>(bytes.clone())), Ok(want.clone()), "{ctx}");
+        assert_eq!(
+            Want::loaded(&mut store::<16>(bytes.clone())),
+            Ok(want.clone()),
+            "{ctx}"
+        );
     }
     cuts
 }
@@ -83,7 +93,11 @@ fn foreign_data_at_first_boot_loads_nothing_and_the_first_save_takes_a_sector() 
                 }
             }
             let mut st = store::<16>(bytes.clone());
-            assert_eq!(st.load_settings(), Err(StoreError::Foreign), "{name} in {place}");
+            assert_eq!(
+                st.load_settings(),
+                Err(StoreError::Foreign),
+                "{name} in {place}"
+            );
             assert_eq!(st.load_job(), Ok(None), "{name} in {place}");
             areas += 1;
             cuts += saves_keep_everything(&format!("{name} in {place}"), bytes, Want::NONE);

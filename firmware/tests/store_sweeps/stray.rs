@@ -48,7 +48,11 @@ fn one_stray_byte_anywhere_loses_no_record_and_no_save_claims_what_did_not_read_
                 }
                 switches += u32::from(st.current_sector().unwrap() != first);
                 let bytes = st.into_flash().into_inner();
-                assert_eq!(Want::loaded(&mut store::<16>(bytes)), Ok(w), "{ctx}: after saves");
+                assert_eq!(
+                    Want::loaded(&mut store::<16>(bytes)),
+                    Ok(w),
+                    "{ctx}: after saves"
+                );
             }
         }
     }
