@@ -1,6 +1,6 @@
 //! The store's on-flash format, as bytes (no flash access here; `sector.rs` reads it from a
 //! flash, `store.rs` writes it). All multi-byte fields little-endian; every unit a whole number
-//! of the flash's program words (`word`, a power of two up to 32 bytes: 16 on the STM32F4 as
+//! of the flash's program words (`word`, a power of two up to 32 bytes: 4 on the STM32F4 as
 //! embassy-stm32 programs it).
 //!
 //! ```text

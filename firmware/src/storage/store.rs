@@ -175,8 +175,8 @@ impl<F: NorFlash> SettingsStore<F> {
     }
 
     /// Free bytes the erase-ahead keeps in the current sector: an eighth of a sector (16 KiB
-    /// of the SKR 2's 128 KiB: 25 pause/resume cycles at 640 bytes, with the other sector
-    /// erased for 200 more).
+    /// of the SKR 2's 128 KiB: 28 pause/resume cycles at 584 bytes, with the other sector
+    /// erased for 224 more).
     pub fn reserve_bytes(&self) -> u32 {
         self.area.sector / 8
     }
