@@ -35,7 +35,7 @@ pub fn settings(k: u32) -> Settings {
 
 /// The k-th distinct paused job (host jobs and SD jobs in turn).
 pub fn job(k: u32) -> PausedJob {
-    let source = if k % 2 == 0 {
+    let source = if k.is_multiple_of(2) {
         JobSource::Host { line: 1000 + k }
     } else {
         let mut path = heapless::String::new();
