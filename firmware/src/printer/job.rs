@@ -207,7 +207,7 @@ impl Printer {
                     "power-cut resume: keeping job at layer {}, {}{}",
                     j.layer,
                     Where(&j.source),
-                    super::settings::Erased(how)
+                    how.note()
                 ),
             ),
             Err(e) => core::fmt::Write::write_fmt(

@@ -15,7 +15,7 @@ use crate::gcode::{self, AxisWords, Heater, PauseParams, SettingsCommand};
 use crate::link::Response;
 use crate::motion::{Axis, AXES};
 use crate::storage::{
-    Bound, Moment, RecordStore, Saved, Settings, StoreError, ACCEL, DRIVER_CURRENT, HOME_OFFSET,
+    Bound, Moment, RecordStore, Settings, StoreError, ACCEL, DRIVER_CURRENT, HOME_OFFSET,
     JUNCTION_DEVIATION, MAX_FEED, STEPS_PER_MM,
 };
 use crate::thermal::HeaterId;
@@ -49,18 +49,6 @@ impl SettingsLink {
             request: None,
             idle_since_us: None,
             reserve_checked: false,
-        }
-    }
-}
-
-/// What a save's message adds when it had to erase a sector first (nothing otherwise).
-pub(super) struct Erased(pub(super) Saved);
-
-impl core::fmt::Display for Erased {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        match self.0 {
-            Saved::Written => Ok(()),
-            Saved::AfterErase => f.write_str("; a flash sector was erased first"),
         }
     }
 }
@@ -223,7 +211,7 @@ impl Printer {
                     "Settings Stored ({} bytes, format {}{})",
                     crate::storage::RECORD_LEN,
                     crate::storage::FORMAT_VERSION,
-                    Erased(how)
+                    how.note()
                 )),
                 Err(e) => self.say(format_args!("settings not saved: {e}")),
             },

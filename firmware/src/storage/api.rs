@@ -29,6 +29,17 @@ pub enum Saved {
     AfterErase,
 }
 
+impl Saved {
+    /// What a save's message adds: that a sector was erased first (1–2 s with the CPU
+    /// stalled on the STM32F4), or nothing.
+    pub fn note(self) -> &'static str {
+        match self {
+            Saved::Written => "",
+            Saved::AfterErase => "; a flash sector was erased first",
+        }
+    }
+}
+
 /// What an erase-ahead found or did.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Ahead {

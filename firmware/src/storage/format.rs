@@ -23,6 +23,10 @@
 //! record's data, a frame left from an earlier life of the sector — are not a frame. A frame
 //! with no data (`len` 0) says the key has no value (a cleared paused job).
 
+use super::crc::crc32_parts;
+use super::job::JOB_RECORD_LEN;
+use super::record::RECORD_LEN;
+
 /// First word of a sector header.
 pub const SECTOR_MAGIC: u32 = u32::from_le_bytes(*b"LPst");
 /// First word of a frame's head.
@@ -36,7 +40,7 @@ pub const MAX_DATA: usize = 256;
 /// Keys the store keeps: 1 the settings, 2 the paused job.
 pub const KEYS: usize = 2;
 
-const _: () = assert!(super::JOB_RECORD_LEN <= MAX_DATA && super::RECORD_LEN <= MAX_DATA);
+const _: () = assert!(JOB_RECORD_LEN <= MAX_DATA && RECORD_LEN <= MAX_DATA);
 
 /// Bytes of the largest frame (head and commit at a 32-byte word, the longest data).
 pub const FRAME_CAP: usize = 32 + MAX_DATA + 32;
@@ -89,16 +93,6 @@ pub const fn key_index(key: u8) -> Option<usize> {
         1..=2 => Some(key as usize - 1),
         _ => None,
     }
-}
-
-fn crc32_parts(parts: &[&[u8]]) -> u32 {
-    const CRC32: crc::Crc<u32, crc::NoTable> =
-        crc::Crc::<u32, crc::NoTable>::new(&crc::CRC_32_ISO_HDLC);
-    let mut d = CRC32.digest();
-    for p in parts {
-        d.update(p);
-    }
-    d.finalize()
 }
 
 fn le32(b: &[u8], at: usize) -> u32 {
@@ -214,10 +208,7 @@ mod tests {
         assert_eq!((l32.head(), l32.commit(), l32.frame_len(1)), (32, 32, 96));
         // The board's frames (4-byte words): settings 188, paused job 268, a cleared job 24
         // bytes; at 16-byte words 208, 288, 32.
-        let (settings, job) = (
-            super::super::RECORD_LEN as u32,
-            super::super::JOB_RECORD_LEN as u32,
-        );
+        let (settings, job) = (RECORD_LEN as u32, JOB_RECORD_LEN as u32);
         assert_eq!(
             [L4.frame_len(settings), L4.frame_len(job), L4.frame_len(0)],
             [188, 268, 24]

@@ -13,6 +13,7 @@
 //! See `docs/settings.md` for the M-codes, the format and the power-fail guarantees.
 
 mod api;
+mod crc;
 mod flash;
 mod format;
 mod job;
@@ -23,6 +24,7 @@ mod sector;
 mod store;
 
 pub use api::{Ahead, Moment, RecordStore, Saved, StoreError};
+pub use crc::crc32;
 pub use flash::{Cut, FlashOp, ModelError, NorFlashModel};
 pub use format::{MAX_DATA, STORE_FORMAT};
 pub use job::{
@@ -75,11 +77,3 @@ pub const SKR2_AREA: FlashArea = FlashArea {
 /// board: `board/flash.rs` checks at compile time that the two agree (issue 29 found the
 /// model at 16 bytes while the board used 4).
 pub type Skr2FlashModel<B> = NorFlashModel<B, 4, { 128 * 1024 }>;
-
-/// CRC-32 (IEEE 802.3, reflected, as zlib and crc32fast) of `bytes`, table-less: the stored
-/// records (settings, paused job) are small, and a table costs flash (see `Cargo.toml`).
-pub fn crc32(bytes: &[u8]) -> u32 {
-    const CRC32: crc::Crc<u32, crc::NoTable> =
-        crc::Crc::<u32, crc::NoTable>::new(&crc::CRC_32_ISO_HDLC);
-    CRC32.checksum(bytes)
-}
