@@ -218,12 +218,7 @@ impl Usart {
                 self.sr_read = false;
                 v
             }
-            0x08 => self.brr,
-            0x0C => self.cr1,
-            0x10 => self.cr2,
-            0x14 => self.cr3,
-            0x18 => self.gtpr,
-            _ => 0,
+            _ => self.peek(off),
         }
     }
 

@@ -377,49 +377,23 @@ fn nearly_full_settings_area(name: &str) -> PathBuf {
     path
 }
 
-/// Issue 29 on the emulated board: saved settings (M92 X81) and a kept paused job in sector 10,
-/// Marlin's flash EEPROM image (HAL/STM32/eeprom_flash.cpp: 4 KiB, its data from offset 100
-/// after the version "V90") at the start of sector 11. The boot loads X81; a card print's
-/// layer pause keeps its record beside that data (the new job discards the old record first);
-/// after a reset while parked, M503 reports X81 and the flash holds the new record (issue 29:
-/// the pause's save erased both sectors and the next boot said "no saved settings"). The boot's
-/// own messages go to the USB port, not the TFT port the emulated host talks on.
+/// Issue 29 on the emulated board: saved settings (M92 X81) in sector 10, Marlin's flash
+/// EEPROM image (HAL/STM32/eeprom_flash.cpp: 4 KiB, its data from offset 100 after the version
+/// "V90") at the start of sector 11. The boot loads X81; a card print's layer pause keeps its
+/// record beside that data; after a reset while parked, M503 reports X81 and the flash holds
+/// the record (issue 29: the pause's save erased both sectors and the next boot said "no saved
+/// settings"; `sim_serve_flash` has the same with a kept job beside it too). The boot's own
+/// messages go to the USB port, not the TFT port the emulated host talks on.
 #[test]
 fn records_beside_marlins_eeprom_data_survive_a_layer_pause_and_a_reset() {
-    use firmware::storage::{
-        JobSource, ModalState, Moment, PausedJob, RecordStore, SettingsStore, Skr2FlashModel,
-    };
+    use firmware::storage::{Moment, RecordStore, SettingsStore, Skr2FlashModel};
     const SECTOR: usize = 128 * 1024;
     let mut settings =
         firmware::printer::Printer::new(firmware::config::MachineConfig::ENDER3).settings();
     settings.steps_per_mm[0] = 81.0;
-    let old = PausedJob {
-        source: JobSource::Host { line: 4242 },
-        layer: 7,
-        boundary_z_um: 1400,
-        boundary_steps: [8000, 8000, 560, 0],
-        park_steps: [18_800, 18_800, 2560, -186],
-        modal: ModalState {
-            relative_xyz: false,
-            relative_e: true,
-            inches: false,
-            retracted: false,
-            feed_mm_s: 30.0,
-            feed_pct: 100.0,
-            flow_pct: 100.0,
-            offset_mm: [0.0; 3],
-            logical_e_mm: 0.0,
-            machine_mm: [100.0, 100.0, 1.4, 0.0],
-        },
-        retract_mm: 2.0,
-        hotend_c: 0.0,
-        bed_c: 0.0,
-        fan_pwm: 0,
-    };
     let model = Skr2FlashModel::new(vec![0xFF; 2 * SECTOR]);
     let mut st = SettingsStore::new(model, 0..2 * SECTOR as u32).expect("store");
     st.save_settings(&settings, Moment::Idle).expect("settings");
-    st.save_job(&old, Moment::Idle).expect("job");
     let mut area = st.into_flash().into_inner();
     area[SECTOR + 100..SECTOR + 104].copy_from_slice(b"V90\0");
     for (i, b) in area[SECTOR + 104..SECTOR + 4096].iter_mut().enumerate() {
