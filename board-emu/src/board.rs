@@ -502,6 +502,11 @@ impl Board {
             let base = match word {
                 0x4002_0018 | 0x4002_0418 | 0x4002_0818 | 0x4002_0C18 | 0x4002_1018 => 0,
                 0xE000_E100..=0xE000_E2FF => 0,
+                // A store reads nothing: the USART's DR read side effects (RXNE cleared, the
+                // received byte taken) must not happen on embassy's byte store to DR, or a
+                // byte arriving between its interrupt's SR read and that store is lost
+                // unseen (issue 29: the stall after `SD card ok`, docs/board-emu.md).
+                0x4001_1000..=0x4001_13FF => self.usart1.peek(word - 0x4001_1000),
                 _ => self.read_word(word, now, false),
             };
             (base & !(mask << shift)) | ((v32 & mask) << shift)
@@ -603,5 +608,44 @@ impl Board {
     pub fn drivers_enabled(&self) -> [bool; 4] {
         let p = self.powered();
         EN.map(|pin| p && self.gpio.is_output(pin) && !self.gpio.level(pin))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::axes::Axes;
+    use crate::flash::{Flash, FlashTiming};
+    use crate::iwdg::Iwdg;
+    use crate::sdio::Sdio;
+    use crate::tmc::{Drivers, Seating};
+
+    /// A byte store to USART1's DR (embassy's transmit path) while a received byte waits in
+    /// it: the byte stays for the interrupt to read (a store reads nothing). Issue 29: the
+    /// merge read DR, so a byte arriving between the interrupt's SR read and its transmit store
+    /// vanished, and a line's last bytes with it.
+    #[test]
+    fn a_byte_store_to_the_usart_data_register_keeps_the_received_byte() {
+        let mut b = Board::new(
+            Flash::new(FlashTiming::Typ),
+            Iwdg::new(32_000),
+            Drivers::new([Seating::Correct; 4]),
+            Axes::new(&firmware::config::MachineConfig::ENDER3, [60.0, 60.0, 10.0]),
+            Sdio::with_card(None),
+        );
+        let now = b.now();
+        b.usart1.write(0x08, 0x5B, now); // BRR: 115 200 Bd at 84 MHz
+        b.usart1.write(0x0C, 1 << 13 | 1 << 3 | 1 << 2, now); // UE, TE, RE
+        b.usart1.host_tx.push_back(b'8');
+        b.usart1.advance(now);
+        b.usart1.advance(now + 1_000_000);
+        assert_eq!(b.usart1.peek(0x00) & (1 << 5), 1 << 5, "RXNE: a byte waits");
+        b.mmio_write(0x4001_1004, 1, u64::from(b'o'));
+        assert_eq!(
+            b.usart1.peek(0x00) & (1 << 5),
+            1 << 5,
+            "RXNE after the store"
+        );
+        assert_eq!(b.usart1.read(0x04, now + 1_000_000), u32::from(b'8'));
     }
 }

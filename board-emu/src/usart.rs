@@ -185,6 +185,22 @@ impl Usart {
         t
     }
 
+    /// A register's value as a read would return it, without the read's side effects (what
+    /// a sub-word store merges its bytes with: a store reads nothing, so it must not clear
+    /// RXNE or take the received byte, as a DR read does).
+    pub fn peek(&self, off: u32) -> u32 {
+        match off {
+            0x00 => self.sr(),
+            0x04 => u32::from(self.dr_rx),
+            0x08 => self.brr,
+            0x0C => self.cr1,
+            0x10 => self.cr2,
+            0x14 => self.cr3,
+            0x18 => self.gtpr,
+            _ => 0,
+        }
+    }
+
     /// A register read.
     pub fn read(&mut self, off: u32, now: Cyc) -> u32 {
         self.advance(now);
@@ -202,12 +218,7 @@ impl Usart {
                 self.sr_read = false;
                 v
             }
-            0x08 => self.brr,
-            0x0C => self.cr1,
-            0x10 => self.cr2,
-            0x14 => self.cr3,
-            0x18 => self.gtpr,
-            _ => 0,
+            _ => self.peek(off),
         }
     }
 

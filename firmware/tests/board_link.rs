@@ -6,7 +6,7 @@
 use firmware::config::MachineConfig;
 use firmware::link::PortId;
 use firmware::printer::{BoardStats, Policy, Printer, State, ERASE_AHEAD_IDLE_US};
-use firmware::storage::{NorFlashModel, SettingsStore};
+use firmware::storage::{Moment, NorFlashModel, RecordStore, SettingsStore};
 use firmware::thermal::HeaterId;
 
 fn output(p: &mut Printer, port: PortId) -> String {
@@ -92,17 +92,17 @@ fn m115_reports_the_board_measurements_when_the_board_gives_them() {
 
 type Flash = NorFlashModel<Vec<u8>, 16, 4096>;
 
-/// A store of two sectors, as the board's, whose open sector is nearly full (under the
-/// reserve): its next sector switch, and so an erase of the other sector, is due.
+/// A store of two sectors, as the board's, whose current sector is nearly full (under the
+/// reserve): the erase-ahead's switch to the other sector, and the erase of this one, are due.
 fn nearly_full_store() -> SettingsStore<Flash> {
     let mut st = SettingsStore::new(Flash::erased(vec![0; 2 * 4096]), 0..2 * 4096).unwrap();
     let s = Printer::new(MachineConfig::ENDER3).settings();
     while st
-        .open_sector_free()
+        .free_bytes()
         .unwrap()
         .is_none_or(|f| f >= st.reserve_bytes())
     {
-        st.save(&s).unwrap();
+        st.save_settings(&s, Moment::Idle).unwrap();
     }
     st
 }
@@ -142,7 +142,7 @@ fn the_store_erases_ahead_only_after_ten_seconds_idle_and_once() {
         "idle at {idle_at}, erased at {erased_at}"
     );
     assert_eq!(erases(&mut st), e0 + 1, "once per idle period");
-    assert!(st.open_sector_free().unwrap().unwrap() >= st.reserve_bytes());
+    assert!(st.free_bytes().unwrap().unwrap() >= st.reserve_bytes());
     // The settings survived.
-    assert!(st.load().unwrap().is_some());
+    assert!(st.load_settings().unwrap().is_some());
 }

@@ -6,9 +6,9 @@
 use firmware::config::MachineConfig;
 use firmware::motion::{PauseMode, Realtime};
 use firmware::printer::{Policy, Printer, State};
-use firmware::storage::{JobSource, NorFlashModel, SettingsStore};
+use firmware::storage::{JobSource, NorFlashModel, RecordStore, SettingsStore};
 
-type Flash = NorFlashModel<Vec<u8>, 16, 2048>;
+type Flash = NorFlashModel<Vec<u8>, 16, 4096>;
 
 fn checksum(s: &str) -> u8 {
     s.bytes().fold(0, |a, b| a ^ b)

@@ -14,10 +14,10 @@ use firmware::homing::HomingConfig;
 use firmware::motion::{Axis, PauseMode, Realtime};
 use firmware::planner::BlockKind;
 use firmware::printer::{Policy, Printer, Record, State};
-use firmware::storage::{NorFlashModel, SettingsStore};
+use firmware::storage::{NorFlashModel, RecordStore, SettingsStore};
 use firmware::thermal::HeaterId;
 
-type Flash = NorFlashModel<Vec<u8>, 16, 2048>;
+type Flash = NorFlashModel<Vec<u8>, 16, 4096>;
 
 /// Where the head is at the first power-on, steps from the switches (not homed).
 const START: [i64; 4] = [3_000, 2_000, 900, 0];

@@ -5,9 +5,10 @@
 use firmware::config::MachineConfig;
 use firmware::gcode::{parse_line, Command};
 use firmware::printer::{Policy, Printer};
-use firmware::storage::{NorFlashModel, Settings, SettingsStore};
+use firmware::storage::{Moment, NorFlashModel, RecordStore, Settings, SettingsStore};
 
-type Flash = NorFlashModel<Vec<u8>, 16, 2048>;
+/// Two 4 KiB sectors, 16-byte words.
+type Flash = NorFlashModel<Vec<u8>, 16, 4096>;
 type Store = SettingsStore<Flash>;
 
 fn store() -> Store {
@@ -278,11 +279,13 @@ fn a_corrupt_store_boots_with_factory_defaults_and_says_so() {
     b.send("M500");
     let factory = Printer::new(MachineConfig::ENDER3).settings();
     let mut flash = b.power_off().into_flash();
-    // Damage every byte of the saved item's data: sequential-storage's CRC refuses it (and
-    // with no older item, nothing loads) or ours does.
+    // Damage every byte of the saved record's two frames (208 bytes each from offset 32,
+    // after the sector's header) but their heads: neither copy is whole, no older one exists.
     let used = flash.bytes().iter().rposition(|b| *b != 0xFF).unwrap();
-    for i in 16..used {
-        flash.bytes_mut()[i] ^= 0x5A;
+    for i in 32..=used {
+        if (i - 32) % 208 >= 16 {
+            flash.bytes_mut()[i] ^= 0x5A;
+        }
     }
     let mut store = SettingsStore::new(flash, 0..8192).unwrap();
     let mut p = Printer::with_policy(MachineConfig::ENDER3, Policy::FIRMWARE);
@@ -308,7 +311,7 @@ fn an_older_format_falls_back_with_an_echo() {
     let crc = crc32(&bytes[..n - 4]);
     bytes[n - 4..].copy_from_slice(&crc.to_le_bytes());
     store
-        .store(firmware::storage::SETTINGS_KEY, &bytes)
+        .write(firmware::storage::SETTINGS_KEY, &bytes, Moment::Idle)
         .unwrap();
     let mut p = Printer::new(MachineConfig::ENDER3);
     p.load_settings(&mut store);
@@ -423,7 +426,7 @@ fn foreign_areas() -> Vec<(&'static str, Vec<u8>)> {
 }
 
 #[test]
-fn a_foreign_settings_area_loads_defaults_and_the_next_m500_reclaims_it() {
+fn a_foreign_settings_area_loads_defaults_and_the_next_m500_takes_a_sector_of_it() {
     let factory = Printer::new(MachineConfig::ENDER3).settings();
     for (what, bytes) in foreign_areas() {
         let mut b = Bench::with_store(SettingsStore::new(Flash::new(bytes), 0..8192).unwrap());
@@ -453,15 +456,11 @@ fn a_foreign_settings_area_loads_defaults_and_the_next_m500_reclaims_it() {
     let mut boot = String::new();
     b.p.write_output(&mut boot).unwrap();
     assert!(
-        boot.contains("echo:saved settings unusable (settings area")
-            && boot.contains("factory defaults loaded (M500 erases the area and saves)"),
+        boot.contains("echo:no saved settings: the flash area holds nothing this firmware saved whole (factory defaults; M500 saves over it)"),
         "{boot}"
     );
     let out = b.send("M500");
-    assert!(
-        out.contains("; the unreadable settings area was erased first)"),
-        "{out}"
-    );
+    assert!(out.contains("; a flash sector was erased first)"), "{out}");
 }
 
 /// A layer pause says the job is kept only once its record is in flash: on a foreign area

@@ -2,9 +2,9 @@
 //!
 //! The file is the area's image: [`SKR2_AREA`]'s size (two 128 KiB sectors, 262 144 bytes),
 //! `0xFF` where erased. It is driven through the firmware's own NOR-flash model
-//! ([`Skr2FlashModel`]: erase = `0xFF`, writes only clear bits, 16-byte aligned) and every
-//! write or erase is written through to the file at once, so a killed session keeps what the
-//! firmware had stored. A missing file is created erased; a file of another size is refused.
+//! ([`Skr2FlashModel`]: erase = `0xFF`, writes only clear bits, 4-byte words as on the board)
+//! and every write or erase is written through to the file at once, so a killed session keeps
+//! what the firmware had stored. A missing file is created erased; a file of another size is refused.
 
 use anyhow::{bail, Context};
 use firmware::printer::Printer;

@@ -21,12 +21,12 @@ use firmware::motion::{Axis, PauseMode, Realtime};
 use firmware::planner::BlockKind;
 use firmware::printer::{Policy, Printer, State};
 use firmware::storage::sd::Card;
-use firmware::storage::{JobSource, NorFlashModel, SettingsStore};
+use firmware::storage::{JobSource, NorFlashModel, RecordStore, SettingsStore};
 use firmware::thermal::HeaterId;
 use sim::sd::{write_image, ImageDevice};
 use std::path::{Path, PathBuf};
 
-type Flash = NorFlashModel<Vec<u8>, 16, 2048>;
+type Flash = NorFlashModel<Vec<u8>, 16, 4096>;
 
 /// Where the head is at the first power-on, steps from the switches (not homed).
 const START: [i64; 4] = [3_000, 2_000, 900, 0];

@@ -17,7 +17,7 @@
 //! The sim binary is taken from the target directory this test runs from (built by cargo).
 
 use firmware::config::MachineConfig;
-use firmware::storage::{JobSource, PausedJob, SettingsStore, Skr2FlashModel};
+use firmware::storage::{JobSource, PausedJob, RecordStore, SettingsStore, Skr2FlashModel};
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};

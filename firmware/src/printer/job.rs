@@ -228,10 +228,7 @@ impl Printer {
     /// Power-up (from `load_settings`): a job kept by a layer pause before the power went is
     /// announced to the host (`//action:notification`), with the line to restart from. The
     /// record stays until a job is paused and resumed again, or cancelled (M524).
-    pub(super) fn announce_kept_job<F: embedded_storage::nor_flash::NorFlash>(
-        &mut self,
-        store: &mut crate::storage::SettingsStore<F>,
-    ) {
+    pub(super) fn announce_kept_job(&mut self, store: &mut dyn crate::storage::RecordStore) {
         match store.load_job() {
             Ok(Some(j)) => {
                 let mut t = PlaceText::new();

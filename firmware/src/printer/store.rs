@@ -7,20 +7,7 @@
 use super::job::{JobRequest, PlaceText, Where};
 use super::settings::StoreRequest;
 use super::{Printer, State};
-use crate::storage::{PausedJob, SettingsStore, StoreError, Stored};
-use embedded_storage::nor_flash::NorFlash;
-
-/// What a store says when it had to reclaim the area (nothing when it appended).
-struct Reclaim(Stored);
-
-impl core::fmt::Display for Reclaim {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        match self.0 {
-            Stored::Appended => Ok(()),
-            Stored::Reclaimed => f.write_str("; the unreadable settings area was erased first"),
-        }
-    }
-}
+use crate::storage::{Moment, PausedJob, RecordStore, Saved, StoreError};
 
 /// How long the printer must have been idle before the store may erase a sector ahead, µs
 /// (`storage::reserve`: the erase stalls the MCU for up to 2 s, heaters off meanwhile).
@@ -30,7 +17,7 @@ impl Printer {
     /// Boot: load the saved settings and apply them. Nothing saved: the factory values stay,
     /// silently. A store that cannot be read or a record that is refused (corrupt, another
     /// format version, out of range): the factory values stay, with an `echo:` saying why.
-    pub fn load_settings<F: NorFlash>(&mut self, store: &mut SettingsStore<F>) {
+    pub fn load_settings(&mut self, store: &mut dyn RecordStore) {
         if !self.settings.has_factory() {
             self.set_factory_settings();
         }
@@ -39,8 +26,8 @@ impl Printer {
         self.announce_kept_job(store);
     }
 
-    fn load_and_apply<F: NorFlash>(&mut self, store: &mut SettingsStore<F>, report_empty: bool) {
-        match store.load() {
+    fn load_and_apply(&mut self, store: &mut dyn RecordStore, report_empty: bool) {
+        match store.load_settings() {
             Ok(Some(s)) => match self.apply_settings(&s) {
                 Ok(()) => self.host.say(format_args!("Settings loaded from flash")),
                 Err(e) => self
@@ -60,13 +47,11 @@ impl Printer {
     fn fall_back(&mut self, e: StoreError) {
         let f = self.factory_settings();
         match self.apply_settings(&f) {
+            Ok(()) if e == StoreError::Foreign => self.host.say(format_args!(
+                "no saved settings: {e} (factory defaults; M500 saves over it)"
+            )),
             Ok(()) => self.host.say(format_args!(
-                "saved settings unusable ({e}): factory defaults loaded{}",
-                if matches!(e, StoreError::Corrupted | StoreError::Full) {
-                    " (M500 erases the area and saves)"
-                } else {
-                    ""
-                }
+                "saved settings unusable ({e}): factory defaults loaded"
             )),
             Err(why) => self.host.say(format_args!(
                 "saved settings unusable ({e}); factory defaults not applied: {why}"
@@ -81,7 +66,7 @@ impl Printer {
     /// With nothing to do, after [`ERASE_AHEAD_IDLE_US`] of idle (no job, nothing moving or
     /// paused), once per idle period: the store's erase-ahead (`storage::reserve`), so the
     /// saves of the next print (a power-cut record at every layer pause) find erased room.
-    pub fn service_store<F: NorFlash>(&mut self, store: &mut SettingsStore<F>) {
+    pub fn service_store(&mut self, store: &mut dyn RecordStore) {
         if !self.store_request_pending() {
             self.erase_ahead_when_idle(store);
             return;
@@ -89,13 +74,14 @@ impl Printer {
         if !self.still() {
             return;
         }
+        let at = self.store_moment();
         match self.settings.take_request() {
-            Some(StoreRequest::Save(s)) => match store.save(&s) {
+            Some(StoreRequest::Save(s)) => match store.save_settings(&s, at) {
                 Ok(how) => self.host.say(format_args!(
                     "Settings Stored ({} bytes, format {}{})",
                     crate::storage::RECORD_LEN,
                     crate::storage::FORMAT_VERSION,
-                    Reclaim(how)
+                    how.note()
                 )),
                 Err(e) => self.host.say(format_args!("settings not saved: {e}")),
             },
@@ -104,11 +90,11 @@ impl Printer {
         }
         match self.job.take_request() {
             Some(JobRequest::Save(j)) => {
-                let saved = store.save_job(&j);
+                let saved = store.save_job(&j, at);
                 self.job_saved(&j, saved);
             }
             Some(JobRequest::Clear) => {
-                if let Err(e) = store.clear_job() {
+                if let Err(e) = store.clear_job(at) {
                     self.host.say(format_args!(
                         "power-cut resume: the kept job was not cleared: {e}"
                     ));
@@ -118,7 +104,7 @@ impl Printer {
         }
     }
 
-    fn erase_ahead_when_idle<F: NorFlash>(&mut self, store: &mut SettingsStore<F>) {
+    fn erase_ahead_when_idle(&mut self, store: &mut dyn RecordStore) {
         let idle = self.state() == State::Idle;
         if !self
             .settings
@@ -129,6 +115,18 @@ impl Printer {
         if let Err(e) = store.erase_ahead() {
             self.host
                 .say(format_args!("settings flash: erase ahead failed: {e}"));
+        }
+    }
+
+    /// What a sector erase would cost now (`service_store` runs only when nothing steps):
+    /// parked in a pause; idle (nothing queued, no card print); or between the moves of a job
+    /// (lines queued, or a card print: never an erase then).
+    fn store_moment(&self) -> Moment {
+        use super::pause::Pause;
+        match self.pause.state() {
+            Pause::Parked { .. } | Pause::Returning { .. } => Moment::Paused,
+            Pause::Run if self.state() == State::Idle && !self.sd_printing() => Moment::Idle,
+            _ => Moment::Printing,
         }
     }
 
@@ -151,7 +149,7 @@ impl Printer {
 
     /// The driver's store has written `j` (or failed to): say which. Only a record in flash is
     /// announced as kept.
-    fn job_saved(&mut self, j: &PausedJob, saved: Result<Stored, StoreError>) {
+    fn job_saved(&mut self, j: &PausedJob, saved: Result<Saved, StoreError>) {
         let mut t = PlaceText::new();
         let _ = match saved {
             Ok(how) => core::fmt::Write::write_fmt(
@@ -160,7 +158,7 @@ impl Printer {
                     "power-cut resume: keeping job at layer {}, {}{}",
                     j.layer,
                     Where(&j.source),
-                    Reclaim(how)
+                    how.note()
                 ),
             ),
             Err(e) => core::fmt::Write::write_fmt(

@@ -1,72 +1,20 @@
-//! NOR flash for the settings store: a model with real erase/write semantics that can lose power
-//! at any operation (for the sim and the tests), the bridge from the blocking NOR-flash traits
-//! (what the board's flash driver and the model implement) to the async traits
-//! sequential-storage is written against, and the executor that runs those futures to the end.
+//! A NOR-flash model for the settings store, with real erase/write semantics, that can lose
+//! power at any operation in every shape a power cut leaves (for the sim and the tests).
 //!
 //! The model behaves as the STM32F4's flash does where the store can tell: an erase sets a whole
 //! sector to `0xFF`; a write can only clear bits (`stored & data`, so writing a word twice is
 //! allowed, as on the F4, which has no ECC); writes and reads outside the area, and writes not
-//! aligned to `WRITE` bytes, are errors. Power cuts: [`NorFlashModel::cut_power_at`] makes the
-//! n-th write or erase from now fail half-way (a write programs the first half of its words and
-//! some bits of the next; an erase sets the first half of the sector to `0xFF` and leaves the
-//! rest as it was, or with [`Cut::PartialTail`] the second half), and every operation after it
-//! fail, until [`NorFlashModel::restore_power`].
+//! aligned to `WRITE` bytes, are errors. Power cuts: [`NorFlashModel::cut_power`] makes the
+//! n-th write or erase from now stop part-way, leaving what [`Cut`] describes, and every
+//! operation after it fail, until [`NorFlashModel::restore_power`]. A write is cut in the
+//! order the F4 programs (word after word) with the word being written at the cut holding
+//! only some of its bits; an erase is cut in no fixed order (a sector erase is not specified to
+//! progress from its start: its first part, its last part, all but its first words, or a
+//! scattered choice of words and bits may be left as they were).
 
-use core::future::Future;
-use core::pin::pin;
-use core::task::{Context, Poll, Waker};
 use embedded_storage::nor_flash::{
     ErrorType, MultiwriteNorFlash, NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash,
 };
-
-/// Run a future to its end by polling it in a loop. The store's futures never wait for
-/// anything (the flash operations under them are blocking), so this returns after one poll;
-/// six lines of `core` instead of a dependency on an executor crate for the portable library.
-pub fn block_on<T>(fut: impl Future<Output = T>) -> T {
-    let mut fut = pin!(fut);
-    let mut cx = Context::from_waker(Waker::noop());
-    loop {
-        if let Poll::Ready(v) = fut.as_mut().poll(&mut cx) {
-            return v;
-        }
-    }
-}
-
-/// A blocking NOR flash seen through the async NOR-flash traits (each operation completes when
-/// first polled). embassy-embedded-hal's `BlockingAsync` does the same, but would pull the
-/// embassy HAL crates into every host build of the library.
-pub struct Blocking<F>(pub F);
-
-impl<F: ErrorType> embedded_storage_async::nor_flash::ErrorType for Blocking<F> {
-    type Error = F::Error;
-}
-
-impl<F: ReadNorFlash> embedded_storage_async::nor_flash::ReadNorFlash for Blocking<F> {
-    const READ_SIZE: usize = F::READ_SIZE;
-
-    async fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
-        self.0.read(offset, bytes)
-    }
-
-    fn capacity(&self) -> usize {
-        self.0.capacity()
-    }
-}
-
-impl<F: NorFlash> embedded_storage_async::nor_flash::NorFlash for Blocking<F> {
-    const WRITE_SIZE: usize = F::WRITE_SIZE;
-    const ERASE_SIZE: usize = F::ERASE_SIZE;
-
-    async fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
-        self.0.erase(from, to)
-    }
-
-    async fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
-        self.0.write(offset, bytes)
-    }
-}
-
-impl<F: MultiwriteNorFlash> embedded_storage_async::nor_flash::MultiwriteNorFlash for Blocking<F> {}
 
 /// Why a model operation failed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -98,18 +46,46 @@ pub enum FlashOp {
     Erase,
 }
 
-/// How much of the operation a power cut lets through.
+/// What a power cut leaves of the operation it interrupts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Cut {
-    /// Half of it (see the module documentation).
+    /// Half of it in order: a write programs the first half of its words and, of the next
+    /// one, only the bits of every other nibble; an erase sets the first half of the sector to
+    /// `0xFF` and leaves the rest as it was (its tail still programmed).
     Partial,
     /// None of it: the power fails just before the operation starts (after the one before it
     /// completed).
     Before,
-    /// Half of it, the other half of an erase: a write as [`Cut::Partial`]; an erase sets the
-    /// *second* half of the sector to `0xFF` and leaves the first as it was (an interrupted
-    /// erase leaves a pattern nobody can predict: both halves are tried).
+    /// A write as [`Cut::Partial`]; an erase sets the *second* half of the sector and leaves
+    /// the first as it was.
     PartialTail,
+    /// Nearly all of it: a write programs every word but its last, and of the last only some
+    /// bits (bits flipped in the word being written); an erase sets everything but the first
+    /// `2 × max(16, WRITE)` bytes (a sector header there left standing over an erased sector).
+    NearlyAll,
+    /// A scattered part, from a seed: a write programs a prefix of pseudo-random length in
+    /// order and random bits of the word after it; an erase leaves each word erased, as it
+    /// was, or with random bits set.
+    Scattered(u32),
+}
+
+impl Cut {
+    /// Every shape, with `seeds` scattered ones (seeds 1..=seeds): what the sweeps cut with.
+    pub fn shapes(seeds: u32) -> impl Iterator<Item = Cut> {
+        [Cut::Before, Cut::Partial, Cut::PartialTail, Cut::NearlyAll]
+            .into_iter()
+            .chain((1..=seeds).map(Cut::Scattered))
+    }
+}
+
+/// xorshift32 (the model's only source of "random" patterns: fixed by the seed).
+fn next_rand(state: &mut u32) -> u32 {
+    let mut x = (*state).max(1);
+    x ^= x << 13;
+    x ^= x >> 17;
+    x ^= x << 5;
+    *state = x;
+    x
 }
 
 /// A NOR flash of `mem.len()` bytes in sectors of `ERASE` bytes, programmed in words of `WRITE`
@@ -277,13 +253,10 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>, const WRITE: usize, const ERASE: usize> NorFl
         for sector in r.step_by(ERASE) {
             let cut = self.power_fails_now(FlashOp::Erase)?;
             self.erases = self.erases.saturating_add(1);
+            let kind = self.cut_kind;
             let mem = &mut self.mem.as_mut()[sector..sector + ERASE];
             if cut {
-                match self.cut_kind {
-                    Cut::Partial => mem[..ERASE / 2].fill(0xFF),
-                    Cut::PartialTail => mem[ERASE / 2..].fill(0xFF),
-                    Cut::Before => {}
-                }
+                cut_erase(mem, kind, WRITE);
                 return Err(ModelError::PowerCut);
             }
             mem.fill(0xFF);
@@ -297,28 +270,69 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>, const WRITE: usize, const ERASE: usize> NorFl
             return Err(ModelError::NotAligned);
         }
         let cut = self.power_fails_now(FlashOp::Write)?;
+        let kind = self.cut_kind;
         let mem = &mut self.mem.as_mut()[r];
-        let done = if cut && self.cut_kind == Cut::Before {
-            0
-        } else if cut {
-            // Half the words programmed; of the next word only the bits of every other nibble.
-            let words = bytes.len() / WRITE;
-            let whole = (words / 2) * WRITE;
-            let partial = (whole + WRITE).min(bytes.len());
-            for i in whole..partial {
-                mem[i] &= bytes[i] | 0x0F;
-            }
-            whole
-        } else {
-            bytes.len()
-        };
-        for (m, b) in mem.iter_mut().zip(bytes).take(done) {
+        if cut {
+            cut_write(mem, bytes, kind, WRITE);
+            return Err(ModelError::PowerCut);
+        }
+        for (m, b) in mem.iter_mut().zip(bytes) {
             *m &= *b;
         }
-        if cut {
-            Err(ModelError::PowerCut)
-        } else {
-            Ok(())
+        Ok(())
+    }
+}
+
+/// What a write of `bytes` over `mem` cut as `kind` leaves (programmed in order, word by word;
+/// the word being written at the cut holds only some of its bits).
+fn cut_write(mem: &mut [u8], bytes: &[u8], kind: Cut, word: usize) {
+    let words = bytes.len() / word;
+    let mut rand = 0x9E37_79B9;
+    // Whole words programmed; then the next one with the bits of `unset` left unprogrammed.
+    let whole = match kind {
+        Cut::Before => return,
+        Cut::Partial | Cut::PartialTail => words / 2,
+        Cut::NearlyAll => words.saturating_sub(1),
+        Cut::Scattered(seed) => {
+            rand ^= seed;
+            next_rand(&mut rand) as usize % (words + 1)
+        }
+    };
+    let done = whole * word;
+    for (m, b) in mem.iter_mut().zip(bytes).take(done) {
+        *m &= *b;
+    }
+    let next = (done + word).min(bytes.len());
+    for (m, b) in mem.iter_mut().zip(bytes).take(next).skip(done) {
+        let unset = match kind {
+            Cut::NearlyAll => 0xA5,
+            Cut::Scattered(_) => next_rand(&mut rand) as u8,
+            _ => 0x0F,
+        };
+        *m &= *b | unset;
+    }
+}
+
+/// What an erase of the sector `mem` cut as `kind` leaves (no fixed order).
+fn cut_erase(mem: &mut [u8], kind: Cut, word: usize) {
+    let len = mem.len();
+    match kind {
+        Cut::Before => {}
+        Cut::Partial => mem[..len / 2].fill(0xFF),
+        Cut::PartialTail => mem[len / 2..].fill(0xFF),
+        Cut::NearlyAll => {
+            let kept = (2 * word.max(16)).min(len);
+            mem[kept..].fill(0xFF);
+        }
+        Cut::Scattered(seed) => {
+            let mut rand = 0x85EB_CA6B ^ seed;
+            for w in mem.chunks_mut(word) {
+                match next_rand(&mut rand) % 3 {
+                    0 => w.fill(0xFF),
+                    1 => {}
+                    _ => w.iter_mut().for_each(|b| *b |= next_rand(&mut rand) as u8),
+                }
+            }
         }
     }
 }

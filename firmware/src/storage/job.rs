@@ -176,7 +176,7 @@ impl PausedJob {
         }
         w.u8(self.fan_pwm);
         w.u32(size);
-        let crc = crate::storage::crc32(&w.buf[..JOB_RECORD_LEN - 4]);
+        let crc = super::crc::crc32(&w.buf[..JOB_RECORD_LEN - 4]);
         w.u32(crc);
         w.buf
     }

@@ -248,7 +248,7 @@ impl Settings {
             .iter()
             .enumerate()
             .fold(0, |b, (i, on)| b | u8::from(*on) << i));
-        let crc = crate::storage::crc32(&w.buf[..RECORD_LEN - 4]);
+        let crc = super::crc::crc32(&w.buf[..RECORD_LEN - 4]);
         w.u32(crc);
         w.buf
     }
@@ -347,7 +347,7 @@ pub(crate) fn checked_body(
     }
     let (framed, crc) = bytes.split_at(n - 4);
     let stored = u32::from_le_bytes([crc[0], crc[1], crc[2], crc[3]]);
-    if crate::storage::crc32(framed) != stored {
+    if super::crc::crc32(framed) != stored {
         return Err(RecordError::BadCrc);
     }
     let v = u16::from_le_bytes([framed[0], framed[1]]);

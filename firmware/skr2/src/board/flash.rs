@@ -13,9 +13,10 @@
 //! the fastest LSI, covers one erase: `board::watchdog`); writes go in chunks of at most
 //! [`WRITE_CHUNK`] bytes with a feed between. The feeding is bounded in time
 //! ([`SERVICE_BUDGET_US`] per store call): a store that never returns still ends in a
-//! watchdog reset. The erase-ahead (`firmware::storage` `reserve`) makes erases happen only
-//! while the printer is idle, not during a layer pause's save. `memory.x` must end the image
-//! below `0x080C_0000` (see `docs/settings.md`).
+//! watchdog reset. The erase-ahead (`SettingsStore::erase_ahead`) makes erases happen while
+//! the printer is idle, not during a layer pause's save; one that still finds no erased room
+//! while paused may erase ([`ERASE_WHILE_PAUSED`]). `memory.x` must end the image below
+//! `0x080C_0000` (see `docs/settings.md`).
 
 use super::SharedPrinter;
 use embassy_executor::Spawner;
@@ -38,8 +39,28 @@ const POLL_MS: u64 = 20;
 pub const WRITE_CHUNK: usize = 256;
 
 /// How long one store call may keep the watchdog fed from inside flash operations, µs: the
-/// longest call is an erase-ahead (fillers, the copy of the current items, one 2 s erase).
+/// longest call is an erase-ahead (a sector switch and two 2 s erases).
 pub const SERVICE_BUDGET_US: u64 = 6_000_000;
+
+/// The longest erase of one 128 KiB sector at x32 parallelism, µs (DS8626 "Flash memory
+/// programming", maximum).
+pub const ERASE_MAX_US: u32 = 2_000_000;
+
+/// An erase fits one watchdog period at its shortest (fed right before the erase), so a save
+/// while paused may erase when it finds no erased room (the store's
+/// `SettingsStore::erase_while_paused`): the heaters are off for it (`GuardedFlash`).
+pub const ERASE_WHILE_PAUSED: bool = ERASE_MAX_US < super::watchdog::MIN_TIMEOUT_US;
+const _: () = assert!(ERASE_WHILE_PAUSED);
+
+// The sim's and the tests' model of this area has the driver's geometry: the store's layout
+// follows the program word and the sector size, so an area written by `sim serve --flash` or
+// crafted in a test reads the same here.
+const _: () = {
+    type Model = firmware::storage::Skr2FlashModel<[u8; 0]>;
+    assert!(<GuardedFlash as NorFlash>::WRITE_SIZE == <Model as NorFlash>::WRITE_SIZE);
+    assert!(<GuardedFlash as NorFlash>::ERASE_SIZE == <Model as NorFlash>::ERASE_SIZE);
+    assert!(SKR2_AREA.sector_bytes as usize == <Model as NorFlash>::ERASE_SIZE);
+};
 
 /// The chip's flash with the heater and watchdog guards around its erases and writes.
 pub struct GuardedFlash {
@@ -160,7 +181,7 @@ pub fn start(spawner: &Spawner, printer: &'static SharedPrinter) {
     };
     let area = SKR2_AREA.start - FLASH_BASE..SKR2_AREA.end - FLASH_BASE;
     let mut store = match SettingsStore::new(flash, area) {
-        Ok(s) => s,
+        Ok(s) => s.erase_while_paused(ERASE_WHILE_PAUSED),
         Err(_) => {
             defmt::error!("settings store: area misconfigured; factory settings only");
             return;
