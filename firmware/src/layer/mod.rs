@@ -80,7 +80,6 @@
 
 use crate::config::MachineConfig;
 use crate::gcode::{Command, Line};
-use crate::machine::MachineState;
 use crate::motion::{Axis, LayerMark, LayerSource, StepPos};
 use markers::{classify_comment, CommentMarker, Family};
 
@@ -104,26 +103,28 @@ pub struct MoveFacts {
     pub moved: bool,
 }
 
+/// mm → µm, rounded; 0 for what is no position (NaN, beyond ±2147 m: the machine state
+/// refuses such moves before they get here).
 fn um(mm: f64) -> i32 {
-    crate::machine::round_i32(mm * 1000.0).unwrap_or(0)
+    crate::motion::round_i32(mm * 1000.0).unwrap_or(0)
 }
 
 impl MoveFacts {
-    /// Facts of the command that took the machine state from `before` to `after`, as
-    /// commanded (µm; E in mm): what the G-code says, at its own resolution. A vase piece that
-    /// feeds 0.009 mm of filament (less than one E step) still extrudes: it is part of its
-    /// turn, as the slicer wrote it.
-    pub fn of(before: &MachineState, after: &MachineState, _cfg: &MachineConfig) -> Self {
-        let (m0, m1) = (before.machine_mm(), after.machine_mm());
+    /// Facts of a command that took the head from `start` to `end` (X, Y, Z, E in mm, machine
+    /// coordinates as commanded): what the G-code says, at its own resolution (µm). A vase
+    /// piece that feeds 0.009 mm of filament (less than one E step) still extrudes: it is part
+    /// of its turn, as the slicer wrote it. The interpreter's side gives these from its machine
+    /// state (`MoveFacts::of`, in `machine`).
+    pub fn commanded(start: &[f64; 4], end: &[f64; 4]) -> Self {
         let (start_um, end_um) = (
-            [um(m0[0]), um(m0[1]), um(m0[2])],
-            [um(m1[0]), um(m1[1]), um(m1[2])],
+            [um(start[0]), um(start[1]), um(start[2])],
+            [um(end[0]), um(end[1]), um(end[2])],
         );
         MoveFacts {
             start_um,
             end_um,
-            extrudes: m1[3] > m0[3] && (start_um[0] != end_um[0] || start_um[1] != end_um[1]),
-            moved: start_um != end_um || m1[3] != m0[3],
+            extrudes: end[3] > start[3] && (start_um[0] != end_um[0] || start_um[1] != end_um[1]),
+            moved: start_um != end_um || end[3] != start[3],
         }
     }
 

@@ -1,4 +1,5 @@
 use super::*;
+use crate::motion::round_i32;
 use crate::gcode::parse_line;
 use proptest::prelude::*;
 
