@@ -405,7 +405,8 @@ impl<'s, E: Executive> Run<'s, E> {
                 .iter()
                 .map(|r| stream::key_of(&self.a, r))
                 .collect();
-            if let Some(top) = view.keys.iter().flatten().map(|k| k.0).max() {
+            let job_lines = view.keys.iter().flatten().map(|k| k.0);
+            if let Some(top) = job_lines.filter(|&l| l != stream::HOMING_LINE).max() {
                 self.ends.set_ceil(top);
             }
             run_in_turns(
