@@ -1,16 +1,15 @@
 //! The comment-free rule: layers from the heights at which extruding moves print, and the
-//! turns of a continuous spiral from the path itself (docs/frontend.md, "The height rule";
+//! turns of a continuous spiral from the path itself (docs/planner.md, "What a layer is";
 //! docs/planner.md, "Layers of a continuous spiral").
 //!
+//! A layer is a set of extrusions that belong together in height, not every change of Z.
 //! Between two consecutive extruding moves a layer starts when
-//! - the second starts **higher** than the first ended and does not rise while it prints (a
-//!   flat layer change; a Z-hop comes back down before the next extrusion, so it starts none);
-//! - the second starts **lower** (sequential printing: the next object's first layer) — unless
-//!   nothing has risen yet and exactly one layer has been seen: that layer was a **prelude**
-//!   (a purge line printed above the first layer, Cura's Ender-3 start code): the count
-//!   restarts and this is the first layer again;
+//! - the second starts **higher** than the layer printed so far (a flat layer change; a Z-hop
+//!   comes back down before the next extrusion, so it starts none);
+//! - the second starts **lower** (sequential printing: the next object's first layer);
 //! - the second **rises** while it prints after flat layers: a spiral (vase mode, helical
-//!   prints) begins; its first turn is a layer;
+//!   prints) begins; its first turn is a layer. Never in the job's first layer (every slicer
+//!   prints a vase's bottom flat), unless the job's very first extrusion rises (a helix);
 //! - inside a spiral, the head has come round: a **turn ends** at the point of the path
 //!   closest to where the turn began (within [`TURN_CLOSE_UM`] of it, after having gone at
 //!   least [`TURN_AWAY_UM`] away and risen at least 3/5 of the expected rise of a turn — the
@@ -20,11 +19,29 @@
 //!   rise instead (a first turn that has gone away waits for its seam up to 3 times the
 //!   layer height: its rise is not known yet).
 //!
+//! **Levelling baked into the file** (MatterControl's software levelling: every move cut into
+//! short pieces, each with its own Z): an extruding move that falls, or rises where no spiral
+//! can begin, makes the job *levelled*. From then on "higher" and "lower" are measured from the
+//! lowest extrusion of the layer so far, beyond half a layer height ([`Heights::tolerance`]),
+//! and no spiral is looked for (a levelled vase is not recognised). This holds while the bed's
+//! deviation over the print is less than half a layer height.
+//!
+//! **What prints before the first layer** (a purge line in the start code) is a prelude, no
+//! layer: the count restarts at the first layer ([`Start::Restart`]) when, before anything has
+//! risen, the job's first layer so far is
+//! - left **downwards** (a purge above the first layer: Cura's Ender-3 start code), or
+//! - a **line** — extrusions drawn in one go (each within [`TURN_CLOSE_UM`] of where the last
+//!   ended), at least [`PURGE_MIN_UM`] long, inside a strip at most [`LINE_WIDTH_UM`] wide — and
+//!   the next extrusion starts **higher** (a purge below the first
+//!   layer) or at its height **away from the line** (more than [`TURN_CLOSE_UM`] from it: a
+//!   purge at the first layer's height). No object's first layer starts as an isolated line:
+//!   it starts with a skirt, a brim or a wall, each a loop.
+//!
 //! The first extruding move starts the first layer. Heights and positions are the commanded
 //! ones in µm (the G-code's own resolution: a vase move that rises 1 µm rises, though it makes
 //! no Z step), so a spiral is seen from its first move.
 
-/// Heights compare to within this, µm (slicers write Z with 3 decimals).
+/// Heights of a flat (not levelled) job compare exactly, µm (slicers write Z with 3 decimals).
 const TOL_UM: i32 = 0;
 
 /// The layer height assumed before any is known: the first layer's own height, at least this.
@@ -37,6 +54,14 @@ pub const TURN_CLOSE_UM: i64 = 2_000;
 
 /// ... after having gone at least this far from it, µm.
 pub const TURN_AWAY_UM: i64 = 2 * TURN_CLOSE_UM;
+
+/// A purge line lies inside a strip at most this wide, µm (Cura's two lines 0.3 mm apart;
+/// PrusaSlicer's, BambuStudio's and Creality's single lines along one axis).
+pub const LINE_WIDTH_UM: i32 = 2_000;
+
+/// ... and extrudes along at least this much path, µm (the shortest start-code purge in the
+/// corpus is 40 mm).
+pub const PURGE_MIN_UM: i64 = 20_000;
 
 /// Whether an extruding move starts a layer.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -138,44 +163,161 @@ impl Lap {
     }
 }
 
+/// The job's first layer while it is one line: its XY extent and extruded path.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Line {
+    min_xy: [i32; 2],
+    max_xy: [i32; 2],
+    /// Where its last extrusion ended.
+    end_xy: [i32; 2],
+    /// Extruded path, µm.
+    len_um: i64,
+}
+
+impl Line {
+    fn at(a: &[i32; 3]) -> Self {
+        Line {
+            min_xy: [a[0], a[1]],
+            max_xy: [a[0], a[1]],
+            end_xy: [a[0], a[1]],
+            len_um: 0,
+        }
+    }
+
+    /// The line with the extrusion `a → b`; `None` once it is wider than a line, or once an
+    /// extrusion starts more than [`TURN_CLOSE_UM`] from where the last one ended (a line is
+    /// drawn in one go: Cura's two purge lines are 0.3 mm apart).
+    fn with(mut self, a: &[i32; 3], b: &[i32; 3]) -> Option<Self> {
+        let jx = i64::from(a[0]) - i64::from(self.end_xy[0]);
+        let jy = i64::from(a[1]) - i64::from(self.end_xy[1]);
+        if jx * jx + jy * jy > TURN_CLOSE_UM * TURN_CLOSE_UM {
+            return None;
+        }
+        self.end_xy = [b[0], b[1]];
+        for p in [a, b] {
+            for k in 0..2 {
+                self.min_xy[k] = self.min_xy[k].min(p[k]);
+                self.max_xy[k] = self.max_xy[k].max(p[k]);
+            }
+        }
+        let dx = i64::from(b[0]) - i64::from(a[0]);
+        let dy = i64::from(b[1]) - i64::from(a[1]);
+        self.len_um = self.len_um.saturating_add(isqrt(dx * dx + dy * dy));
+        let w = |k: usize| i64::from(self.max_xy[k]) - i64::from(self.min_xy[k]);
+        (w(0).min(w(1)) <= i64::from(LINE_WIDTH_UM)).then_some(self)
+    }
+
+    /// Long enough to be a purge.
+    fn purge(&self) -> bool {
+        self.len_um >= PURGE_MIN_UM
+    }
+
+    /// `p` lies more than [`TURN_CLOSE_UM`] outside the line's extent.
+    fn away_from(&self, p: &[i32; 3]) -> bool {
+        (0..2).any(|k| {
+            i64::from(p[k]) < i64::from(self.min_xy[k]) - TURN_CLOSE_UM
+                || i64::from(p[k]) > i64::from(self.max_xy[k]) + TURN_CLOSE_UM
+        })
+    }
+}
+
+/// Integer square root (floor) of a non-negative number.
+fn isqrt(v: i64) -> i64 {
+    if v <= 0 {
+        return 0;
+    }
+    let mut x = libm::sqrt(v as f64) as i64;
+    while x > 0 && x * x > v {
+        x -= 1;
+    }
+    while (x + 1) * (x + 1) <= v {
+        x += 1;
+    }
+    x
+}
+
 /// Extrusion heights and the spiral turn seen so far (bounded: a few numbers).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub(super) struct Heights {
     /// Z at the end of the last extruding move, µm.
     last_end_um: Option<i32>,
-    /// Height of the last flat layer, µm.
+    /// Lowest Z of the current flat (or levelled) layer's extrusions, µm.
+    layer_min_um: Option<i32>,
+    /// Height (lowest Z) of the last flat layer, µm.
     flat_um: Option<i32>,
     /// Last step between flat layers (or the first layer's height), µm.
     step_um: Option<i32>,
-    /// Layers this rule has started (saturating at 2: the prelude rule asks for exactly 1).
+    /// Layers this rule has started (saturating at 2: the prelude rules ask for exactly 1).
     layers: u8,
-    /// A layer has started above the one before (the prelude rule applies only before that).
+    /// A layer has started above the one before (the prelude rules apply only before that).
     rose: bool,
+    /// Extruding moves change Z outside spirals: levelling baked into the file.
+    levelled: bool,
     /// The spiral turn being printed (`None`: printing flat).
     turn: Option<Turn>,
     /// The flat layer being printed, while it is one loop.
     lap: Option<Lap>,
+    /// The job's first layer, while it is one line (a purge line, maybe).
+    line: Option<Line>,
 }
 
 impl Heights {
     pub(super) const fn new() -> Self {
         Heights {
             last_end_um: None,
+            layer_min_um: None,
             flat_um: None,
             step_um: None,
             layers: 0,
             rose: false,
+            levelled: false,
             turn: None,
             lap: None,
+            line: None,
         }
+    }
+
+    /// How far heights may differ and still be one layer, µm: exact for a flat job, half a
+    /// layer height for a levelled one.
+    fn tolerance(&self) -> i32 {
+        if self.levelled {
+            self.step_um.unwrap_or(MIN_LAYER_UM).max(MIN_LAYER_UM) / 2
+        } else {
+            TOL_UM
+        }
+    }
+
+    /// Before anything rose, the job's first layer so far is a purge line.
+    fn purge_line(&self) -> bool {
+        !self.rose && self.layers == 1 && self.line.is_some_and(|l| l.purge())
     }
 
     /// An extruding move from `a` to `b` (X, Y, Z in µm): whether it starts a layer.
     pub(super) fn extrusion(&mut self, a: &[i32; 3], b: &[i32; 3]) -> Start {
         let rising = b[2] > a[2];
-        let start = match self.last_end_um {
-            None => Start::Layer,
-            Some(last) if a[2] < last - TOL_UM => {
+        let Some(last) = self.last_end_um else {
+            self.begin(a, rising);
+            self.moved_to(a, b);
+            return Start::Layer;
+        };
+        // A spiral never falls, and none begins in the first layer: such a change of Z while
+        // printing is levelling (a first turn so far is the same layer, levelled).
+        let may_spiral = !self.levelled && self.layers >= 2;
+        let changes_z = b[2] < a[2] || (rising && self.turn.is_none() && !may_spiral);
+        if changes_z && !self.levelled && self.turn.is_none_or(|t| t.first) {
+            self.levelled = true;
+            if let Some(t) = self.turn.take() {
+                self.layer_min_um = Some(t.base_um.min(a[2]));
+            }
+        }
+        let tol = self.tolerance();
+        let base = if self.levelled {
+            self.layer_min_um.unwrap_or(last)
+        } else {
+            last
+        };
+        let start = match self.turn {
+            _ if a[2] < base - tol => {
                 // Lower: the next object of a sequential print, or the end of a prelude.
                 if !self.rose && self.layers == 1 {
                     Start::Restart
@@ -183,31 +325,43 @@ impl Heights {
                     Start::Layer
                 }
             }
-            Some(last) => match self.turn {
-                // A flat layer above the spiral.
-                Some(_) if !rising && a[2] > last + TOL_UM => Start::Layer,
-                Some(t) if t.closes_at(a, b) => {
-                    // The next turn; its expected rise is the one just completed.
-                    let rise = a[2].saturating_sub(t.base_um).max(1);
-                    return self.next_turn(Turn::new(a, rise, false), a, b);
+            None if a[2] > base + tol => {
+                if self.purge_line() {
+                    Start::Restart
+                } else {
+                    Start::Layer
                 }
-                Some(t) if a[2].saturating_sub(t.base_um) >= t.cut_um() => {
-                    // No seam found: cut by height, the expected rise kept.
-                    return self.next_turn(Turn::new(a, t.rise_um, t.first), a, b);
-                }
-                Some(_) => Start::Same,
-                None if rising && a[2] == last && self.lap.is_some_and(|l| l.closed_at(a)) => {
-                    // Cura's first spiralized layer prints its wall once flat, then spirals
-                    // on from where the loop closed: the first turn is the same layer.
-                    self.rose = true;
-                    let h = self.step_um.unwrap_or(MIN_LAYER_UM);
-                    self.turn = Some(Turn::new(a, h, true));
-                    self.lap = None;
-                    Start::Same
-                }
-                None if rising || a[2] > last + TOL_UM => Start::Layer,
-                None => Start::Same,
-            },
+            }
+            None if self.purge_line() && self.line.is_some_and(|l| l.away_from(a)) => {
+                Start::Restart
+            }
+            // A flat layer above the spiral.
+            Some(_) if !rising && a[2] > last + tol => Start::Layer,
+            Some(t) if t.closes_at(a, b) => {
+                // The next turn; its expected rise is the one just completed.
+                let rise = a[2].saturating_sub(t.base_um).max(1);
+                return self.next_turn(Turn::new(a, rise, false), a, b);
+            }
+            Some(t) if a[2].saturating_sub(t.base_um) >= t.cut_um() => {
+                // No seam found: cut by height, the expected rise kept.
+                return self.next_turn(Turn::new(a, t.rise_um, t.first), a, b);
+            }
+            Some(_) => Start::Same,
+            None if rising
+                && may_spiral
+                && a[2] == last
+                && self.lap.is_some_and(|l| l.closed_at(a)) =>
+            {
+                // Cura's first spiralized layer prints its wall once flat, then spirals on
+                // from where the loop closed: the first turn is the same layer.
+                self.rose = true;
+                let h = self.step_um.unwrap_or(MIN_LAYER_UM);
+                self.turn = Some(Turn::new(a, h, true));
+                self.lap = None;
+                Start::Same
+            }
+            None if rising && may_spiral => Start::Layer,
+            None => Start::Same,
         };
         match start {
             Start::Same => {}
@@ -237,6 +391,11 @@ impl Heights {
                 l.away = true;
             }
         }
+        if self.turn.is_none() {
+            let low = a[2].min(b[2]);
+            self.layer_min_um = Some(self.layer_min_um.map_or(low, |m| m.min(low)));
+        }
+        self.line = self.line.and_then(|l| l.with(a, b));
         self.last_end_um = Some(b[2]);
     }
 
@@ -251,9 +410,14 @@ impl Heights {
     /// A layer starts at `a`: flat, or the first turn of a spiral.
     fn begin(&mut self, a: &[i32; 3], rising: bool) {
         let first_layer = self.layers == 0;
+        // The last flat layer's height: the layer just printed, unless it was a spiral.
+        let below = match self.turn {
+            Some(_) => self.flat_um,
+            None => self.layer_min_um.or(self.flat_um),
+        };
         self.layers = self.layers.saturating_add(1).min(2);
         if let Some(last) = self.last_end_um {
-            if a[2] > last + TOL_UM {
+            if a[2] > last + self.tolerance() {
                 self.rose = true;
             }
         }
@@ -261,11 +425,13 @@ impl Heights {
             // Its height stands for the layer height until a step between layers is seen.
             self.step_um = Some(a[2].max(MIN_LAYER_UM));
         }
-        if rising {
+        self.line = (first_layer && !rising).then(|| Line::at(a));
+        if rising && !self.levelled {
             self.rose = true;
             let h = self.step_um.unwrap_or(MIN_LAYER_UM);
             self.turn = Some(Turn::new(a, h, true));
             self.lap = None;
+            self.layer_min_um = None;
         } else {
             self.turn = None;
             self.lap = Some(Lap {
@@ -274,12 +440,13 @@ impl Heights {
                 away: false,
                 broken: false,
             });
-            if let Some(f) = self.flat_um {
-                if a[2] > f + TOL_UM {
+            if let Some(f) = below {
+                if a[2] > f + self.tolerance() {
                     self.step_um = Some(a[2] - f);
                 }
             }
             self.flat_um = Some(a[2]);
+            self.layer_min_um = Some(a[2]);
         }
     }
 

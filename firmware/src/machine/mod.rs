@@ -51,8 +51,8 @@ pub use arc::{
 };
 pub use error::MachineError;
 pub use interp::{Interpreter, Step};
-pub use limits::{dwell_ms, BOUNDS_TOLERANCE_MM, OVERRIDE_RANGE_PCT};
 pub(crate) use limits::to_steps;
+pub use limits::{dwell_ms, BOUNDS_TOLERANCE_MM, OVERRIDE_RANGE_PCT};
 
 use crate::config::MachineConfig;
 use crate::gcode::{AxisFlags, AxisWords, Command};
