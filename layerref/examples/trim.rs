@@ -5,6 +5,7 @@
 //! - everything before the reference's layer K+1 (comments kept: the slicer's own markers): the
 //!   header, the start code and the first K layers;
 //! - everything after the file's last extrusion: the end code;
+//!
 //! and drops, between them, the layers above K. Comment blocks that only hold the slicer's
 //! settings are dropped wherever they are (`; CONFIG_BLOCK_START` … `; CONFIG_BLOCK_END`,
 //! `; prusaslicer_config = begin` … `end` and its SuperSlicer/Slic3r twins, Cura's `;SETTING_3`
@@ -42,8 +43,8 @@ fn main() {
         .iter()
         .enumerate()
         .filter(|(i, a)| {
-            !a.starts_with("--")
-                && !(*i > 0 && matches!(args[i - 1].as_str(), "--layers" | "--max-bytes"))
+            let is_value = *i > 0 && matches!(args[i - 1].as_str(), "--layers" | "--max-bytes");
+            !a.starts_with("--") && !is_value
         })
         .map(|(_, a)| a)
         .collect();

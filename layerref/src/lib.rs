@@ -227,6 +227,17 @@ impl Turn {
     }
 }
 
+/// The job's first layer while it is one line (maybe a purge line).
+#[derive(Clone, Copy, Debug)]
+struct Line {
+    lo: [f64; 2],
+    hi: [f64; 2],
+    /// Where its last extrusion ended.
+    end: [f64; 2],
+    /// Extruded length, mm.
+    len: f64,
+}
+
 /// Per-job state of the model.
 #[derive(Clone, Debug, Default)]
 struct Job {
@@ -255,9 +266,8 @@ struct Job {
     levelled: bool,
     /// Lowest Z of the current (flat or levelled) layer's extrusions.
     layer_min: Option<f64>,
-    /// The job's first layer while it is one line drawn in one go: (min XY, max XY, where it
-    /// ended, extruded length).
-    line: Option<([f64; 2], [f64; 2], [f64; 2], f64)>,
+    /// The job's first layer while it is one line drawn in one go.
+    line: Option<Line>,
     /// Index of this job's first layer entry.
     first_layer: usize,
 }
@@ -464,9 +474,9 @@ impl Builder {
                 };
                 let purge = !j.rose
                     && j.height_layers == 1
-                    && j.line.is_some_and(|(_, _, _, len)| len >= PURGE_MIN_MM);
-                let away = j.line.is_some_and(|(lo, hi, _, _)| {
-                    (0..2).any(|k| a[k] < lo[k] - CLOSE_MM || a[k] > hi[k] + CLOSE_MM)
+                    && j.line.is_some_and(|l| l.len >= PURGE_MIN_MM);
+                let away = j.line.is_some_and(|l| {
+                    (0..2).any(|k| a[k] < l.lo[k] - CLOSE_MM || a[k] > l.hi[k] + CLOSE_MM)
                 });
                 if a[2] < base - tol {
                     if !j.rose && j.height_layers == 1 {
@@ -587,20 +597,20 @@ impl Builder {
             j.layer_min = Some(j.layer_min.map_or(low, |m| m.min(low)));
         }
         if j.line
-            .is_some_and(|(_, _, end, _)| (a[0] - end[0]).hypot(a[1] - end[1]) > CLOSE_MM)
+            .is_some_and(|l| (a[0] - l.end[0]).hypot(a[1] - l.end[1]) > CLOSE_MM)
         {
             j.line = None;
         }
-        if let Some((lo, hi, end, len)) = &mut j.line {
-            *end = [b[0], b[1]];
+        if let Some(l) = &mut j.line {
+            l.end = [b[0], b[1]];
             for p in [a, b] {
-                for k in 0..2 {
-                    lo[k] = lo[k].min(p[k]);
-                    hi[k] = hi[k].max(p[k]);
+                for ((lo, hi), v) in l.lo.iter_mut().zip(&mut l.hi).zip(p) {
+                    *lo = lo.min(*v);
+                    *hi = hi.max(*v);
                 }
             }
-            *len += (b[0] - a[0]).hypot(b[1] - a[1]);
-            if (hi[0] - lo[0]).min(hi[1] - lo[1]) > LINE_WIDTH_MM {
+            l.len += (b[0] - a[0]).hypot(b[1] - a[1]);
+            if (l.hi[0] - l.lo[0]).min(l.hi[1] - l.lo[1]) > LINE_WIDTH_MM {
                 j.line = None;
             }
         }
@@ -632,7 +642,12 @@ impl Builder {
         if first {
             j.step = Some(z.max(0.1));
         }
-        j.line = (first && !rising).then_some(([a[0], a[1]], [a[0], a[1]], [a[0], a[1]], 0.0));
+        j.line = (first && !rising).then_some(Line {
+            lo: [a[0], a[1]],
+            hi: [a[0], a[1]],
+            end: [a[0], a[1]],
+            len: 0.0,
+        });
         if rising && !j.levelled {
             j.rose = true;
             let h = j.step.unwrap_or(0.1);

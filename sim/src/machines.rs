@@ -146,8 +146,8 @@ impl Machine {
         cfg.accel_travel_mm_s2 = xy;
         // A pause parks inside the bed: where the file says, else at the back corner.
         let park = p.park_mm.unwrap_or([p.bed_max_mm[0], p.bed_max_mm[1]]);
-        for k in 0..2 {
-            check("park_mm", park[k], p.bed_min_mm[k]..=p.bed_max_mm[k])?;
+        for ((v, lo), hi) in park.iter().zip(&p.bed_min_mm).zip(&p.bed_max_mm) {
+            check("park_mm", *v, *lo..=*hi)?;
         }
         cfg.pause.park_x_mm = park[0];
         cfg.pause.park_y_mm = park[1];

@@ -195,9 +195,9 @@ impl Line {
         }
         self.end_xy = [b[0], b[1]];
         for p in [a, b] {
-            for k in 0..2 {
-                self.min_xy[k] = self.min_xy[k].min(p[k]);
-                self.max_xy[k] = self.max_xy[k].max(p[k]);
+            for ((lo, hi), v) in self.min_xy.iter_mut().zip(&mut self.max_xy).zip(p) {
+                *lo = (*lo).min(*v);
+                *hi = (*hi).max(*v);
             }
         }
         let dx = i64::from(b[0]) - i64::from(a[0]);
