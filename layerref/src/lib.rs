@@ -13,7 +13,8 @@
 //! - **Heights.** Without markers, a layer is a set of extrusions that belong together in
 //!   height: one starts at an extruding move that starts higher than the layer printed so far
 //!   (flat) or lower (sequential printing), and at the first extruding move that rises (a
-//!   spiral begins; never in the job's first layer unless its very first extrusion rises). An
+//!   spiral begins; not before the job's first layer has printed a loop whole or pieces in
+//!   several places, unless its very first extrusion rises). An
 //!   extruding move that falls, or rises where no spiral can begin, is levelling baked into the
 //!   file: from then on higher and lower are measured from the lowest extrusion of the layer,
 //!   beyond half a layer height, and no spiral is looked for.
@@ -227,6 +228,19 @@ impl Turn {
     }
 }
 
+/// The flat layer being printed: where it started and where its last extrusion ended.
+#[derive(Clone, Copy, Debug)]
+struct Lap {
+    start: [f64; 2],
+    end: [f64; 2],
+    /// The path went 4 mm away from the start.
+    away: bool,
+    /// An extrusion started elsewhere than where the last ended: not one contiguous loop.
+    broken: bool,
+    /// The path came back within 2 mm of the start after going away: a loop printed whole.
+    looped: bool,
+}
+
 /// The job's first layer while it is one line (maybe a purge line).
 #[derive(Clone, Copy, Debug)]
 struct Line {
@@ -259,9 +273,8 @@ struct Job {
     height_layers: u32,
     rose: bool,
     turn: Option<Turn>,
-    /// The flat layer being printed, while it is one contiguous loop: (start, end, went away,
-    /// broken).
-    lap: Option<([f64; 2], [f64; 2], bool, bool)>,
+    /// The flat layer being printed.
+    lap: Option<Lap>,
     /// Extrusions change Z outside spirals: levelling baked into the file.
     levelled: bool,
     /// Lowest Z of the current (flat or levelled) layer's extrusions.
@@ -454,7 +467,10 @@ impl Builder {
             None => Step::New,
             Some(last) => {
                 // Levelling: Z changes while printing where no spiral can be.
-                let may_spiral = !j.levelled && j.height_layers >= 2;
+                // No spiral before the job's first layer has printed a loop whole, or pieces
+                // in several places.
+                let may_spiral = !j.levelled
+                    && (j.height_layers >= 2 || j.lap.is_some_and(|l| l.broken || l.looped));
                 let changes = falling || (rising && j.turn.is_none() && !may_spiral);
                 if changes && !j.levelled && j.turn.is_none_or(|t| t.first) {
                     j.levelled = true;
@@ -511,11 +527,12 @@ impl Builder {
                         None if rising
                             && may_spiral
                             && (a[2] - last).abs() <= EPS_MM
-                            && j.lap.is_some_and(|(s, e, away, broken)| {
-                                !broken
-                                    && away
-                                    && (a[0] - e[0]).hypot(a[1] - e[1]) <= CLOSE_MM
-                                    && (e[0] - s[0]).hypot(e[1] - s[1]) <= CLOSE_MM
+                            && j.lap.is_some_and(|l| {
+                                !l.broken
+                                    && l.away
+                                    && (a[0] - l.end[0]).hypot(a[1] - l.end[1]) <= CLOSE_MM
+                                    && (l.end[0] - l.start[0]).hypot(l.end[1] - l.start[1])
+                                        <= CLOSE_MM
                             }) =>
                         {
                             Step::Join
@@ -584,13 +601,16 @@ impl Builder {
             t.went(b);
             j.lap = None;
         } else {
-            if let Some((s, e, away, broken)) = &mut j.lap {
-                if *e != [a[0], a[1]] {
-                    *broken = true;
+            if let Some(l) = &mut j.lap {
+                if l.end != [a[0], a[1]] {
+                    l.broken = true;
                 }
-                *e = [b[0], b[1]];
-                if (b[0] - s[0]).hypot(b[1] - s[1]) >= AWAY_MM {
-                    *away = true;
+                l.end = [b[0], b[1]];
+                let d = (b[0] - l.start[0]).hypot(b[1] - l.start[1]);
+                if d >= AWAY_MM {
+                    l.away = true;
+                } else if l.away && d <= CLOSE_MM {
+                    l.looped = true;
                 }
             }
             let low = a[2].min(b[2]);
@@ -670,7 +690,13 @@ impl Builder {
             j.flat_z = Some(z);
             j.layer_min = Some(z);
             j.turn = None;
-            j.lap = Some(([a[0], a[1]], [a[0], a[1]], false, false));
+            j.lap = Some(Lap {
+                start: [a[0], a[1]],
+                end: [a[0], a[1]],
+                away: false,
+                broken: false,
+                looped: false,
+            });
         }
         self.start_layer(Source::Height, z, None)
     }

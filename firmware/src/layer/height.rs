@@ -8,8 +8,9 @@
 //!   comes back down before the next extrusion, so it starts none);
 //! - the second starts **lower** (sequential printing: the next object's first layer);
 //! - the second **rises** while it prints after flat layers: a spiral (vase mode, helical
-//!   prints) begins; its first turn is a layer. Never in the job's first layer (every slicer
-//!   prints a vase's bottom flat), unless the job's very first extrusion rises (a helix);
+//!   prints) begins; its first turn is a layer. Never before the job's first layer has printed
+//!   a loop whole (every slicer prints a vase's bottom flat; on a levelled bed the first rise
+//!   comes within the first loop), unless the job's very first extrusion rises (a helix);
 //! - inside a spiral, the head has come round: a **turn ends** at the point of the path
 //!   closest to where the turn began (within [`TURN_CLOSE_UM`] of it, after having gone at
 //!   least [`TURN_AWAY_UM`] away and risen at least 3/5 of the expected rise of a turn — the
@@ -142,9 +143,18 @@ struct Lap {
     away: bool,
     /// An extrusion started elsewhere than where the last one ended: not one loop.
     broken: bool,
+    /// The path has come back within [`TURN_CLOSE_UM`] of its start after going away: a loop
+    /// was printed whole.
+    looped: bool,
 }
 
 impl Lap {
+    /// The layer has printed more than part of its first loop (a loop whole, or pieces in
+    /// several places): a spiral may begin after it, levelling's rises come before.
+    fn complete(&self) -> bool {
+        self.broken || self.looped
+    }
+
     fn dist2(&self, p: &[i32; 2]) -> i64 {
         let dx = i64::from(p[0]) - i64::from(self.start_xy[0]);
         let dy = i64::from(p[1]) - i64::from(self.start_xy[1]);
@@ -300,9 +310,12 @@ impl Heights {
             self.moved_to(a, b);
             return Start::Layer;
         };
-        // A spiral never falls, and none begins in the first layer: such a change of Z while
-        // printing is levelling (a first turn so far is the same layer, levelled).
-        let may_spiral = !self.levelled && self.layers >= 2;
+        // A spiral never falls, and none begins before the first layer has printed a loop
+        // whole (every slicer prints a vase's bottom flat; on a levelled bed the first rise
+        // comes within the first loop): such a change of Z while printing is levelling (a first
+        // turn so far is the same layer, levelled).
+        let may_spiral =
+            !self.levelled && (self.layers >= 2 || self.lap.is_some_and(|l| l.complete()));
         let changes_z = b[2] < a[2] || (rising && self.turn.is_none() && !may_spiral);
         if changes_z && !self.levelled && self.turn.is_none_or(|t| t.first) {
             self.levelled = true;
@@ -387,8 +400,11 @@ impl Heights {
                 l.broken = true;
             }
             l.end_xy = [b[0], b[1]];
-            if l.dist2(&l.end_xy) >= TURN_AWAY_UM * TURN_AWAY_UM {
+            let d2 = l.dist2(&l.end_xy);
+            if d2 >= TURN_AWAY_UM * TURN_AWAY_UM {
                 l.away = true;
+            } else if l.away && d2 <= TURN_CLOSE_UM * TURN_CLOSE_UM {
+                l.looped = true;
             }
         }
         if self.turn.is_none() {
@@ -439,6 +455,7 @@ impl Heights {
                 end_xy: [a[0], a[1]],
                 away: false,
                 broken: false,
+                looped: false,
             });
             if let Some(f) = below {
                 if a[2] > f + self.tolerance() {
@@ -534,6 +551,20 @@ mod tests {
             s.push(h.extrusion(&[55_000, 51_000, z], &[xy(0)[0], xy(0)[1], z]));
             s
         };
+        // One bottom layer only (the loop and a line of infill), then the spiral: its first
+        // rise is a spiral's, not levelling (the bottom printed its loop whole).
+        let mut one = Heights::new();
+        assert_eq!(flat(&mut one, 200)[0], Start::Layer);
+        let mut starts = Vec::new();
+        for k in 0..(n * 3) {
+            let z = |k: usize| 200 + (k * 200 / n) as i32;
+            let (a, b) = (xy(k), xy(k + 1));
+            if one.extrusion(&[a[0], a[1], z(k)], &[b[0], b[1], z(k + 1)]) != Start::Same {
+                starts.push(k);
+            }
+        }
+        assert_eq!(starts, vec![0, n, 2 * n]);
+        assert!(!one.levelled);
         assert_eq!(flat(&mut h, 200)[0], Start::Layer);
         assert_eq!(flat(&mut h, 400)[0], Start::Layer);
         let mut starts = Vec::new();

@@ -489,3 +489,11 @@ fn levelling_baked_into_the_file_is_no_layer_change() {
         "{m:?}"
     );
 }
+
+#[test]
+fn the_detector_stays_small() {
+    // It lives in the `Printer` (a static on the board): bounded state, no allocation.
+    let n = core::mem::size_of::<LayerDetector>();
+    std::eprintln!("LayerDetector: {n} bytes");
+    assert!(n <= 192, "{n} bytes");
+}
