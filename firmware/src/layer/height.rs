@@ -178,10 +178,8 @@ impl Lap {
 struct Line {
     min_xy: [i32; 2],
     max_xy: [i32; 2],
-    /// Where its last extrusion ended.
-    end_xy: [i32; 2],
-    /// Extruded path, µm.
-    len_um: i64,
+    /// Extruded path, µm (saturating: a purge is tens of mm).
+    len_um: i32,
 }
 
 impl Line {
@@ -189,21 +187,18 @@ impl Line {
         Line {
             min_xy: [a[0], a[1]],
             max_xy: [a[0], a[1]],
-            end_xy: [a[0], a[1]],
             len_um: 0,
         }
     }
 
-    /// The line with the extrusion `a → b`; `None` once it is wider than a line, or once an
-    /// extrusion starts more than [`TURN_CLOSE_UM`] from where the last one ended (a line is
-    /// drawn in one go: Cura's two purge lines are 0.3 mm apart).
-    fn with(mut self, a: &[i32; 3], b: &[i32; 3]) -> Option<Self> {
-        let jx = i64::from(a[0]) - i64::from(self.end_xy[0]);
-        let jy = i64::from(a[1]) - i64::from(self.end_xy[1]);
-        if jx * jx + jy * jy > TURN_CLOSE_UM * TURN_CLOSE_UM {
+    /// The line with the extrusion `a → b`, which starts `jump2` (µm²) from where the last
+    /// one ended; `None` once it is wider than a line, or once an extrusion starts more than
+    /// [`TURN_CLOSE_UM`] from where the last one ended (a line is drawn in one go: Cura's two
+    /// purge lines are 0.3 mm apart).
+    fn with(mut self, a: &[i32; 3], b: &[i32; 3], jump2: i64) -> Option<Self> {
+        if jump2 > TURN_CLOSE_UM * TURN_CLOSE_UM {
             return None;
         }
-        self.end_xy = [b[0], b[1]];
         for p in [a, b] {
             for ((lo, hi), v) in self.min_xy.iter_mut().zip(&mut self.max_xy).zip(p) {
                 *lo = (*lo).min(*v);
@@ -212,14 +207,15 @@ impl Line {
         }
         let dx = i64::from(b[0]) - i64::from(a[0]);
         let dy = i64::from(b[1]) - i64::from(a[1]);
-        self.len_um = self.len_um.saturating_add(isqrt(dx * dx + dy * dy));
+        let piece = i32::try_from(isqrt(dx * dx + dy * dy)).unwrap_or(i32::MAX);
+        self.len_um = self.len_um.saturating_add(piece);
         let w = |k: usize| i64::from(self.max_xy[k]) - i64::from(self.min_xy[k]);
         (w(0).min(w(1)) <= i64::from(LINE_WIDTH_UM)).then_some(self)
     }
 
     /// Long enough to be a purge.
     fn purge(&self) -> bool {
-        self.len_um >= PURGE_MIN_UM
+        i64::from(self.len_um) >= PURGE_MIN_UM
     }
 
     /// `p` lies more than [`TURN_CLOSE_UM`] outside the line's extent.
@@ -246,6 +242,34 @@ fn isqrt(v: i64) -> i64 {
     x
 }
 
+/// What the current layer is being printed as.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+enum Shape {
+    /// Nothing known yet, or a levelled layer (its lap is not followed).
+    #[default]
+    Unknown,
+    /// A flat layer, and its path so far.
+    Flat(Lap),
+    /// A spiral, and the turn being printed.
+    Spiral(Turn),
+}
+
+impl Shape {
+    fn turn(&self) -> Option<Turn> {
+        match self {
+            Shape::Spiral(t) => Some(*t),
+            _ => None,
+        }
+    }
+
+    fn lap(&self) -> Option<Lap> {
+        match self {
+            Shape::Flat(l) => Some(*l),
+            _ => None,
+        }
+    }
+}
+
 /// Extrusion heights and the spiral turn seen so far (bounded: a few numbers).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub(super) struct Heights {
@@ -263,10 +287,8 @@ pub(super) struct Heights {
     rose: bool,
     /// Extruding moves change Z outside spirals: levelling baked into the file.
     levelled: bool,
-    /// The spiral turn being printed (`None`: printing flat).
-    turn: Option<Turn>,
-    /// The flat layer being printed, while it is one loop.
-    lap: Option<Lap>,
+    /// What is being printed: a flat layer (its lap) or a spiral (its turn).
+    shape: Shape,
     /// The job's first layer, while it is one line (a purge line, maybe).
     line: Option<Line>,
 }
@@ -281,8 +303,7 @@ impl Heights {
             layers: 0,
             rose: false,
             levelled: false,
-            turn: None,
-            lap: None,
+            shape: Shape::Unknown,
             line: None,
         }
     }
@@ -315,12 +336,13 @@ impl Heights {
         // comes within the first loop): such a change of Z while printing is levelling (a first
         // turn so far is the same layer, levelled).
         let may_spiral =
-            !self.levelled && (self.layers >= 2 || self.lap.is_some_and(|l| l.complete()));
-        let changes_z = b[2] < a[2] || (rising && self.turn.is_none() && !may_spiral);
-        if changes_z && !self.levelled && self.turn.is_none_or(|t| t.first) {
+            !self.levelled && (self.layers >= 2 || self.shape.lap().is_some_and(|l| l.complete()));
+        let changes_z = b[2] < a[2] || (rising && self.shape.turn().is_none() && !may_spiral);
+        if changes_z && !self.levelled && self.shape.turn().is_none_or(|t| t.first) {
             self.levelled = true;
-            if let Some(t) = self.turn.take() {
+            if let Shape::Spiral(t) = self.shape {
                 self.layer_min_um = Some(t.base_um.min(a[2]));
+                self.shape = Shape::Unknown;
             }
         }
         let tol = self.tolerance();
@@ -329,8 +351,8 @@ impl Heights {
         } else {
             last
         };
-        let start = match self.turn {
-            _ if a[2] < base - tol => {
+        let start = match self.shape.turn() {
+            _ if a[2] < base.saturating_sub(tol) => {
                 // Lower: the next object of a sequential print, or the end of a prelude.
                 if !self.rose && self.layers == 1 {
                     Start::Restart
@@ -338,7 +360,7 @@ impl Heights {
                     Start::Layer
                 }
             }
-            None if a[2] > base + tol => {
+            None if a[2] > base.saturating_add(tol) => {
                 if self.purge_line() {
                     Start::Restart
                 } else {
@@ -349,7 +371,7 @@ impl Heights {
                 Start::Restart
             }
             // A flat layer above the spiral.
-            Some(_) if !rising && a[2] > last + tol => Start::Layer,
+            Some(_) if !rising && a[2] > last.saturating_add(tol) => Start::Layer,
             Some(t) if t.closes_at(a, b) => {
                 // The next turn; its expected rise is the one just completed.
                 let rise = a[2].saturating_sub(t.base_um).max(1);
@@ -363,14 +385,13 @@ impl Heights {
             None if rising
                 && may_spiral
                 && a[2] == last
-                && self.lap.is_some_and(|l| l.closed_at(a)) =>
+                && self.shape.lap().is_some_and(|l| l.closed_at(a)) =>
             {
                 // Cura's first spiralized layer prints its wall once flat, then spirals on
                 // from where the loop closed: the first turn is the same layer.
                 self.rose = true;
                 let h = self.step_um.unwrap_or(MIN_LAYER_UM);
-                self.turn = Some(Turn::new(a, h, true));
-                self.lap = None;
+                self.shape = Shape::Spiral(Turn::new(a, h, true));
                 Start::Same
             }
             None if rising && may_spiral => Start::Layer,
@@ -390,12 +411,20 @@ impl Heights {
 
     /// The head went on from `a` to `b`.
     fn moved_to(&mut self, a: &[i32; 3], b: &[i32; 3]) {
-        if let Some(t) = &mut self.turn {
+        if let Shape::Spiral(t) = &mut self.shape {
             if t.dist2(b) >= TURN_AWAY_UM * TURN_AWAY_UM {
                 t.away = true;
             }
         }
-        if let Some(l) = &mut self.lap {
+        // How far this extrusion starts from where the last one ended (the flat layer's lap
+        // knows; the first layer is flat while it may be a line).
+        let jump2 = self.shape.lap().map_or(0, |l| {
+            let dx = i64::from(a[0]) - i64::from(l.end_xy[0]);
+            let dy = i64::from(a[1]) - i64::from(l.end_xy[1]);
+            dx * dx + dy * dy
+        });
+        self.line = self.line.and_then(|l| l.with(a, b, jump2));
+        if let Shape::Flat(l) = &mut self.shape {
             if l.end_xy != [a[0], a[1]] {
                 l.broken = true;
             }
@@ -407,18 +436,17 @@ impl Heights {
                 l.looped = true;
             }
         }
-        if self.turn.is_none() {
+        if self.shape.turn().is_none() {
             let low = a[2].min(b[2]);
             self.layer_min_um = Some(self.layer_min_um.map_or(low, |m| m.min(low)));
         }
-        self.line = self.line.and_then(|l| l.with(a, b));
         self.last_end_um = Some(b[2]);
     }
 
     /// A spiral's next turn starts (at `t`'s start; the move goes on to `b`).
     fn next_turn(&mut self, t: Turn, a: &[i32; 3], b: &[i32; 3]) -> Start {
         self.layers = 2;
-        self.turn = Some(t);
+        self.shape = Shape::Spiral(t);
         self.moved_to(a, b);
         Start::Layer
     }
@@ -427,13 +455,13 @@ impl Heights {
     fn begin(&mut self, a: &[i32; 3], rising: bool) {
         let first_layer = self.layers == 0;
         // The last flat layer's height: the layer just printed, unless it was a spiral.
-        let below = match self.turn {
+        let below = match self.shape.turn() {
             Some(_) => self.flat_um,
             None => self.layer_min_um.or(self.flat_um),
         };
         self.layers = self.layers.saturating_add(1).min(2);
         if let Some(last) = self.last_end_um {
-            if a[2] > last + self.tolerance() {
+            if a[2] > last.saturating_add(self.tolerance()) {
                 self.rose = true;
             }
         }
@@ -445,12 +473,10 @@ impl Heights {
         if rising && !self.levelled {
             self.rose = true;
             let h = self.step_um.unwrap_or(MIN_LAYER_UM);
-            self.turn = Some(Turn::new(a, h, true));
-            self.lap = None;
+            self.shape = Shape::Spiral(Turn::new(a, h, true));
             self.layer_min_um = None;
         } else {
-            self.turn = None;
-            self.lap = Some(Lap {
+            self.shape = Shape::Flat(Lap {
                 start_xy: [a[0], a[1]],
                 end_xy: [a[0], a[1]],
                 away: false,
@@ -458,8 +484,8 @@ impl Heights {
                 looped: false,
             });
             if let Some(f) = below {
-                if a[2] > f + self.tolerance() {
-                    self.step_um = Some(a[2] - f);
+                if a[2] > f.saturating_add(self.tolerance()) {
+                    self.step_um = Some(a[2].saturating_sub(f));
                 }
             }
             self.flat_um = Some(a[2]);
