@@ -4,14 +4,24 @@
 //! implementation of the documented definitions (docs/planner.md, "What a layer is"):
 //!
 //! - **Markers.** When the stream carries a slicer's layer markers — `;LAYER_CHANGE`,
-//!   `; CHANGE_LAYER`, `;LAYER:<n>`, `; layer <n>, Z = …`, `;TURN`, `SET_PRINT_STATS_INFO
-//!   CURRENT_LAYER=<n>`, `M73 L<n>` — the first family seen in a job (or named by the slicer's
-//!   header) makes the layers: each marker starts one (a command marker when its number
-//!   changes, and not for 0). What extrudes before the first one is a prelude, no layer.
-//! - **Heights.** Without markers, a layer starts at an extruding move that starts higher than
-//!   the last one ended (flat) or lower (sequential printing) — a single layer left downwards
-//!   before anything rose was a prelude (a purge line) — and at the first extruding move that
-//!   rises (a spiral begins).
+//!   `; CHANGE_LAYER`, `;LAYER:<n>`, `; layer <n>, Z = …`, `;layer:<height>` (FlashPrint),
+//!   `; BEGIN_LAYER_OBJECT` (KISSlicer), `;; --- layer <n> …` (Kiri:Moto), `; <layer>` (IceSL),
+//!   `;TURN`, `SET_PRINT_STATS_INFO CURRENT_LAYER=<n>`, `M73 L<n>`, each with or without a space
+//!   after the `;` — the first family seen in a job (never chosen by a header) makes the layers:
+//!   each marker starts one (a command marker when its number changes, and not for 0). What
+//!   extrudes before the first one is a prelude, no layer.
+//! - **Heights.** Without markers, a layer is a set of extrusions that belong together in
+//!   height: one starts at an extruding move that starts higher than the layer printed so far
+//!   (flat) or lower (sequential printing), and at the first extruding move that rises (a
+//!   spiral begins; not before the job's first layer has printed a loop whole or pieces in
+//!   several places, unless its very first extrusion rises). An
+//!   extruding move that falls, or rises where no spiral can begin, is levelling baked into the
+//!   file: from then on higher and lower are measured from the lowest extrusion of the layer,
+//!   beyond half a layer height, and no spiral is looked for.
+//! - **Preludes.** Before anything rose, the first layer is a prelude (a purge line) when it is
+//!   left downwards, or when it is a line (at least 20 mm of extrusion drawn in one go — each
+//!   extrusion within 2 mm of where the last ended — inside a strip 2 mm wide) and the next
+//!   extrusion starts higher, or at its height more than 2 mm away from it.
 //! - **Spiral turns.** Inside a spiral a turn ends at the point closest to where it began,
 //!   within 2 mm of it, after the path went 4 mm away and rose 3/5 of the last turn's rise (a
 //!   quarter of the layer height for the first turn); without such a point, every 3/2 of that
@@ -153,6 +163,10 @@ struct Turn {
 
 const CLOSE_MM: f64 = 2.0;
 const AWAY_MM: f64 = 4.0;
+/// A purge line lies in a strip at most this wide, mm ...
+const LINE_WIDTH_MM: f64 = 2.0;
+/// ... and extrudes along at least this much, mm.
+const PURGE_MIN_MM: f64 = 20.0;
 /// Height tolerance, mm: heights are compared at the G-code's resolution (1 µm).
 const EPS_MM: f64 = 0.0005;
 
@@ -214,6 +228,30 @@ impl Turn {
     }
 }
 
+/// The flat layer being printed: where it started and where its last extrusion ended.
+#[derive(Clone, Copy, Debug)]
+struct Lap {
+    start: [f64; 2],
+    end: [f64; 2],
+    /// The path went 4 mm away from the start.
+    away: bool,
+    /// An extrusion started elsewhere than where the last ended: not one contiguous loop.
+    broken: bool,
+    /// The path came back within 2 mm of the start after going away: a loop printed whole.
+    looped: bool,
+}
+
+/// The job's first layer while it is one line (maybe a purge line).
+#[derive(Clone, Copy, Debug)]
+struct Line {
+    lo: [f64; 2],
+    hi: [f64; 2],
+    /// Where its last extrusion ended.
+    end: [f64; 2],
+    /// Extruded length, mm.
+    len: f64,
+}
+
 /// Per-job state of the model.
 #[derive(Clone, Debug, Default)]
 struct Job {
@@ -235,9 +273,14 @@ struct Job {
     height_layers: u32,
     rose: bool,
     turn: Option<Turn>,
-    /// The flat layer being printed, while it is one contiguous loop: (start, end, went away,
-    /// broken).
-    lap: Option<([f64; 2], [f64; 2], bool, bool)>,
+    /// The flat layer being printed.
+    lap: Option<Lap>,
+    /// Extrusions change Z outside spirals: levelling baked into the file.
+    levelled: bool,
+    /// Lowest Z of the current (flat or levelled) layer's extrusions.
+    layer_min: Option<f64>,
+    /// The job's first layer while it is one line drawn in one go.
+    line: Option<Line>,
     /// Index of this job's first layer entry.
     first_layer: usize,
 }
@@ -297,11 +340,6 @@ impl Builder {
         let mut here = NONE;
         match item {
             Item::Reset => self.new_job(),
-            Item::Header(f) => {
-                if self.job.family.is_none() {
-                    self.lock(f);
-                }
-            }
             Item::Marker(f, n) => {
                 if self.job.ended {
                     self.new_job();
@@ -409,76 +447,107 @@ impl Builder {
         idx
     }
 
-    /// The documented height and turn rules (docs/planner.md).
+    /// The documented height and turn rules (docs/planner.md, "What a layer is").
     fn height_rule(&mut self, a: &[f64; 4], b: &[f64; 4]) -> u32 {
         let j = &mut self.job;
         let rising = b[2] > a[2] + EPS_MM;
+        let falling = b[2] < a[2] - EPS_MM;
         enum Step {
             Same,
             /// A spiral's first turn joins the flat loop it starts from (Cura's first
             /// spiralized layer).
             Join,
-            Flat,
+            /// A new layer: a flat one, or a spiral's first turn when it rises.
+            New,
+            /// A new layer, and what came before was a prelude (a purge line).
             Prelude,
-            Spiral,
             NextTurn(f64),
         }
         let step = match j.last_end_z {
-            None => {
-                if rising {
-                    Step::Spiral
-                } else {
-                    Step::Flat
-                }
-            }
-            Some(last) if a[2] < last - EPS_MM => {
-                if !j.rose && j.height_layers == 1 {
-                    Step::Prelude
-                } else if rising {
-                    Step::Spiral
-                } else {
-                    Step::Flat
-                }
-            }
-            Some(last) => match &j.turn {
-                Some(_) if !rising && a[2] > last + EPS_MM => Step::Flat,
-                Some(t) => {
-                    let gate = if t.first { t.rise / 4.0 } else { t.rise * 0.6 };
-                    let da = t.dist(a);
-                    let rise = a[2] - t.base_z;
-                    if t.away && rise >= gate - EPS_MM && da <= CLOSE_MM && t.dist(b) >= da {
-                        Step::NextTurn(rise.max(0.001))
-                    } else if rise >= t.cut() - EPS_MM {
-                        Step::NextTurn(-t.rise)
-                    } else {
-                        Step::Same
+            None => Step::New,
+            Some(last) => {
+                // Levelling: Z changes while printing where no spiral can be.
+                // No spiral before the job's first layer has printed a loop whole, or pieces
+                // in several places.
+                let may_spiral = !j.levelled
+                    && (j.height_layers >= 2 || j.lap.is_some_and(|l| l.broken || l.looped));
+                let changes = falling || (rising && j.turn.is_none() && !may_spiral);
+                if changes && !j.levelled && j.turn.is_none_or(|t| t.first) {
+                    j.levelled = true;
+                    if let Some(t) = j.turn.take() {
+                        j.layer_min = Some(t.base_z.min(a[2]));
                     }
                 }
-                None if rising
-                    && (a[2] - last).abs() <= EPS_MM
-                    && j.lap.is_some_and(|(s, e, away, broken)| {
-                        !broken
-                            && away
-                            && (a[0] - e[0]).hypot(a[1] - e[1]) <= CLOSE_MM
-                            && (e[0] - s[0]).hypot(e[1] - s[1]) <= CLOSE_MM
-                    }) =>
-                {
-                    Step::Join
+                let tol = if j.levelled {
+                    0.5 * j.step.unwrap_or(0.1).max(0.1)
+                } else {
+                    EPS_MM
+                };
+                let base = if j.levelled {
+                    j.layer_min.unwrap_or(last)
+                } else {
+                    last
+                };
+                let purge = !j.rose
+                    && j.height_layers == 1
+                    && j.line.is_some_and(|l| l.len >= PURGE_MIN_MM);
+                let away = j.line.is_some_and(|l| {
+                    (0..2).any(|k| a[k] < l.lo[k] - CLOSE_MM || a[k] > l.hi[k] + CLOSE_MM)
+                });
+                if a[2] < base - tol {
+                    if !j.rose && j.height_layers == 1 {
+                        Step::Prelude
+                    } else {
+                        Step::New
+                    }
+                } else {
+                    match &j.turn {
+                        None if a[2] > base + tol => {
+                            if purge {
+                                Step::Prelude
+                            } else {
+                                Step::New
+                            }
+                        }
+                        None if purge && away => Step::Prelude,
+                        Some(_) if !rising && a[2] > last + tol => Step::New,
+                        Some(t) => {
+                            let gate = if t.first { t.rise / 4.0 } else { t.rise * 0.6 };
+                            let da = t.dist(a);
+                            let rise = a[2] - t.base_z;
+                            if t.away && rise >= gate - EPS_MM && da <= CLOSE_MM && t.dist(b) >= da
+                            {
+                                Step::NextTurn(rise.max(0.001))
+                            } else if rise >= t.cut() - EPS_MM {
+                                Step::NextTurn(-t.rise)
+                            } else {
+                                Step::Same
+                            }
+                        }
+                        None if rising
+                            && may_spiral
+                            && (a[2] - last).abs() <= EPS_MM
+                            && j.lap.is_some_and(|l| {
+                                !l.broken
+                                    && l.away
+                                    && (a[0] - l.end[0]).hypot(a[1] - l.end[1]) <= CLOSE_MM
+                                    && (l.end[0] - l.start[0]).hypot(l.end[1] - l.start[1])
+                                        <= CLOSE_MM
+                            }) =>
+                        {
+                            Step::Join
+                        }
+                        None if rising && may_spiral => Step::New,
+                        None => Step::Same,
+                    }
                 }
-                None if rising => Step::Spiral,
-                None if a[2] > last + EPS_MM => Step::Flat,
-                None => Step::Same,
-            },
+            }
         };
         let z = a[2];
-        if let Some(last) = j.last_end_z {
-            if matches!(step, Step::Flat | Step::Spiral) && z > last + EPS_MM {
-                j.rose = true;
-            }
-        }
         let idx = match step {
-            Step::Same => j.current.unwrap_or(NONE),
+            Step::Same => self.job.current.unwrap_or(NONE),
             Step::Join => {
+                let j = &mut self.job;
                 j.rose = true;
                 let h = j.step.unwrap_or(0.1);
                 j.turn = Some(Turn::new([a[0], a[1], z], h, true, None));
@@ -486,31 +555,27 @@ impl Builder {
                 j.current.unwrap_or(NONE)
             }
             Step::Prelude => {
-                // The one layer so far was a prelude (a purge line): the count restarts.
-                if let Some(p) = j.current {
+                // What printed so far was a prelude (a purge line): the count restarts.
+                if let Some(p) = self.job.current {
                     self.model.layers[p as usize].number = 0;
                 }
                 let j = &mut self.job;
                 j.next = 1;
+                j.last_end_z = None;
                 j.flat_z = None;
                 j.step = None;
                 j.height_layers = 0;
+                j.rose = false;
                 j.turn = None;
-                self.flat(a)
+                j.lap = None;
+                j.levelled = false;
+                j.layer_min = None;
+                j.line = None;
+                self.begin_layer(a, rising)
             }
-            Step::Flat => self.flat(a),
-            Step::Spiral => {
-                j.rose = true;
-                j.height_layers = (j.height_layers + 1).min(2);
-                if j.step.is_none() {
-                    j.step = Some(z.max(0.1));
-                }
-                let h = j.step.unwrap_or(0.1);
-                let centre = j.turn.map(|t| t.centre_here());
-                j.turn = Some(Turn::new([a[0], a[1], z], h, true, centre));
-                self.start_layer(Source::Height, z, None)
-            }
+            Step::New => self.begin_layer(a, rising),
             Step::NextTurn(rise) => {
+                let j = &mut self.job;
                 let Some(t) = j.turn else { return NONE };
                 let winding = t.centre.map(|_| t.wound);
                 let (rise, first) = if rise > 0.0 {
@@ -524,6 +589,7 @@ impl Builder {
                     first,
                     Some(t.centre_here()),
                 ));
+                j.height_layers = 2;
                 if let Some(k) = j.current {
                     self.model.layers[k as usize].winding_rad = winding;
                 }
@@ -534,13 +600,38 @@ impl Builder {
         if let Some(t) = &mut j.turn {
             t.went(b);
             j.lap = None;
-        } else if let Some((s, e, away, broken)) = &mut j.lap {
-            if *e != [a[0], a[1]] {
-                *broken = true;
+        } else {
+            if let Some(l) = &mut j.lap {
+                if l.end != [a[0], a[1]] {
+                    l.broken = true;
+                }
+                l.end = [b[0], b[1]];
+                let d = (b[0] - l.start[0]).hypot(b[1] - l.start[1]);
+                if d >= AWAY_MM {
+                    l.away = true;
+                } else if l.away && d <= CLOSE_MM {
+                    l.looped = true;
+                }
             }
-            *e = [b[0], b[1]];
-            if (b[0] - s[0]).hypot(b[1] - s[1]) >= AWAY_MM {
-                *away = true;
+            let low = a[2].min(b[2]);
+            j.layer_min = Some(j.layer_min.map_or(low, |m| m.min(low)));
+        }
+        if j.line
+            .is_some_and(|l| (a[0] - l.end[0]).hypot(a[1] - l.end[1]) > CLOSE_MM)
+        {
+            j.line = None;
+        }
+        if let Some(l) = &mut j.line {
+            l.end = [b[0], b[1]];
+            for p in [a, b] {
+                for ((lo, hi), v) in l.lo.iter_mut().zip(&mut l.hi).zip(p) {
+                    *lo = lo.min(*v);
+                    *hi = hi.max(*v);
+                }
+            }
+            l.len += (b[0] - a[0]).hypot(b[1] - a[1]);
+            if (l.hi[0] - l.lo[0]).min(l.hi[1] - l.lo[1]) > LINE_WIDTH_MM {
+                j.line = None;
             }
         }
         j.last_end_z = Some(b[2]);
@@ -551,22 +642,62 @@ impl Builder {
         idx
     }
 
-    /// A flat layer starts at `a`.
-    fn flat(&mut self, a: &[f64; 4]) -> u32 {
+    /// A layer starts at `a`: a spiral's first turn when the move rises (in a job not
+    /// levelled), else a flat (or levelled) layer.
+    fn begin_layer(&mut self, a: &[f64; 4], rising: bool) -> u32 {
         let z = a[2];
         let j = &mut self.job;
-        j.lap = Some(([a[0], a[1]], [a[0], a[1]], false, false));
-        if j.height_layers == 0 {
-            j.step = Some(z.max(0.1));
-        }
-        j.height_layers = (j.height_layers + 1).min(2);
-        j.turn = None;
-        if let Some(f) = j.flat_z {
-            if z > f + EPS_MM {
-                j.step = Some(z - f);
+        let tol = if j.levelled {
+            0.5 * j.step.unwrap_or(0.1).max(0.1)
+        } else {
+            EPS_MM
+        };
+        if let Some(last) = j.last_end_z {
+            if z > last + tol {
+                j.rose = true;
             }
         }
-        j.flat_z = Some(z);
+        let first = j.height_layers == 0;
+        j.height_layers = (j.height_layers + 1).min(2);
+        if first {
+            j.step = Some(z.max(0.1));
+        }
+        j.line = (first && !rising).then_some(Line {
+            lo: [a[0], a[1]],
+            hi: [a[0], a[1]],
+            end: [a[0], a[1]],
+            len: 0.0,
+        });
+        if rising && !j.levelled {
+            j.rose = true;
+            let h = j.step.unwrap_or(0.1);
+            let centre = j.turn.map(|t| t.centre_here());
+            j.turn = Some(Turn::new([a[0], a[1], z], h, true, centre));
+            j.lap = None;
+            j.layer_min = None;
+        } else {
+            // The last flat layer's height: the layer just printed, unless it was a spiral.
+            let below = if j.turn.is_some() {
+                j.flat_z
+            } else {
+                j.layer_min.or(j.flat_z)
+            };
+            if let Some(f) = below {
+                if z > f + tol {
+                    j.step = Some(z - f);
+                }
+            }
+            j.flat_z = Some(z);
+            j.layer_min = Some(z);
+            j.turn = None;
+            j.lap = Some(Lap {
+                start: [a[0], a[1]],
+                end: [a[0], a[1]],
+                away: false,
+                broken: false,
+                looped: false,
+            });
+        }
         self.start_layer(Source::Height, z, None)
     }
 }

@@ -212,6 +212,9 @@ pub struct Host {
     in_flight: Option<(Origin, String)>,
     /// Job lines the printer refused.
     pub refused: Refusals,
+    /// Job lines the printer does not know (`echo:Unknown command: …`): start-code macros
+    /// (`PRINT_START`, `BED_MESH_CALIBRATE`) that a Klipper host would run and the sim cannot.
+    pub unknown: Refusals,
     cursor: usize,
     /// Lines the host sends before continuing the job (its own pause/resume sequences).
     inserts: VecDeque<(String, Origin)>,
@@ -291,6 +294,7 @@ impl Host {
             cut_lines: 0,
             in_flight: None,
             refused: Refusals::default(),
+            unknown: Refusals::default(),
             cursor: 0,
             inserts: VecDeque::new(),
             hold: false,
@@ -655,12 +659,17 @@ impl Host {
                     self.resend_from = Some(n);
                 }
             }
-        } else if lower.starts_with("echo:refused:") {
+        } else if lower.starts_with("echo:refused:") || lower.starts_with("echo:unknown command") {
             // About the line in flight (one at a time with `ok` flow control).
             if let Some((Origin::Job(index), line)) = &self.in_flight {
-                self.refused.count += 1;
-                if self.refused.first.len() < REFUSALS_KEPT {
-                    self.refused.first.push(RefusedLine {
+                let list = if lower.starts_with("echo:refused:") {
+                    &mut self.refused
+                } else {
+                    &mut self.unknown
+                };
+                list.count += 1;
+                if list.first.len() < REFUSALS_KEPT {
+                    list.first.push(RefusedLine {
                         index: *index,
                         text: line.clone(),
                         reply: text.clone(),

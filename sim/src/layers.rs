@@ -52,9 +52,14 @@ impl Default for Analyser {
 }
 
 impl Analyser {
-    /// At the start of a job.
+    /// At the start of a job, on the Ender-3.
     pub fn new() -> Self {
-        let cfg = MachineConfig::ENDER3;
+        Self::with_config(MachineConfig::ENDER3)
+    }
+
+    /// At the start of a job, on the machine `cfg` (its build volume decides which moves the
+    /// machine state takes).
+    pub fn with_config(cfg: MachineConfig) -> Self {
         Self {
             m: MachineState::new(&cfg),
             d: LayerDetector::new(),

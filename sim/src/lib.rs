@@ -11,6 +11,7 @@ pub mod hostlink;
 pub mod job;
 pub mod lab;
 pub mod layers;
+pub mod machines;
 pub mod metrics;
 pub mod patterns;
 pub mod plot;

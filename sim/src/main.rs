@@ -96,6 +96,11 @@ struct RunArgs {
     /// moving and taking lines ends the run after 3 virtual hours, see docs/sim.md).
     #[arg(long)]
     max_hours: Option<f64>,
+    /// The printer: a built-in profile (ender3, k1max, prusa-mk4, prusa-mini, bambu-x1,
+    /// voron300) or a machine file, the same as `sim serve --machine` (see docs/sim.md).
+    /// Default: the Ender-3.
+    #[arg(long)]
+    machine: Option<String>,
 }
 
 #[derive(clap::Args)]
@@ -224,6 +229,9 @@ fn run_scenario(a: &RunArgs) -> anyhow::Result<Scenario> {
             in_range("max-hours", h, 0.001..=87_600.0)? * 3600.0,
         )?;
     }
+    if let Some(m) = &a.machine {
+        sc.machine = sim::machines::Machine::load(m)?.config;
+    }
     // Without a pause nothing reads the executed-block record: do not keep it.
     sc.keep_records = false;
     Ok(sc)
@@ -250,7 +258,14 @@ struct RefusedJson {
 struct RunJson<'a> {
     #[serde(flatten)]
     report: &'a sim::metrics::PauseReport,
+    /// The printer's name (`--machine`).
+    machine: &'a str,
+    /// Why the pause did not stop where the layer reference says it must (`null`: it did, or
+    /// nothing to judge); the run then exits non-zero.
+    layer_verdict: Option<String>,
     refused_lines: RefusedLines,
+    /// Lines the printer did not know (start-code macros the sim cannot run: `PRINT_START` …).
+    unknown_commands: RefusedLines,
     /// Lines longer than the host model reads (`sim::job::MAX_LINE_BYTES`), sent cut.
     cut_lines: u64,
 }
@@ -274,10 +289,10 @@ fn cmd_run(a: RunArgs) -> anyhow::Result<()> {
     // A job that should have finished and did not is a failure (exit status 1), after the
     // report is printed; so are refused lines (unless --allow-refused).
     let unfinished = sim::run::unfinished(&sc, &out);
-    let refused = RefusedLines {
-        count: out.refused.count,
-        first: out
-            .refused
+    let verdict = sim::run::layer_verdict(&sc, &out);
+    let listed = |l: &sim::hostlink::Refusals| RefusedLines {
+        count: l.count,
+        first: l
             .first
             .iter()
             .map(|r| RefusedJson {
@@ -287,20 +302,30 @@ fn cmd_run(a: RunArgs) -> anyhow::Result<()> {
             })
             .collect(),
     };
-    let failure = match (unfinished, refused.count) {
-        (Some(why), _) => Some(why),
-        (None, 0) => None,
-        (None, _) if a.allow_refused => None,
-        (None, n) => Some(format!(
+    let refused = listed(&out.refused);
+    let unknown = listed(&out.unknown);
+    let failure = match (unfinished, &verdict, refused.count) {
+        (Some(why), _, _) => Some(why),
+        (None, Some(why), _) => Some(why.clone()),
+        (None, None, 0) => None,
+        (None, None, _) if a.allow_refused => None,
+        (None, None, n) => Some(format!(
             "the printer refused {n} line{} of the job (--allow-refused to accept that)",
             if n == 1 { "" } else { "s" }
         )),
+    };
+    let machine_name = match &a.machine {
+        Some(m) => sim::machines::Machine::load(m)?.name,
+        None => sim::machines::Machine::ender3().name,
     };
     let mut o = stdout();
     if a.json {
         let j = RunJson {
             report: &out.report,
+            machine: &machine_name,
+            layer_verdict: verdict,
             refused_lines: refused,
+            unknown_commands: unknown,
             cut_lines: out.cut_lines,
         };
         writeln!(o, "{}", serde_json::to_string_pretty(&j)?).context(STDOUT)?;
@@ -310,8 +335,9 @@ fn cmd_run(a: RunArgs) -> anyhow::Result<()> {
     let r = &out.report;
     writeln!(
         o,
-        "{} — policy {}, mode {}",
+        "{} — {}, policy {}, mode {}",
         a.file.display(),
+        machine_name,
         r.policy,
         r.mode
     )
@@ -320,18 +346,25 @@ fn cmd_run(a: RunArgs) -> anyhow::Result<()> {
         writeln!(o, "  {:>10.3} s  {}", ev.t_s, ev.what).context(STDOUT)?;
     }
     writeln!(o, "{}", sim::demo::summary(r)).context(STDOUT)?;
-    if refused.count > 0 {
-        writeln!(o, "refused lines: {}", refused.count).context(STDOUT)?;
-        for f in &refused.first {
+    if let Some(why) = &verdict {
+        writeln!(o, "layer verdict (layerref): FAILED: {why}").context(STDOUT)?;
+    }
+    for (what, list) in [
+        ("refused lines", &refused),
+        (
+            "lines the printer does not know (macros the sim cannot run)",
+            &unknown,
+        ),
+    ] {
+        if list.count == 0 {
+            continue;
+        }
+        writeln!(o, "{what}: {}", list.count).context(STDOUT)?;
+        for f in &list.first {
             writeln!(o, "  line {}: {}  →  {}", f.line, f.text, f.reply).context(STDOUT)?;
         }
-        if refused.count > refused.first.len() as u64 {
-            writeln!(
-                o,
-                "  … ({} more)",
-                refused.count - refused.first.len() as u64
-            )
-            .context(STDOUT)?;
+        if list.count > list.first.len() as u64 {
+            writeln!(o, "  … ({} more)", list.count - list.first.len() as u64).context(STDOUT)?;
         }
     }
     if out.cut_lines > 0 {

@@ -26,7 +26,7 @@ use crate::job::JobInfo;
 use crate::port::Executive;
 use crate::recorder::{Scale, SegRecord};
 use crate::scenario::{Mode, PauseWhen, Scenario};
-use crate::stream::{Comparison, Key, LineEnds};
+use crate::stream::{Comparison, Key, LineEnds, HOMING_LINE};
 use firmware::motion::StepPos;
 use layerref::{Comments, Model};
 
@@ -225,17 +225,20 @@ pub fn compute<E: Executive>(
             .rev()
             .find(|&i| extrudes(i))
     };
-    let next_extruding_after =
-        |line: usize| -> Option<usize> { (line + 1..model.len()).find(|&i| extrudes(i)) };
+    let next_extruding_after = |line: usize| -> Option<usize> {
+        (line.saturating_add(1)..model.len()).find(|&i| extrudes(i))
+    };
 
     // The pause point.
     let from = facts.records_before_req.saturating_sub(1);
     let Some(s) = (from..ra.len()).find(|&i| ka[i].is_none()) else {
         return rep;
     };
+    // Job lines (a homing move has none of its own: `stream::HOMING_LINE`).
+    let line_of = |i: usize| ka[i].map(|k| k.0).filter(|&l| l != HOMING_LINE);
     let j = (0..s).rev().find(|&i| ka[i].is_some());
     let (stop_pos, t_stop, frontier) = match j {
-        Some(j) => (ra[j].end, ra[j].t_end_us, ka[j].map(|k| k.0)),
+        Some(j) => (ra[j].end, ra[j].t_end_us, (0..=j).rev().find_map(line_of)),
         None => ([0; 4], 0, None),
     };
     rep.pause_point_steps = Some(stop_pos);
@@ -297,8 +300,8 @@ pub fn compute<E: Executive>(
         _ if facts.t_req_us.is_some() => {
             let k = facts.records_before_req;
             let in_progress = (k.saturating_sub(1)..ra.len())
-                .find(|&i| ka[i].is_some())
-                .and_then(|i| ka[i].map(|x| (i, x.0)));
+                .find(|&i| line_of(i).is_some())
+                .and_then(|i| line_of(i).map(|l| (i, l)));
             if let Some((i, lr)) = in_progress {
                 let done_at_req = i < k && complete(lr, &facts.pos_at_req);
                 let first_unfinished = if extrudes(lr) && !done_at_req {

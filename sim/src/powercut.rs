@@ -13,56 +13,63 @@
 //!   move cut by a `now` pause appears as two lines; homing and the pause's own moves are not
 //!   job moves and are left out.
 
+use crate::machines::Machine;
 use crate::port::Lane;
 use crate::recorder::SegRecord;
-use anyhow::{bail, Context};
+use anyhow::Context;
 use firmware::motion::StepPos;
 use std::fs::{File, OpenOptions};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-/// Where a head without a `--machine` file starts: 10 mm from each switch (Ender-3 steps).
-pub const FIRST_START: StepPos = [800, 800, 4_000, 0];
-
-/// The head's true position, kept in a file between sessions.
+/// The head's true position, kept in the machine file between sessions
+/// ([`crate::machines`]: the file also says which printer this is).
 pub struct MachineBody {
     path: PathBuf,
+    /// The file's text (a TOML machine file; `None`: the older four-number form).
+    profile: Option<String>,
     written: StepPos,
 }
 
 impl MachineBody {
-    /// Open (or start) the file; returns the body and where the head is.
-    pub fn open(path: &Path) -> anyhow::Result<(Self, StepPos)> {
-        let pos = match std::fs::read_to_string(path) {
+    /// Open (or start) the file; returns the body, the machine it describes, and where the
+    /// head is.
+    pub fn open(path: &Path) -> anyhow::Result<(Self, Machine, StepPos)> {
+        let (machine, profile) = match std::fs::read_to_string(path) {
             Ok(text) => {
-                let v: Vec<i32> = text
-                    .split_whitespace()
-                    .map(str::parse)
-                    .collect::<Result<_, _>>()
-                    .with_context(|| format!("{}: not a machine position", path.display()))?;
-                let Ok(pos) = <[i32; 4]>::try_from(v) else {
-                    bail!("{}: not a machine position (4 numbers)", path.display());
-                };
-                pos
+                let m = Machine::parse(&text)
+                    .with_context(|| format!("{}: not a machine file", path.display()))?;
+                let profile = (!m.legacy).then_some(text);
+                (m, profile)
             }
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => FIRST_START,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => (Machine::ender3(), None),
             Err(e) => return Err(e).with_context(|| format!("reading {}", path.display())),
         };
+        let pos = machine
+            .head_steps
+            .unwrap_or_else(|| first_start(&machine.config));
         let mut b = Self {
             path: path.to_path_buf(),
+            profile,
             written: pos,
         };
         b.write(pos)?;
-        Ok((b, pos))
+        Ok((b, machine, pos))
     }
 
     fn write(&mut self, pos: StepPos) -> anyhow::Result<()> {
-        let text = format!("{} {} {} {}\n", pos[0], pos[1], pos[2], pos[3]);
+        let text = match &self.profile {
+            Some(p) => crate::machines::with_head(p, pos),
+            None => format!("{} {} {} {}\n", pos[0], pos[1], pos[2], pos[3]),
+        };
         // Written whole to a new file, then renamed: a kill never leaves half a position.
         let tmp = self.path.with_extension("tmp");
-        std::fs::write(&tmp, text).with_context(|| format!("writing {}", tmp.display()))?;
+        std::fs::write(&tmp, &text).with_context(|| format!("writing {}", tmp.display()))?;
         std::fs::rename(&tmp, &self.path)
             .with_context(|| format!("writing {}", self.path.display()))?;
+        if let Some(p) = &mut self.profile {
+            *p = text;
+        }
         self.written = pos;
         Ok(())
     }
@@ -74,6 +81,12 @@ impl MachineBody {
         }
         Ok(())
     }
+}
+
+/// Where a head without a recorded position starts: 10 mm from each switch.
+pub fn first_start(cfg: &firmware::config::MachineConfig) -> StepPos {
+    let steps = |k: usize| (10.0 * cfg.axes[k].steps_per_mm).round() as i32;
+    [steps(0), steps(1), steps(2), 0]
 }
 
 /// The executed job moves, appended to a file.
@@ -110,7 +123,7 @@ impl MoveTrace {
         };
         for r in new {
             // Homing blocks run in the job lane with no job sequence number.
-            let job = r.tag.lane == Lane::Job && r.tag.seq != u32::MAX;
+            let job = r.tag.lane == Lane::Job && r.tag.seq != crate::stream::HOMING_SEQ;
             match cur {
                 Some((seq, s, _)) if job && seq == r.tag.seq => cur = Some((seq, s, r.end)),
                 _ => {

@@ -61,6 +61,8 @@ pub struct Outcome<E: Executive> {
     pub reference_finished: bool,
     /// Job lines the printer refused in the run (`echo:refused:`), by their index in the file.
     pub refused: Refusals,
+    /// Job lines the printer did not know (`echo:Unknown command:`): macros the sim cannot run.
+    pub unknown: Refusals,
     /// Lines longer than [`crate::job::MAX_LINE_BYTES`], sent cut there.
     pub cut_lines: u64,
 }
@@ -405,7 +407,8 @@ impl<'s, E: Executive> Run<'s, E> {
                 .iter()
                 .map(|r| stream::key_of(&self.a, r))
                 .collect();
-            if let Some(top) = view.keys.iter().flatten().map(|k| k.0).max() {
+            let job_lines = view.keys.iter().flatten().map(|k| k.0);
+            if let Some(top) = job_lines.filter(|&l| l != stream::HOMING_LINE).max() {
                 self.ends.set_ceil(top);
             }
             run_in_turns(
@@ -512,8 +515,9 @@ impl<'s, E: Executive> Run<'s, E> {
         self.timeline.sort_by(|x, y| x.t_s.total_cmp(&y.t_s));
         // Refused lines by their line in the file (host-split sends pieces of them).
         let mut refused = self.a.host.refused.clone();
+        let mut unknown = self.a.host.unknown.clone();
         if let Some(source) = &self.source {
-            for r in &mut refused.first {
+            for r in refused.first.iter_mut().chain(unknown.first.iter_mut()) {
                 r.index = source.get(r.index).copied().unwrap_or(r.index);
             }
         }
@@ -521,6 +525,7 @@ impl<'s, E: Executive> Run<'s, E> {
             report,
             reference_finished: self.facts.reference_finished,
             refused,
+            unknown,
             cut_lines: self.a.host.cut_lines,
             run: self.a,
             reference: self.b,
@@ -567,4 +572,59 @@ pub fn unfinished<E: Executive>(sc: &Scenario, o: &Outcome<E>) -> Option<String>
         ));
     }
     None
+}
+
+/// Why a pause did not do what the layers of the job say it must (`None` when it did), judged
+/// by the independent reference ([`layerref`], in [`crate::metrics`]), for this firmware's
+/// policy (the conventional ones are measured, not judged):
+/// - a pause scheduled for layer `n` (`M761 L<n>`) must happen, and stop at the boundary before
+///   the layer the reference numbers `n` (a job without such a layer fails too);
+/// - a `layer` pause requested at a time must happen, stop at a layer boundary, and at the
+///   first one still reachable when it was asked for.
+///
+/// `sim run` reports the reason and exits non-zero.
+pub fn layer_verdict<E: Executive>(sc: &Scenario, o: &Outcome<E>) -> Option<String> {
+    if sc.policy != Policy::Firmware {
+        return None;
+    }
+    let r = &o.report;
+    let stopped = || match (r.stopped_at_layer_boundary, r.stop_layer) {
+        (true, Some(l)) => format!("at the end of layer {l}"),
+        (true, None) => "before the first layer".to_string(),
+        (false, Some(l)) => format!("inside layer {l}"),
+        (false, None) => "off a layer boundary".to_string(),
+    };
+    match sc.pause {
+        Some(PauseWhen::AtLayer(n)) => {
+            if r.parked_s.is_none() {
+                Some(format!("the pause scheduled for layer {n} never happened"))
+            } else if !r.first_boundary_after_request {
+                Some(format!(
+                    "the pause scheduled for layer {n} stopped {} (the reference's layer {n} \
+                     starts after the end of layer {})",
+                    stopped(),
+                    n.saturating_sub(1)
+                ))
+            } else {
+                None
+            }
+        }
+        Some(_) if sc.mode == Mode::Layer => {
+            if r.parked_s.is_none() {
+                Some("the layer pause never happened".to_string())
+            } else if !r.stopped_at_layer_boundary {
+                Some(format!("the layer pause stopped {}", stopped()))
+            } else if r.first_reachable_boundary == Some(false) {
+                Some(format!(
+                    "the layer pause stopped {}, not at the first boundary still reachable at \
+                     the request (the end of layer {})",
+                    stopped(),
+                    r.request_layer.map_or("—".to_string(), |l| l.to_string())
+                ))
+            } else {
+                None
+            }
+        }
+        _ => None,
+    }
 }

@@ -67,8 +67,10 @@ pub struct ServeArgs {
     /// missing; see `sim::flash`).
     #[arg(long)]
     pub flash: Option<PathBuf>,
-    /// The machine outlives the session: minimum endstops (G28 homes through them) and the
-    /// head's true position kept in this file for the next start (see `sim::powercut`).
+    /// The machine file (see `sim::machines`): which printer this is (a profile from
+    /// `sim/machines/`, or four numbers for the Ender-3 of earlier sessions), and — the machine
+    /// outlives the session — minimum endstops (G28 homes through them) and the head's true
+    /// position kept in it for the next start (see `sim::powercut`).
     #[arg(long)]
     pub machine: Option<PathBuf>,
     /// Append every executed job move, as the sim saw its steps, to this file (see

@@ -16,16 +16,29 @@ use std::collections::{BTreeMap, HashMap, VecDeque};
 /// A job block: (job line, segment).
 pub type Key = (usize, u32);
 
+/// Key of a homing move (`G28`): the firmware gives homing blocks no sequence number
+/// ([`HOMING_SEQ`]), so they are compared as homing moves in order, not as whatever job line the
+/// sequence map holds last when the record is read (which depends on when that is: a streamed
+/// comparison read them at other moments in the run with the pause than in its reference, and
+/// counted one move lost and another duplicated).
+pub const HOMING_LINE: usize = usize::MAX;
+
+/// The sequence number the firmware gives homing blocks (`printer/homing.rs`).
+pub const HOMING_SEQ: u32 = u32::MAX;
+
 /// The job block a record executed, or `None` for service moves and host-inserted lines.
 pub fn key_of<E: Executive>(e: &Engine<E>, r: &SegRecord) -> Option<Key> {
     if r.tag.lane == Lane::Service {
         return None;
     }
+    if r.tag.seq == HOMING_SEQ {
+        return Some((HOMING_LINE, r.tag.segment));
+    }
     match e.origin_of_seq(r.tag.seq) {
         Some(Origin::Job(line)) => Some((line, r.tag.segment)),
         Some(_) => None,
         // Unknown numbering: keep it as a job block keyed by its sequence number.
-        None => Some((usize::MAX - r.tag.seq as usize, r.tag.segment)),
+        None => Some((HOMING_LINE - 1 - r.tag.seq as usize, r.tag.segment)),
     }
 }
 
@@ -175,7 +188,9 @@ impl LineEnds {
     /// Keep nothing above `ceil` from now on.
     pub fn set_ceil(&mut self, ceil: usize) {
         self.ceil = Some(ceil);
-        let _ = self.ends.split_off(&(ceil + 1));
+        if let Some(above) = ceil.checked_add(1) {
+            let _ = self.ends.split_off(&above);
+        }
     }
 
     /// Where line `line` ends in the reference, if known.

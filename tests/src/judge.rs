@@ -33,6 +33,13 @@ pub struct Job {
     pub model: Model,
     /// Path length (XYZ, mm) from the start of the job to the end of each line.
     pub path_end_mm: Vec<f64>,
+    /// The printer it runs on (the Ender-3 unless a test says otherwise).
+    pub machine: firmware::config::MachineConfig,
+    /// Let E move cold (the file heats in a start-code macro the sim cannot run).
+    pub allow_cold: bool,
+    /// Virtual time simulated after a request, µs: enough to stop at the end of the longest
+    /// layer, park and resume (a minute for the generated corpus' small layers).
+    pub after_request_us: u64,
 }
 
 impl Job {
@@ -58,6 +65,9 @@ impl Job {
             comments,
             model,
             path_end_mm,
+            machine: firmware::config::MachineConfig::ENDER3,
+            allow_cold: false,
+            after_request_us: 60_000_000,
         }
     }
 
@@ -65,6 +75,8 @@ impl Job {
     pub fn scenario(&self) -> Scenario {
         let mut sc = Scenario::new(Policy::Firmware, Mode::Layer);
         sc.link.strip_comments = self.comments == Comments::Strip;
+        sc.machine = self.machine;
+        sc.allow_cold = self.allow_cold;
         sc
     }
 
@@ -118,7 +130,7 @@ pub fn job_line(o: &Outcome, seq: u32) -> Option<usize> {
 /// The stop of the first pause after `t_req_us`.
 pub fn stop_of(o: &Outcome, t_req_us: u64, job: &Job) -> Option<Stop> {
     let recs = &o.run.rec.records;
-    let scale = sim::recorder::Scale::from_config(&firmware::config::MachineConfig::ENDER3);
+    let scale = sim::recorder::Scale::from_config(&job.machine);
     let first_service = recs
         .iter()
         .position(|r| r.tag.lane == Lane::Service && r.t_start_us >= t_req_us)?;
@@ -194,7 +206,7 @@ pub fn boundary_of(stop: &Stop, job: &Job) -> Result<Option<usize>, String> {
 pub fn judge_request(o: &Outcome, t_req_us: u64, job: &Job) -> Result<(), String> {
     let stop = stop_of(o, t_req_us, job).ok_or("no pause point")?;
     let k = boundary_of(&stop, job)?;
-    let accel = f64::from(firmware::config::MachineConfig::ENDER3.axes[0].max_accel_mm_s2);
+    let accel = f64::from(job.machine.axes[0].max_accel_mm_s2);
     // Lowest allowed: the first boundary not passed at the request.
     let req_line = stop.req_line.unwrap_or(0);
     let lo = job.layer_before(req_line.saturating_sub(1));

@@ -3,6 +3,7 @@
 
 use std::path::PathBuf;
 
+pub mod corpus;
 pub mod gcode;
 pub mod imports;
 pub mod judge;

@@ -7,6 +7,15 @@ use crate::gcode::Line;
 use crate::layer::{LayerDetector, MoveFacts};
 use crate::motion::LayerMark;
 
+impl MoveFacts {
+    /// Facts of the command that took the machine state from `before` to `after`, as
+    /// commanded (see [`MoveFacts::commanded`]). Here, on the interpreter's side, so the layer
+    /// detector needs nothing of the machine state: imports run one way, `machine` → `layer`.
+    pub fn of(before: &MachineState, after: &MachineState, _cfg: &MachineConfig) -> Self {
+        MoveFacts::commanded(&before.machine_mm(), &after.machine_mm())
+    }
+}
+
 /// What one line asks for: first queue `mark` (if any), then do `action`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Step {

@@ -3,7 +3,7 @@
 
 use super::MachineError;
 use crate::config::MachineConfig;
-use crate::motion::{Axis, StepPos, AXES};
+use crate::motion::{round_i32, Axis, StepPos, AXES};
 
 /// Lowest and highest M220/M221 override, percent.
 pub const OVERRIDE_RANGE_PCT: core::ops::RangeInclusive<f32> = 10.0..=999.0;
@@ -61,24 +61,4 @@ pub(crate) fn to_steps(pos: &[f64; AXES], cfg: &MachineConfig) -> Result<StepPos
             .ok_or(MachineError::StepOverflow(axis))?;
     }
     Ok(out)
-}
-
-/// Round half away from zero to an `i32`, or `None` outside its range (and for NaN). Exact:
-/// for |x| < 2^31 the truncation and the fraction `x - trunc(x)` are exact in `f64`; the same
-/// result as `libm::round`, without its bit twiddling (property-tested).
-pub(crate) fn round_i32(x: f64) -> Option<i32> {
-    if !(x > f64::from(i32::MIN) - 0.5 && x < f64::from(i32::MAX) + 0.5) {
-        return None;
-    }
-    // In range: the casts cannot saturate.
-    let t = x as i64;
-    let frac = x - t as f64;
-    let r = if frac >= 0.5 {
-        t + 1
-    } else if frac <= -0.5 {
-        t - 1
-    } else {
-        t
-    };
-    i32::try_from(r).ok()
 }

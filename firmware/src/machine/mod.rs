@@ -51,8 +51,8 @@ pub use arc::{
 };
 pub use error::MachineError;
 pub use interp::{Interpreter, Step};
+pub(crate) use limits::to_steps;
 pub use limits::{dwell_ms, BOUNDS_TOLERANCE_MM, OVERRIDE_RANGE_PCT};
-pub(crate) use limits::{round_i32, to_steps};
 
 use crate::config::MachineConfig;
 use crate::gcode::{AxisFlags, AxisWords, Command};

@@ -1,5 +1,6 @@
 use super::*;
 use crate::gcode::parse_line;
+use crate::motion::round_i32;
 use proptest::prelude::*;
 
 const CFG: MachineConfig = MachineConfig::ENDER3;

@@ -34,13 +34,19 @@ impl Machine {
             None => None,
         }
         .map(firmware::storage::sd::Card::new);
-        let mut fw: PrinterExec = PrinterFactory.make(&sc.machine, &sc.knobs());
+        // The machine file: which printer, and (power-cut checks) the head where the last
+        // session left it, with endstops.
+        let body = a
+            .machine
+            .as_deref()
+            .map(crate::powercut::MachineBody::open)
+            .transpose()?;
+        let cfg = body.as_ref().map_or(sc.machine, |(_, m, _)| m.config);
+        let mut fw: PrinterExec = PrinterFactory.make(&cfg, &sc.knobs());
         fw.keep_executed = true;
         let mut rec = Recorder::new();
-        // Power-cut checks: the head where the last session left it, endstops, the move trace.
-        let body = match a.machine.as_deref() {
-            Some(p) => {
-                let (b, pos) = crate::powercut::MachineBody::open(p)?;
+        let body = match body {
+            Some((b, _, pos)) => {
                 fw = fw.with_endstops([pos[0], pos[1], pos[2]]);
                 rec.pos = pos;
                 Some(b)
