@@ -1,9 +1,10 @@
 //! `board-emu`: runs the unmodified SKR 2 image on the emulated board and writes a JSON report
 //! (`docs/board-emu.md`; `scripts/board-emu.sh` builds the image and calls this).
 use anyhow::{Context, Result};
+use board_emu::cycles::ClockModel;
 use board_emu::fault::Fault;
 use board_emu::flash::FlashTiming;
-use board_emu::scenario::{self, FlashFill, Options};
+use board_emu::scenario::{self, FlashFill, HostPort, Options};
 use clap::Parser;
 use std::path::PathBuf;
 
@@ -62,6 +63,20 @@ struct Args {
     /// Keep running this long after the job, s.
     #[arg(long, default_value_t = 0.2)]
     settle: f64,
+    /// The clock model: `chip` (instruction timings, flash wait states through the ART
+    /// accelerator, exception cycles) or `ideal` (one instruction a cycle).
+    #[arg(long, value_enum, default_value = "chip")]
+    clock: ClockModel,
+    /// The port the scripted host uses: `tft` (USART1) or `usb` (the CDC ACM port, through
+    /// the emulated USB host).
+    #[arg(long, value_enum, default_value = "tft")]
+    port: HostPort,
+    /// Plug the USB cable in even when the host uses the TFT port.
+    #[arg(long)]
+    usb_plugged: bool,
+    /// Send the job's comments (slicer layer markers) instead of stripping them.
+    #[arg(long)]
+    keep_comments: bool,
     /// Write the report here (else stdout).
     #[arg(long)]
     json: Option<PathBuf>,
@@ -99,6 +114,10 @@ fn main() -> Result<()> {
         reversed_driver: a.reversed_driver,
         max_virtual_s: a.max_virtual_s.min(3600.0),
         settle_s: a.settle.clamp(0.0, 600.0),
+        clock: a.clock,
+        port: a.port,
+        usb_plugged: a.usb_plugged,
+        keep_comments: a.keep_comments,
         ..Options::default()
     };
     let r = scenario::run(&o)?;

@@ -6,15 +6,17 @@ use crate::adc::{BED, HOTEND};
 use crate::axes::Axes;
 use crate::board::{Board, Stall};
 use crate::cpu::{Emulator, RunEnd};
+use crate::cycles::{Clock, ClockModel};
 use crate::fault::{Fault, BAD_RETURN};
 use crate::flash::{Flash, FlashTiming, STORE_LEN};
 use crate::host::Host;
 use crate::iwdg::Iwdg;
 use crate::nvic::{exc, irq};
 use crate::rcc::ResetKind;
-use crate::report::{self, Report};
+use crate::report::{self, Report, RunFacts};
 use crate::sdio::Sdio;
 use crate::time::{cyc_from_ms, s_from_cyc, Cyc};
+use crate::usbhost::UsbHost;
 use crate::tmc::{Drivers, Seating};
 use anyhow::{Context, Result};
 use firmware::config::MachineConfig;
@@ -60,6 +62,25 @@ pub struct Options {
     pub max_virtual_s: f64,
     /// Keep running this long after the job, s (watch what follows).
     pub settle_s: f64,
+    /// The clock model (`crate::cycles`).
+    pub clock: ClockModel,
+    /// The port the scripted host talks through.
+    pub port: HostPort,
+    /// The USB cable is plugged in (always when the host is on USB).
+    pub usb_plugged: bool,
+    /// Job lines keep their comments (slicer layer markers reach the printer).
+    pub keep_comments: bool,
+}
+
+/// Which port the scripted host uses.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum HostPort {
+    /// USART1, the TFT header, 115200 Bd.
+    #[default]
+    Tft,
+    /// The USB CDC ACM port, through the emulated USB host (`crate::usbhost`).
+    Usb,
 }
 
 /// What a foreign settings area holds.
@@ -92,6 +113,10 @@ impl Default for Options {
             start_mm: [60.0, 60.0, 10.0],
             max_virtual_s: 120.0,
             settle_s: 0.2,
+            clock: ClockModel::Chip,
+            port: HostPort::Tft,
+            usb_plugged: false,
+            keep_comments: false,
         }
     }
 }
@@ -162,13 +187,21 @@ pub fn run(o: &Options) -> Result<Report> {
     };
     let cfg = MachineConfig::ENDER3;
     let axes = Axes::new(&cfg, o.start_mm);
-    let board = Board::new(
+    let mut board = Board::new(
         flash,
         Iwdg::new(o.lsi_hz),
         Drivers::new(seating),
         axes,
         Sdio::with_card(card),
     );
+    board.clock = Clock::new(o.clock);
+    if o.usb_plugged || o.port == HostPort::Usb {
+        board.usb = UsbHost::new(true);
+    }
+    if o.port == HostPort::Usb {
+        // The host program holds the port from the start: DTR once enumerated.
+        board.usb.set_open(0, true);
+    }
     let mut emu = Emulator::new(board, image, o.f429)?;
     let stack = match &o.elf {
         Some(e) => Some(stack_bounds(e)?),
@@ -179,15 +212,16 @@ pub fn run(o: &Options) -> Result<Report> {
     }
 
     let mut host = Host::new();
+    host.keep_comments = o.keep_comments;
     // M115 goes last: its ~700-byte reply stalled the TFT port of main's image for good
     // (docs/board-emu.md, "Found by the emulated board"), so nothing could follow it.
     let mut script: std::collections::VecDeque<String> = o.commands.iter().cloned().collect();
     let mut job_sent = false;
     let mut r = Reaction::default();
-    let until = (o.max_virtual_s * 1e9) as u64 * 168 / 1000;
+    let until = (o.max_virtual_s * 168e6) as Cyc;
     let end = loop {
         let end = emu.run_until(until, |emu| {
-            host.poll(&mut emu.board_mut().usart1);
+            poll(&mut host, emu, o.port);
             react(emu, &mut host, o, &mut r);
             // A pause waits for its resume before the job counts as done.
             let pausing = o.pause_at_layer.is_some() && job_sent && !r.resumed;
@@ -201,11 +235,17 @@ pub fn run(o: &Options) -> Result<Report> {
         if let Some(cmd) = script.pop_front() {
             if cmd == "@reset" {
                 emu.power_on(ResetKind::Pin)?;
+            } else if let Some(usb) = usb_command(&cmd) {
+                let b = emu.board_mut();
+                match usb {
+                    UsbCommand::Plug(p) => b.usb.set_plugged(now, p),
+                    UsbCommand::Open(p) => b.usb.set_open(now, p),
+                }
             } else if let Some(text) = cmd.strip_prefix("@until ") {
                 let text = text.trim().to_string();
                 let from = host.received.len();
                 emu.run_until(until, |emu| {
-                    host.poll(&mut emu.board_mut().usart1);
+                    poll(&mut host, emu, o.port);
                     react(emu, &mut host, o, &mut r);
                     host.received[from..].iter().any(|(_, l)| l.contains(&text))
                 })?;
@@ -213,7 +253,7 @@ pub fn run(o: &Options) -> Result<Report> {
                 let ms: u64 = ms.trim().parse().unwrap_or(0);
                 let t = now + cyc_from_ms(ms);
                 emu.run_until(t.min(until), |emu| {
-                    host.poll(&mut emu.board_mut().usart1);
+                    poll(&mut host, emu, o.port);
                     react(emu, &mut host, o, &mut r);
                     false
                 })?;
@@ -237,18 +277,25 @@ pub fn run(o: &Options) -> Result<Report> {
         // Wait for the reply line (its `ok` may never come), then settle.
         let limit = emu.now() + cyc_from_ms(2_000);
         emu.run_until(limit.min(until), |emu| {
-            host.poll(&mut emu.board_mut().usart1);
+            poll(&mut host, emu, o.port);
             host.idle() || host.find("FIRMWARE_NAME").is_some()
         })?;
         // Done: watch a little longer (what the board does after the job or the fault).
         let t = emu.now() + (o.settle_s * 168e6) as Cyc;
-        break run_plain(&mut emu, &mut host, t)?;
+        break run_plain(&mut emu, &mut host, o.port, t)?;
     };
     let _ = end;
     if std::env::var_os("BOARD_EMU_DEBUG").is_some() {
         let now = emu.now();
         let b = emu.board_mut();
         let e = usize::from(exc::IRQ0 + irq::USART1);
+        eprintln!(
+            "host queued {} idle {} usart host_tx {} rx log {}",
+            host.queued(),
+            host.idle(),
+            b.usart1.host_tx.len(),
+            b.usart1.tx_log.len()
+        );
         eprintln!(
             "usart1 cr1 {:#x} sr {:#x} irq {} nvic en {} pend {} act {} prio {:#x} stack {:?} last tx {:?}",
             b.usart1.read(0x0C, now),
@@ -287,17 +334,49 @@ pub fn run(o: &Options) -> Result<Report> {
     Ok(report::make(
         &emu,
         &host,
-        o,
-        &r,
-        stack,
-        wall0.elapsed().as_secs_f64(),
+        &RunFacts {
+            start_mm: o.start_mm,
+            lsi_hz: o.lsi_hz,
+            parked: r.parked,
+            injected: r.injected,
+            stack,
+            wall_s: wall0.elapsed().as_secs_f64(),
+            usb_plugged: o.usb_plugged || o.port == HostPort::Usb,
+        },
     ))
 }
 
+/// A USB command of the script: `@unplug`, `@plug`, `@close` (the program closes the port:
+/// DTR dropped), `@open`.
+enum UsbCommand {
+    Plug(bool),
+    Open(bool),
+}
+
+fn usb_command(cmd: &str) -> Option<UsbCommand> {
+    Some(match cmd.trim() {
+        "@unplug" => UsbCommand::Plug(false),
+        "@plug" => UsbCommand::Plug(true),
+        "@close" => UsbCommand::Open(false),
+        "@open" => UsbCommand::Open(true),
+        _ => return None,
+    })
+}
+
+/// The host reads and writes its port.
+pub fn poll(host: &mut Host, emu: &mut Emulator, port: HostPort) {
+    let now = emu.now();
+    let b = emu.board_mut();
+    match port {
+        HostPort::Tft => host.poll(&mut b.usart1, now),
+        HostPort::Usb => host.poll(&mut b.usb, now),
+    }
+}
+
 /// Runs to `t` while the host keeps talking.
-fn run_plain(emu: &mut Emulator, host: &mut Host, t: Cyc) -> Result<RunEnd> {
+fn run_plain(emu: &mut Emulator, host: &mut Host, port: HostPort, t: Cyc) -> Result<RunEnd> {
     emu.run_until(t, |emu| {
-        host.poll(&mut emu.board_mut().usart1);
+        poll(host, emu, port);
         false
     })
 }
