@@ -77,6 +77,11 @@ struct Args {
     /// Send the job's comments (slicer layer markers) instead of stripping them.
     #[arg(long)]
     keep_comments: bool,
+    /// Serve the board on two pseudo-terminals (USB CDC and the TFT UART, announced first on
+    /// stdout as `usb: PATH` and `tft: PATH`), paced to the wall clock, until SIGINT/SIGTERM;
+    /// then write the report. `--job`, `--cmd` and the pause options do not apply.
+    #[arg(long)]
+    serve: bool,
     /// Write the report here (else stdout).
     #[arg(long)]
     json: Option<PathBuf>,
@@ -120,7 +125,21 @@ fn main() -> Result<()> {
         keep_comments: a.keep_comments,
         ..Options::default()
     };
-    let r = scenario::run(&o)?;
+    let r = if a.serve {
+        board_emu::serve::serve(&o, |usb, tft| {
+            println!("usb: {}", usb.display());
+            println!("tft: {}", tft.display());
+            let _ = std::io::Write::flush(&mut std::io::stdout());
+            eprintln!(
+                "board-emu: the emulated SKR 2 (F407 image) on {} (USB CDC) and {} (TFT UART), \
+                 paced to the wall clock; Ctrl-C ends it",
+                usb.display(),
+                tft.display()
+            );
+        })?
+    } else {
+        scenario::run(&o)?
+    };
     let text = serde_json::to_string_pretty(&r)?;
     match &a.json {
         Some(p) => std::fs::write(p, text).with_context(|| format!("writing {}", p.display()))?,

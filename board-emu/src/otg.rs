@@ -175,6 +175,10 @@ pub struct Otg {
     dieptxf: [u32; 3],
     gccfg: u32,
     dcfg: u32,
+    /// The address before the last change of DAD: still answered until the host uses the
+    /// new one (the application sets DAD before SET_ADDRESS's status stage, which the host
+    /// makes at the old address: USB 2.0 §9.4.6).
+    old_address: Option<u8>,
     dctl: u32,
     suspended: bool,
     enumerated: bool,
@@ -457,7 +461,13 @@ impl Otg {
                 self.dieptxf[i] = v;
                 self.ins[i + 1].depth = v >> 16;
             }
-            0x800 => self.dcfg = v,
+            0x800 => {
+                let old = self.address();
+                self.dcfg = v;
+                if self.address() != old {
+                    self.old_address = Some(old);
+                }
+            }
             0x804 => {
                 // SGONAK/CGONAK (bits 9/10) set and clear the global OUT NAK.
                 let mut d = v & !(0xF << 7);
@@ -559,6 +569,7 @@ impl Otg {
     /// The host drives a bus reset (SE0 ≥ 10 ms): USBRST; endpoints 1..3 deactivated.
     pub fn bus_reset(&mut self) {
         self.gintsts |= USBRST;
+        self.old_address = None;
         self.suspended = false;
         self.enumerated = false;
         for ep in self.ins.iter_mut().skip(1) {
@@ -598,8 +609,15 @@ impl Otg {
         }
     }
 
-    fn addressed(&self, addr: u8) -> bool {
-        self.attached() && addr == self.address()
+    fn addressed(&mut self, addr: u8) -> bool {
+        if !self.attached() {
+            return false;
+        }
+        if addr == self.address() {
+            self.old_address = None;
+            return true;
+        }
+        self.old_address == Some(addr)
     }
 
     /// A SETUP transaction to EP0 at `addr` with its 8 bytes.

@@ -6,11 +6,33 @@ use crate::cpu::Emulator;
 use crate::cycles::ClockModel;
 use crate::usbhost::{DeviceInfo, UsbStats};
 use crate::nvic::{exc, irq};
-use crate::host::Host;
 use crate::rcc::ResetKind;
 use crate::time::{ns_from_cyc, s_from_cyc, Cyc, CPU_HZ};
 use serde::Serialize;
 use std::collections::BTreeMap;
+
+/// What `--serve` adds to the report.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct ServeReport {
+    /// The pseudo-terminals.
+    pub usb_device: String,
+    /// See `usb_device`.
+    pub tft_device: String,
+    /// Lines the image sent on USB and on the TFT UART (the last 10,000 of each).
+    pub usb_lines: Vec<String>,
+    /// See `usb_lines`.
+    pub tft_lines: Vec<String>,
+    /// A program opened (true) or closed the USB port, at virtual s.
+    pub usb_sessions: Vec<(f64, bool)>,
+    /// Virtual seconds per wall second over the run.
+    pub virtual_per_wall: f64,
+    /// Largest lag of virtual time behind the wall clock, s.
+    pub lag_max_s: f64,
+    /// Lag given up (virtual time that never ran), s.
+    pub lag_dropped_s: f64,
+    /// How the run ended.
+    pub ended_by: String,
+}
 
 /// The USB host's account of the run.
 #[derive(Clone, Debug, Serialize)]
@@ -193,6 +215,8 @@ pub struct Report {
     pub skipped_s: f64,
     /// The USB side: what the emulated host found and did (when the cable was plugged).
     pub usb: Option<UsbReport>,
+    /// `--serve`: the terminals, the lines on each port, the USB sessions, the pacing.
+    pub serve: Option<ServeReport>,
     /// Notes from the models.
     pub notes: Vec<String>,
     /// Peripheral blocks the image touched that have no model (1 KiB block addresses).
@@ -273,8 +297,8 @@ pub struct RunFacts {
     pub usb_plugged: bool,
 }
 
-/// Builds the report.
-pub fn make(emu: &Emulator, host: &Host, f: &RunFacts) -> Report {
+/// Builds the report; `lines` are those the host read, with their times.
+pub fn make(emu: &Emulator, lines: &[(Cyc, String)], f: &RunFacts) -> Report {
     let RunFacts {
         start_mm,
         lsi_hz,
@@ -363,9 +387,12 @@ pub fn make(emu: &Emulator, host: &Host, f: &RunFacts) -> Report {
     });
     let skipped = b.skipped;
     Report {
-        m115: host.find("FIRMWARE_NAME").map(|(_, l)| l.clone()),
-        lines: host.received.iter().map(|(_, l)| l.clone()).collect(),
-        line_times_s: host.received.iter().map(|(t, _)| s_from_cyc(*t)).collect(),
+        m115: lines
+            .iter()
+            .find(|(_, l)| l.contains("FIRMWARE_NAME"))
+            .map(|(_, l)| l.clone()),
+        lines: lines.iter().map(|(_, l)| l.clone()).collect(),
+        line_times_s: lines.iter().map(|(t, _)| s_from_cyc(*t)).collect(),
         net_steps: per_axis(|i| b.axes.axis[i].net_steps),
         pause_point_steps: parked.and_then(|t| pause_point(&b.axes, t)).map(|p| {
             // The firmware's frame: the switches are at 0 (min_mm of the Ender-3), and the
@@ -466,6 +493,7 @@ pub fn make(emu: &Emulator, host: &Host, f: &RunFacts) -> Report {
         virtual_per_wall: s_from_cyc(now) / wall_s.max(1e-9),
         skipped_s: skipped as f64 / CPU_HZ as f64,
         usb: usb_plugged.then(|| usb_report(b)),
+        serve: None,
         notes: b.notes.iter().chain(&b.otg.notes).cloned().collect(),
         unmodelled: b.unmodelled.iter().map(|a| format!("{a:#010x}")).collect(),
     }

@@ -445,7 +445,12 @@ impl UsbHost {
             return Some(bus_time(0));
         }
         let wlen = usize::from(u16::from_le_bytes([c.setup[6], c.setup[7]]));
-        let mps = self.device.as_ref().map_or(8, |d| usize::from(d.ep0_size.max(8)));
+        // Before the device descriptor is known, 64 (Linux's first GET_DESCRIPTOR on a
+        // full-speed device asks for 64 bytes with a 64-byte packet).
+        let mps = self
+            .device
+            .as_ref()
+            .map_or(64, |d| usize::from(d.ep0_size.max(8)));
         let dir_in = c.setup[0] & 0x80 != 0;
         let (hs, bytes) = match c.stage {
             Stage::Setup => {
@@ -544,7 +549,7 @@ impl UsbHost {
                 }
                 let mut info = self.device.take().unwrap_or_default();
                 info.ep0_size = d[7];
-                if d.len() >= 18 {
+                if c.req == Req::Device(18) && d.len() >= 18 {
                     info.vid_pid = (
                         u16::from_le_bytes([d[8], d[9]]),
                         u16::from_le_bytes([d[10], d[11]]),

@@ -16,7 +16,7 @@ use crate::port::Executive as _;
 use crate::recorder::Recorder;
 use anyhow::Context;
 use firmware::link::PortId;
-use nix::poll::{poll, PollFd, PollFlags, PollTimeout};
+use nix::poll::{PollFd, PollFlags};
 use std::os::fd::{AsFd, OwnedFd};
 use std::path::PathBuf;
 
@@ -87,11 +87,7 @@ impl PtyPort {
     }
 
     fn hung_up(&self) -> bool {
-        let mut fds = [PollFd::new(self.master.as_fd(), PollFlags::POLLIN)];
-        let _ = poll(&mut fds, PollTimeout::ZERO);
-        fds[0]
-            .revents()
-            .is_some_and(|r| r.contains(PollFlags::POLLHUP))
+        super::pty::hung_up(self.master.as_fd())
     }
 
     /// A host opened or closed the device since the last call: tell the firmware.
