@@ -2,6 +2,8 @@
 //! builds it, so the tests always run the current source), an independent G-code step count,
 //! and small jobs.
 
+#![allow(dead_code)]
+
 use board_emu::report::Report;
 use board_emu::scenario::{self, Options};
 use std::path::{Path, PathBuf};
