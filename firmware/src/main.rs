@@ -199,6 +199,7 @@ mod image {
             config.rcc.mux.clk48sel = mux::Clk48sel::PLL1_Q;
         }
         let p = embassy_stm32::init(config);
+        clock::enable_flash_accelerator();
         interrupt::TIM2.set_priority(PRIO_TIME);
         let (mut pins, periph) = pins::split(p);
         // Marlin's reversed-driver check, SAFE_POWER low until it passes.
