@@ -13,7 +13,8 @@ use super::state::Pause;
 use super::Printer;
 use crate::gcode::{self, AxisWords, Heater, PauseParams, SettingsCommand};
 use crate::link::Response;
-use crate::motion::{Axis, AXES};
+use crate::drivers::TravelFrame;
+use crate::motion::{Axis, StepPos, AXES};
 use crate::storage::{
     Bound, Settings, SettingsStore, StoreError, Stored, ACCEL, DRIVER_CURRENT, HOME_OFFSET,
     JUNCTION_DEVIATION, MAX_FEED, STEPS_PER_MM,
@@ -41,6 +42,12 @@ pub(super) struct SettingsLink {
     idle_since_us: Option<u64>,
     /// The store's reserve was checked in this idle period (or nothing was stored since).
     reserve_checked: bool,
+    /// Configuration changes so far (any M-code that changes it): the board's step interrupt
+    /// takes its floors (M92, M203) again when this changes.
+    config_epoch: u32,
+    /// Step frame changes so far (steps per mm), and the position they left.
+    frame_epoch: u32,
+    frame_pos: StepPos,
 }
 
 impl SettingsLink {
@@ -50,6 +57,9 @@ impl SettingsLink {
             request: None,
             idle_since_us: None,
             reserve_checked: false,
+            config_epoch: 0,
+            frame_epoch: 0,
+            frame_pos: [0; AXES],
         }
     }
 }
@@ -96,6 +106,24 @@ impl Printer {
         self.settings.factory = Some(self.settings());
     }
 
+    /// Counts every change of the configuration (M92 M201 M203 M205 M206 M350 M501 M502 …):
+    /// a driver that derives something from it (the step interrupt's floors from steps per mm
+    /// and max feed) takes it again when this changes.
+    pub fn config_epoch(&self) -> u32 {
+        self.settings.config_epoch
+    }
+
+    /// The step frame the step interrupt must follow: the travel limits in the current steps
+    /// per mm and, after a change of them, the position re-expressed in the new steps (see
+    /// [`TravelFrame`]).
+    pub fn travel_frame(&self) -> TravelFrame {
+        TravelFrame {
+            epoch: self.settings.frame_epoch,
+            pos: self.settings.frame_pos,
+            limits: self.cfg.travel_limits_steps(),
+        }
+    }
+
     /// True when nothing is queued or moving and no pause is under way: steps per mm may
     /// change.
     fn settings_idle(&self) -> bool {
@@ -120,6 +148,7 @@ impl Printer {
         }
         let old = self.settings();
         s.apply_to(&mut self.cfg);
+        self.settings.config_epoch = self.settings.config_epoch.wrapping_add(1);
         // M350/M569 values changed: the board writes them to the drivers.
         let mask = (0..AXES)
             .filter(|&i| {
@@ -157,6 +186,8 @@ impl Printer {
         self.machine.set_position_steps(&pos, &self.cfg);
         self.planner.set_position(pos);
         self.stepgen.set_position(pos);
+        self.settings.frame_epoch = self.settings.frame_epoch.wrapping_add(1);
+        self.settings.frame_pos = pos;
     }
 
     /// Boot: load the saved settings and apply them. Nothing saved: the factory values stay,
@@ -347,6 +378,7 @@ impl Printer {
                 set(&mut self.cfg, i, *v);
             }
         }
+        self.settings.config_epoch = self.settings.config_epoch.wrapping_add(1);
     }
 
     fn m92(&mut self, a: &AxisWords) {
