@@ -103,7 +103,7 @@ mod image {
     use firmware::drivers::Liveness;
     use heater::heater_task;
     use host::{cdc_task, uart_task, usb_task};
-    use motion::{halted_task, limits_steps, motion_task};
+    use motion::{halted_task, motion_task};
 
     // The TMC2209 drivers' configuration and reports.
     mod drivers;
@@ -323,7 +323,7 @@ mod image {
             pressed_high: cfg.endstop_hit_high_mask(),
         };
         let producer = stepper::init(steppers, endstops, PRIO_STEP);
-        stepper::with(|s| s.exec.limits = limits_steps(&cfg));
+        stepper::with(|s| s.exec.follow(&printer.borrow().travel_frame()));
 
         // The drivers, before any motion: a driver that does not answer halts the printer.
         let [tx, ty, tz, te] = pins.tmc_uart;
