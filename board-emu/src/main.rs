@@ -57,6 +57,9 @@ struct Args {
     /// A driver module plugged in backwards: 0 X, 1 Y, 2 Z, 3 E.
     #[arg(long)]
     reversed_driver: Option<usize>,
+    /// Where the carriage starts, mm from each switch: X,Y,Z.
+    #[arg(long, value_delimiter = ',', default_values_t = [60.0f32, 60.0, 10.0])]
+    start_mm: Vec<f32>,
     /// Give up after this much virtual time, s.
     #[arg(long, default_value_t = 120.0)]
     max_virtual_s: f64,
@@ -98,6 +101,10 @@ fn main() -> Result<()> {
         None => Vec::new(),
     };
     anyhow::ensure!(
+        a.start_mm.len() == 3 && a.start_mm.iter().all(|v| v.is_finite() && *v >= 0.0),
+        "--start-mm takes three distances, mm, not negative"
+    );
+    anyhow::ensure!(
         a.lsi_hz > 0 && a.max_virtual_s.is_finite() && a.max_virtual_s > 0.0,
         "--lsi-hz and --max-virtual-s must be positive"
     );
@@ -120,6 +127,7 @@ fn main() -> Result<()> {
         max_virtual_s: a.max_virtual_s.min(3600.0),
         settle_s: a.settle.clamp(0.0, 600.0),
         clock: a.clock,
+        start_mm: [a.start_mm[0], a.start_mm[1], a.start_mm[2]],
         port: a.port,
         usb_plugged: a.usb_plugged,
         keep_comments: a.keep_comments,

@@ -127,6 +127,10 @@ pub struct Report {
     pub pause_point_net_steps: Option<[i64; 4]>,
     /// Where the head was parked (`net_steps` frame).
     pub parked_steps: Option<[i64; 4]>,
+    /// The steps of the last 3 s before the park ended, as runs in time order (start s, X and
+    /// Y / Z+ / Z- / E+ / E-, the run's net steps X Y Z E): what the pause point was found
+    /// from.
+    pub park_moves: Vec<(f64, String, [i64; 4])>,
     /// The first runs of steps in one direction per axis (a homing's approach, bump, slow
     /// approach), with their rates.
     pub runs: PerAxis<Vec<crate::axes::Run>>,
@@ -241,6 +245,43 @@ fn context_name(e: usize) -> String {
         .iter()
         .find(|(n, _)| *n == e)
         .map_or_else(|| format!("exception {e}"), |(_, s)| (*s).to_string())
+}
+
+/// The steps of the 3 s up to `parked` in time order, as runs of one kind: X and Y
+/// together (travel), Z up or down, E forward or back — (start s, kind, net steps of each of
+/// X Y Z E in the run).
+fn park_moves(axes: &Axes, parked: Cyc) -> Vec<(f64, String, [i64; 4])> {
+    let from = parked.saturating_sub(20 * CPU_HZ);
+    let mut steps: Vec<(Cyc, usize, i8)> = Vec::new();
+    for (i, a) in axes.axis.iter().enumerate() {
+        steps.extend(
+            a.rises
+                .iter()
+                .filter(|(t, _)| *t <= parked && *t >= from)
+                .map(|(t, d)| (*t, i, *d)),
+        );
+    }
+    steps.sort();
+    let mut runs: Vec<(f64, String, [i64; 4])> = Vec::new();
+    for (t, i, d) in steps {
+        let kind = match (i, d) {
+            (0 | 1, _) => "XY".to_string(),
+            (_, 1) => format!("{}+", AXES[i]),
+            _ => format!("{}-", AXES[i]),
+        };
+        match runs.last_mut() {
+            Some(r) if r.1 == kind => r.2[i] += i64::from(d),
+            _ => {
+                let mut n = [0; 4];
+                n[i] = i64::from(d);
+                runs.push((s_from_cyc(t), kind, n));
+            }
+        }
+    }
+    if runs.len() > 40 {
+        runs.drain(..runs.len() - 40);
+    }
+    runs
 }
 
 /// Where the park began: walking back from the parked moment over the park's moves (XY
@@ -411,6 +452,7 @@ pub fn make(emu: &Emulator, lines: &[(Cyc, String)], f: &RunFacts) -> Report {
             q
         }),
         pause_point_net_steps: parked.and_then(|t| pause_point(&b.axes, t)),
+        park_moves: parked.map(|t| park_moves(&b.axes, t)).unwrap_or_default(),
         runs: per_axis(|i| b.axes.axis[i].runs.iter().take(12).copied().collect()),
         parked_steps: b
             .axes

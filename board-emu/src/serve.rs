@@ -58,6 +58,8 @@ struct Term {
     opening_since: Option<Instant>,
     partial: Vec<u8>,
     lines: std::collections::VecDeque<String>,
+    /// When the image first said `//action:paused` here.
+    paused_at: Option<Cyc>,
 }
 
 impl Term {
@@ -74,6 +76,7 @@ impl Term {
             opening_since: None,
             partial: Vec::new(),
             lines: Default::default(),
+            paused_at: None,
         })
     }
 
@@ -108,9 +111,12 @@ impl Term {
     fn give(&mut self, log: &[(Cyc, u8)]) -> Result<()> {
         let new = log.get(self.cursor..).unwrap_or(&[]);
         self.cursor = log.len();
-        for &(_, b) in new {
+        for &(t, b) in new {
             if b == b'\n' {
                 let l = String::from_utf8_lossy(&self.partial).trim_end().to_string();
+                if l == "//action:paused" && self.paused_at.is_none() {
+                    self.paused_at = Some(t);
+                }
                 self.partial.clear();
                 if self.lines.len() >= 10_000 {
                     self.lines.pop_front();
@@ -195,6 +201,11 @@ pub fn serve(o: &Options, ready: impl FnOnce(&std::path::Path, &std::path::Path)
     };
     exchange(&mut emu, &mut usb, &mut tft, &mut sr, &mut first_byte)?;
     sr.ended_by = ended_by;
+    // The first park seen on either port: where the report's pause point is found.
+    let parked = [usb.paused_at, tft.paused_at].into_iter().flatten().min();
+    if let Some(t) = parked {
+        emu.board_mut().axes.mark("parked", t);
+    }
     sr.usb_lines = usb.lines.iter().cloned().collect();
     sr.tft_lines = tft.lines.iter().cloned().collect();
     let wall_s = wall0.elapsed().as_secs_f64();
@@ -206,7 +217,7 @@ pub fn serve(o: &Options, ready: impl FnOnce(&std::path::Path, &std::path::Path)
         &RunFacts {
             start_mm: o.start_mm,
             lsi_hz: o.lsi_hz,
-            parked: None,
+            parked,
             injected,
             stack,
             wall_s,

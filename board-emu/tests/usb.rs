@@ -7,40 +7,6 @@ mod support;
 use board_emu::scenario::HostPort;
 use support::*;
 
-/// Where the park may begin for a pause at layer `n`, from `layerref` (the independent layer
-/// model, no code shared with the firmware) and the test's own G-code count: after the line
-/// before the layer's marker when the layer comes from a marker (the barrier is the marker),
-/// else anywhere between the previous layer's last extrusion and the layer's first one.
-fn layerref_stops(job: &[&str], n: u32, comments: layerref::Comments) -> Vec<[i64; 4]> {
-    let model = layerref::Model::of_lines(job.iter().copied(), comments);
-    let k = model.find(n).expect("layerref has the layer");
-    let layer = model.layers()[k];
-    let prev_last = model.layers()[..k]
-        .iter()
-        .rev()
-        .find(|l| l.number > 0)
-        .map_or(0, |l| l.last_line);
-    let lines: Vec<usize> = match layer.source {
-        layerref::Source::Marker(_) => {
-            // The marker: the last comment line before the layer's first extrusion that
-            // names a layer (the test's reading; layerref says the layer is a marker's).
-            let m = (prev_last..layer.first_line)
-                .rev()
-                .find(|&i| job[i].trim_start().starts_with(";LAYER"))
-                .expect("the marker line");
-            vec![m - 1]
-        }
-        _ => (prev_last..layer.first_line).collect(),
-    };
-    lines
-        .into_iter()
-        .map(|i| expected_net_steps(&job[..=i], START_MM))
-        .collect()
-}
-
-/// The carriage's start in the tests (`support::options`).
-const START_MM: [f32; 3] = [10.0, 10.0, 2.0];
-
 #[test]
 fn a_job_over_usb_with_its_comments_pauses_at_the_marker_of_its_layer() {
     let job: Vec<String> = THREE_LAYERS.iter().map(|s| s.to_string()).collect();
