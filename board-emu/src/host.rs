@@ -107,9 +107,15 @@ impl Host {
         }
     }
 
-    /// Queues a realtime request.
+    /// A realtime request: written as soon as the wire is free, ahead of the job lines still
+    /// queued (as OctoPrint's emergency commands and printcore's `send_now` go out).
     pub fn send_now(&mut self, line: &str) {
-        self.queue.push_back(Out::Now(line.to_string()));
+        let at = self
+            .queue
+            .iter()
+            .position(|o| matches!(o, Out::Line(_)))
+            .unwrap_or(self.queue.len());
+        self.queue.insert(at, Out::Now(line.to_string()));
     }
 
     /// Nothing queued and nothing waiting for `ok`.

@@ -30,6 +30,9 @@ struct Args {
     /// Schedule a pause at the start of layer N (`M761 L<n>`, as `sim run --pause-at-layer`).
     #[arg(long)]
     pause_at_layer: Option<u32>,
+    /// Request a layer pause (M601, realtime) this long after the job's first step, s.
+    #[arg(long)]
+    pause_request_after: Option<f64>,
     /// Resume this long after the printer parked, s.
     #[arg(long, default_value_t = 1.0)]
     resume_after: f64,
@@ -116,6 +119,7 @@ fn main() -> Result<()> {
         job,
         pause_at_layer: a.pause_at_layer,
         resume_after_s: a.resume_after,
+        pause_request_after_s: a.pause_request_after.filter(|s| s.is_finite() && *s >= 0.0),
         fault: a.fault,
         fault_after_s: a.fault_after,
         lsi_hz: a.lsi_hz,

@@ -25,6 +25,8 @@ pub struct Options {
     pub pause_at_layer: Option<u32>,
     /// Resume this long after `//action:paused`, s.
     pub resume_after_s: f64,
+    /// Request a layer pause (M601, realtime) this long after the job's first step, s.
+    pub pause_request_after_s: Option<f64>,
     /// A fault to inject.
     pub fault: Option<Fault>,
     /// Inject it this long after the first job line was answered, s.
@@ -87,6 +89,7 @@ impl Default for Options {
             job: Vec::new(),
             pause_at_layer: None,
             resume_after_s: 1.0,
+            pause_request_after_s: None,
             fault: None,
             fault_after_s: 0.5,
             lsi_hz: 32_000,

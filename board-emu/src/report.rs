@@ -123,6 +123,15 @@ pub struct Report {
     /// `pause_point_steps` counts from the same origin when the carriage starts at the
     /// switches' home): where the park sequence (E retract, Z lift, XY travel) began.
     pub pause_point_steps: Option<[i64; 4]>,
+    /// A pause requested with `--pause-request-after`: when (virtual s), and when the job's
+    /// first step was (the request's reference).
+    pub pause_requested_s: Option<f64>,
+    /// See `pause_requested_s`.
+    pub first_job_step_s: Option<f64>,
+    /// When the park began (its first move, after the job's last step), virtual s.
+    pub park_began_s: Option<f64>,
+    /// When the printer said `//action:paused` (the park done), virtual s.
+    pub parked_s: Option<f64>,
     /// The pause point in the `net_steps` frame (from the carriage's power-on position).
     pub pause_point_net_steps: Option<[i64; 4]>,
     /// Where the head was parked (`net_steps` frame).
@@ -284,9 +293,19 @@ fn park_moves(axes: &Axes, parked: Cyc) -> Vec<(f64, String, [i64; 4])> {
     runs
 }
 
+/// When the park began: the time of its first step (see [`pause_point`]).
+fn park_began(axes: &Axes, parked: Cyc) -> Option<Cyc> {
+    walk_back(axes, parked).map(|(_, t)| t)
+}
+
 /// Where the park began: walking back from the parked moment over the park's moves (XY
 /// travel, then the Z lift, then the E retract, as `docs/pause.md` describes the park).
 fn pause_point(axes: &Axes, parked: Cyc) -> Option<[i64; 4]> {
+    walk_back(axes, parked).map(|(p, _)| p)
+}
+
+/// The walk back of [`pause_point`]: the position and the time of the park's first step.
+fn walk_back(axes: &Axes, parked: Cyc) -> Option<([i64; 4], Cyc)> {
     let mut steps: Vec<(Cyc, usize, i8)> = Vec::new();
     for (i, a) in axes.axis.iter().enumerate() {
         steps.extend(
@@ -306,7 +325,8 @@ fn pause_point(axes: &Axes, parked: Cyc) -> Option<[i64; 4]> {
             .sum()
     });
     let mut phase = 0;
-    for &(_, i, d) in steps.iter().rev() {
+    let mut began = parked;
+    for &(t, i, d) in steps.iter().rev() {
         let next = match (i, d) {
             (0 | 1, _) if phase == 0 => 0,
             (2, 1) if phase <= 1 => 1,
@@ -315,8 +335,9 @@ fn pause_point(axes: &Axes, parked: Cyc) -> Option<[i64; 4]> {
         };
         phase = next;
         pos[i] -= i64::from(d);
+        began = t;
     }
-    Some(pos)
+    Some((pos, began))
 }
 
 /// What the run knew besides the board's state: how it was set up and when it saw what.
@@ -328,6 +349,10 @@ pub struct RunFacts {
     pub lsi_hz: u32,
     /// `//action:paused` seen at.
     pub parked: Option<Cyc>,
+    /// M601 sent at.
+    pub requested: Option<Cyc>,
+    /// The job's first step.
+    pub first_job_step: Option<Cyc>,
     /// A fault injected at.
     pub injected: Option<Cyc>,
     /// The stack's bounds (`_stack_end`, `_stack_start`).
@@ -344,6 +369,8 @@ pub fn make(emu: &Emulator, lines: &[(Cyc, String)], f: &RunFacts) -> Report {
         start_mm,
         lsi_hz,
         parked,
+        requested,
+        first_job_step,
         injected,
         stack,
         wall_s,
@@ -452,6 +479,10 @@ pub fn make(emu: &Emulator, lines: &[(Cyc, String)], f: &RunFacts) -> Report {
             q
         }),
         pause_point_net_steps: parked.and_then(|t| pause_point(&b.axes, t)),
+        pause_requested_s: requested.map(s_from_cyc),
+        first_job_step_s: first_job_step.map(s_from_cyc),
+        park_began_s: parked.and_then(|t| park_began(&b.axes, t)).map(s_from_cyc),
+        parked_s: parked.map(s_from_cyc),
         park_moves: parked.map(|t| park_moves(&b.axes, t)).unwrap_or_default(),
         runs: per_axis(|i| b.axes.axis[i].runs.iter().take(12).copied().collect()),
         parked_steps: b

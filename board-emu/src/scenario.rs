@@ -32,7 +32,8 @@ pub fn run(o: &Options) -> Result<Report> {
             poll(&mut host, emu, o.port);
             react(emu, &mut host, o, &mut r);
             // A pause waits for its resume before the job counts as done.
-            let pausing = o.pause_at_layer.is_some() && job_sent && !r.resumed;
+            let pause = o.pause_at_layer.is_some() || o.pause_request_after_s.is_some();
+            let pausing = pause && job_sent && !r.resumed;
             !pausing && host.idle()
         })?;
         if end != RunEnd::Condition {
@@ -72,6 +73,7 @@ pub fn run(o: &Options) -> Result<Report> {
         }
         if !job_sent {
             job_sent = true;
+            r.job_sent_at = Some(emu.now());
             r.oks_before_job = host.oks;
             r.job_started = true;
             if let Some(n) = o.pause_at_layer {
@@ -143,6 +145,8 @@ pub fn run(o: &Options) -> Result<Report> {
             start_mm: o.start_mm,
             lsi_hz: o.lsi_hz,
             parked: r.parked,
+            requested: r.requested,
+            first_job_step: r.first_job_step,
             injected: r.injected,
             stack,
             wall_s: wall0.elapsed().as_secs_f64(),
@@ -203,6 +207,21 @@ pub fn react(emu: &mut Emulator, host: &mut Host, o: &Options, r: &mut Reaction)
             emu.board_mut().axes.mark("resume", now);
         }
     }
+    // A layer pause requested (M601, realtime) this long after the job's first step.
+    if let (Some(after), Some(sent), None) = (o.pause_request_after_s, r.job_sent_at, r.requested) {
+        let first = emu
+            .board()
+            .axes
+            .axis
+            .iter()
+            .filter_map(|a| a.rises.iter().map(|(t, _)| *t).find(|t| *t >= sent))
+            .min();
+        if first.is_some_and(|t| s_from_cyc(now.saturating_sub(t)) >= after) {
+            host.send_now("M601");
+            r.requested = Some(now);
+            r.first_job_step = first;
+        }
+    }
     // Inject the fault once the job has moved for a while.
     let Some(f) = o.fault else { return };
     if r.injected.is_some() || !r.job_started {
@@ -234,6 +253,12 @@ pub struct Reaction {
     pub job_first_ok: Option<Cyc>,
     /// The fault went in at.
     pub injected: Option<Cyc>,
+    /// When the job's lines were queued.
+    pub job_sent_at: Option<Cyc>,
+    /// The job's first step.
+    pub first_job_step: Option<Cyc>,
+    /// M601 sent at (`Options::pause_request_after_s`).
+    pub requested: Option<Cyc>,
 }
 
 /// Heaters' and drivers' state.

@@ -218,6 +218,8 @@ pub fn serve(o: &Options, ready: impl FnOnce(&std::path::Path, &std::path::Path)
             start_mm: o.start_mm,
             lsi_hz: o.lsi_hz,
             parked,
+            requested: None,
+            first_job_step: None,
             injected,
             stack,
             wall_s,
