@@ -454,7 +454,11 @@ impl Board {
             0x5000_0000..=0x5003_FFFF => {
                 let v = self.otg.read(a - 0x5000_0000);
                 if std::env::var_os("EMU_TRACE_OTG").is_some() {
-                    eprintln!("{:.6} R {:#x} = {v:#x}", crate::time::s_from_cyc(now), a - 0x5000_0000);
+                    eprintln!(
+                        "{:.6} R {:#x} = {v:#x}",
+                        crate::time::s_from_cyc(now),
+                        a - 0x5000_0000
+                    );
                 }
                 v
             }
@@ -551,7 +555,6 @@ impl Board {
     }
 
     fn write_word(&mut self, a: u32, v: u32, now: Cyc) {
-
         match a {
             0x4000_0000..=0x4000_03FF => self.tim2.write(a - 0x4000_0000, v, now),
             0x4000_0800..=0x4000_0BFF => self.tim4.write(a - 0x4000_0800, v, now),
@@ -580,7 +583,11 @@ impl Board {
             }
             0x5000_0000..=0x5003_FFFF => {
                 if std::env::var_os("EMU_TRACE_OTG").is_some() {
-                    eprintln!("{:.6} W {:#x} = {v:#x}", crate::time::s_from_cyc(now), a - 0x5000_0000);
+                    eprintln!(
+                        "{:.6} W {:#x} = {v:#x}",
+                        crate::time::s_from_cyc(now),
+                        a - 0x5000_0000
+                    );
                 }
                 self.otg.write(a - 0x5000_0000, v);
                 if std::mem::take(&mut self.otg.kicked) {

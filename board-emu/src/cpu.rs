@@ -205,7 +205,11 @@ impl<'a> Emulator<'a> {
             move |uc: &mut Unicorn<Board>, addr: u64, size: u32| {
                 let (a, stopped, known) = {
                     let b = uc.get_data();
-                    (addr as u32, b.cycles >= b.stop_at, b.clock.known(addr as u32, size))
+                    (
+                        addr as u32,
+                        b.cycles >= b.stop_at,
+                        b.clock.known(addr as u32, size),
+                    )
                 };
                 if stopped {
                     let _ = uc.emu_stop();
@@ -213,7 +217,9 @@ impl<'a> Emulator<'a> {
                 }
                 if !known {
                     let code = uc.mem_read_as_vec(addr, size as usize).unwrap_or_default();
-                    uc.get_data_mut().clock.learn(a, crate::cycles::cost(a, &code));
+                    uc.get_data_mut()
+                        .clock
+                        .learn(a, crate::cycles::cost(a, &code));
                 }
                 let b = uc.get_data_mut();
                 let acr = Acr::from_reg(b.flash.acr());
@@ -612,8 +618,11 @@ mod tests {
     fn thumb_instructions_counted() {
         // movs r0, #1 ; ldr.w r1, [r0] ; bx lr
         assert_eq!(
-            crate::cycles::cost(0x0800_8000, &[0x01, 0x20, 0xD0, 0xF8, 0x00, 0x10, 0x70, 0x47])
-                .insns,
+            crate::cycles::cost(
+                0x0800_8000,
+                &[0x01, 0x20, 0xD0, 0xF8, 0x00, 0x10, 0x70, 0x47]
+            )
+            .insns,
             3
         );
     }

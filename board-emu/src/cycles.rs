@@ -108,8 +108,7 @@ fn classify(addr: u32, hw1: u16, hw2: u16) -> (Class, Option<u32>) {
             // LDR (literal): 01001 Rt imm8.
             0b01001 => (Class::Single, Some(pc_align + u32::from(hw1 & 0xFF) * 4)),
             // Load/store register offset, immediate offset, SP-relative.
-            0b01010 | 0b01011 | 0b01100 | 0b01101 | 0b01110 | 0b01111 | 0b10000 | 0b10001
-            | 0b10010 | 0b10011 => (Class::Single, None),
+            0b01010..=0b10011 => (Class::Single, None),
             // STM/LDM: 1 + N.
             0b11000 | 0b11001 => (Class::Other(1 + (hw1 & 0xFF).count_ones()), None),
             // PUSH (1011 010x) / POP (1011 110x): 1 + N, LR/PC included.

@@ -135,7 +135,6 @@ fn main() -> Result<()> {
         port: a.port,
         usb_plugged: a.usb_plugged,
         keep_comments: a.keep_comments,
-        ..Options::default()
     };
     let r = if a.serve {
         board_emu::serve::serve(&o, |usb, tft| {

@@ -228,11 +228,7 @@ impl Otg {
     }
 
     fn rx_used_words(&self) -> u32 {
-        self.rx
-            .iter()
-            .map(|e| 1 + e.data.len() as u32)
-            .sum::<u32>()
-            + self.rx_words.len() as u32
+        self.rx.iter().map(|e| 1 + e.data.len() as u32).sum::<u32>() + self.rx_words.len() as u32
     }
 
     fn rx_depth(&self) -> u32 {
@@ -725,11 +721,7 @@ impl Otg {
             // The application has not written the whole packet yet.
             return Err(Handshake::Nak);
         }
-        let mut packet: Vec<u8> = ep
-            .fifo
-            .drain(..words)
-            .flat_map(u32::to_le_bytes)
-            .collect();
+        let mut packet: Vec<u8> = ep.fifo.drain(..words).flat_map(u32::to_le_bytes).collect();
         packet.truncate(len);
         let cnt = ((ep.tsiz & cnt_mask) >> 19).saturating_sub(1);
         ep.tsiz = (ep.tsiz & !(xfr_mask | cnt_mask)) | (left - len as u32) | (cnt << 19);
@@ -797,7 +789,10 @@ mod tests {
         // Short packet: the transfer completed, NAK set until the application clears it.
         assert_eq!(o.out(0, 1, b"M105\n"), Handshake::Nak);
         let st = o.read(0x020);
-        assert_eq!(((st >> 17) & 0xF, (st >> 4) & 0x7FF, st & 0xF), (OUT_DATA, 4, 1));
+        assert_eq!(
+            ((st >> 17) & 0xF, (st >> 4) & 0x7FF, st & 0xF),
+            (OUT_DATA, 4, 1)
+        );
         assert_eq!(o.read(0x2000), u32::from_le_bytes(*b"G28\n"));
         let st = o.read(0x020);
         assert_eq!((st >> 17) & 0xF, OUT_DONE);
@@ -816,7 +811,11 @@ mod tests {
         o.write(0x930, (1 << 19) | 6);
         o.write(0x920, USBAEP | 64 | (2 << 18) | (1 << 22) | CNAK | EPENA);
         o.write(0x2000, u32::from_le_bytes(*b"ok T"));
-        assert_eq!(o.input(0, 1), Err(Handshake::Nak), "half the packet written");
+        assert_eq!(
+            o.input(0, 1),
+            Err(Handshake::Nak),
+            "half the packet written"
+        );
         o.write(0x2000, u32::from_le_bytes([b':', b'\n', 0, 0]));
         assert_eq!(o.input(0, 1), Ok(b"ok T:\n".to_vec()));
         assert_eq!(o.read(0x928) & XFRC, XFRC);

@@ -4,10 +4,10 @@
 use crate::axes::Axes;
 use crate::cpu::Emulator;
 use crate::cycles::ClockModel;
-use crate::usbhost::{DeviceInfo, UsbStats};
 use crate::nvic::{exc, irq};
 use crate::rcc::ResetKind;
 use crate::time::{ns_from_cyc, s_from_cyc, Cyc, CPU_HZ};
+use crate::usbhost::{DeviceInfo, UsbStats};
 use serde::Serialize;
 use std::collections::BTreeMap;
 
@@ -551,8 +551,7 @@ pub fn make(emu: &Emulator, lines: &[(Cyc, String)], f: &RunFacts) -> Report {
         refill_cycles: b.clock.refill_cycles,
         exception_cycles: b.clock.exception_cycles,
         cpu_load: b.cycles as f64 / now.max(1) as f64,
-        step_irq_load: b.busy_by_exc[usize::from(exc::IRQ0 + irq::TIM5)] as f64
-            / now.max(1) as f64,
+        step_irq_load: b.busy_by_exc[usize::from(exc::IRQ0 + irq::TIM5)] as f64 / now.max(1) as f64,
         load_by_context: b
             .busy_by_exc
             .iter()

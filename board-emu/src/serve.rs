@@ -113,7 +113,9 @@ impl Term {
         self.cursor = log.len();
         for &(t, b) in new {
             if b == b'\n' {
-                let l = String::from_utf8_lossy(&self.partial).trim_end().to_string();
+                let l = String::from_utf8_lossy(&self.partial)
+                    .trim_end()
+                    .to_string();
                 if l == "//action:paused" && self.paused_at.is_none() {
                     self.paused_at = Some(t);
                 }
@@ -150,7 +152,10 @@ impl Term {
 }
 
 /// Runs `o` on the two terminals until SIGINT/SIGTERM; `ready` gets their paths first.
-pub fn serve(o: &Options, ready: impl FnOnce(&std::path::Path, &std::path::Path)) -> Result<Report> {
+pub fn serve(
+    o: &Options,
+    ready: impl FnOnce(&std::path::Path, &std::path::Path),
+) -> Result<Report> {
     let wall0 = Instant::now();
     let mut o = o.clone();
     o.usb_plugged = true;
@@ -175,8 +180,7 @@ pub fn serve(o: &Options, ready: impl FnOnce(&std::path::Path, &std::path::Path)
         exchange(&mut emu, &mut usb, &mut tft, &mut sr, &mut first_byte)?;
         // Faults: `--fault-after` seconds after the first byte a host sent.
         if let (Some(f), Some(t0), None) = (o.fault, first_byte, injected) {
-            if s_from_cyc(now.saturating_sub(t0)) >= o.fault_after_s && fault::inject(&mut emu, f)
-            {
+            if s_from_cyc(now.saturating_sub(t0)) >= o.fault_after_s && fault::inject(&mut emu, f) {
                 injected = Some(now);
             }
         }

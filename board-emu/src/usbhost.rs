@@ -373,7 +373,8 @@ impl UsbHost {
                 self.bus = Bus::Active;
                 self.device = None;
                 self.string_ids.clear();
-                self.pending.extend([Req::Device(64), Req::SetAddress, Req::Device(18)]);
+                self.pending
+                    .extend([Req::Device(64), Req::SetAddress, Req::Device(18)]);
                 self.waiting = false;
                 self.next_at = Some(t);
             }
@@ -427,7 +428,10 @@ impl UsbHost {
     fn control(&mut self, t: Cyc, otg: &mut Otg) -> Option<Cyc> {
         if self.ctrl.is_none() {
             let req = self.pending.pop_front()?;
-            let comm = self.device.as_ref().map_or(0, |d| u16::from(d.comm_interface));
+            let comm = self
+                .device
+                .as_ref()
+                .map_or(0, |d| u16::from(d.comm_interface));
             let (setup, out) = req.setup(comm);
             self.ctrl = Some(Ctrl {
                 req,
@@ -565,7 +569,10 @@ impl UsbHost {
                 self.quiet_until = t + cyc_from_ms(2);
             }
             Req::Config(9) => {
-                let total = c.got.get(2..4).map_or(9, |b| u16::from_le_bytes([b[0], b[1]]));
+                let total = c
+                    .got
+                    .get(2..4)
+                    .map_or(9, |b| u16::from_le_bytes([b[0], b[1]]));
                 self.pending.push_front(Req::Config(total.max(10)));
             }
             Req::Config(_) => {
@@ -601,7 +608,14 @@ impl UsbHost {
             Req::SetLineCoding => self.event(t, "line coding 115200 8N1"),
             Req::LineState(v) => {
                 self.dtr = v & 1 != 0;
-                self.event(t, if self.dtr { "DTR raised" } else { "DTR dropped" });
+                self.event(
+                    t,
+                    if self.dtr {
+                        "DTR raised"
+                    } else {
+                        "DTR dropped"
+                    },
+                );
             }
         }
         self.ctrl = None;
@@ -736,7 +750,12 @@ mod tests {
         h.parse_config(&d).unwrap();
         let info = h.device.unwrap();
         assert_eq!(
-            (info.comm_interface, info.bulk_in, info.bulk_out, info.bulk_size),
+            (
+                info.comm_interface,
+                info.bulk_in,
+                info.bulk_out,
+                info.bulk_size
+            ),
             (0, 2, 2, 64)
         );
         let mut h = UsbHost::new(true);

@@ -150,7 +150,13 @@ fn fine_layers() -> Vec<String> {
         if layer > 0 {
             v.push(format!("G1 Z{:.1} F600", 0.2 * f64::from(layer + 1)));
         }
-        let corners = [(20.0, 20.0), (30.0, 20.0), (30.0, 30.0), (20.0, 30.0), (20.0, 20.0)];
+        let corners = [
+            (20.0, 20.0),
+            (30.0, 20.0),
+            (30.0, 30.0),
+            (20.0, 30.0),
+            (20.0, 20.0),
+        ];
         for w in corners.windows(2) {
             let ((x0, y0), (x1, y1)) = (w[0], w[1]);
             for k in 1..=20 {
@@ -218,8 +224,16 @@ fn printcore(tag: &str, park_s: f64) {
         "park began at {stop:?}; layerref's boundaries: {bounds:?}; the steps before: {}",
         r["park_moves"]
     );
-    assert!(r["faults"].as_array().is_some_and(Vec::is_empty), "{}", r["faults"]);
-    assert!(r["resets"].as_array().is_some_and(Vec::is_empty), "{}", r["resets"]);
+    assert!(
+        r["faults"].as_array().is_some_and(Vec::is_empty),
+        "{}",
+        r["faults"]
+    );
+    assert!(
+        r["resets"].as_array().is_some_and(Vec::is_empty),
+        "{}",
+        r["resets"]
+    );
     eprintln!(
         "printcore on the image: {} s wall, {} virtual s ({:.2} virtual/wall)",
         r["wall_s"], r["virtual_s"], r["serve"]["virtual_per_wall"]
@@ -266,12 +280,17 @@ fn octoprint_over_usb_pause_resume_cancel_and_a_reconnect_that_sees_the_held_job
         assert_eq!(b[k], true, "button {k}: {d}");
     }
     assert_eq!(
-        d["scenarios"]["cancel"]["operational_after_cancel"],
-        true,
+        d["scenarios"]["cancel"]["operational_after_cancel"], true,
         "{d}"
     );
     let c = &d["scenarios"]["reconnect"];
-    for k in ["printing", "paused", "disconnected", "reconnected", "cancel_action"] {
+    for k in [
+        "printing",
+        "paused",
+        "disconnected",
+        "reconnected",
+        "cancel_action",
+    ] {
         assert_eq!(c[k], true, "reconnect {k}: {d}");
     }
     let told = c["told"].as_str().unwrap_or("");
@@ -296,7 +315,11 @@ fn octoprint_over_usb_pause_resume_cancel_and_a_reconnect_that_sees_the_held_job
         .filter(|e| e.starts_with("DTR"))
         .collect();
     assert!(dtr.len() >= 4, "{dtr:?}");
-    assert!(r["faults"].as_array().is_some_and(Vec::is_empty), "{}", r["faults"]);
+    assert!(
+        r["faults"].as_array().is_some_and(Vec::is_empty),
+        "{}",
+        r["faults"]
+    );
     eprintln!(
         "OctoPrint on the image: {} s wall, {} virtual s ({:.2} virtual/wall)",
         r["wall_s"], r["virtual_s"], r["serve"]["virtual_per_wall"]

@@ -87,7 +87,10 @@ fn travel_limits_and_floors_follow_m92_m350_and_m203_to_the_far_end() {
         .expect("X's run back");
     let hz = 168e6 / back.min_interval as f64;
     let limit: f64 = 50.0 * 160.0;
-    assert!(hz <= 1.0 / (1.0 / limit - 2e-6), "X back at {hz} Hz > {limit} Hz");
+    assert!(
+        hz <= 1.0 / (1.0 / limit - 2e-6),
+        "X back at {hz} Hz > {limit} Hz"
+    );
     assert!(r.faults.is_empty() && r.resets.is_empty());
     assert!(
         !r.lines.iter().any(|l| l.contains("steps refused")),

@@ -32,7 +32,10 @@ fn a_job_over_usb_with_its_comments_pauses_at_the_marker_of_its_layer() {
         vec!["pause firmware", "SKR 2 printer", "skr2"],
         "{usb:?}"
     );
-    assert!(usb.configured && usb.dtr && usb.errors.is_empty(), "{usb:?}");
+    assert!(
+        usb.configured && usb.dtr && usb.errors.is_empty(),
+        "{usb:?}"
+    );
     assert!(r.m115.is_some(), "M115 answered over USB: {:?}", r.lines);
 
     let got = r.pause_point_net_steps.expect("paused and parked");

@@ -73,7 +73,10 @@ fn first_step_s(o: &Outcome<crate::exec::PrinterExec>) -> f64 {
 pub fn prepare(out: &Path) -> anyhow::Result<()> {
     let job = job();
     let o = sim_run(&job)?;
-    let req = o.report.request_s.context("the simulator requested no pause")?;
+    let req = o
+        .report
+        .request_s
+        .context("the simulator requested no pause")?;
     std::fs::write(out.join(JOB_FILE), job.join("\n") + "\n")?;
     std::fs::write(
         out.join(REQUEST_FILE),
@@ -138,7 +141,8 @@ pub fn compare(out: &Path, board_report: &Path) -> anyhow::Result<()> {
     let scale = Scale::from_config(&firmware::config::MachineConfig::ENDER3);
     let sim_stop = r.pause_point_steps.map(|p| scale.mm(&p));
     let board_stop: Option<[f64; 4]> = b["pause_point_net_steps"].as_array().map(|a| {
-        let s: [i32; 4] = core::array::from_fn(|i| a.get(i).and_then(|v| v.as_i64()).unwrap_or(0) as i32);
+        let s: [i32; 4] =
+            core::array::from_fn(|i| a.get(i).and_then(|v| v.as_i64()).unwrap_or(0) as i32);
         scale.mm(&s)
     });
     let show = |p: Option<[f64; 4]>| {
@@ -159,7 +163,11 @@ pub fn compare(out: &Path, board_report: &Path) -> anyhow::Result<()> {
     let info = JobInfo::parse(&job);
     let mut printing = Vec::new();
     let mut travel = Vec::new();
-    for li in info.lines.iter().filter(|l| l.layer == Some(1) && l.is_move) {
+    for li in info
+        .lines
+        .iter()
+        .filter(|l| l.layer == Some(1) && l.is_move)
+    {
         let seg = vec![
             (li.start_mm[0], li.start_mm[1]),
             (li.after.pos_mm[0], li.after.pos_mm[1]),

@@ -107,7 +107,10 @@ pub fn demo_part(layers: usize) -> Vec<String> {
 /// the same moves, a ninth of the time).
 pub fn demo_part_sized(layers: usize, side: f64) -> Vec<String> {
     let mut g = String::new();
-    let _ = writeln!(g, "; sim demo part: {side} x {side} mm square, {layers} layers");
+    let _ = writeln!(
+        g,
+        "; sim demo part: {side} x {side} mm square, {layers} layers"
+    );
     for l in ["G21", "G90", "M83", "G92 X0 Y0 Z0 E0", "G1 Z2 F600"] {
         let _ = writeln!(g, "{l}");
     }

@@ -109,7 +109,10 @@ pub fn toolpath_plot(
     travel: &[Vec<(f64, f64)>],
     markers: &[Marker],
 ) -> anyhow::Result<()> {
-    let all = printing.iter().flatten().chain(markers.iter().map(|m| &m.xy));
+    let all = printing
+        .iter()
+        .flatten()
+        .chain(markers.iter().map(|m| &m.xy));
     let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
     for &(x, y) in all {
         x0 = x0.min(x);
@@ -183,7 +186,9 @@ pub fn toolpath_plot(
         right
             .draw(&Circle::new((22, y), 9, c.stroke_width(3)))
             .map_err(err)?;
-        right.draw(&Circle::new((22, y), 3, c.filled())).map_err(err)?;
+        right
+            .draw(&Circle::new((22, y), 3, c.filled()))
+            .map_err(err)?;
         right
             .draw(&Text::new(m.label.clone(), (40, y - 8), font.clone()))
             .map_err(err)?;

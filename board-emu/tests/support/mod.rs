@@ -265,7 +265,6 @@ pub fn layerref_stops(job: &[&str], n: u32, comments: layerref::Comments) -> Vec
         .collect()
 }
 
-
 /// Every place a layer pause may stop in `job` (before any layer), by [`layerref_stops`].
 pub fn layerref_boundaries(job: &[&str], comments: layerref::Comments) -> Vec<[i64; 4]> {
     let model = layerref::Model::of_lines(job.iter().copied(), comments);

@@ -11,9 +11,9 @@
 
 use super::state::Pause;
 use super::Printer;
+use crate::drivers::TravelFrame;
 use crate::gcode::{self, AxisWords, Heater, PauseParams, SettingsCommand};
 use crate::link::Response;
-use crate::drivers::TravelFrame;
 use crate::motion::{Axis, StepPos, AXES};
 use crate::storage::{
     Bound, Settings, SettingsStore, StoreError, Stored, ACCEL, DRIVER_CURRENT, HOME_OFFSET,
