@@ -230,7 +230,6 @@ pub fn run_demo(out: &Path) -> anyhow::Result<()> {
         out.join("demo.json"),
         serde_json::to_string_pretty(&reports)?,
     )?;
-    crate::demo_board::prepare(out)?;
     println!();
     println!(
         "wrote {} and {}",

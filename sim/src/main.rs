@@ -149,7 +149,8 @@ fn main() {
         Cmd::Lab(a) => cmd_lab(a),
         Cmd::Demo(a) => match &a.compare_board {
             Some(r) => sim::demo_board::compare(&a.out, r),
-            None => sim::demo::run_demo(&a.out),
+            // The demo, then the job and the request for the emulated board's run.
+            None => sim::demo::run_demo(&a.out).and_then(|_| sim::demo_board::prepare(&a.out)),
         },
         Cmd::Serve(a) => sim::serve::serve(a),
         Cmd::Pattern(a) => cmd_pattern(a),
