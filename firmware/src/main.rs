@@ -223,8 +223,8 @@ mod image {
             Policy::FIRMWARE,
         )));
         // G28 homes through the planner on the X/Y/Z minimum switches (Marlin's Ender-3 homing
-        // feeds, bump and Z raise). Moves of an axis before it is homed are refused by the step
-        // interrupt (Marlin's NO_MOTION_BEFORE_HOMING), G28's own moves excepted.
+        // feeds, bump and Z raise). Axes not homed move from where they stood (Marlin's
+        // default); the step interrupt's limits guard homed axes.
         printer.borrow_mut().enable_endstops(HomingConfig::ENDER3);
         announce_reset_cause(printer);
         // Saved settings (M500) replace the factory ones; M500/M501 run in their own task.
