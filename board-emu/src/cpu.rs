@@ -203,27 +203,26 @@ impl<'a> Emulator<'a> {
             1,
             0,
             move |uc: &mut Unicorn<Board>, addr: u64, size: u32| {
-                let (a, stopped, known) = {
-                    let b = uc.get_data();
-                    (
-                        addr as u32,
-                        b.cycles >= b.stop_at,
-                        b.clock.known(addr as u32, size),
-                    )
-                };
-                if stopped {
+                let a = addr as u32;
+                let b = uc.get_data_mut();
+                if b.cycles >= b.stop_at {
                     let _ = uc.emu_stop();
                     return;
                 }
-                if !known {
-                    let code = uc.mem_read_as_vec(addr, size as usize).unwrap_or_default();
-                    uc.get_data_mut()
-                        .clock
-                        .learn(a, crate::cycles::cost(a, &code));
-                }
-                let b = uc.get_data_mut();
                 let acr = Acr::from_reg(b.flash.acr());
-                let (n, c) = b.clock.run_block(a, size, b.cycles, acr);
+                let t = b.cycles;
+                let (n, c) = match b.clock.run_block(a, size, t, acr) {
+                    Some(r) => r,
+                    None => {
+                        let code = uc.mem_read_as_vec(addr, size as usize).unwrap_or_default();
+                        let b = uc.get_data_mut();
+                        b.clock.learn(a, crate::cycles::cost(a, &code));
+                        b.clock
+                            .run_block(a, size, t, acr)
+                            .unwrap_or((u64::from(size / 2).max(1), Cyc::from(size / 2).max(1)))
+                    }
+                };
+                let b = uc.get_data_mut();
                 b.insns += n;
                 b.cycles += c;
                 let e = b.nvic.stack.last().map_or(0, |&e| usize::from(e));

@@ -43,7 +43,9 @@
 //! (an extended frame costs what a basic one does, as when a handler uses no FPU register).
 
 use crate::time::Cyc;
-use std::collections::HashMap;
+// The block costs and the caches' tags are looked up on every translation block: FxHash (the
+// compiler's own hasher) instead of SipHash, which took a quarter of the emulator's time.
+use rustc_hash::FxHashMap as HashMap;
 
 /// Which clock model the emulator runs.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
@@ -266,36 +268,47 @@ pub fn cost(addr: u32, code: &[u8]) -> BlockCost {
 struct Lines {
     tags: Vec<u32>,
     used: Vec<u64>,
-    slot: HashMap<u32, usize>,
+    /// Slot + 1 of each flash line held (0: not held), by line number in flash.
+    slot: Vec<u8>,
     tick: u64,
 }
+
+/// 128-bit lines in the code flash.
+const FLASH_LINES: usize = ((FLASH.end - FLASH.start) / 16) as usize;
 
 impl Lines {
     fn new(n: usize) -> Self {
         Lines {
             tags: vec![u32::MAX; n],
             used: vec![0; n],
-            slot: HashMap::with_capacity(n),
+            slot: vec![0; FLASH_LINES],
             tick: 0,
         }
     }
 
-    /// Whether `line` is held (marking it used); a miss copies it in.
+    /// Whether the flash line at `line` is held (marking it used); a miss copies it in.
     fn access(&mut self, line: u32) -> bool {
         self.tick += 1;
-        if let Some(&s) = self.slot.get(&line) {
-            self.used[s] = self.tick;
+        let k = (line.wrapping_sub(FLASH.start) / 16) as usize;
+        let Some(&held) = self.slot.get(k) else {
+            return false;
+        };
+        if held != 0 {
+            self.used[usize::from(held - 1)] = self.tick;
             return true;
         }
         let s = (0..self.used.len())
             .min_by_key(|&s| self.used[s])
             .unwrap_or(0);
         if self.tags[s] != u32::MAX {
-            self.slot.remove(&self.tags[s]);
+            let old = (self.tags[s].wrapping_sub(FLASH.start) / 16) as usize;
+            if let Some(o) = self.slot.get_mut(old) {
+                *o = 0;
+            }
         }
         self.tags[s] = line;
         self.used[s] = self.tick;
-        self.slot.insert(line, s);
+        self.slot[k] = s as u8 + 1;
         false
     }
 
@@ -387,7 +400,11 @@ impl Art {
 pub struct Clock {
     /// The model in use.
     pub model: ClockModel,
-    blocks: HashMap<u32, BlockCost>,
+    /// Block costs, and where each is: by halfword in flash (index + 1; 0 none), else by
+    /// address (code in RAM).
+    blocks: Vec<BlockCost>,
+    in_flash: Vec<u32>,
+    elsewhere: HashMap<u32, u32>,
     art: Art,
     /// Where the previous block ended (a block starting elsewhere follows a taken branch).
     last_end: u32,
@@ -412,7 +429,9 @@ impl Clock {
     pub fn new(model: ClockModel) -> Self {
         Clock {
             model,
-            blocks: HashMap::new(),
+            blocks: Vec::new(),
+            in_flash: vec![0; ((FLASH.end - FLASH.start) / 2) as usize],
+            elsewhere: HashMap::default(),
             art: Art::new(),
             last_end: 0,
             after_exception: false,
@@ -434,24 +453,45 @@ impl Clock {
         self.exit_pending = false;
     }
 
-    /// Whether the block at `addr` of `size` bytes is costed already.
-    pub fn known(&self, addr: u32, size: u32) -> bool {
-        self.blocks.get(&addr).is_some_and(|b| b.size == size)
+    /// The index of the block at `addr` in `blocks`.
+    fn lookup(&self, addr: u32) -> Option<usize> {
+        let k = (addr.wrapping_sub(FLASH.start) / 2) as usize;
+        match self.in_flash.get(k) {
+            Some(&i) => i.checked_sub(1).map(|i| i as usize),
+            None => self.elsewhere.get(&addr).map(|&i| i as usize),
+        }
     }
 
-    /// Keeps the cost of a block.
+    /// Keeps the cost of a block (replacing the one at the same address).
     pub fn learn(&mut self, addr: u32, cost: BlockCost) {
-        self.blocks.insert(addr, cost);
+        let i = match self.lookup(addr) {
+            Some(i) => {
+                self.blocks[i] = cost;
+                i
+            }
+            None => {
+                self.blocks.push(cost);
+                self.blocks.len() - 1
+            }
+        };
+        let k = (addr.wrapping_sub(FLASH.start) / 2) as usize;
+        match self.in_flash.get_mut(k) {
+            Some(slot) => *slot = i as u32 + 1,
+            None => {
+                self.elsewhere.insert(addr, i as u32);
+            }
+        }
     }
 
-    /// The block at `addr` (costed with [`Clock::learn`]) runs from busy cycle `t`: its
-    /// instructions and cycles.
-    pub fn run_block(&mut self, addr: u32, size: u32, t: Cyc, acr: Acr) -> (u64, Cyc) {
-        let Some(b) = self.blocks.get(&addr) else {
-            return (u64::from(size / 2).max(1), Cyc::from(size / 2).max(1));
-        };
+    /// The block at `addr` of `size` bytes runs from busy cycle `t`: its instructions and
+    /// cycles, or None when it is not costed yet ([`Clock::learn`] it, then ask again).
+    pub fn run_block(&mut self, addr: u32, size: u32, t: Cyc, acr: Acr) -> Option<(u64, Cyc)> {
+        let b = &self.blocks[self.lookup(addr)?];
+        if b.size != size {
+            return None;
+        }
         if self.model == ClockModel::Ideal {
-            return (b.insns, b.insns);
+            return Some((b.insns, b.insns));
         }
         let mut cycles = Cyc::from(b.base);
         // A block that does not follow on from the last one: the branch to it was taken.
@@ -478,7 +518,7 @@ impl Clock {
             stall += s;
         }
         self.wait_cycles += stall;
-        (b.insns, cycles + stall)
+        Some((b.insns, cycles + stall))
     }
 
     /// Exception entry through `vector_addr` (the vector read over the D-Code bus): its
@@ -562,15 +602,15 @@ mod tests {
         clk.learn(0x0800_8000, cost(0x0800_8000, &code(&body)));
         // First run: the first line misses (5), the second was prefetched while the first
         // ran its 8 cycles (read in 6 after the first arrived: no stall).
-        let (_, c1) = clk.run_block(0x0800_8000, 32, 0, acr);
+        let (_, c1) = clk.run_block(0x0800_8000, 32, 0, acr).unwrap();
         assert_eq!(c1, 16 + 1 + 5);
         // Again (a branch back): the first line is in the cache now; the second was only
         // prefetched (not cached) and comes 6 cycles after the first line starts.
-        let (_, c2) = clk.run_block(0x0800_8000, 32, 100, acr);
+        let (_, c2) = clk.run_block(0x0800_8000, 32, 100, acr).unwrap();
         assert_eq!(c2, 16 + 1);
         // The ideal model: one cycle an instruction.
         clk.model = ClockModel::Ideal;
-        assert_eq!(clk.run_block(0x0800_8000, 32, 200, acr), (16, 16));
+        assert_eq!(clk.run_block(0x0800_8000, 32, 200, acr), Some((16, 16)));
     }
 
     #[test]
@@ -583,6 +623,9 @@ mod tests {
         // A return followed by code: the return's cycles come with the block.
         clk.learn(0x2000_0000, cost(0x2000_0000, &code(&[0x2001])));
         clk.exit();
-        assert_eq!(clk.run_block(0x2000_0000, 2, 0, acr).1, 1 + EXIT_CYCLES);
+        assert_eq!(
+            clk.run_block(0x2000_0000, 2, 0, acr).map(|r| r.1),
+            Some(1 + EXIT_CYCLES)
+        );
     }
 }

@@ -195,7 +195,9 @@ pub fn react(emu: &mut Emulator, host: &mut Host, o: &Options, r: &mut Reaction)
     let now = emu.now();
     // Resume after the park.
     if r.parked.is_none() {
-        if let Some((t, _)) = host.find("//action:paused") {
+        let new = host.received.get(r.lines_seen..).unwrap_or(&[]);
+        r.lines_seen = host.received.len();
+        if let Some((t, _)) = new.iter().find(|(_, l)| l.contains("//action:paused")) {
             r.parked = Some(*t);
             emu.board_mut().axes.mark("parked", *t);
         }
@@ -259,6 +261,8 @@ pub struct Reaction {
     pub first_job_step: Option<Cyc>,
     /// M601 sent at (`Options::pause_request_after_s`).
     pub requested: Option<Cyc>,
+    /// Lines of the host looked at for `//action:paused`.
+    pub lines_seen: usize,
 }
 
 /// Heaters' and drivers' state.
