@@ -62,6 +62,7 @@ fn a_job_over_usb_with_its_comments_pauses_at_the_marker_of_its_layer() {
 }
 
 #[test]
+#[ignore = "CI's time: the same path as hosts.rs' OctoPrint reconnect, which runs in CI; `cargo test -p board-emu --test usb -- --include-ignored`"]
 fn a_host_that_closes_the_port_while_paused_and_opens_it_again_sees_the_held_job() {
     let mut o = options();
     o.port = HostPort::Usb;
