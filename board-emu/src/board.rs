@@ -451,17 +451,7 @@ impl Board {
             }
             0x4002_3800..=0x4002_3BFF => self.rcc.read(a - 0x4002_3800),
             0x4002_3C00..=0x4002_3FFF => self.flash.read(a - 0x4002_3C00, now),
-            0x5000_0000..=0x5003_FFFF => {
-                let v = self.otg.read(a - 0x5000_0000);
-                if std::env::var_os("EMU_TRACE_OTG").is_some() {
-                    eprintln!(
-                        "{:.6} R {:#x} = {v:#x}",
-                        crate::time::s_from_cyc(now),
-                        a - 0x5000_0000
-                    );
-                }
-                v
-            }
+            0x5000_0000..=0x5003_FFFF => self.otg.read(a - 0x5000_0000),
             0xE000_E000..=0xE000_EFFF => self.nvic.read(a - 0xE000_E000, now),
             _ => {
                 self.unmodelled.insert(a & !0x3FF);
@@ -582,13 +572,6 @@ impl Board {
                 }
             }
             0x5000_0000..=0x5003_FFFF => {
-                if std::env::var_os("EMU_TRACE_OTG").is_some() {
-                    eprintln!(
-                        "{:.6} W {:#x} = {v:#x}",
-                        crate::time::s_from_cyc(now),
-                        a - 0x5000_0000
-                    );
-                }
                 self.otg.write(a - 0x5000_0000, v);
                 if std::mem::take(&mut self.otg.kicked) {
                     self.usb.kick(now);
