@@ -516,43 +516,39 @@ impl Otg {
 
     fn write_in_ctl(&mut self, n: usize, v: u32) {
         let ep = &mut self.ins[n];
-        ep.ctl = v & CTL_KEPT;
-        if v & SNAK != 0 {
-            ep.nak = true;
+        if ctl_write(&mut ep.ctl, &mut ep.nak, &mut ep.enabled, &mut ep.int, v) {
             ep.int |= INEPNE;
         }
-        if v & CNAK != 0 {
-            ep.nak = false;
-        }
-        if v & EPDIS != 0 && ep.enabled {
-            ep.enabled = false;
-            ep.int |= EPDISD;
-        }
-        if v & EPENA != 0 {
-            ep.enabled = true;
-        }
-        let _ = (SD0PID, SD1PID);
         self.kicked = true;
     }
 
     fn write_out_ctl(&mut self, n: usize, v: u32) {
         let ep = &mut self.outs[n];
-        ep.ctl = v & CTL_KEPT;
-        if v & SNAK != 0 {
-            ep.nak = true;
-        }
-        if v & CNAK != 0 {
-            ep.nak = false;
-        }
-        if v & EPDIS != 0 && ep.enabled {
-            ep.enabled = false;
-            ep.int |= EPDISD;
-        }
-        if v & EPENA != 0 {
-            ep.enabled = true;
-        }
+        ctl_write(&mut ep.ctl, &mut ep.nak, &mut ep.enabled, &mut ep.int, v);
         self.kicked = true;
     }
+}
+
+/// A write of DIEPCTLx/DOEPCTLx: the kept bits, SNAK/CNAK on the NAK, EPDIS (EPDISD when it
+/// was enabled), EPENA; SD0PID/SD1PID are not modelled (no data toggles). Returns whether SNAK
+/// was set (an IN endpoint then says INEPNE).
+fn ctl_write(ctl: &mut u32, nak: &mut bool, enabled: &mut bool, int: &mut u32, v: u32) -> bool {
+    *ctl = v & CTL_KEPT;
+    if v & SNAK != 0 {
+        *nak = true;
+    }
+    if v & CNAK != 0 {
+        *nak = false;
+    }
+    if v & EPDIS != 0 && *enabled {
+        *enabled = false;
+        *int |= EPDISD;
+    }
+    if v & EPENA != 0 {
+        *enabled = true;
+    }
+    let _ = (SD0PID, SD1PID);
+    v & SNAK != 0
 }
 
 /// EP0's MPSIZ code (DIEPCTL0/DOEPCTL0 bits 1:0): 64, 32, 16, 8 bytes.

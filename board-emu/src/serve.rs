@@ -26,8 +26,7 @@ use crate::report::{self, Report, RunFacts, ServeReport};
 use crate::setup;
 use crate::time::{cyc_from_ms, s_from_cyc, Cyc, CPU_HZ};
 use anyhow::{Context, Result};
-use nix::poll::{PollFd, PollFlags};
-use sim::serve::pty::{hung_up, install_signals, open_pty, STOP};
+use sim::serve::pty::{hung_up, install_signals, open_pty, wait_readable, STOP};
 use std::os::fd::{AsFd, OwnedFd};
 use std::path::PathBuf;
 use std::sync::atomic::Ordering;
@@ -290,18 +289,10 @@ fn exchange(
 
 /// Sleeps until a held terminal has bytes or `d` passes.
 fn wait(terms: &[&Term], d: Duration) {
-    let mut fds: Vec<PollFd> = terms
+    let held: Vec<_> = terms
         .iter()
         .filter(|t| t.open || !hung_up(t.master.as_fd()))
-        .map(|t| PollFd::new(t.master.as_fd(), PollFlags::POLLIN))
+        .map(|t| t.master.as_fd())
         .collect();
-    if fds.is_empty() {
-        std::thread::sleep(d);
-        return;
-    }
-    let _ = nix::poll::ppoll(
-        &mut fds,
-        Some(nix::sys::time::TimeSpec::from_duration(d)),
-        None,
-    );
+    wait_readable(&held, d);
 }

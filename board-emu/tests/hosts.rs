@@ -132,18 +132,15 @@ fn job_file(tag: &str, job: &[&str]) -> PathBuf {
 /// Three 10 mm square layers like [`THREE_LAYERS`], each side cut into 0.5 mm moves (80 lines
 /// a layer): more lines than the printer queues, so a host still streams while it prints.
 fn fine_layers() -> Vec<String> {
-    let mut v: Vec<String> = [
-        "M302 P1",
-        "G28",
-        "G90",
-        "M82",
-        "G92 E0",
-        "G1 Z0.2 F600",
-        "G1 X20 Y20 F6000",
-    ]
-    .iter()
-    .map(|s| s.to_string())
-    .collect();
+    // The same start: M302 P1, G28, modes, the first layer's height and corner.
+    let start = THREE_LAYERS
+        .iter()
+        .position(|l| l.starts_with(";LAYER"))
+        .unwrap_or(0);
+    let mut v: Vec<String> = THREE_LAYERS[..start]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
     let mut e = 0.0f64;
     for layer in 0..3 {
         v.push(format!(";LAYER:{layer}"));

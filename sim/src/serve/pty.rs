@@ -57,6 +57,24 @@ pub fn hung_up(master: std::os::fd::BorrowedFd<'_>) -> bool {
         .is_some_and(|r| r.contains(PollFlags::POLLHUP))
 }
 
+/// Sleeps until one of `masters` has bytes to read or `d` passes (just `d` when there is none).
+pub fn wait_readable(masters: &[std::os::fd::BorrowedFd<'_>], d: std::time::Duration) {
+    use nix::poll::{PollFd, PollFlags};
+    let mut fds: Vec<PollFd> = masters
+        .iter()
+        .map(|m| PollFd::new(*m, PollFlags::POLLIN))
+        .collect();
+    if fds.is_empty() {
+        std::thread::sleep(d);
+        return;
+    }
+    let _ = nix::poll::ppoll(
+        &mut fds,
+        Some(nix::sys::time::TimeSpec::from_duration(d)),
+        None,
+    );
+}
+
 /// `--link PATH` may name nothing yet, or a symlink to a pseudo-terminal (a stale link of an
 /// earlier session, replaced). Anything else — a file, a directory, a device, a link to
 /// anything else — is refused: the sim never destroys what a path points to.

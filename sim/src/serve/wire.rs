@@ -16,7 +16,6 @@ use crate::port::Executive as _;
 use crate::recorder::Recorder;
 use anyhow::Context;
 use firmware::link::PortId;
-use nix::poll::{PollFd, PollFlags};
 use std::os::fd::{AsFd, OwnedFd};
 use std::path::PathBuf;
 
@@ -203,20 +202,11 @@ pub(super) fn wait(ports: &[PtyPort], wait_us: u64) {
     if wait_us == 0 {
         return;
     }
-    let d = std::time::Duration::from_micros(wait_us);
     // A port nobody holds reports a hang-up at once: only the held ones are waited on.
-    let mut fds: Vec<PollFd> = ports
+    let held: Vec<_> = ports
         .iter()
         .filter(|p| p.open)
-        .map(|p| PollFd::new(p.master.as_fd(), PollFlags::POLLIN))
+        .map(|p| p.master.as_fd())
         .collect();
-    if fds.is_empty() {
-        std::thread::sleep(d);
-        return;
-    }
-    let _ = nix::poll::ppoll(
-        &mut fds,
-        Some(nix::sys::time::TimeSpec::from_duration(d)),
-        None,
-    );
+    super::pty::wait_readable(&held, std::time::Duration::from_micros(wait_us));
 }
