@@ -202,7 +202,16 @@ impl Axes {
 
     /// Marks the current positions.
     pub fn mark(&mut self, label: &str, t: Cyc) {
-        let net = self.net();
+        // The steps up to `t` (a mark may be put after the fact: `--serve` marks the park
+        // when it ends).
+        let net = [0, 1, 2, 3].map(|i| {
+            self.axis[i]
+                .rises
+                .iter()
+                .take_while(|(r, _)| *r <= t)
+                .map(|(_, d)| i64::from(*d))
+                .sum()
+        });
         self.marks.push((label.to_string(), t, net));
     }
 

@@ -7,26 +7,42 @@
 //! TIM2 0x4000_0000, TIM4 0x4000_0800, TIM5 0x4000_0C00, IWDG 0x4000_3000, PWR 0x4000_7000,
 //! USART1 0x4001_1000, ADC1 0x4001_2000 (common 0x4001_2300), SDIO 0x4001_2C00, GPIOA..E
 //! 0x4002_0000..0x4002_1000, RCC 0x4002_3800, FLASH 0x4002_3C00, DMA2 0x4002_6400, USB OTG FS
-//! 0x5000_0000, and the Cortex-M4's System Control Space 0xE000_E000 (`crate::nvic`).
+//! 0x5000_0000 (`crate::otg`, with the USB host of `crate::usbhost` on its cable), and the Cortex-M4's System Control Space 0xE000_E000 (`crate::nvic`).
 
 use crate::adc::{Adc, Heaters, BED, HOTEND};
 use crate::axes::{Axes, DIR, EN, ENDSTOP, SAFE_POWER, STEP};
+use crate::cycles::{Clock, ClockModel};
 use crate::flash::{Flash, FlashOp, STORE_BASE, STORE_LEN};
 use crate::gpio::{Edge, Gpio, Pin};
 use crate::iwdg::Iwdg;
 use crate::nvic::{exc, irq, Nvic};
+use crate::otg::Otg;
 use crate::rcc::{Rcc, ResetKind};
 use crate::sdio::Sdio;
 use crate::time::Cyc;
 use crate::timer::Timer;
 use crate::tmc::{Drivers, UART_PINS};
 use crate::usart::Usart;
+use crate::usbhost::UsbHost;
 use std::collections::{BTreeMap, BTreeSet};
 
 /// Heater pins: hot end PB3, bed PD7.
 pub const HEATER_PINS: [Pin; 2] = [Pin::new('B', 3), Pin::new('D', 7)];
 /// The pause button (E0DET, PC2), to ground, pulled up.
 pub const PAUSE_BUTTON: Pin = Pin::new('C', 2);
+
+/// Registers whose read changes state: USART1 SR (the SR-then-DR clearing sequences) and DR
+/// (clears RXNE), the timers' CNT (counter-polling detection), ADC1 DR (clears EOC), the SDIO
+/// FIFO, OTG_FS GRXSTSP and the data FIFOs (pops).
+fn read_has_side_effects(word: u32) -> bool {
+    matches!(
+        word,
+        0x4001_1000 | 0x4001_1004 | 0x4000_0024 | 0x4000_0824 | 0x4000_0C24 | 0x4001_204C
+            | 0x4001_2C80..=0x4001_2CFF
+            | 0x5000_0020
+            | 0x5000_1000..=0x5003_FFFF
+    )
+}
 
 /// Why the CPU run stopped (set by the hooks).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -64,10 +80,17 @@ pub struct Stall {
 pub struct Board {
     /// Instructions executed.
     pub insns: u64,
+    /// Cycles the core was busy executing (instructions, wait states, exception entries:
+    /// `crate::cycles`).
+    pub cycles: Cyc,
+    /// The clock model and its state (block costs, the ART accelerator).
+    pub clock: Clock,
+    /// Busy cycles by the exception that was running (0: thread mode), for the CPU load.
+    pub busy_by_exc: Vec<Cyc>,
     /// Cycles passed without instructions (sleep, stalls).
     pub skipped: Cyc,
-    /// Stop the CPU run before this instruction count.
-    pub stop_at: u64,
+    /// Stop the CPU run before this busy-cycle count.
+    pub stop_at: Cyc,
     /// Why the last run stopped.
     pub stop: Option<Stop>,
     /// The WFE event register.
@@ -102,6 +125,10 @@ pub struct Board {
     pub axes: Axes,
     /// SDIO and its card, DMA2 stream 3.
     pub sdio: Sdio,
+    /// USB OTG FS (device mode).
+    pub otg: Otg,
+    /// The USB host at the other end of the cable.
+    pub usb: UsbHost,
     /// Registers of blocks without a model: read back what was written.
     pub regs: BTreeMap<u32, u32>,
     /// Unmodelled register blocks touched (1 KiB block base addresses).
@@ -148,6 +175,9 @@ impl Board {
         tim5.log_ccr1 = true;
         let mut b = Board {
             insns: 0,
+            cycles: 0,
+            clock: Clock::new(ClockModel::Chip),
+            busy_by_exc: vec![0; crate::nvic::N_EXC],
             skipped: 0,
             stop_at: 0,
             stop: None,
@@ -167,6 +197,8 @@ impl Board {
             tmc,
             axes,
             sdio,
+            otg: Otg::default(),
+            usb: UsbHost::new(false),
             regs: BTreeMap::new(),
             unmodelled: BTreeSet::new(),
             edges: Vec::new(),
@@ -198,7 +230,7 @@ impl Board {
 
     /// Virtual time now.
     pub fn now(&self) -> Cyc {
-        self.insns + self.skipped
+        self.cycles + self.skipped
     }
 
     /// A system reset of `kind`: every peripheral at its reset value (RAM and flash keep
@@ -219,7 +251,9 @@ impl Board {
         self.iwdg.reset();
         self.flash.reset();
         self.sdio.reset();
+        self.otg.reset();
         self.regs.clear();
+        self.clock.reset();
         self.event_reg = false;
         self.thread_hold_until = None;
         self.frame_sp.clear();
@@ -320,6 +354,7 @@ impl Board {
         self.gpio.sample(now, &mut self.edges);
         self.dispatch_edges();
         self.sdio.advance(now);
+        self.usb.advance(now, &mut self.otg);
         if self.nvic.systick.advance(now) && self.nvic.systick.ctrl & 2 != 0 {
             self.nvic.pend(exc::SYSTICK);
         }
@@ -341,6 +376,7 @@ impl Board {
             (irq::FLASH, self.flash.irq()),
             (irq::SDIO, self.sdio.irq()),
             (irq::DMA2_STREAM3, self.sdio.dma_irq()),
+            (irq::OTG_FS, self.otg.irq()),
         ];
         for (n, level) in lines {
             let e = usize::from(exc::IRQ0 + n);
@@ -365,6 +401,7 @@ impl Board {
                 .next_wrap(now)
                 .filter(|_| self.nvic.systick.ctrl & 2 != 0),
             self.iwdg.expires_at(),
+            self.usb.next_event(),
         ]
         .into_iter()
         .flatten()
@@ -414,7 +451,7 @@ impl Board {
             }
             0x4002_3800..=0x4002_3BFF => self.rcc.read(a - 0x4002_3800),
             0x4002_3C00..=0x4002_3FFF => self.flash.read(a - 0x4002_3C00, now),
-            0x5000_0000..=0x5003_FFFF => self.otg_read(a - 0x5000_0000),
+            0x5000_0000..=0x5003_FFFF => self.otg.read(a - 0x5000_0000),
             0xE000_E000..=0xE000_EFFF => self.nvic.read(a - 0xE000_E000, now),
             _ => {
                 self.unmodelled.insert(a & !0x3FF);
@@ -447,7 +484,7 @@ impl Board {
         }
         self.skipped += t - now;
         self.poll_skipped += t - now;
-        self.stop_at = self.stop_at.min(self.insns + (self.deadline - t));
+        self.stop_at = self.stop_at.min(self.cycles + (self.deadline - t));
         t
     }
 
@@ -469,21 +506,8 @@ impl Board {
                     crate::time::s_from_cyc(s.duration) * 1e3,
                     crate::time::s_from_cyc(now)
                 ));
-                self.stop_at = self.insns;
+                self.stop_at = self.cycles;
             }
-        }
-    }
-
-    /// USB OTG FS core registers (RM0090 §34.16.2): GRSTCTL 0x010 (AHBIDL bit 31 set, CSRST
-    /// bit 0 and the FIFO flushes self-clearing), GINTSTS 0x014 (CMOD bit 0 = 0, device
-    /// mode; nothing else ever happens on the bus), CID 0x03C (0x0000_1200, the core ID
-    /// embassy checks). No host is attached: the device never enumerates.
-    fn otg_read(&mut self, off: u32) -> u32 {
-        match off {
-            0x010 => 1 << 31,
-            0x014 => 0,
-            0x03C => 0x1200,
-            _ => self.regs.get(&(0x5000_0000 + off)).copied().unwrap_or(0),
         }
     }
 
@@ -498,15 +522,17 @@ impl Board {
         } else {
             let shift = (addr & 3) * 8;
             let mask: u32 = if size == 1 { 0xFF } else { 0xFFFF };
-            // Sub-word writes to set/clear registers touch only their bits.
+            // Sub-word writes to set/clear registers touch only their bits; a register whose
+            // read has a side effect is not read to merge the other bytes (a byte write of
+            // USART1 DR read DR first, which cleared RXNE and lost a received byte when one
+            // arrived between the handler's SR read and its write: found when the cycle
+            // model moved the byte's arrival there).
             let base = match word {
                 0x4002_0018 | 0x4002_0418 | 0x4002_0818 | 0x4002_0C18 | 0x4002_1018 => 0,
                 0xE000_E100..=0xE000_E2FF => 0,
-                // A store reads nothing: the USART's DR read side effects (RXNE cleared, the
-                // received byte taken) must not happen on embassy's byte store to DR, or a
-                // byte arriving between its interrupt's SR read and that store is lost
-                // unseen (issue 29: the stall after `SD card ok`, docs/board-emu.md).
-                0x4001_1000..=0x4001_13FF => self.usart1.peek(word - 0x4001_1000),
+                // A store reads nothing with side effects (USART1 DR: RXNE cleared, the
+                // received byte taken; docs/board-emu.md, 'What the emulated board found' 4).
+                w if read_has_side_effects(w) => 0,
                 _ => self.read_word(word, now, false),
             };
             (base & !(mask << shift)) | ((v32 & mask) << shift)
@@ -514,7 +540,7 @@ impl Board {
         self.write_word(word, value, now);
         self.sync_irqs();
         // Stop before the next instruction: the write may pend an interrupt or move an event.
-        self.stop_at = self.insns;
+        self.stop_at = self.cycles;
         if self.stop.is_none() {
             self.stop = Some(Stop::Resched);
         }
@@ -548,10 +574,10 @@ impl Board {
                 }
             }
             0x5000_0000..=0x5003_FFFF => {
-                let off = a - 0x5000_0000;
-                // CSRST and the FIFO flush bits complete at once.
-                let v = if off == 0x010 { v & !0x31 } else { v };
-                self.regs.insert(a, v);
+                self.otg.write(a - 0x5000_0000, v);
+                if std::mem::take(&mut self.otg.kicked) {
+                    self.usb.kick(now);
+                }
             }
             0xE000_E000..=0xE000_EFFF => self.nvic.write(a - 0xE000_E000, v, now),
             _ => {
@@ -585,7 +611,7 @@ impl Board {
                 crate::time::s_from_cyc(now)
             ));
         }
-        self.stop_at = self.insns;
+        self.stop_at = self.cycles;
         if self.stop.is_none() {
             self.stop = Some(Stop::Resched);
         }

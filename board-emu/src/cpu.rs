@@ -20,6 +20,7 @@
 //! HardFault handler is a lockup, which ends the run.
 
 use crate::board::{Board, Stop};
+use crate::cycles::Acr;
 use crate::flash::{STORE_BASE, STORE_LEN};
 use crate::rcc::ResetKind;
 use crate::time::{Cyc, CPU_HZ};
@@ -28,7 +29,7 @@ use unicorn_engine::{
     uc_error, Arch, ArmCpuModel, HookType, MemType, Mode, Prot, RegisterARM, Unicorn,
 };
 
-/// Longest slice of instructions between two looks at the peripherals (about 60 µs).
+/// Longest slice of busy cycles between two looks at the peripherals (about 60 µs).
 const MAX_SLICE: u64 = 10_000;
 /// How long an interrupt masked by a critical section is watched block by block, so that it
 /// is taken as soon as it is unmasked (100 µs; see `run_until`).
@@ -83,19 +84,6 @@ fn stub() -> Vec<u8> {
     }
     s.extend_from_slice(&IMAGE_BASE.to_le_bytes());
     s
-}
-
-/// Thumb-2 instructions in `code`: a halfword whose top five bits are 0b11101, 0b11110 or
-/// 0b11111 starts a 32-bit instruction (ARMv7-M ARM A5.1).
-fn thumb_count(code: &[u8]) -> u64 {
-    let mut i = 0;
-    let mut n = 0;
-    while i + 1 < code.len() {
-        let hw = u16::from_le_bytes([code[i], code[i + 1]]);
-        i += if hw >> 11 >= 0b11101 { 4 } else { 2 };
-        n += 1;
-    }
-    n.max(1)
 }
 
 /// Marks WFI/WFE/SEV instructions (16-bit BF30/BF20/BF40, 32-bit F3AF 8003/8002/8004) in
@@ -206,32 +194,41 @@ impl<'a> Emulator<'a> {
         }
         uc.mem_map(TRAP_PAGE, 0x1000, Prot::READ | Prot::EXEC)
             .map_err(|e| anyhow!("step 14: {e:?}"))?;
-        // Every translation block: count its instructions (cached per block address), stop
-        // before it when the slice is over. A block hook is called before the block's own
-        // exit check, so a stop here keeps the block from running; a block that starts
-        // before the slice's end runs whole (a slice may end a few instructions late).
-        let mut lens: std::collections::HashMap<u64, u64> = std::collections::HashMap::new();
+        // Every translation block: its instructions and cycles (`crate::cycles`; the cost of
+        // its code worked out once per block address), charged before it runs; stop before
+        // it when the slice is over. A block hook is called before the block's own exit
+        // check, so a stop here keeps the block from running; a block that starts before the
+        // slice's end runs whole (a slice may end a few cycles late).
         uc.add_block_hook(
             1,
             0,
             move |uc: &mut Unicorn<Board>, addr: u64, size: u32| {
-                let n = match lens.get(&addr) {
-                    Some(&n) => n,
-                    None => {
-                        let n = match uc.mem_read_as_vec(addr, size as usize) {
-                            Ok(code) => thumb_count(&code),
-                            Err(_) => u64::from(size / 2).max(1),
-                        };
-                        lens.insert(addr, n);
-                        n
-                    }
-                };
+                let a = addr as u32;
                 let b = uc.get_data_mut();
-                if b.insns >= b.stop_at {
+                if b.cycles >= b.stop_at {
                     let _ = uc.emu_stop();
                     return;
                 }
+                let acr = Acr::from_reg(b.flash.acr());
+                let t = b.cycles;
+                let (n, c) = match b.clock.run_block(a, size, t, acr) {
+                    Some(r) => r,
+                    None => {
+                        let code = uc.mem_read_as_vec(addr, size as usize).unwrap_or_default();
+                        let b = uc.get_data_mut();
+                        b.clock.learn(a, crate::cycles::cost(a, &code));
+                        b.clock
+                            .run_block(a, size, t, acr)
+                            .unwrap_or((u64::from(size / 2).max(1), Cyc::from(size / 2).max(1)))
+                    }
+                };
+                let b = uc.get_data_mut();
                 b.insns += n;
+                b.cycles += c;
+                let e = b.nvic.stack.last().map_or(0, |&e| usize::from(e));
+                if let Some(x) = b.busy_by_exc.get_mut(e) {
+                    *x += c;
+                }
             },
         )
         .map_err(uc_err)?;
@@ -494,7 +491,7 @@ impl<'a> Emulator<'a> {
             {
                 let b = self.board_mut();
                 b.stop = None;
-                b.stop_at = b.insns + slice;
+                b.stop_at = b.cycles + slice;
                 b.deadline = now + slice;
             }
             let pc = self.uc.reg_read(RegisterARM::PC).map_err(uc_err)?;
@@ -620,7 +617,11 @@ mod tests {
     fn thumb_instructions_counted() {
         // movs r0, #1 ; ldr.w r1, [r0] ; bx lr
         assert_eq!(
-            thumb_count(&[0x01, 0x20, 0xD0, 0xF8, 0x00, 0x10, 0x70, 0x47]),
+            crate::cycles::cost(
+                0x0800_8000,
+                &[0x01, 0x20, 0xD0, 0xF8, 0x00, 0x10, 0x70, 0x47]
+            )
+            .insns,
             3
         );
     }

@@ -66,7 +66,17 @@ impl Emulator<'_> {
             (xpsr & 0xF80F_0000 & !0x0600_FC00) | (1 << 24),
         );
         let handler = self.vector(e);
+        let vtor = match self.board().nvic.vtor {
+            0 => 0x0800_0000,
+            v => v,
+        };
         let b = self.board_mut();
+        let acr = crate::cycles::Acr::from_reg(b.flash.acr());
+        let c = b.clock.entry(vtor + 4 * u32::from(e), acr);
+        b.cycles += c;
+        if let Some(x) = b.busy_by_exc.get_mut(usize::from(e)) {
+            *x += c;
+        }
         b.nvic.activate(e);
         b.frame_sp.push(new_sp);
         b.event_reg = true;
@@ -79,6 +89,7 @@ impl Emulator<'_> {
     /// Returns from the innermost exception (ARMv7-M B1.5.8) with EXC_RETURN `ret`.
     pub(crate) fn exc_return(&mut self, ret: u32) -> Result<()> {
         let b = self.board_mut();
+        b.clock.exit();
         let done = b.nvic.deactivate();
         b.frame_sp.pop();
         b.event_reg = true;

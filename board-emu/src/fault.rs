@@ -1,7 +1,10 @@
 //! Faults injected from the emulator's side: the image is never modified. Each says how it is
 //! done.
 
-use crate::time::{cyc_from_ms, Cyc};
+use crate::board::Stall;
+use crate::cpu::Emulator;
+use crate::nvic::{exc, irq};
+use crate::time::{cyc_from_ms, s_from_cyc, Cyc};
 
 /// A fault to inject while a job runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
@@ -40,3 +43,44 @@ impl Fault {
 /// The address written over the return address for [`Fault::HardFault`]: nothing is mapped
 /// there (RM0090 table 1: reserved).
 pub const BAD_RETURN: u32 = 0x3000_0000;
+
+/// Injects `f` now, as its documentation says; false when its moment has not come yet (a
+/// HardFault waits until the step interrupt is the active handler).
+pub fn inject(emu: &mut Emulator, f: Fault) -> bool {
+    let now = emu.now();
+    let b = emu.board_mut();
+    match f {
+        Fault::MotionStall | Fault::ExecutorStall => {
+            b.stall = f.stall().map(|duration| Stall {
+                after: now,
+                duration,
+            });
+            true
+        }
+        Fault::UnexpectedIrq => {
+            b.nvic.systick.load = 167_999;
+            b.nvic.systick.write_ctrl(now, 0b111);
+            b.notes.push(format!(
+                "SysTick armed (1 ms, TICKINT) at t = {:.4} s",
+                s_from_cyc(now)
+            ));
+            true
+        }
+        Fault::HardFault => {
+            if b.nvic.stack.last() != Some(&(exc::IRQ0 + irq::TIM5)) {
+                return false;
+            }
+            // The stacked return address: word 6 of the frame the entry pushed.
+            let Some(slot) = b.frame_sp.last().map(|sp| sp + 24) else {
+                return false;
+            };
+            let old = emu.peek32(slot);
+            emu.poke32(slot, BAD_RETURN);
+            emu.board_mut().notes.push(format!(
+                "HardFault injected: TIM5 frame's return address {old:#010x} -> {BAD_RETURN:#010x} at t = {:.4} s",
+                s_from_cyc(now)
+            ));
+            true
+        }
+    }
+}

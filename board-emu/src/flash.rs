@@ -169,6 +169,15 @@ impl Flash {
 
     /// Interface register read.
     pub fn read(&mut self, off: u32, now: Cyc) -> u32 {
+        self.read_reg(off, now)
+    }
+
+    /// FLASH_ACR (wait states and the ART accelerator's enables, for `crate::cycles`).
+    pub fn acr(&self) -> u32 {
+        self.acr
+    }
+
+    fn read_reg(&mut self, off: u32, now: Cyc) -> u32 {
         self.advance(now);
         match off {
             0x00 => self.acr,

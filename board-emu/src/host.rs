@@ -1,11 +1,47 @@
-//! The host on USART1 (the TFT header at 115200 Bd), talking as `sim run`'s host does
-//! (`sim::hostlink`, modelled on printcore and OctoPrint): `M110 N0` first, then every job line
-//! without its comment as `N<n> <text>*<checksum>`, the next only after the printer's `ok`,
-//! `Resend: <n>` rewinding to that line; realtime requests (`M24`) written at once, unnumbered.
+//! The scripted host on USART1 (the TFT header at 115200 Bd) or on the USB CDC port, talking
+//! as `sim run`'s host does (`sim::hostlink`, modelled on printcore and OctoPrint): `M110 N0`
+//! first, then every job line as `N<n> <text>*<checksum>` (comments stripped, or kept with
+//! [`Host::keep_comments`]), the next only after the printer's `ok`, `Resend: <n>` rewinding
+//! to that line; realtime requests (`M24`) written at once, unnumbered.
 
 use crate::time::Cyc;
 use crate::usart::Usart;
+use crate::usbhost::UsbHost;
 use std::collections::VecDeque;
+
+/// A port the host talks through: the UART's line or the USB CDC port.
+pub trait Wire {
+    /// Every byte the printer sent, with the time it arrived.
+    fn received(&self) -> &[(Cyc, u8)];
+    /// Whether bytes the host wrote still wait to go out.
+    fn busy(&self) -> bool;
+    /// Writes bytes at `now`.
+    fn send(&mut self, now: Cyc, bytes: &[u8]);
+}
+
+impl Wire for Usart {
+    fn received(&self) -> &[(Cyc, u8)] {
+        &self.tx_log
+    }
+    fn busy(&self) -> bool {
+        !self.host_tx.is_empty()
+    }
+    fn send(&mut self, _now: Cyc, bytes: &[u8]) {
+        self.host_tx.extend(bytes);
+    }
+}
+
+impl Wire for UsbHost {
+    fn received(&self) -> &[(Cyc, u8)] {
+        &self.rx_log
+    }
+    fn busy(&self) -> bool {
+        !self.host_tx.is_empty()
+    }
+    fn send(&mut self, now: Cyc, bytes: &[u8]) {
+        self.write(now, bytes);
+    }
+}
 
 /// A line the host queued, numbered or not.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -31,6 +67,8 @@ pub struct Host {
     pub received: Vec<(Cyc, String)>,
     /// `ok`s received.
     pub oks: u64,
+    /// Job lines keep their comments (slicer layer markers reach the printer).
+    pub keep_comments: bool,
     /// Resend requests honoured.
     pub resends: u64,
 }
@@ -54,18 +92,30 @@ impl Host {
         h
     }
 
-    /// Queues job lines (comments stripped, blank lines dropped).
+    /// Queues job lines (comments stripped unless kept, blank lines dropped). A line that
+    /// is only a comment is sent as it is when comments are kept.
     pub fn send_lines<'s>(&mut self, lines: impl IntoIterator<Item = &'s str>) {
         for l in lines {
-            if let Some(t) = strip(l) {
+            let t = if self.keep_comments {
+                Some(l.trim()).filter(|t| !t.is_empty())
+            } else {
+                strip(l)
+            };
+            if let Some(t) = t {
                 self.queue.push_back(Out::Line(t.to_string()));
             }
         }
     }
 
-    /// Queues a realtime request.
+    /// A realtime request: written as soon as the wire is free, ahead of the job lines still
+    /// queued (as OctoPrint's emergency commands and printcore's `send_now` go out).
     pub fn send_now(&mut self, line: &str) {
-        self.queue.push_back(Out::Now(line.to_string()));
+        let at = self
+            .queue
+            .iter()
+            .position(|o| matches!(o, Out::Line(_)))
+            .unwrap_or(self.queue.len());
+        self.queue.insert(at, Out::Now(line.to_string()));
     }
 
     /// Nothing queued and nothing waiting for `ok`.
@@ -79,9 +129,10 @@ impl Host {
     }
 
     /// Reads what the printer said and writes what may go next.
-    pub fn poll(&mut self, uart: &mut Usart) {
-        let new: Vec<(Cyc, u8)> = uart.tx_log[self.rx_cursor..].to_vec();
-        self.rx_cursor = uart.tx_log.len();
+    pub fn poll(&mut self, wire: &mut dyn Wire, now: Cyc) {
+        let got = wire.received();
+        let new: Vec<(Cyc, u8)> = got.get(self.rx_cursor..).unwrap_or(&[]).to_vec();
+        self.rx_cursor = got.len();
         for (t, b) in new {
             if b == b'\n' {
                 let line = String::from_utf8_lossy(&self.partial)
@@ -94,14 +145,14 @@ impl Host {
             }
         }
         // Nothing is written while earlier bytes still wait on the wire.
-        if !uart.host_tx.is_empty() {
+        if wire.busy() {
             return;
         }
-        while let Some(o) = self.queue.front().cloned() {
+        if let Some(o) = self.queue.front().cloned() {
             match o {
                 Out::Now(l) => {
                     self.queue.pop_front();
-                    uart.host_tx.extend(l.bytes().chain([b'\n']));
+                    wire.send(now, format!("{l}\n").as_bytes());
                     self.in_flight += 1;
                 }
                 Out::Line(l) if self.in_flight == 0 => {
@@ -109,14 +160,11 @@ impl Host {
                     self.next_n += 1;
                     let body = format!("N{} {}", self.next_n, l);
                     let cs = checksum(&body);
-                    uart.host_tx.extend(format!("{body}*{cs}\n").bytes());
+                    wire.send(now, format!("{body}*{cs}\n").as_bytes());
                     self.sent.push(l);
                     self.in_flight = 1;
                 }
-                Out::Line(_) => break,
-            }
-            if !uart.host_tx.is_empty() {
-                break;
+                Out::Line(_) => {}
             }
         }
     }
@@ -161,15 +209,15 @@ mod tests {
         let mut h = Host::new();
         let mut u = Usart::default();
         h.send_lines(["G28 ; home", "", "G1 X1"]);
-        h.poll(&mut u);
+        h.poll(&mut u, 0);
         let out: Vec<u8> = u.host_tx.drain(..).collect();
         assert_eq!(String::from_utf8(out).unwrap(), "M110 N0\n");
         u.tx_log.extend(b"ok\n".iter().map(|&b| (0, b)));
-        h.poll(&mut u);
+        h.poll(&mut u, 0);
         let out: Vec<u8> = u.host_tx.drain(..).collect();
         let want = format!("N1 G28*{}\n", checksum("N1 G28"));
         assert_eq!(String::from_utf8(out).unwrap(), want);
-        h.poll(&mut u);
+        h.poll(&mut u, 0);
         assert!(u.host_tx.is_empty(), "one line in flight");
     }
 }

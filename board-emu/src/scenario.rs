@@ -1,196 +1,39 @@
-//! One run of the emulated board: power on, the host sends `M115`, the commands and the job
-//! over USART1 one line per `ok`, faults are injected, and the report is made from the pins,
-//! the UART and the chip's state.
+//! One scripted run of the emulated board: power on, the host sends the commands and the job
+//! one line per `ok` over USART1 or the USB CDC port, then `M115`; a pause is resumed, faults
+//! are injected, and the report is made from the pins, the ports and the chip's state.
 
 use crate::adc::{BED, HOTEND};
-use crate::axes::Axes;
-use crate::board::{Board, Stall};
+use crate::board::Board;
 use crate::cpu::{Emulator, RunEnd};
-use crate::fault::{Fault, BAD_RETURN};
-use crate::flash::{Flash, FlashTiming, STORE_LEN};
+use crate::fault;
 use crate::host::Host;
-use crate::iwdg::Iwdg;
 use crate::nvic::{exc, irq};
+pub use crate::options::{FlashFill, HostPort, Options};
 use crate::rcc::ResetKind;
-use crate::report::{self, Report};
-use crate::sdio::Sdio;
+use crate::report::{self, Report, RunFacts};
+use crate::setup;
 use crate::time::{cyc_from_ms, s_from_cyc, Cyc};
-use crate::tmc::{Drivers, Seating};
-use anyhow::{Context, Result};
-use firmware::config::MachineConfig;
-use std::path::PathBuf;
-
-/// What to run.
-#[derive(Clone, Debug)]
-pub struct Options {
-    /// The image (`firmware-f407.bin` or `-f429.bin`).
-    pub image: PathBuf,
-    /// Its ELF (symbols for the stack's bounds); optional.
-    pub elf: Option<PathBuf>,
-    /// The F429 (192 KiB of SRAM mapped).
-    pub f429: bool,
-    /// Lines sent before the job, each after the previous one is answered; `@reset` resets
-    /// the board (NRST), `@wait <ms>` waits, `@until <text>` waits for a line containing it.
-    pub commands: Vec<String>,
-    /// The job (G-code lines).
-    pub job: Vec<String>,
-    /// Schedule a pause at the start of layer N (`M761 L<n>`, as `sim run --pause-at-layer`).
-    pub pause_at_layer: Option<u32>,
-    /// Resume this long after `//action:paused`, s.
-    pub resume_after_s: f64,
-    /// A fault to inject.
-    pub fault: Option<Fault>,
-    /// Inject it this long after the first job line was answered, s.
-    pub fault_after_s: f64,
-    /// LSI frequency, Hz.
-    pub lsi_hz: u32,
-    /// Flash times.
-    pub flash_timing: FlashTiming,
-    /// The settings sectors' file (read at start, written at the end).
-    pub flash_file: Option<PathBuf>,
-    /// The settings sectors' content when there is no file yet.
-    pub flash_fill: Option<FlashFill>,
-    /// The card in the slot (an image file).
-    pub sd_image: Option<PathBuf>,
-    /// A driver module plugged in backwards (0 = X .. 3 = E).
-    pub reversed_driver: Option<usize>,
-    /// Carriage start, mm from each switch (X, Y, Z).
-    pub start_mm: [f32; 3],
-    /// Give up after this much virtual time, s.
-    pub max_virtual_s: f64,
-    /// Keep running this long after the job, s (watch what follows).
-    pub settle_s: f64,
-}
-
-/// What a foreign settings area holds.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum FlashFill {
-    /// Zeros (a sector another firmware left, or half erased).
-    Zeros,
-    /// Pseudo-random bytes (fixed seed).
-    Random,
-}
-
-impl Default for Options {
-    fn default() -> Self {
-        Options {
-            image: PathBuf::new(),
-            elf: None,
-            f429: false,
-            commands: Vec::new(),
-            job: Vec::new(),
-            pause_at_layer: None,
-            resume_after_s: 1.0,
-            fault: None,
-            fault_after_s: 0.5,
-            lsi_hz: 32_000,
-            flash_timing: FlashTiming::Typ,
-            flash_file: None,
-            flash_fill: None,
-            sd_image: None,
-            reversed_driver: None,
-            start_mm: [60.0, 60.0, 10.0],
-            max_virtual_s: 120.0,
-            settle_s: 0.2,
-        }
-    }
-}
-
-/// The stack's bounds from the ELF (`_stack_end` .. `_stack_start`, cortex-m-rt's symbols).
-fn stack_bounds(elf: &std::path::Path) -> Result<(u32, u32)> {
-    use object::{Object, ObjectSymbol};
-    let data = std::fs::read(elf).with_context(|| format!("reading {}", elf.display()))?;
-    let file = object::File::parse(&*data)?;
-    let sym = |n: &str| {
-        file.symbols()
-            .find(|s| s.name() == Ok(n))
-            .map(|s| s.address() as u32)
-    };
-    Ok((
-        sym("_stack_end").context("no _stack_end in the ELF")?,
-        sym("_stack_start").context("no _stack_start in the ELF")?,
-    ))
-}
-
-fn initial_store(o: &Options) -> Result<Vec<u8>> {
-    if let Some(f) = &o.flash_file {
-        if f.exists() {
-            let d = std::fs::read(f)?;
-            anyhow::ensure!(
-                d.len() == STORE_LEN,
-                "{} is not {} bytes",
-                f.display(),
-                STORE_LEN
-            );
-            return Ok(d);
-        }
-    }
-    Ok(match o.flash_fill {
-        None => vec![0xFF; STORE_LEN],
-        Some(FlashFill::Zeros) => vec![0; STORE_LEN],
-        Some(FlashFill::Random) => {
-            let mut x: u32 = 0x2545_F491;
-            (0..STORE_LEN)
-                .map(|_| {
-                    x ^= x << 13;
-                    x ^= x >> 17;
-                    x ^= x << 5;
-                    x as u8
-                })
-                .collect()
-        }
-    })
-}
-
-/// Paint pattern for the stack.
-const PAINT: u32 = 0xC5C5_C5C5;
+use anyhow::Result;
 
 /// Runs `o` and reports.
 pub fn run(o: &Options) -> Result<Report> {
     let wall0 = std::time::Instant::now();
-    let image =
-        std::fs::read(&o.image).with_context(|| format!("reading {}", o.image.display()))?;
-    let mut flash = Flash::new(o.flash_timing);
-    flash.store = initial_store(o)?;
-    let mut seating = [Seating::Correct; 4];
-    if let Some(i) = o.reversed_driver {
-        seating[i.min(3)] = Seating::Reversed;
-    }
-    let card = match &o.sd_image {
-        Some(p) => Some(std::fs::read(p).with_context(|| format!("reading {}", p.display()))?),
-        None => None,
-    };
-    let cfg = MachineConfig::ENDER3;
-    let axes = Axes::new(&cfg, o.start_mm);
-    let board = Board::new(
-        flash,
-        Iwdg::new(o.lsi_hz),
-        Drivers::new(seating),
-        axes,
-        Sdio::with_card(card),
-    );
-    let mut emu = Emulator::new(board, image, o.f429)?;
-    let stack = match &o.elf {
-        Some(e) => Some(stack_bounds(e)?),
-        None => None,
-    };
-    if let Some((lo, hi)) = stack {
-        emu.paint(lo, hi, PAINT)?;
-    }
-
+    let (mut emu, stack) = setup::build(o)?;
     let mut host = Host::new();
+    host.keep_comments = o.keep_comments;
     // M115 goes last: its ~700-byte reply stalled the TFT port of main's image for good
     // (docs/board-emu.md, "Found by the emulated board"), so nothing could follow it.
     let mut script: std::collections::VecDeque<String> = o.commands.iter().cloned().collect();
     let mut job_sent = false;
     let mut r = Reaction::default();
-    let until = (o.max_virtual_s * 1e9) as u64 * 168 / 1000;
+    let until = (o.max_virtual_s * 168e6) as Cyc;
     let end = loop {
         let end = emu.run_until(until, |emu| {
-            host.poll(&mut emu.board_mut().usart1);
+            poll(&mut host, emu, o.port);
             react(emu, &mut host, o, &mut r);
             // A pause waits for its resume before the job counts as done.
-            let pausing = o.pause_at_layer.is_some() && job_sent && !r.resumed;
+            let pause = o.pause_at_layer.is_some() || o.pause_request_after_s.is_some();
+            let pausing = pause && job_sent && !r.resumed;
             !pausing && host.idle()
         })?;
         if end != RunEnd::Condition {
@@ -201,11 +44,17 @@ pub fn run(o: &Options) -> Result<Report> {
         if let Some(cmd) = script.pop_front() {
             if cmd == "@reset" {
                 emu.power_on(ResetKind::Pin)?;
+            } else if let Some(usb) = usb_command(&cmd) {
+                let b = emu.board_mut();
+                match usb {
+                    UsbCommand::Plug(p) => b.usb.set_plugged(now, p),
+                    UsbCommand::Open(p) => b.usb.set_open(now, p),
+                }
             } else if let Some(text) = cmd.strip_prefix("@until ") {
                 let text = text.trim().to_string();
                 let from = host.received.len();
                 emu.run_until(until, |emu| {
-                    host.poll(&mut emu.board_mut().usart1);
+                    poll(&mut host, emu, o.port);
                     react(emu, &mut host, o, &mut r);
                     host.received[from..].iter().any(|(_, l)| l.contains(&text))
                 })?;
@@ -213,7 +62,7 @@ pub fn run(o: &Options) -> Result<Report> {
                 let ms: u64 = ms.trim().parse().unwrap_or(0);
                 let t = now + cyc_from_ms(ms);
                 emu.run_until(t.min(until), |emu| {
-                    host.poll(&mut emu.board_mut().usart1);
+                    poll(&mut host, emu, o.port);
                     react(emu, &mut host, o, &mut r);
                     false
                 })?;
@@ -224,6 +73,7 @@ pub fn run(o: &Options) -> Result<Report> {
         }
         if !job_sent {
             job_sent = true;
+            r.job_sent_at = Some(emu.now());
             r.oks_before_job = host.oks;
             r.job_started = true;
             if let Some(n) = o.pause_at_layer {
@@ -237,18 +87,25 @@ pub fn run(o: &Options) -> Result<Report> {
         // Wait for the reply line (its `ok` may never come), then settle.
         let limit = emu.now() + cyc_from_ms(2_000);
         emu.run_until(limit.min(until), |emu| {
-            host.poll(&mut emu.board_mut().usart1);
+            poll(&mut host, emu, o.port);
             host.idle() || host.find("FIRMWARE_NAME").is_some()
         })?;
         // Done: watch a little longer (what the board does after the job or the fault).
         let t = emu.now() + (o.settle_s * 168e6) as Cyc;
-        break run_plain(&mut emu, &mut host, t)?;
+        break run_plain(&mut emu, &mut host, o.port, t)?;
     };
     let _ = end;
     if std::env::var_os("BOARD_EMU_DEBUG").is_some() {
         let now = emu.now();
         let b = emu.board_mut();
         let e = usize::from(exc::IRQ0 + irq::USART1);
+        eprintln!(
+            "host queued {} idle {} usart host_tx {} rx log {}",
+            host.queued(),
+            host.idle(),
+            b.usart1.host_tx.len(),
+            b.usart1.tx_log.len()
+        );
         eprintln!(
             "usart1 cr1 {:#x} sr {:#x} irq {} nvic en {} pend {} act {} prio {:#x} stack {:?} last tx {:?}",
             b.usart1.read(0x0C, now),
@@ -280,24 +137,55 @@ pub fn run(o: &Options) -> Result<Report> {
             eprintln!("profile: {pc:#010x} {n}");
         }
     }
-    if let Some(f) = &o.flash_file {
-        std::fs::write(f, &emu.board().flash.store)
-            .with_context(|| format!("writing {}", f.display()))?;
-    }
+    setup::finish(&emu, o)?;
     Ok(report::make(
         &emu,
-        &host,
-        o,
-        &r,
-        stack,
-        wall0.elapsed().as_secs_f64(),
+        &host.received,
+        &RunFacts {
+            start_mm: o.start_mm,
+            lsi_hz: o.lsi_hz,
+            parked: r.parked,
+            requested: r.requested,
+            first_job_step: r.first_job_step,
+            injected: r.injected,
+            stack,
+            wall_s: wall0.elapsed().as_secs_f64(),
+            usb_plugged: o.usb_plugged || o.port == HostPort::Usb,
+        },
     ))
 }
 
+/// A USB command of the script: `@unplug`, `@plug`, `@close` (the program closes the port:
+/// DTR dropped), `@open`.
+enum UsbCommand {
+    Plug(bool),
+    Open(bool),
+}
+
+fn usb_command(cmd: &str) -> Option<UsbCommand> {
+    Some(match cmd.trim() {
+        "@unplug" => UsbCommand::Plug(false),
+        "@plug" => UsbCommand::Plug(true),
+        "@close" => UsbCommand::Open(false),
+        "@open" => UsbCommand::Open(true),
+        _ => return None,
+    })
+}
+
+/// The host reads and writes its port.
+pub fn poll(host: &mut Host, emu: &mut Emulator, port: HostPort) {
+    let now = emu.now();
+    let b = emu.board_mut();
+    match port {
+        HostPort::Tft => host.poll(&mut b.usart1, now),
+        HostPort::Usb => host.poll(&mut b.usb, now),
+    }
+}
+
 /// Runs to `t` while the host keeps talking.
-fn run_plain(emu: &mut Emulator, host: &mut Host, t: Cyc) -> Result<RunEnd> {
+fn run_plain(emu: &mut Emulator, host: &mut Host, port: HostPort, t: Cyc) -> Result<RunEnd> {
     emu.run_until(t, |emu| {
-        host.poll(&mut emu.board_mut().usart1);
+        poll(host, emu, port);
         false
     })
 }
@@ -307,7 +195,9 @@ pub fn react(emu: &mut Emulator, host: &mut Host, o: &Options, r: &mut Reaction)
     let now = emu.now();
     // Resume after the park.
     if r.parked.is_none() {
-        if let Some((t, _)) = host.find("//action:paused") {
+        let new = host.received.get(r.lines_seen..).unwrap_or(&[]);
+        r.lines_seen = host.received.len();
+        if let Some((t, _)) = new.iter().find(|(_, l)| l.contains("//action:paused")) {
             r.parked = Some(*t);
             emu.board_mut().axes.mark("parked", *t);
         }
@@ -317,6 +207,21 @@ pub fn react(emu: &mut Emulator, host: &mut Host, o: &Options, r: &mut Reaction)
             host.send_now("M24");
             r.resumed = true;
             emu.board_mut().axes.mark("resume", now);
+        }
+    }
+    // A layer pause requested (M601, realtime) this long after the job's first step.
+    if let (Some(after), Some(sent), None) = (o.pause_request_after_s, r.job_sent_at, r.requested) {
+        let first = emu
+            .board()
+            .axes
+            .axis
+            .iter()
+            .filter_map(|a| a.rises.iter().map(|(t, _)| *t).find(|t| *t >= sent))
+            .min();
+        if first.is_some_and(|t| s_from_cyc(now.saturating_sub(t)) >= after) {
+            host.send_now("M601");
+            r.requested = Some(now);
+            r.first_job_step = first;
         }
     }
     // Inject the fault once the job has moved for a while.
@@ -330,44 +235,8 @@ pub fn react(emu: &mut Emulator, host: &mut Host, o: &Options, r: &mut Reaction)
         }
         return;
     };
-    if s_from_cyc(now - t0) < o.fault_after_s {
-        return;
-    }
-    let b = emu.board_mut();
-    match f {
-        Fault::MotionStall | Fault::ExecutorStall => {
-            b.stall = f.stall().map(|duration| Stall {
-                after: now,
-                duration,
-            });
-            r.injected = Some(now);
-        }
-        Fault::UnexpectedIrq => {
-            b.nvic.systick.load = 167_999;
-            b.nvic.systick.write_ctrl(now, 0b111);
-            b.notes.push(format!(
-                "SysTick armed (1 ms, TICKINT) at t = {:.4} s",
-                s_from_cyc(now)
-            ));
-            r.injected = Some(now);
-        }
-        Fault::HardFault => {
-            // Wait until the step interrupt is the active handler, then corrupt its frame.
-            if b.nvic.stack.last() != Some(&(exc::IRQ0 + irq::TIM5)) {
-                return;
-            }
-            // The stacked return address: word 6 of the frame the entry pushed.
-            let ret_slot = b.frame_sp.last().map(|sp| sp + 24);
-            if let Some(slot) = ret_slot {
-                let old = emu.peek32(slot);
-                emu.poke32(slot, BAD_RETURN);
-                emu.board_mut().notes.push(format!(
-                    "HardFault injected: TIM5 frame's return address {old:#010x} -> {BAD_RETURN:#010x} at t = {:.4} s",
-                    s_from_cyc(now)
-                ));
-                r.injected = Some(now);
-            }
-        }
+    if s_from_cyc(now - t0) >= o.fault_after_s && fault::inject(emu, f) {
+        r.injected = Some(now);
     }
 }
 
@@ -386,6 +255,14 @@ pub struct Reaction {
     pub job_first_ok: Option<Cyc>,
     /// The fault went in at.
     pub injected: Option<Cyc>,
+    /// When the job's lines were queued.
+    pub job_sent_at: Option<Cyc>,
+    /// The job's first step.
+    pub first_job_step: Option<Cyc>,
+    /// M601 sent at (`Options::pause_request_after_s`).
+    pub requested: Option<Cyc>,
+    /// Lines of the host looked at for `//action:paused`.
+    pub lines_seen: usize,
 }
 
 /// Heaters' and drivers' state.

@@ -177,6 +177,11 @@ fn a_layer_pause_stops_where_sim_run_stops() {
         .expect("the emulated board paused and parked");
     let want: Vec<i64> = want.iter().map(|&v| i64::from(v)).collect();
     assert_eq!(got.to_vec(), want, "emulated vs sim run: {:?}", r.lines);
+    // And against `layerref` (no code shared with the firmware): the comment-free stream's
+    // boundary of layer 2, between layer 1's last extrusion and layer 2's first.
+    let stops = layerref_stops(THREE_LAYERS, 2, layerref::Comments::Strip);
+    let at = r.pause_point_net_steps.expect("parked");
+    assert!(stops.contains(&at), "{at:?} not in {stops:?}");
     // Resumed and finished: the whole job's steps, as without the pause.
     assert_eq!(net_steps(&r), expected_net_steps(THREE_LAYERS, o.start_mm));
 }

@@ -110,6 +110,20 @@ pub struct MachineConfig {
 }
 
 impl MachineConfig {
+    /// The software limits of X, Y, Z in steps at the current steps per mm (each of
+    /// `min_mm`, `max_mm` times `steps_per_mm`, rounded to the nearest step).
+    pub fn travel_limits_steps(&self) -> [(i32, i32); 3] {
+        let steps = |i: usize, mm: f32| {
+            let v = libm::roundf(mm * self.axes[i].steps_per_mm);
+            if v.is_finite() {
+                v.clamp(i32::MIN as f32, i32::MAX as f32) as i32
+            } else {
+                0
+            }
+        };
+        [0, 1, 2].map(|i| (steps(i, self.axes[i].min_mm), steps(i, self.axes[i].max_mm)))
+    }
+
     /// Ender-3-class printer on an SKR 2 with TMC2209 drivers over UART.
     ///
     /// * Volume 235 × 235 × 250 mm ([E3] `X_BED_SIZE 235`, `Y_BED_SIZE 235`, `Z_MAX_POS 250`).

@@ -114,9 +114,29 @@ impl<P: OutputPin> StepperPins<P> {
     }
 }
 
-/// What the step interrupt does with one event, portable: software limits and "no motion
-/// before homing" per axis, DIR changes with their setup time, the STEP pulse, and the
-/// position in steps. `delay_ns` is the board's busy wait.
+/// The executive's step frame, which the step interrupt's position and travel limits must
+/// follow: steps per mm (M92, M350, M501, M502) re-express the position in new steps
+/// (`Printer::travel_frame`); `epoch` counts those changes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TravelFrame {
+    /// Changes of the frame so far (0: the boot configuration).
+    pub epoch: u32,
+    /// The position in the new steps, where the change left it.
+    pub pos: [i32; AXES],
+    /// The travel limits of X, Y, Z in the new steps.
+    pub limits: [(i32, i32); 3],
+}
+
+/// What the step interrupt does with one event, portable: software limits per homed axis,
+/// DIR changes with their setup time, the STEP pulse, and the position in steps. `delay_ns`
+/// is the board's busy wait.
+///
+/// Axes not homed move as Marlin's default moves them (no `NO_MOTION_BEFORE_HOMING`): from
+/// where they stood at power-on or the last G92, the limits not applied (Marlin's soft
+/// endstops clamp an axis only once it was homed: `apply_motion_limits`,
+/// `if (axis_was_homed(X_AXIS))`). The executive checks every target against the build
+/// volume before it answers; these limits are the interrupt's own guard of the homed volume,
+/// in the executive's step frame ([`StepExecutor::follow`]).
 pub struct StepExecutor<P: OutputPin> {
     /// The driver pins.
     pub pins: StepperPins<P>,
@@ -124,10 +144,12 @@ pub struct StepExecutor<P: OutputPin> {
     pub pos: [i32; AXES],
     /// Software limits in steps for X, Y, Z (enforced on homed axes).
     pub limits: [(i32, i32); 3],
-    /// Homed axes (bit i = axis i); X/Y/Z steps of unhomed axes are refused.
+    /// Homed axes (bit i = axis i): their steps stay inside `limits`.
     pub homed: u8,
-    /// Steps refused (outside the limits or before homing) since last taken.
+    /// Steps refused (a homed axis outside its limits) since last taken.
     pub refused: u32,
+    /// The [`TravelFrame::epoch`] followed.
+    frame_epoch: u32,
 }
 
 impl<P: OutputPin> StepExecutor<P> {
@@ -139,13 +161,28 @@ impl<P: OutputPin> StepExecutor<P> {
             limits: [(i32::MIN, i32::MAX); 3],
             homed: 0,
             refused: 0,
+            frame_epoch: 0,
         }
+    }
+
+    /// The frame followed ([`TravelFrame::epoch`]).
+    pub fn frame_epoch(&self) -> u32 {
+        self.frame_epoch
+    }
+
+    /// Takes the executive's frame: its position and limits. Call only with no event of the
+    /// old frame still queued (the board waits for its step queue to run dry: steps per mm
+    /// change only while nothing moves).
+    pub fn follow(&mut self, frame: &TravelFrame) {
+        self.pos = frame.pos;
+        self.limits = frame.limits;
+        self.frame_epoch = frame.epoch;
     }
 
     /// Follow the executive's homed axes: `homed` = `Printer::homed_axes`, `fresh` =
     /// `Printer::take_homed` (axes set to their minimum, `home_steps`, since last asked: their
-    /// position here is set to it). An axis no longer homed (drivers off) is refused again
-    /// until the next G28.
+    /// position here is set to it). An axis no longer homed (drivers off) moves unguarded
+    /// again until the next G28, as before its first one.
     pub fn set_homed(&mut self, homed: u8, fresh: u8, home_steps: [i32; 3]) {
         for (i, home) in home_steps.into_iter().enumerate() {
             if fresh & (1 << i) != 0 {
@@ -156,7 +193,7 @@ impl<P: OutputPin> StepExecutor<P> {
     }
 
     /// Executes one event: the axes in `axis_mask` step in the directions of `dir_mask`
-    /// (bit set = positive), X/Y/Z only if homed and inside the limits. Returns the axes that
+    /// (bit set = positive); a homed X/Y/Z only inside its limits. Returns the axes that
     /// stepped.
     pub fn fire(
         &mut self,
@@ -177,8 +214,8 @@ impl<P: OutputPin> StepExecutor<P> {
             } else {
                 self.pos[axis].saturating_sub(1)
             };
-            let allowed =
-                self.homed & bit != 0 && next >= self.limits[axis].0 && next <= self.limits[axis].1;
+            let allowed = self.homed & bit == 0
+                || (next >= self.limits[axis].0 && next <= self.limits[axis].1);
             if !allowed {
                 mask &= !bit;
                 self.refused = self.refused.saturating_add(1);

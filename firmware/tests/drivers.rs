@@ -4,8 +4,10 @@
 use core::cell::Cell;
 use core::convert::Infallible;
 use embedded_hal::digital::{ErrorType, InputPin, OutputPin};
+use firmware::config::MachineConfig;
 use firmware::drivers::{
-    IdleTimeout, PauseButton, StepperPins, BUTTON_DEBOUNCE_US, BUTTON_LONG_US,
+    IdleTimeout, PauseButton, StepExecutor, StepperPins, TravelFrame, BUTTON_DEBOUNCE_US,
+    BUTTON_LONG_US,
 };
 use firmware::homing::{Endstops, PinEndstops};
 use firmware::motion::{Axis, PauseMode, Realtime};
@@ -177,4 +179,44 @@ fn idle_timeout_and_m84_s() {
     assert_eq!(idle.timeout_us, 5_000_000, "bad values ignored");
     idle.set_timeout_s(0.0);
     assert!(!idle.update(false, 900_000_000), "0 = never");
+}
+
+/// Axes not homed step from where they stood (Marlin without `NO_MOTION_BEFORE_HOMING`: the
+/// image refused every X/Y/Z step before G28 while the executive answered `ok`); a homed axis
+/// stays inside its limits; a new step frame (M92) moves the limits and the position with it.
+#[test]
+fn step_executor_moves_unhomed_axes_and_follows_the_frame() {
+    let levels = Cell::new(0);
+    let mut x = StepExecutor::new(steppers(&levels));
+    let cfg = MachineConfig::ENDER3;
+    x.follow(&TravelFrame {
+        epoch: 0,
+        pos: [0; 4],
+        limits: cfg.travel_limits_steps(),
+    });
+    assert_eq!(x.limits[0], (0, 18_800));
+    let nowait = |_| {};
+    // Unhomed: X steps below its minimum (the carriage's true place is unknown).
+    assert_eq!(x.fire(0b0001, 0, 0, 0, nowait), 0b0001);
+    assert_eq!(x.pos[0], -1);
+    assert_eq!(x.refused, 0);
+    // Homed at 0: no step below the minimum.
+    x.set_homed(0b0111, 0b0111, [0, 0, 0]);
+    assert_eq!(x.fire(0b0001, 0, 0, 0, nowait), 0);
+    assert_eq!(x.refused, 1);
+    // At 18_800 (235 mm at 80 steps/mm) the maximum.
+    x.pos[0] = 18_800;
+    assert_eq!(x.fire(0b0001, 0b0001, 0, 0, nowait), 0);
+    // M92 X160 at X 117.5 mm: the frame is 18_800 of 37_600; the limit follows.
+    let mut c2 = cfg;
+    c2.axes[0].steps_per_mm = 160.0;
+    x.pos[0] = 9_400;
+    x.follow(&TravelFrame {
+        epoch: 1,
+        pos: [18_800, 0, 0, 0],
+        limits: c2.travel_limits_steps(),
+    });
+    assert_eq!((x.frame_epoch(), x.limits[0]), (1, (0, 37_600)));
+    assert_eq!(x.fire(0b0001, 0b0001, 0, 0, nowait), 0b0001);
+    assert_eq!(x.pos[0], 18_801);
 }

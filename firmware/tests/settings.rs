@@ -542,3 +542,40 @@ fn crc32(bytes: &[u8]) -> u32 {
     }
     !c
 }
+
+/// M92 and M350 give the step interrupt a new frame (the position re-expressed in the new
+/// steps, the limits at the new scale: `Printer::travel_frame`), M203 a new configuration
+/// epoch (its floors): on the emulated board the interrupt kept the boot frame and stopped X
+/// at 117.5 mm after `M92 X160` while M114 said 150 mm.
+#[test]
+fn m92_m350_m203_give_the_step_interrupt_its_new_frame_and_floors() {
+    let mut b = Bench::new();
+    let f0 = b.p.travel_frame();
+    assert_eq!(f0.limits[0], (0, 18_800));
+    let e0 = b.p.config_epoch();
+    no_error(&b.send("G1 X5 F3000"));
+    for _ in 0..2_000 {
+        b.tick();
+    }
+    no_error(&b.send("M92 X160"));
+    let f1 = b.p.travel_frame();
+    assert_eq!(f1.epoch, f0.epoch + 1);
+    assert_eq!(f1.limits[0], (0, 37_600));
+    // 5 mm: 400 steps before, 800 now.
+    assert_eq!(f1.pos[0], 800);
+    no_error(&b.send("G1 X10 F3000"));
+    for _ in 0..2_000 {
+        b.tick();
+    }
+    no_error(&b.send("M350 Y32"));
+    let f2 = b.p.travel_frame();
+    assert_eq!(f2.epoch, f1.epoch + 1);
+    assert_eq!(f2.limits[1], (0, 37_600));
+    // X moved on to 10 mm: 1600 steps at 160 per mm.
+    assert_eq!(f2.pos[0], 1_600);
+    let e2 = b.p.config_epoch();
+    assert!(e2 > e0);
+    no_error(&b.send("M203 X50"));
+    assert_eq!(b.p.travel_frame().epoch, f2.epoch, "no new frame");
+    assert!(b.p.config_epoch() > e2, "new floors");
+}

@@ -78,6 +78,30 @@ pub fn summary(r: &PauseReport) -> String {
     s
 }
 
+/// Where the head was at the pause request, mm, from the reference run's records.
+pub(crate) fn request_xy<E: crate::port::Executive>(
+    o: &run::Outcome<E>,
+    scale: &Scale,
+) -> Option<(f64, f64)> {
+    let t_us = (o.report.request_s? * 1e6) as u64;
+    let r = o
+        .reference
+        .rec
+        .records
+        .iter()
+        .rev()
+        .find(|r| r.t_start_us <= t_us)?;
+    let mm = scale.mm(&r.end);
+    let st = scale.mm(&r.start);
+    let f = if r.t_end_us > r.t_start_us {
+        (t_us - r.t_start_us) as f64 / (r.t_end_us - r.t_start_us) as f64
+    } else {
+        1.0
+    }
+    .clamp(0.0, 1.0);
+    Some((st[0] + (mm[0] - st[0]) * f, st[1] + (mm[1] - st[1]) * f))
+}
+
 /// Run the demo, print the timeline and comparison, write `demo.svg` and `demo.json` to `out`.
 pub fn run_demo(out: &Path) -> anyhow::Result<()> {
     let job = demo_part(3);
@@ -120,28 +144,7 @@ pub fn run_demo(out: &Path) -> anyhow::Result<()> {
         let o = run::run(&PrinterFactory, &sc, &job)?;
         if i == 0 {
             first_timeline = o.timeline.clone();
-            if let Some(t) = o.report.request_s {
-                let t_us = (t * 1e6) as u64;
-                // Position at the request, from the reference run's records.
-                if let Some(r) = o
-                    .reference
-                    .rec
-                    .records
-                    .iter()
-                    .rev()
-                    .find(|r| r.t_start_us <= t_us)
-                {
-                    let mm = scale.mm(&r.end);
-                    let st = scale.mm(&r.start);
-                    let f = if r.t_end_us > r.t_start_us {
-                        (t_us - r.t_start_us) as f64 / (r.t_end_us - r.t_start_us) as f64
-                    } else {
-                        1.0
-                    }
-                    .clamp(0.0, 1.0);
-                    req_xy = Some((st[0] + (mm[0] - st[0]) * f, st[1] + (mm[1] - st[1]) * f));
-                }
-            }
+            req_xy = request_xy(&o, &scale);
         }
         if let Some(pp) = o.report.pause_point_steps {
             let mm = scale.mm(&pp);

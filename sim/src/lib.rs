@@ -3,6 +3,7 @@
 #![deny(missing_docs)]
 
 pub mod demo;
+pub mod demo_board;
 pub mod engine;
 pub mod exec;
 pub mod flash;

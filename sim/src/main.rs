@@ -141,6 +141,10 @@ struct DemoArgs {
     /// Output directory for the picture and the JSON.
     #[arg(long, default_value = "out")]
     out: PathBuf,
+    /// Compare with the emulated board's report of `board-demo.gcode` (scripts/demo.sh runs
+    /// board-emu on it): both timelines, both stop points, `board-demo.svg`.
+    #[arg(long)]
+    compare_board: Option<PathBuf>,
 }
 
 fn main() {
@@ -148,7 +152,11 @@ fn main() {
     let r = match cli.cmd {
         Cmd::Run(a) => cmd_run(a),
         Cmd::Lab(a) => cmd_lab(a),
-        Cmd::Demo(a) => sim::demo::run_demo(&a.out),
+        Cmd::Demo(a) => match &a.compare_board {
+            Some(r) => sim::demo_board::compare(&a.out, r),
+            // The demo, then the job and the request for the emulated board's run.
+            None => sim::demo::run_demo(&a.out).and_then(|_| sim::demo_board::prepare(&a.out)),
+        },
         Cmd::Serve(a) => sim::serve::serve(a),
         Cmd::Pattern(a) => cmd_pattern(a),
     };

@@ -100,12 +100,21 @@ impl Zigzag {
 /// The demo part: a 30 × 30 mm square, `layers` layers of two perimeters and a diagonal-free
 /// zigzag infill (long lines, where a conventional pause is slow), PrusaSlicer-style comments.
 pub fn demo_part(layers: usize) -> Vec<String> {
+    demo_part_sized(layers, 30.0)
+}
+
+/// [`demo_part`] with a square of `side` mm (the demo's emulated board prints a 10 mm one:
+/// the same moves, a ninth of the time).
+pub fn demo_part_sized(layers: usize, side: f64) -> Vec<String> {
     let mut g = String::new();
-    let _ = writeln!(g, "; sim demo part: 30 x 30 mm square, {layers} layers");
+    let _ = writeln!(
+        g,
+        "; sim demo part: {side} x {side} mm square, {layers} layers"
+    );
     for l in ["G21", "G90", "M83", "G92 X0 Y0 Z0 E0", "G1 Z2 F600"] {
         let _ = writeln!(g, "{l}");
     }
-    let (x0, y0, side) = (100.0f64, 100.0f64, 30.0f64);
+    let (x0, y0) = (100.0f64, 100.0f64);
     let h = 0.2;
     let spacing = 0.45;
     for layer in 0..layers {

@@ -98,7 +98,10 @@ pub struct Marker {
     pub xy: (f64, f64),
 }
 
-/// The toolpath (printing moves dark, travel light) with markers.
+/// The toolpath (printing moves dark, travel light) with markers, readable at a glance: the
+/// view is the printed part and the markers (a travel leaving it, from the job's start, is
+/// cut at the frame), the legend stands beside the plot (it covers nothing), and markers are
+/// drawn as rings that shrink in legend order, so stop points on the same spot all show.
 pub fn toolpath_plot(
     path: &Path,
     title: &str,
@@ -108,7 +111,6 @@ pub fn toolpath_plot(
 ) -> anyhow::Result<()> {
     let all = printing
         .iter()
-        .chain(travel.iter())
         .flatten()
         .chain(markers.iter().map(|m| &m.xy));
     let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
@@ -121,26 +123,40 @@ pub fn toolpath_plot(
     if x0 > x1 {
         (x0, x1, y0, y1) = (0.0, 1.0, 0.0, 1.0);
     }
-    let pad = ((x1 - x0).max(y1 - y0) * 0.08).max(1.0);
-    let root = SVGBackend::new(path, (800, 800)).into_drawing_area();
+    // A square view (mm the same both ways) around the part, a little margin.
+    let side = (x1 - x0).max(y1 - y0).max(1.0) * 1.12;
+    let (cx, cy) = ((x0 + x1) / 2.0, (y0 + y1) / 2.0);
+    let (vx0, vx1, vy0, vy1) = (
+        cx - side / 2.0,
+        cx + side / 2.0,
+        cy - side / 2.0,
+        cy + side / 2.0,
+    );
+    let inside = |&(x, y): &(f64, f64)| x >= vx0 && x <= vx1 && y >= vy0 && y <= vy1;
+    let root = SVGBackend::new(path, (1180, 800)).into_drawing_area();
     root.fill(&WHITE).map_err(err)?;
-    let mut chart = ChartBuilder::on(&root)
+    let (left, right) = root.split_horizontally(800);
+    let mut chart = ChartBuilder::on(&left)
         .caption(title, ("sans-serif", 18))
         .margin(15)
         .x_label_area_size(40)
         .y_label_area_size(50)
-        .build_cartesian_2d(x0 - pad..x1 + pad, y0 - pad..y1 + pad)
+        .build_cartesian_2d(vx0..vx1, vy0..vy1)
         .map_err(err)?;
     chart
         .configure_mesh()
         .x_desc("X, mm")
         .y_desc("Y, mm")
+        .light_line_style(WHITE)
         .draw()
         .map_err(err)?;
     for t in travel {
-        chart
-            .draw_series(LineSeries::new(t.clone(), RGBColor(200, 200, 200)))
-            .map_err(err)?;
+        // Travel inside the view only (the move from the job's start is cut off).
+        if t.iter().all(inside) {
+            chart
+                .draw_series(LineSeries::new(t.clone(), RGBColor(170, 170, 210)))
+                .map_err(err)?;
+        }
     }
     for p in printing {
         chart
@@ -150,21 +166,51 @@ pub fn toolpath_plot(
             ))
             .map_err(err)?;
     }
+    let n = markers.len() as i32;
     for (i, m) in markers.iter().enumerate() {
         let c = COLORS[i % COLORS.len()];
-        let xy = m.xy;
+        // Largest first: a later marker on the same spot sits inside the earlier ones.
+        let r = 6 + 4 * (n - i as i32);
         chart
-            .draw_series(std::iter::once(Circle::new(xy, 7, c.filled())))
-            .map_err(err)?
-            .label(m.label.clone())
-            .legend(move |(x, y)| Circle::new((x + 10, y), 5, c.filled()));
+            .draw_series(std::iter::once(Circle::new(m.xy, r, c.stroke_width(3))))
+            .map_err(err)?;
+        chart
+            .draw_series(std::iter::once(Circle::new(m.xy, 3, c.filled())))
+            .map_err(err)?;
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .draw()
+    // The legend, beside the plot.
+    let font = ("sans-serif", 15).into_font();
+    for (i, m) in markers.iter().enumerate() {
+        let c = COLORS[i % COLORS.len()];
+        let y = 70 + 34 * i as i32;
+        right
+            .draw(&Circle::new((22, y), 9, c.stroke_width(3)))
+            .map_err(err)?;
+        right
+            .draw(&Circle::new((22, y), 3, c.filled()))
+            .map_err(err)?;
+        right
+            .draw(&Text::new(m.label.clone(), (40, y - 8), font.clone()))
+            .map_err(err)?;
+    }
+    let key_y = 80 + 34 * n;
+    right
+        .draw(&PathElement::new(
+            vec![(12, key_y), (34, key_y)],
+            RGBColor(60, 60, 60).stroke_width(2),
+        ))
+        .map_err(err)?;
+    right
+        .draw(&Text::new("printing moves", (40, key_y - 8), font.clone()))
+        .map_err(err)?;
+    right
+        .draw(&PathElement::new(
+            vec![(12, key_y + 26), (34, key_y + 26)],
+            RGBColor(170, 170, 210).stroke_width(2),
+        ))
+        .map_err(err)?;
+    right
+        .draw(&Text::new("travel", (40, key_y + 18), font))
         .map_err(err)?;
     root.present().map_err(err)?;
     Ok(())

@@ -23,7 +23,7 @@
 
 mod clock;
 mod machine;
-mod pty;
+pub mod pty;
 mod report;
 mod track;
 mod wire;

@@ -103,7 +103,7 @@ mod image {
     use firmware::drivers::Liveness;
     use heater::heater_task;
     use host::{cdc_task, uart_task, usb_task};
-    use motion::{halted_task, limits_steps, motion_task};
+    use motion::{halted_task, motion_task};
 
     // The TMC2209 drivers' configuration and reports.
     mod drivers;
@@ -199,6 +199,7 @@ mod image {
             config.rcc.mux.clk48sel = mux::Clk48sel::PLL1_Q;
         }
         let p = embassy_stm32::init(config);
+        clock::enable_flash_accelerator();
         interrupt::TIM2.set_priority(PRIO_TIME);
         let (mut pins, periph) = pins::split(p);
         // Marlin's reversed-driver check, SAFE_POWER low until it passes.
@@ -222,8 +223,8 @@ mod image {
             Policy::FIRMWARE,
         )));
         // G28 homes through the planner on the X/Y/Z minimum switches (Marlin's Ender-3 homing
-        // feeds, bump and Z raise). Moves of an axis before it is homed are refused by the step
-        // interrupt (Marlin's NO_MOTION_BEFORE_HOMING), G28's own moves excepted.
+        // feeds, bump and Z raise). Axes not homed move from where they stood (Marlin's
+        // default); the step interrupt's limits guard homed axes.
         printer.borrow_mut().enable_endstops(HomingConfig::ENDER3);
         announce_reset_cause(printer);
         // Saved settings (M500) replace the factory ones; M500/M501 run in their own task.
@@ -322,7 +323,7 @@ mod image {
             pressed_high: cfg.endstop_hit_high_mask(),
         };
         let producer = stepper::init(steppers, endstops, PRIO_STEP);
-        stepper::with(|s| s.exec.limits = limits_steps(&cfg));
+        stepper::with(|s| s.exec.follow(&printer.borrow().travel_frame()));
 
         // The drivers, before any motion: a driver that does not answer halts the printer.
         let [tx, ty, tz, te] = pins.tmc_uart;

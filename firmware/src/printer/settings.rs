@@ -11,9 +11,10 @@
 
 use super::host::Host;
 use super::Printer;
+use crate::drivers::TravelFrame;
 use crate::gcode::{self, AxisWords, Heater, PauseParams, SettingsCommand};
 use crate::link::Response;
-use crate::motion::{Axis, AXES};
+use crate::motion::{Axis, StepPos, AXES};
 use crate::storage::{
     Bound, Settings, DRIVER_CURRENT, HOME_OFFSET, JUNCTION_DEVIATION, MAX_FEED, STEPS_PER_MM,
 };
@@ -41,6 +42,12 @@ pub(super) struct SettingsLink {
     idle_since_us: Option<u64>,
     /// The store's reserve was checked in this idle period (or nothing was stored since).
     reserve_checked: bool,
+    /// Configuration changes so far (any M-code that changes it): the board's step interrupt
+    /// takes its floors (M92, M203) again when this changes.
+    config_epoch: u32,
+    /// Step frame changes so far (steps per mm), and the position they left.
+    frame_epoch: u32,
+    frame_pos: StepPos,
 }
 
 impl SettingsLink {
@@ -51,6 +58,9 @@ impl SettingsLink {
             request: None,
             idle_since_us: None,
             reserve_checked: false,
+            config_epoch: 0,
+            frame_epoch: 0,
+            frame_pos: [0; AXES],
         }
     }
 
@@ -59,8 +69,10 @@ impl SettingsLink {
         &self.cfg
     }
 
-    /// The configuration, to change (the driver's configuration, M760's pause values).
+    /// The configuration, to change (the driver's configuration, M760's pause values): counted
+    /// as a change ([`Printer::config_epoch`]).
     pub(super) fn cfg_mut(&mut self) -> &mut crate::config::MachineConfig {
+        self.config_epoch = self.config_epoch.wrapping_add(1);
         &mut self.cfg
     }
 
@@ -192,6 +204,24 @@ impl Printer {
         self.settings.factory = Some(self.settings());
     }
 
+    /// Counts every change of the configuration (M92 M201 M203 M205 M206 M350 M501 M502 …):
+    /// a driver that derives something from it (the step interrupt's floors from steps per mm
+    /// and max feed) takes it again when this changes.
+    pub fn config_epoch(&self) -> u32 {
+        self.settings.config_epoch
+    }
+
+    /// The step frame the step interrupt must follow: the travel limits in the current steps
+    /// per mm and, after a change of them, the position re-expressed in the new steps (see
+    /// [`TravelFrame`]).
+    pub fn travel_frame(&self) -> TravelFrame {
+        TravelFrame {
+            epoch: self.settings.frame_epoch,
+            pos: self.settings.frame_pos,
+            limits: self.settings.cfg.travel_limits_steps(),
+        }
+    }
+
     /// True when nothing is queued or moving and no pause is under way: steps per mm may
     /// change.
     fn settings_idle(&self) -> bool {
@@ -216,7 +246,7 @@ impl Printer {
             return Err("steps/mm change only while idle (send M400 first)");
         }
         let old = self.settings();
-        s.apply_to(&mut self.settings.cfg);
+        s.apply_to(self.settings.cfg_mut());
         // M350/M569 values changed: the board writes them to the drivers.
         let mask = (0..AXES)
             .filter(|&i| {
@@ -255,6 +285,8 @@ impl Printer {
         }
         self.intake.machine_at(&pos, &self.settings.cfg);
         self.motion.set_position(pos);
+        self.settings.frame_epoch = self.settings.frame_epoch.wrapping_add(1);
+        self.settings.frame_pos = pos;
     }
 
     /// Handle a settings command (the `ok` is sent by the caller).
@@ -327,7 +359,7 @@ impl Printer {
         }
         for (i, v) in a.0.iter().enumerate() {
             if let Some(v) = v {
-                set(&mut self.settings.cfg, i, *v);
+                set(self.settings.cfg_mut(), i, *v);
             }
         }
     }

@@ -1,5 +1,6 @@
 //! The session's terminal: the pseudo-terminal the host opens, the `--link` symlink check,
-//! and the signals that end the session.
+//! and the signals that end the session (also used by the emulated board's `--serve`,
+//! `board-emu/src/serve.rs`).
 
 use anyhow::Context;
 use nix::fcntl::{fcntl, FcntlArg, OFlag};
@@ -8,13 +9,15 @@ use std::os::fd::OwnedFd;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 
-pub(super) static STOP: AtomicBool = AtomicBool::new(false);
+/// Set by SIGINT, SIGTERM or SIGHUP once [`install_signals`] ran: the session should end.
+pub static STOP: AtomicBool = AtomicBool::new(false);
 
 extern "C" fn on_signal(_: nix::libc::c_int) {
     STOP.store(true, Ordering::SeqCst);
 }
 
-pub(super) fn install_signals() {
+/// SIGINT, SIGTERM and SIGHUP set [`STOP`] instead of ending the process.
+pub fn install_signals() {
     use nix::sys::signal::{sigaction, SaFlags, SigAction, SigHandler, SigSet, Signal};
     let sa = SigAction::new(
         SigHandler::Handler(on_signal),
@@ -27,7 +30,8 @@ pub(super) fn install_signals() {
     }
 }
 
-pub(super) fn open_pty() -> anyhow::Result<(OwnedFd, OwnedFd, PathBuf)> {
+/// A raw pseudo-terminal: its master end (non-blocking), its slave end and the slave's path.
+pub fn open_pty() -> anyhow::Result<(OwnedFd, OwnedFd, PathBuf)> {
     let pty = nix::pty::openpty(None, None).context("openpty")?;
     let mut t = termios::tcgetattr(&pty.slave).context("tcgetattr")?;
     termios::cfmakeraw(&mut t);
@@ -40,6 +44,35 @@ pub(super) fn open_pty() -> anyhow::Result<(OwnedFd, OwnedFd, PathBuf)> {
     )
     .context("fcntl")?;
     Ok((pty.master, pty.slave, path))
+}
+
+/// Whether nobody holds the pseudo-terminal whose master is `master` (the master then reports
+/// a hang-up, `POLLHUP`, as long as its own process keeps no slave end open).
+pub fn hung_up(master: std::os::fd::BorrowedFd<'_>) -> bool {
+    use nix::poll::{poll, PollFd, PollFlags, PollTimeout};
+    let mut fds = [PollFd::new(master, PollFlags::POLLIN)];
+    let _ = poll(&mut fds, PollTimeout::ZERO);
+    fds[0]
+        .revents()
+        .is_some_and(|r| r.contains(PollFlags::POLLHUP))
+}
+
+/// Sleeps until one of `masters` has bytes to read or `d` passes (just `d` when there is none).
+pub fn wait_readable(masters: &[std::os::fd::BorrowedFd<'_>], d: std::time::Duration) {
+    use nix::poll::{PollFd, PollFlags};
+    let mut fds: Vec<PollFd> = masters
+        .iter()
+        .map(|m| PollFd::new(*m, PollFlags::POLLIN))
+        .collect();
+    if fds.is_empty() {
+        std::thread::sleep(d);
+        return;
+    }
+    let _ = nix::poll::ppoll(
+        &mut fds,
+        Some(nix::sys::time::TimeSpec::from_duration(d)),
+        None,
+    );
 }
 
 /// `--link PATH` may name nothing yet, or a symlink to a pseudo-terminal (a stale link of an

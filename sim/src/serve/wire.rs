@@ -16,7 +16,6 @@ use crate::port::Executive as _;
 use crate::recorder::Recorder;
 use anyhow::Context;
 use firmware::link::PortId;
-use nix::poll::{poll, PollFd, PollFlags, PollTimeout};
 use std::os::fd::{AsFd, OwnedFd};
 use std::path::PathBuf;
 
@@ -87,11 +86,7 @@ impl PtyPort {
     }
 
     fn hung_up(&self) -> bool {
-        let mut fds = [PollFd::new(self.master.as_fd(), PollFlags::POLLIN)];
-        let _ = poll(&mut fds, PollTimeout::ZERO);
-        fds[0]
-            .revents()
-            .is_some_and(|r| r.contains(PollFlags::POLLHUP))
+        super::pty::hung_up(self.master.as_fd())
     }
 
     /// A host opened or closed the device since the last call: tell the firmware.
@@ -207,20 +202,11 @@ pub(super) fn wait(ports: &[PtyPort], wait_us: u64) {
     if wait_us == 0 {
         return;
     }
-    let d = std::time::Duration::from_micros(wait_us);
     // A port nobody holds reports a hang-up at once: only the held ones are waited on.
-    let mut fds: Vec<PollFd> = ports
+    let held: Vec<_> = ports
         .iter()
         .filter(|p| p.open)
-        .map(|p| PollFd::new(p.master.as_fd(), PollFlags::POLLIN))
+        .map(|p| p.master.as_fd())
         .collect();
-    if fds.is_empty() {
-        std::thread::sleep(d);
-        return;
-    }
-    let _ = nix::poll::ppoll(
-        &mut fds,
-        Some(nix::sys::time::TimeSpec::from_duration(d)),
-        None,
-    );
+    super::pty::wait_readable(&held, std::time::Duration::from_micros(wait_us));
 }

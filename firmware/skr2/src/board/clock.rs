@@ -26,6 +26,34 @@ static EXT: Mutex<Cell<Ext>> = Mutex::new(Cell::new(Ext {
     last_low: 0,
 }));
 
+/// Switches the flash's ART accelerator on (RM0090 §3.4.2: instruction prefetch, 64-line
+/// instruction cache, 8-line data cache in FLASH_ACR), both caches reset first as §3.4.2 asks
+/// (a reset only while disabled). embassy-stm32 0.6's clock set-up writes FLASH_ACR with the
+/// wait states alone (`rcc/f247.rs`: `FLASH.acr().write(|w| w.set_latency(..))`), which
+/// leaves all three off: every 128-bit flash read then costs its 5 wait states at 168 MHz.
+/// Found on the emulated board's cycle model (docs/board-emu.md, "Clock"): 2.6 cycles an
+/// instruction before. embassy's flash driver turns the data cache off and resets it around
+/// its erases and writes (`flash/f4.rs`).
+pub fn enable_flash_accelerator() {
+    pac::FLASH.acr().modify(|w| {
+        w.set_icen(false);
+        w.set_dcen(false);
+    });
+    pac::FLASH.acr().modify(|w| {
+        w.set_icrst(true);
+        w.set_dcrst(true);
+    });
+    pac::FLASH.acr().modify(|w| {
+        w.set_icrst(false);
+        w.set_dcrst(false);
+    });
+    pac::FLASH.acr().modify(|w| {
+        w.set_prften(true);
+        w.set_icen(true);
+        w.set_dcen(true);
+    });
+}
+
 /// Starts TIM5 free-running at [`TICK_HZ`] over its full 32-bit range.
 pub fn start(tim: embassy_stm32::Peri<'static, embassy_stm32::peripherals::TIM5>) {
     let mut t = Timer::new(tim);

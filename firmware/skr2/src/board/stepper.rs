@@ -16,8 +16,8 @@
 //! ([`floors`]) and reports the re-timed events ([`StepIsr::retime`]).
 //!
 //! The interrupt also keeps the position in steps and enforces the software limits of the
-//! configured volume once the axes are homed; before homing it refuses X/Y/Z steps (no motion
-//! before homing, as Marlin's `NO_MOTION_BEFORE_HOMING`), except those of G28's homing moves.
+//! configured volume on homed axes (`drivers::StepExecutor`, in the executive's step frame);
+//! axes not homed move as Marlin's default moves them, and G28's homing moves anywhere.
 //! During a homing approach it reads the approach's endstop before each of its events and
 //! stops at the switch (`firmware::drivers::homing_watch`): the events left are dropped and
 //! counted, and the motion loop hands the count to the executive ([`take_trip`]).

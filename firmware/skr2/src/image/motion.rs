@@ -4,8 +4,6 @@
 
 use embassy_stm32::gpio::Input;
 use embassy_time::{Duration, Ticker};
-use firmware::config::MachineConfig;
-use firmware::motion::Axis;
 use firmware::printer::{Printer, State, StepperRequest};
 use firmware::stepgen::StepEvent;
 use heapless::spsc::Producer;
@@ -23,15 +21,6 @@ use firmware::printer::BoardStats;
 
 /// Stepper drivers switch off after this long without motion (Marlin's default 120 s).
 const STEPPER_IDLE_S: u32 = 120;
-
-fn steps(cfg: &MachineConfig, axis: Axis, mm: f32) -> i32 {
-    let v = libm::roundf(mm * cfg.axis(axis).steps_per_mm);
-    if v.is_finite() {
-        v.clamp(i32::MIN as f32, i32::MAX as f32) as i32
-    } else {
-        0
-    }
-}
 
 /// Queues the executive's step events up to [`LOOKAHEAD_NS`] ahead, each with its homing
 /// flags (a homing move, the switch that ends it). `held` is an event taken from the
@@ -117,16 +106,6 @@ fn board_stats(p: &mut Printer, reported: &mut RetimeStats) {
     *reported = s;
 }
 
-/// Software limits of X, Y, Z in steps, and their home (minimum) positions.
-pub(super) fn limits_steps(cfg: &MachineConfig) -> [(i32, i32); 3] {
-    [Axis::X, Axis::Y, Axis::Z].map(|a| {
-        (
-            steps(cfg, a, cfg.axis(a).min_mm),
-            steps(cfg, a, cfg.axis(a).max_mm),
-        )
-    })
-}
-
 /// G28 on the board, before `Printer::poll` each tick: an approach the step interrupt
 /// stopped at its switch goes to the executive with what was never stepped (the held event
 /// included); the executive learns whether events are still in flight (homing decides on
@@ -147,12 +126,42 @@ fn homing_before_poll(p: &mut Printer, held: &mut Option<(StepEvent, EventFlags)
     p.set_steps_in_flight(in_flight || held.is_some());
 }
 
+/// The step interrupt follows the executive's configuration: its floors at once after any
+/// change (M92, M203: `board_stats` alone took them once a second, and a fast move after
+/// `M92 X10000` ran on the old floors), its frame (position and travel limits in the current
+/// steps per mm, after M92/M350) once its queue has run dry — events of the old frame must not
+/// meet the new limits. Returns false while a new frame waits for the queue to empty (no new
+/// events are queued meanwhile: they belong to the new frame).
+fn follow_config(
+    p: &Printer,
+    config_epoch: &mut Option<u32>,
+    held: &Option<(StepEvent, EventFlags)>,
+) -> bool {
+    if *config_epoch != Some(p.config_epoch()) {
+        *config_epoch = Some(p.config_epoch());
+        let floors = stepper::floors(p.config());
+        stepper::with(|s| s.retime.set_config(floors));
+    }
+    let frame = p.travel_frame();
+    stepper::with(|s| {
+        if s.exec.frame_epoch() == frame.epoch {
+            return true;
+        }
+        if s.running || held.is_some() {
+            return false;
+        }
+        s.exec.follow(&frame);
+        true
+    })
+    .unwrap_or(true)
+}
+
 /// After `Printer::poll`, before new events are queued: the step interrupt follows the
 /// executive's homed axes (an axis homed in this poll is at its minimum).
 fn homing_after_poll(p: &mut Printer) {
     let fresh = p.take_homed();
     let homed = p.homed_axes();
-    let home = limits_steps(p.config()).map(|(min, _)| min);
+    let home = p.config().travel_limits_steps().map(|(min, _)| min);
     stepper::with(|s| s.exec.set_homed(homed, fresh, home));
 }
 
@@ -172,6 +181,7 @@ pub(super) async fn motion_task(
     let mut blink: u32 = 0;
     let mut held: Option<(StepEvent, EventFlags)> = None;
     let mut reported = RetimeStats::default();
+    let mut config_epoch = None;
     loop {
         ticker.next().await;
         beat(LOOP_MOTION);
@@ -190,6 +200,7 @@ pub(super) async fn motion_task(
             homing_before_poll(&mut p, &mut held);
             p.poll(now_us);
             homing_after_poll(&mut p);
+            let frame_ready = follow_config(&p, &mut config_epoch, &held);
             if p.state() == State::Halted {
                 if !halted {
                     halted = true;
@@ -200,7 +211,7 @@ pub(super) async fn motion_task(
                     });
                     stepper::kick();
                 }
-            } else {
+            } else if frame_ready {
                 feed_steps(&mut p, &mut producer, &mut held);
             }
             let running = stepper::with(|s| s.running).unwrap_or(false);
@@ -242,7 +253,18 @@ pub(super) async fn motion_task(
             }
             if let Some(n) = stepper::with(|s| core::mem::take(&mut s.exec.refused)) {
                 if n > 0 {
-                    defmt::warn!("{} steps refused (not homed or outside the volume)", n);
+                    // The executive checked every target: a refusal here is a fault of the
+                    // firmware, told to the hosts (its moves did not all happen).
+                    defmt::warn!("{} steps refused outside the travel limits", n);
+                    let mut t: heapless::String<120> = heapless::String::new();
+                    let _ = core::fmt::Write::write_fmt(
+                        &mut t,
+                        format_args!(
+                            "step interrupt: {n} steps refused outside the travel limits (a \
+                             firmware fault: the position is no longer true)"
+                        ),
+                    );
+                    p.board_notice(&t);
                 }
             }
             flush_output(&mut p);
