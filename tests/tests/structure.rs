@@ -23,8 +23,6 @@ const CRATES: &[&str] = &[
 const KNOWN: &[&str] = &[
     "host-tools/src: files job/annotation.rs, job/preview_moves.rs",
     "host-tools/src: modules design, job",
-    "board-emu/src: files report.rs, scenario.rs",
-    "board-emu/src: modules report, scenario",
 ];
 
 #[test]
