@@ -34,6 +34,15 @@ impl PortId {
         }
     }
 
+    /// Whether single control bytes (Ctrl-X halt, Ctrl-C cancel, …) are requests on this port
+    /// when nothing else is configured: on the USB port, where a host program chose to send
+    /// them; never on the TFT's UART, where a display sends none and a stray byte of noise on
+    /// its cable would halt or cancel the print (issue 31). [`HostPorts::set_control_bytes`]
+    /// changes it.
+    pub const fn default_control_bytes(self) -> bool {
+        matches!(self, PortId::Usb)
+    }
+
     /// Its name in messages (`USB`, `TFT`).
     pub const fn name(self) -> &'static str {
         match self {
@@ -66,8 +75,10 @@ pub struct HostPorts {
 impl HostPorts {
     /// Idle links on every port.
     pub const fn new() -> Self {
+        let mut tft = HostLink::new();
+        tft.control_bytes = PortId::Tft.default_control_bytes();
         HostPorts {
-            links: [HostLink::new(), HostLink::new()],
+            links: [HostLink::new(), tft],
             line_port: None,
             request_port: None,
             next: 0,
@@ -90,6 +101,12 @@ impl HostPorts {
             PortId::Usb => usb,
             PortId::Tft => tft,
         }
+    }
+
+    /// Whether single control bytes are requests on port `p` (see
+    /// [`PortId::default_control_bytes`], [`HostLink::set_control_bytes`]).
+    pub fn set_control_bytes(&mut self, p: PortId, on: bool) {
+        self.port_mut(p).set_control_bytes(on);
     }
 
     /// Bytes received on port `p`; returns how many were taken (see [`HostLink::receive`]).
@@ -204,7 +221,9 @@ impl HostPorts {
     /// connection starts them anew.
     pub fn reset_port(&mut self, p: PortId) {
         let halted = self.port(p).is_halted();
+        let controls = self.port(p).control_bytes();
         *self.port_mut(p) = HostLink::new();
+        self.port_mut(p).control_bytes = controls;
         if halted {
             self.port_mut(p).halt();
         }

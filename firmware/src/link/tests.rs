@@ -506,7 +506,10 @@ fn a_line_merged_with_its_own_resend_is_refused() {
         let body = format!("{}{glue}N3 M400", numbered(3, "M400").trim_end());
         let merged = format!("{body}*{}\n", checksum(body.as_bytes()));
         feed(&mut l, merged.as_bytes());
-        assert!(out(&mut l).starts_with("Error:checksum mismatch"), "{glue:?}");
+        assert!(
+            out(&mut l).starts_with("Error:checksum mismatch"),
+            "{glue:?}"
+        );
     }
 }
 

@@ -308,6 +308,12 @@ impl Printer {
         self.link.port(port)
     }
 
+    /// Whether single control bytes (Ctrl-X, Ctrl-C, …) are requests on `port` (by default on
+    /// the USB port only: [`PortId::default_control_bytes`]).
+    pub fn set_control_bytes(&mut self, port: PortId, on: bool) {
+        self.link.set_control_bytes(port, on);
+    }
+
     /// Host bytes in on the USB port: [`Printer::receive_on`] with [`PortId::Usb`].
     #[must_use = "bytes not taken must be offered again later (flow control)"]
     pub fn receive(&mut self, bytes: &[u8], now_us: u64) -> usize {
