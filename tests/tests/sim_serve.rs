@@ -26,6 +26,7 @@ fn a_host_prints_pauses_and_resumes_over_the_pseudo_terminal() {
             // The job extrudes without heating (no heater lines): as M302 P1 allows.
             allow_cold_extrusion: true,
             tft: false,
+            tft_control_bytes: false,
             host_paced: false,
         },
         Duration::from_secs(10),
@@ -102,6 +103,7 @@ fn the_fifo_model_parks_and_resumes_a_pause_now_behind_two_moves() {
             sd: None,
             allow_cold_extrusion: false,
             tft: false,
+            tft_control_bytes: false,
             host_paced: false,
         },
         Duration::from_secs(10),
@@ -126,4 +128,54 @@ fn the_fifo_model_parks_and_resumes_a_pause_now_behind_two_moves() {
         host.seen
     );
     server.record().expect("session record");
+}
+
+/// Issue 31 over the pty: a host that does not wait for `ok` writes 100 job lines and then
+/// `M112` in one go. The firmware's emergency scan reads the M112 in the bytes the sim holds
+/// for it (it keeps reading the device while fewer than `SCAN_WINDOW` bytes wait), so the
+/// printer halts before the lines ahead of it have run: only the lines that fitted the queue
+/// were answered (before: all 100 `ok`s, 75 s of moves, then the halt).
+#[test]
+fn m112_written_behind_a_hundred_lines_halts_before_they_run() {
+    let (server, mut host) = serve_in_thread(
+        ServeArgs {
+            speed: 20.0,
+            record: None,
+            policy: Policy::Firmware,
+            exit_after_idle: 1.0,
+            link: None,
+            flash: None,
+            machine: None,
+            trace: None,
+            sd: None,
+            allow_cold_extrusion: true,
+            tft: false,
+            tft_control_bytes: false,
+            host_paced: false,
+        },
+        Duration::from_secs(10),
+    );
+    host.write("M110 N0");
+    host.ok(WAIT);
+    let mut text = String::new();
+    for n in 1..=100u32 {
+        let x = if n % 2 == 0 { 10 } else { 110 };
+        let pre = format!("N{n} G1 X{x} Y{} F1800", 20 + n);
+        text.push_str(&format!("{pre}*{}\n", tests::pty::checksum(&pre)));
+    }
+    let pre = "N101 M112";
+    text.push_str(&format!("{pre}*{}", tests::pty::checksum(pre)));
+    assert!(text.len() < firmware::link::SCAN_WINDOW);
+    host.write(&text);
+    host.until("the halt", WAIT, |l| l.contains("kill() called!"));
+    let oks = host.seen.iter().filter(|l| l.starts_with("ok")).count();
+    assert!(
+        oks < 50,
+        "{oks} lines answered before the halt: {:?}",
+        host.seen
+    );
+    drop(host);
+    let record = server.record().expect("serve session");
+    let s = &record.session;
+    assert!(s.moves_executed < 50, "{s:#?}");
 }

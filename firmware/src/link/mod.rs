@@ -244,7 +244,9 @@ pub struct HostLink {
     asm: Assembler,
     last_line: u32,
     lines: Deque<ReceivedLine, LINE_QUEUE>,
-    realtime: Deque<Realtime, REALTIME_QUEUE>,
+    /// Realtime requests, each with the number of lines that waited in the FIFO when it came
+    /// (lines received before it: [`HostPorts::request_lines_ahead`]).
+    realtime: Deque<(Realtime, u8), REALTIME_QUEUE>,
     estop: bool,
     /// An emergency stop was received or [`HostLink::halt`] called: input is swallowed unanswered.
     halted: bool,
@@ -335,7 +337,7 @@ impl HostLink {
             self.scan.restart(self.events, !self.asm.is_empty());
         }
         // bytes[..front] are scanned (the scan may have seen more than is offered now).
-        let mut front = self.scan.ahead;
+        let mut front = usize::from(self.scan.ahead);
         let mut taken = bytes.len();
         for (i, &b) in bytes.iter().enumerate() {
             if i >= front {
@@ -367,7 +369,9 @@ impl HostLink {
                 return bytes.len();
             }
         }
-        self.scan.ahead = front.saturating_sub(taken);
+        // At most SCAN_WINDOW (the read-ahead stops there, and an earlier frontier was
+        // within it of a taken point no later than this one).
+        self.scan.ahead = u16::try_from(front.saturating_sub(taken)).unwrap_or(u16::MAX);
         self.scan.first = bytes.get(taken).copied().unwrap_or(0);
         taken
     }
@@ -456,11 +460,19 @@ impl HostLink {
 
     /// The next realtime request (an emergency stop first), if any.
     pub fn take_realtime(&mut self) -> Option<Realtime> {
+        self.take_request().map(|(rt, _)| rt)
+    }
+
+    /// [`HostLink::take_realtime`], and how many lines received before the request were
+    /// waiting in the FIFO when it came.
+    fn take_request(&mut self) -> Option<(Realtime, usize)> {
         if self.estop {
             self.estop = false;
-            return Some(Realtime::EmergencyStop);
+            return Some((Realtime::EmergencyStop, self.lines.len()));
         }
-        self.realtime.pop_front()
+        self.realtime
+            .pop_front()
+            .map(|(rt, ahead)| (rt, usize::from(ahead)))
     }
 
     /// Take the oldest checked line — call only when the command queue has room for it, then
@@ -507,7 +519,9 @@ impl HostLink {
             self.halted = true;
         } else {
             // The callers checked for room.
-            let _ = self.realtime.push_back(rt);
+            // LINE_QUEUE lines at most: fits in u8.
+            let ahead = u8::try_from(self.lines.len()).unwrap_or(u8::MAX);
+            let _ = self.realtime.push_back((rt, ahead));
         }
     }
 

@@ -65,6 +65,9 @@ pub struct HostPorts {
     /// Port of the realtime request being handled (until the next `take_realtime` or
     /// `pop_line`).
     request_port: Option<PortId>,
+    /// Lines of that port received before the request and not taken yet (until the next
+    /// `take_realtime` or `pop_line`).
+    request_lines_ahead: usize,
     /// The port `pop_line` tries first, so one busy port cannot starve the other.
     next: usize,
     /// The line being handled was read from a file (the SD card): see
@@ -81,6 +84,7 @@ impl HostPorts {
             links: [HostLink::new(), tft],
             line_port: None,
             request_port: None,
+            request_lines_ahead: 0,
             next: 0,
             file: false,
         }
@@ -118,6 +122,7 @@ impl HostPorts {
     /// [`HostPorts::pop_line`]), [`HostPorts::respond`] answers the port it came from.
     pub fn take_realtime(&mut self) -> Option<Realtime> {
         self.request_port = None;
+        self.request_lines_ahead = 0;
         let first = PortId::ALL
             .into_iter()
             .find(|&p| self.port(p).estop)
@@ -126,9 +131,17 @@ impl HostPorts {
                     .into_iter()
                     .find(|&p| !self.port(p).realtime.is_empty())
             })?;
-        let rt = self.port_mut(first).take_realtime()?;
+        let (rt, ahead) = self.port_mut(first).take_request()?;
         self.request_port = Some(first);
+        self.request_lines_ahead = ahead;
         Some(rt)
+    }
+
+    /// How many lines of its port were received before the realtime request being handled
+    /// and wait in the FIFO (the moves a pause written in the same burst should stop; issue
+    /// 31). 0 outside a request.
+    pub fn request_lines_ahead(&self) -> usize {
+        self.request_lines_ahead
     }
 
     /// The oldest checked line of the next port that has one (ports take turns); its answers
@@ -143,6 +156,7 @@ impl HostPorts {
                 self.next = (i + 1) % PORTS;
                 self.line_port = Some(p);
                 self.request_port = None;
+                self.request_lines_ahead = 0;
                 self.file = false;
                 return Some(l);
             }

@@ -25,15 +25,16 @@ use super::classify::{classify, Verdict};
 use crate::motion::Realtime;
 use heapless::{Deque, Vec};
 
-/// How far past the last byte taken the scan reads, bytes: the bound on how much a host may
+/// How far past the last byte taken the scan reads, bytes (it fits the scan's `u16`): the bound on how much a host may
 /// have written ahead of its `ok`s and still have an `M112` act at once (docs/frontend.md,
 /// "M112 finds its way in"). What a driver holds is the other bound: the scan sees only the
 /// bytes it is offered.
 pub const SCAN_WINDOW: usize = 4096;
+const _: () = assert!(SCAN_WINDOW <= u16::MAX as usize);
 
-/// Longest line the scan judges, bytes (line number, command, checksum, comment):
+/// Longest line the scan judges, bytes (line number, command, checksum, a short comment):
 /// `N2147483647 M410*123` is 20.
-pub const SCAN_LINE: usize = 64;
+pub const SCAN_LINE: usize = 48;
 
 /// Events judged ahead and not yet taken. Beyond this many the scan waits (a host writing
 /// more than four emergency lines ahead of its `ok`s).
@@ -59,8 +60,9 @@ pub(super) enum Judged {
 /// The scan's state for one port.
 #[derive(Clone, Debug)]
 pub(super) struct Scan {
-    /// Bytes past the taken point already scanned (offered in an earlier call).
-    pub(super) ahead: usize,
+    /// Bytes past the taken point already scanned (offered in an earlier call; at most
+    /// [`SCAN_WINDOW`]).
+    pub(super) ahead: u16,
     /// The first of those bytes, to notice a driver that offers other bytes than the ones it
     /// did not get taken (then the scan starts again from the taken point).
     pub(super) first: u8,

@@ -40,11 +40,14 @@ impl Printer {
     }
 
     /// Whether the printer is in a job — the same notion for pause and cancel: work queued or
-    /// moving, or a host streaming one (a line taken or a move ended within
+    /// moving, lines received before the request and not taken yet (a pause written in the
+    /// same burst as the moves it should stop: the link sees it before the executive takes
+    /// them, issue 31), or a host streaming one (a line taken or a move ended within
     /// [`LAYER_PAUSE_IDLE_US`]: between lines, or at a boundary the host drained with M400),
     /// and not a job just cancelled.
     pub(super) fn in_job(&self) -> bool {
-        if self.has_work() {
+        if self.has_work() || self.link.request_lines_ahead() > 0 || self.lines.held_line.is_some()
+        {
             return true;
         }
         let idle_us = self.now_us.saturating_sub(self.last_activity_us);

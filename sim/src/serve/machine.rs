@@ -36,6 +36,8 @@ impl Machine {
         .map(firmware::storage::sd::Card::new);
         let mut fw: PrinterExec = PrinterFactory.make(&sc.machine, &sc.knobs());
         fw.keep_executed = true;
+        fw.printer
+            .set_control_bytes(firmware::link::PortId::Tft, a.tft_control_bytes);
         let mut rec = Recorder::new();
         // Power-cut checks: the head where the last session left it, endstops, the move trace.
         let body = match a.machine.as_deref() {
