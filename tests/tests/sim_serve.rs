@@ -179,3 +179,29 @@ fn m112_written_behind_a_hundred_lines_halts_before_they_run() {
     let s = &record.session;
     assert!(s.moves_executed < 50, "{s:#?}");
 }
+
+/// Issue 31: `--speed 1e-300` was accepted (a clock that never moves); outside
+/// 0.001..=1000000 the session is refused before the pseudo-terminal opens.
+#[test]
+fn nonsense_speeds_are_refused() {
+    for speed in [1e-300, 0.0, -1.0, f64::NAN, f64::INFINITY, 2e6] {
+        let args = ServeArgs {
+            speed,
+            record: None,
+            policy: Policy::Firmware,
+            exit_after_idle: 1.0,
+            link: None,
+            flash: None,
+            machine: None,
+            trace: None,
+            sd: None,
+            allow_cold_extrusion: false,
+            tft: false,
+            tft_control_bytes: false,
+            host_paced: false,
+        };
+        let err = sim::serve::serve_ports(args, |_| panic!("opened at --speed {speed}"))
+            .expect_err("refused");
+        assert!(format!("{err}").contains("--speed"), "{err}");
+    }
+}

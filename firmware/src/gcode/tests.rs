@@ -123,6 +123,21 @@ fn errors_are_specific() {
     assert_eq!(kind("M761 L3 Z2"), ParseErrorKind::BadValue);
     assert_eq!(kind("M25 S2"), ParseErrorKind::BadValue);
     assert_eq!(kind("T300"), ParseErrorKind::OutOfRange);
+    // A refused value names its word's column (issue 31: these blamed column 1).
+    for (line, col) in [
+        ("M569 S2 X", 7),
+        ("M113 S1000000", 7),
+        ("M155 S61", 7),
+        ("M106 S300", 7),
+        ("G2 X1 Y1 I1 P200", 14),
+        ("M761 L3 Z2", 9),
+        ("M761 C1", 7),
+        ("M27 S99999", 6),
+    ] {
+        let e = parse_line(line.as_bytes()).unwrap_err();
+        assert_eq!(e.at + 1, col, "{line}: {e}");
+        assert!(format!("{e}").ends_with(&format!("(column {col})")), "{e}");
+    }
     // Every error has a message and a position.
     let e = parse_line(b"G1 X1 X2").unwrap_err();
     assert_eq!(e.at, 6);

@@ -22,12 +22,32 @@ impl Printer {
         use gcode::Command as G;
         match cmd {
             G::SetTemperature {
-                heater, wait, s, r, ..
+                heater,
+                wait,
+                s,
+                r,
+                tool,
             } => {
+                let code = match (heater, wait) {
+                    (Heater::Hotend, false) => "M104",
+                    (Heater::Hotend, true) => "M109",
+                    (Heater::Bed, false) => "M140",
+                    (Heater::Bed, true) => "M190",
+                };
+                // Marlin's `get_target_extruder_from_command`: an extruder that is not there is
+                // refused, never applied to the one that is (FlashPrint's `M104 S0 T1` for a
+                // second hotend switched the only one off; issue 31/32).
+                if let Some(t) = tool.filter(|t| *t != 0) {
+                    self.warn(format_args!(
+                        "{code} T{t}: invalid extruder (this printer has T0 only)"
+                    ));
+                    return false;
+                }
                 let id = heater_id(*heater);
+                let word = if r.is_some() { 'R' } else { 'S' };
                 if let Some(t) = r.or(*s) {
                     if let Err(e) = self.thermal.set_target(id, t) {
-                        self.warn(format_args!("{e}"));
+                        self.warn(format_args!("{code} {word}{t}: {e}"));
                         return false;
                     }
                 }
@@ -38,6 +58,17 @@ impl Printer {
             G::ReportTemperatures => {
                 // The report is its own `ok`.
                 return self.report_temperatures();
+            }
+            G::FanOn { fan: Some(f), .. } | G::FanOff { fan: Some(f) } if *f != 0 => {
+                // Marlin ignores a fan it does not have (`M106 P9`); here it is said.
+                let code = if matches!(cmd, G::FanOn { .. }) {
+                    "M106"
+                } else {
+                    "M107"
+                };
+                self.warn(format_args!(
+                    "{code} P{f}: no such fan (this printer has P0 only)"
+                ));
             }
             G::FanOn { speed, .. } => {
                 let v = speed.unwrap_or(255.0);
@@ -174,16 +205,22 @@ impl Printer {
                 cycles,
                 use_result,
             } => {
-                let id = if *heater_index == Some(-1) {
-                    HeaterId::Bed
-                } else {
-                    HeaterId::Hotend
+                // Marlin's M303: E-1 the bed, E0 the hotend, else "Bad heater id".
+                let id = match heater_index {
+                    Some(-1) => HeaterId::Bed,
+                    None | Some(0) => HeaterId::Hotend,
+                    Some(e) => {
+                        self.warn(format_args!(
+                            "M303 E{e}: no such heater (E0 the hotend, E-1 the bed)"
+                        ));
+                        return false;
+                    }
                 };
                 let t = target_c.unwrap_or(if id == HeaterId::Bed { 70.0 } else { 200.0 });
                 let c = cycles.unwrap_or(5).min(255) as u8;
                 let now = self.now_us;
                 if let Err(e) = self.thermal.start_autotune(id, t, c, *use_result, now) {
-                    self.warn(format_args!("{e}"));
+                    self.warn(format_args!("M303 S{t}: {e}"));
                 }
             }
             G::EnableSteppers(axes) => {
@@ -210,7 +247,10 @@ impl Printer {
             G::Progress(p) => self.note_progress(p),
             G::Report(c) => self.report_command(c),
             G::PrintStatsInfo { .. } | G::SetLineNumber(_) => {}
-            G::Tool(n) => self.warn(format_args!("T{n}: only one extruder")),
+            // Marlin on a single-extruder machine: `invalid_extruder_error`, nothing changes.
+            G::Tool(n) => self.warn(format_args!(
+                "T{n}: invalid extruder (this printer has T0 only)"
+            )),
             G::Stop { ms, s, .. } => {
                 if ms.is_some() || s.is_some() {
                     match crate::machine::dwell_ms(*ms, *s) {
