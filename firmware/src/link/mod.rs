@@ -332,7 +332,7 @@ impl HostLink {
         if self.halted {
             return bytes.len();
         }
-        if self.scan.ahead > 0 && bytes.first() != Some(&self.scan.first) {
+        if self.scan.ahead > 0 && bytes.first().is_some_and(|b| *b != self.scan.first) {
             // Not the bytes left over last time: scan again from here.
             self.scan.restart(self.events, !self.asm.is_empty());
         }

@@ -40,6 +40,9 @@ pub const SCAN_LINE: usize = 48;
 /// more than four emergency lines ahead of its `ok`s).
 const DECIDED_CAP: usize = 4;
 
+/// Numbered emergency lines remembered as acted (a host resends a few lines at most).
+const ACTED_KEPT: usize = 4;
+
 /// The requests the scan acts on ahead of the taking path (Marlin's emergency parser's set).
 pub(super) const fn is_emergency(rt: Realtime) -> bool {
     matches!(
@@ -74,8 +77,9 @@ pub(super) struct Scan {
     pub(super) events: u32,
     /// Events the scan judged that the taking path has not reached yet.
     pub(super) decided: Deque<u32, DECIDED_CAP>,
-    /// The last numbered emergency line acted on: (line number, request).
-    last_acted: Option<(u32, Realtime)>,
+    /// The last numbered emergency lines acted on, (line number, request), newest last: a
+    /// resend of any of them does not act again.
+    acted: Deque<(u32, Realtime), ACTED_KEPT>,
 }
 
 impl Scan {
@@ -87,7 +91,7 @@ impl Scan {
             long: false,
             events: 0,
             decided: Deque::new(),
-            last_acted: None,
+            acted: Deque::new(),
         }
     }
 
@@ -141,11 +145,11 @@ impl Scan {
         match classify(&asm.line()) {
             Verdict::SetLineNumber(_) => {
                 // A new numbering: a line number seen before may come again.
-                self.last_acted = None;
+                self.acted.clear();
                 None
             }
             Verdict::Realtime(number, rt) if is_emergency(rt) => match number {
-                Some(n) if self.last_acted == Some((n, rt)) => Some(Judged::Again),
+                Some(n) if self.acted.iter().any(|a| *a == (n, rt)) => Some(Judged::Again),
                 _ => Some(Judged::Act(rt, number)),
             },
             _ => None,
@@ -155,7 +159,10 @@ impl Scan {
     /// The judged line acted: remember its number (a resend of it does not act again).
     pub(super) fn acted(&mut self, rt: Realtime, number: Option<u32>) {
         if let Some(n) = number {
-            self.last_acted = Some((n, rt));
+            if self.acted.is_full() {
+                self.acted.pop_front();
+            }
+            let _ = self.acted.push_back((n, rt));
         }
     }
 

@@ -61,6 +61,8 @@ fn m410_and_m108_ahead_act_once_and_are_answered_when_taken() {
     bytes.extend_from_slice(b"M410\n");
     let mut pending = bytes.clone();
     let taken = l.receive(&pending);
+    // An empty offer in between (a driver with nothing new) changes nothing.
+    assert_eq!(l.receive(&[]), 0);
     assert!(taken < bytes.len(), "flow control holds the lines back");
     assert_eq!(l.take_realtime(), Some(Realtime::QuickStop));
     assert_eq!(l.take_realtime(), Some(Realtime::BreakWait));
@@ -107,14 +109,17 @@ fn a_line_that_fails_its_checksum_does_not_act_ahead() {
 fn a_resent_emergency_line_does_not_act_again() {
     let mut l = full_link();
     let n = LINE_QUEUE as u32 + 1;
-    // Line n lost on the way: the host got `Resend: n` and sends n and n+1 again.
+    // Line n lost on the way: the host got `Resend: n` and sends n, n+1 and n+2 again.
     let mut bytes = numbered(n + 1, "M410").into_bytes();
+    bytes.extend_from_slice(numbered(n + 2, "M108").as_bytes());
     bytes.extend_from_slice(numbered(n, "G1 X9").as_bytes());
     bytes.extend_from_slice(numbered(n + 1, "M410").as_bytes());
+    bytes.extend_from_slice(numbered(n + 2, "M108").as_bytes());
     let mut pending = bytes;
     let k = l.receive(&pending);
     pending.drain(..k);
     assert_eq!(l.take_realtime(), Some(Realtime::QuickStop));
+    assert_eq!(l.take_realtime(), Some(Realtime::BreakWait));
     for _ in 0..8 {
         while l.pop_line().is_some() {
             l.respond(Response::Ok);
@@ -124,7 +129,7 @@ fn a_resent_emergency_line_does_not_act_again() {
     }
     assert!(pending.is_empty());
     assert_eq!(l.take_realtime(), None);
-    assert_eq!(l.last_line(), n + 1);
+    assert_eq!(l.last_line(), n + 2);
 }
 
 #[test]
