@@ -332,7 +332,9 @@ impl HostLink {
         if self.halted {
             return bytes.len();
         }
-        if self.scan.ahead > 0 && bytes.first().is_some_and(|b| *b != self.scan.first) {
+        if self.scan.ahead > 0
+            && matches!((self.scan.first, bytes.first()), (Some(f), Some(b)) if f != *b)
+        {
             // Not the bytes left over last time: scan again from here.
             self.scan.restart(self.events, !self.asm.is_empty());
         }
@@ -372,7 +374,8 @@ impl HostLink {
         // At most SCAN_WINDOW (the read-ahead stops there, and an earlier frontier was
         // within it of a taken point no later than this one).
         self.scan.ahead = u16::try_from(front.saturating_sub(taken)).unwrap_or(u16::MAX);
-        self.scan.first = bytes.get(taken).copied().unwrap_or(0);
+        // Unknown when the offer ended at the taken point (a shorter offer than before).
+        self.scan.first = bytes.get(taken).copied();
         taken
     }
 

@@ -67,8 +67,9 @@ pub(super) struct Scan {
     /// [`SCAN_WINDOW`]).
     pub(super) ahead: u16,
     /// The first of those bytes, to notice a driver that offers other bytes than the ones it
-    /// did not get taken (then the scan starts again from the taken point).
-    pub(super) first: u8,
+    /// did not get taken (then the scan starts again from the taken point); `None` when the
+    /// last offer ended at the taken point.
+    pub(super) first: Option<u8>,
     /// The line being scanned (the bytes the assembler would get).
     line: Vec<u8, SCAN_LINE>,
     /// The line is longer than [`SCAN_LINE`]: not judged here.
@@ -86,7 +87,7 @@ impl Scan {
     pub(super) const fn new() -> Self {
         Scan {
             ahead: 0,
-            first: 0,
+            first: None,
             line: Vec::new(),
             long: false,
             events: 0,
