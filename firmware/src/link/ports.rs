@@ -118,6 +118,14 @@ impl HostPorts {
         self.port_mut(p).receive(bytes)
     }
 
+    /// Whether any port holds a realtime request. (The answer port of the last request is
+    /// forgotten by the [`HostPorts::take_realtime`] that returns `None`, so a caller that
+    /// takes requests until `None` may skip the call when this is false.)
+    #[inline]
+    pub fn has_realtime(&self) -> bool {
+        self.links.iter().any(|l| l.estop || !l.realtime.is_empty())
+    }
+
     /// The next realtime request of any port (emergency stops first). Until the next call (or
     /// [`HostPorts::pop_line`]), [`HostPorts::respond`] answers the port it came from.
     pub fn take_realtime(&mut self) -> Option<Realtime> {
