@@ -205,3 +205,61 @@ fn nonsense_speeds_are_refused() {
         assert!(format!("{err}").contains("--speed"), "{err}");
     }
 }
+
+/// Issue 31 over the two ptys (`sim serve --tft`): bytes of noise on the TFT's wire (0x18 and
+/// 0x03 inside a display's `M105`) neither halt nor cancel the USB host's move, and the M105
+/// around them is answered; with `--tft-control-bytes` the same 0x18 halts.
+#[test]
+fn noise_on_the_tft_pty_neither_halts_nor_cancels() {
+    for chosen in [false, true] {
+        let args = ServeArgs {
+            speed: 20.0,
+            record: None,
+            policy: Policy::Firmware,
+            exit_after_idle: 1.0,
+            link: None,
+            flash: None,
+            machine: None,
+            trace: None,
+            sd: None,
+            allow_cold_extrusion: true,
+            tft: true,
+            tft_control_bytes: chosen,
+            host_paced: false,
+        };
+        let (tx, rx) = std::sync::mpsc::channel();
+        let server = std::thread::spawn(move || {
+            sim::serve::serve_ports(args, move |paths| {
+                let _ = tx.send(paths.to_vec());
+            })
+            .map_err(|e| format!("{e:#}"))
+        });
+        let paths = rx
+            .recv_timeout(Duration::from_secs(10))
+            .expect("sim serve printed no device paths");
+        let mut usb = tests::pty::PtyHost::open(&paths[0]);
+        let mut tft = tests::pty::PtyHost::open(&paths[1]);
+        usb.write("G1 X100 F1800");
+        usb.ok(WAIT);
+        tft.write("M1\u{18}\u{3}05");
+        if chosen {
+            tft.until("the halt", WAIT, |l| l.contains("kill() called!"));
+        } else {
+            tft.until("M105's answer", WAIT, |l| l.starts_with("ok T:"));
+            usb.write("M400");
+            usb.ok(WAIT);
+            usb.write("M114");
+            let pos = usb.until("M114's answer", WAIT, |l| l.starts_with("X:"));
+            assert!(pos.contains("X:100.00"), "{pos}");
+            let all = [&usb.seen[..], &tft.seen[..]].concat();
+            assert!(
+                !all.iter()
+                    .any(|l| l.contains("kill()") || l.contains("cancel")),
+                "{all:?}"
+            );
+        }
+        drop((usb, tft));
+        let record = server.join().expect("serve thread").expect("serve session");
+        assert_eq!(record.session.cancelled, false, "{:#?}", record.session);
+    }
+}
