@@ -19,7 +19,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/../firmware/fuzz"
 secs="${FUZZ_SECONDS:-20}"
-# FUZZ_TARGETS to choose.
+# FUZZ_TARGETS to choose; FUZZ_TIMEOUT (s, default 20) is libFuzzer's wall-clock limit for one
+# input: a whole slicer layer printed under instrumentation takes ~12 s of CPU, more on a
+# loaded machine.
 read -r -a targets <<< "${FUZZ_TARGETS:-parse_stream executive host_stream card_image}"
 if ! rustup toolchain list | grep -q '^nightly'; then
   rustup toolchain install nightly --profile minimal
@@ -48,7 +50,7 @@ for t in "${targets[@]}"; do
   [ -d "finds/$t" ] && seeds+=("finds/$t")
   max_len="${FUZZ_MAX_LEN:-$(max_len_of "$t")}"
   echo "== fuzz $t (${secs} s, inputs up to ${max_len} bytes)"
-  "$tdir/$triple/release/$t" -max_total_time="$secs" -timeout=20 -rss_limit_mb=1024 \
+  "$tdir/$triple/release/$t" -max_total_time="$secs" -timeout="${FUZZ_TIMEOUT:-20}" -rss_limit_mb=1024 \
     -max_len="$max_len" -len_control=0 \
     -print_final_stats=1 -artifact_prefix="artifacts/$t/" "corpus/$t" "${seeds[@]}"
 done

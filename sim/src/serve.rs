@@ -43,10 +43,16 @@ use std::time::{Duration, Instant};
 use track::{track, PauseTrack};
 use wire::PtyPort;
 
+/// Slowest `--speed`: a virtual millisecond per real second (slower is no use: a 1 s dwell
+/// would take 17 minutes; `1e-300` froze the clock and was accepted before issue 31).
+pub const MIN_SPEED: f64 = 1e-3;
+/// Fastest `--speed`.
+pub const MAX_SPEED: f64 = 1e6;
+
 /// `sim serve` options.
 #[derive(clap::Args, Debug, Clone)]
 pub struct ServeArgs {
-    /// Virtual seconds per real second.
+    /// Virtual seconds per real second (0.001 to 1000000).
     #[arg(long, default_value_t = 1.0)]
     pub speed: f64,
     /// Write the pauses seen to this JSON file when the session ends.
@@ -89,6 +95,10 @@ pub struct ServeArgs {
     /// second line).
     #[arg(long)]
     pub tft: bool,
+    /// Single control bytes (Ctrl-X halt, Ctrl-C cancel, …) are requests on the TFT port too
+    /// (by default only on the USB port: docs/frontend.md, "Control bytes").
+    #[arg(long)]
+    pub tft_control_bytes: bool,
     /// The virtual clock waits for the hosts: at most 10× real time while a host owes its
     /// reply to an `ok`, and no jump when the sim stalls (see `sim::serve::clock`). For tests
     /// that judge virtual delays at a high `--speed`.
@@ -124,9 +134,9 @@ pub fn serve_with(
 /// (USB, then TFT with `--tft`) once they can be opened. Returns the pause records (also
 /// written to `--record` if given).
 pub fn serve_ports(a: ServeArgs, ready: impl FnOnce(&[PathBuf])) -> anyhow::Result<ServeRecord> {
-    if !(a.speed.is_finite() && a.speed > 0.0 && a.speed <= 1e6) {
+    if !(a.speed.is_finite() && (MIN_SPEED..=MAX_SPEED).contains(&a.speed)) {
         anyhow::bail!(
-            "--speed {}: outside 0..=1000000 (virtual seconds per second)",
+            "--speed {}: outside {MIN_SPEED}..={MAX_SPEED} (virtual seconds per real second)",
             a.speed
         );
     }
@@ -206,9 +216,9 @@ fn open_ports(a: &ServeArgs) -> anyhow::Result<Vec<PtyPort>> {
     if let Some(l) = &a.link {
         check_link_path(l)?;
     }
-    let mut ports = vec![PtyPort::open(PortId::Usb)?];
+    let mut ports = vec![PtyPort::open(PortId::Usb, true)?];
     if a.tft {
-        ports.push(PtyPort::open(PortId::Tft)?);
+        ports.push(PtyPort::open(PortId::Tft, a.tft_control_bytes)?);
     }
     if let Some(l) = &a.link {
         // A stale link from an earlier session (checked above) is replaced; nothing else.

@@ -68,6 +68,7 @@ fn octoprint_reads_the_nested_listing_and_its_selection_opens_each_file() {
             flash: None,
             sd: Some(sd),
             tft: false,
+            tft_control_bytes: false,
             host_paced: false,
             machine: None,
             trace: None,

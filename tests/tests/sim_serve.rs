@@ -26,6 +26,7 @@ fn a_host_prints_pauses_and_resumes_over_the_pseudo_terminal() {
             // The job extrudes without heating (no heater lines): as M302 P1 allows.
             allow_cold_extrusion: true,
             tft: false,
+            tft_control_bytes: false,
             host_paced: false,
         },
         Duration::from_secs(10),
@@ -102,6 +103,7 @@ fn the_fifo_model_parks_and_resumes_a_pause_now_behind_two_moves() {
             sd: None,
             allow_cold_extrusion: false,
             tft: false,
+            tft_control_bytes: false,
             host_paced: false,
         },
         Duration::from_secs(10),
@@ -126,4 +128,138 @@ fn the_fifo_model_parks_and_resumes_a_pause_now_behind_two_moves() {
         host.seen
     );
     server.record().expect("session record");
+}
+
+/// Issue 31 over the pty: a host that does not wait for `ok` writes 100 job lines and then
+/// `M112` in one go. The firmware's emergency scan reads the M112 in the bytes the sim holds
+/// for it (it keeps reading the device while fewer than `SCAN_WINDOW` bytes wait), so the
+/// printer halts before the lines ahead of it have run: only the lines that fitted the queue
+/// were answered (before: all 100 `ok`s, 75 s of moves, then the halt).
+#[test]
+fn m112_written_behind_a_hundred_lines_halts_before_they_run() {
+    let (server, mut host) = serve_in_thread(
+        ServeArgs {
+            speed: 20.0,
+            record: None,
+            policy: Policy::Firmware,
+            exit_after_idle: 1.0,
+            link: None,
+            flash: None,
+            machine: None,
+            trace: None,
+            sd: None,
+            allow_cold_extrusion: true,
+            tft: false,
+            tft_control_bytes: false,
+            host_paced: false,
+        },
+        Duration::from_secs(10),
+    );
+    host.write("M110 N0");
+    host.ok(WAIT);
+    let mut text = String::new();
+    for n in 1..=100u32 {
+        let x = if n % 2 == 0 { 10 } else { 110 };
+        let pre = format!("N{n} G1 X{x} Y{} F1800", 20 + n);
+        text.push_str(&format!("{pre}*{}\n", tests::pty::checksum(&pre)));
+    }
+    let pre = "N101 M112";
+    text.push_str(&format!("{pre}*{}", tests::pty::checksum(pre)));
+    assert!(text.len() < firmware::link::SCAN_WINDOW);
+    host.write(&text);
+    host.until("the halt", WAIT, |l| l.contains("kill() called!"));
+    let oks = host.seen.iter().filter(|l| l.starts_with("ok")).count();
+    assert!(
+        oks < 50,
+        "{oks} lines answered before the halt: {:?}",
+        host.seen
+    );
+    drop(host);
+    let record = server.record().expect("serve session");
+    let s = &record.session;
+    assert!(s.moves_executed < 50, "{s:#?}");
+}
+
+/// Issue 31: `--speed 1e-300` was accepted (a clock that never moves); outside
+/// 0.001..=1000000 the session is refused before the pseudo-terminal opens.
+#[test]
+fn nonsense_speeds_are_refused() {
+    for speed in [1e-300, 0.0, -1.0, f64::NAN, f64::INFINITY, 2e6] {
+        let args = ServeArgs {
+            speed,
+            record: None,
+            policy: Policy::Firmware,
+            exit_after_idle: 1.0,
+            link: None,
+            flash: None,
+            machine: None,
+            trace: None,
+            sd: None,
+            allow_cold_extrusion: false,
+            tft: false,
+            tft_control_bytes: false,
+            host_paced: false,
+        };
+        let err = sim::serve::serve_ports(args, |_| panic!("opened at --speed {speed}"))
+            .expect_err("refused");
+        assert!(format!("{err}").contains("--speed"), "{err}");
+    }
+}
+
+/// Issue 31 over the two ptys (`sim serve --tft`): bytes of noise on the TFT's wire (0x18 and
+/// 0x03 inside a display's `M105`) neither halt nor cancel the USB host's move, and the M105
+/// around them is answered; with `--tft-control-bytes` the same 0x18 halts.
+#[test]
+fn noise_on_the_tft_pty_neither_halts_nor_cancels() {
+    for chosen in [false, true] {
+        let args = ServeArgs {
+            speed: 20.0,
+            record: None,
+            policy: Policy::Firmware,
+            exit_after_idle: 1.0,
+            link: None,
+            flash: None,
+            machine: None,
+            trace: None,
+            sd: None,
+            allow_cold_extrusion: true,
+            tft: true,
+            tft_control_bytes: chosen,
+            host_paced: false,
+        };
+        let (tx, rx) = std::sync::mpsc::channel();
+        let server = std::thread::spawn(move || {
+            sim::serve::serve_ports(args, move |paths| {
+                let _ = tx.send(paths.to_vec());
+            })
+            .map_err(|e| format!("{e:#}"))
+        });
+        let paths = rx
+            .recv_timeout(Duration::from_secs(10))
+            .expect("sim serve printed no device paths");
+        let mut usb = tests::pty::PtyHost::open(&paths[0]);
+        let mut tft = tests::pty::PtyHost::open(&paths[1]);
+        usb.write("G1 X100 F1800");
+        usb.ok(WAIT);
+        tft.write("M1\u{18}\u{3}05");
+        if chosen {
+            tft.until("the halt", WAIT, |l| l.contains("kill() called!"));
+        } else {
+            tft.until("M105's answer", WAIT, |l| l.starts_with("ok T:"));
+            usb.write("M400");
+            usb.ok(WAIT);
+            usb.write("M114");
+            let pos = usb.until("M114's answer", WAIT, |l| l.starts_with("X:"));
+            assert!(pos.contains("X:100.00"), "{pos}");
+            let all = [&usb.seen[..], &tft.seen[..]].concat();
+            assert!(
+                !all.iter()
+                    .any(|l| l.contains("kill()") || l.contains("cancel")),
+                "{all:?}"
+            );
+        }
+        drop((usb, tft));
+        let record = server.join().expect("serve thread").expect("serve session");
+        assert_eq!(record.session.cancelled, false, "{:#?}", record.session);
+    }
 }

@@ -31,6 +31,7 @@ fn session_with(flash: &Path, lines: &[&str], pause_after: Option<usize>) -> Vec
             // The job extrudes without heating (no heater lines): as M302 P1 allows.
             allow_cold_extrusion: true,
             tft: false,
+            tft_control_bytes: false,
             host_paced: false,
         },
         Duration::from_secs(10),

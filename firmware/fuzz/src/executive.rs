@@ -2,7 +2,7 @@
 //! executive, in every policy, with heater sensor faults.
 
 use super::{Harness, Sensor, TICK_US};
-use firmware::link::PortId;
+use firmware::link::{control_byte, PortId};
 use firmware::motion::{PauseMode, Realtime};
 use firmware::printer::{PausedLines, Policy};
 
@@ -42,6 +42,44 @@ pub const DICT: [&str; 32] = [
     "M114",
 ];
 
+/// The dictionary of byte 0's bit 3 (issue 31): numbers with exponents as Python and C write
+/// them, lines refused for the word they name, emergency lines (read ahead of the lines
+/// before them), slicer comments with exponents.
+pub const DICT_31: [&str; 32] = [
+    "G1 X1e-05 Y20 F3000",
+    "G1 X20 E1e9",
+    "G1 X1e39",
+    "G1 X1.5E+02 Y2.5e1 E1e-3",
+    "M104 S2e2",
+    "M104 T9 S200",
+    "M104 S0 T1",
+    "T1",
+    "M106 P9",
+    "M106 S1.28e2",
+    "M303 E5",
+    "M569 S2 X",
+    "M113 S1000000",
+    "G1 X13 F0.0001",
+    "G4 P1e3",
+    "M112",
+    "M108",
+    "M410",
+    "N1 M410*39",
+    "N2 M112*35",
+    ";Z:1e-3",
+    ";LAYER_CHANGE",
+    "G1 Z2e-1 F600",
+    "G1 X100 Y100 E1 F6e3",
+    "G1 X10 ; a*0.85",
+    "M110 N0",
+    "M601",
+    "M602",
+    "M524",
+    "M400",
+    "M105",
+    "N3 M108*9",
+];
+
 /// The policies the `executive` target runs, by the low 2 bits of its first byte: ours, the
 /// conventional-firmware model `sim --policy fifo` runs (16 moves queued, the pause at the
 /// tail), ours with every line while paused a manual command (`PausedLines::Manual`), ours
@@ -64,8 +102,9 @@ pub fn policy_of(k: u8) -> Policy {
     }
 }
 
-/// The `executive` target. Byte 0 chooses the policy ([`POLICIES`], low 2 bits; the other
-/// bits are free). The rest is a little program, each byte an op (top 3 bits) and an argument
+/// The `executive` target. Byte 0 chooses the policy ([`POLICIES`], low 2 bits), whether single
+/// control bytes are requests on the TFT port too (bit 2; by default only on USB) and the
+/// dictionary (bit 3: [`DICT_31`], else [`DICT`]); the other bits are free. The rest is a little program, each byte an op (top 3 bits) and an argument
 /// (low 5 bits): raw bytes to the USB (0, 1) or TFT (2) port, a dictionary line to the USB (3)
 /// or TFT (4) port, time passing (5, 6), a button request (7, argument 0–23) or a sensor fault
 /// (7, argument 24–31: bit 0 the bed, bits 1–2 NaN, +∞, −∞, detached; it lasts to the end).
@@ -75,6 +114,11 @@ pub fn run_executive(data: &[u8]) {
         return;
     };
     let mut h = Harness::with_policy(policy_of(config));
+    let tft_controls = config & 4 != 0;
+    h.p.set_control_bytes(PortId::Tft, tft_controls);
+    let dict = if config & 8 != 0 { &DICT_31 } else { &DICT };
+    // Control bytes written to the TFT port (each dropped as noise unless they are requests).
+    let mut tft_control_bytes = 0u32;
     let mut i = 0;
     while let Some(&b) = data.get(i) {
         i += 1;
@@ -85,10 +129,14 @@ pub fn run_executive(data: &[u8]) {
                 let end = (i + arg + 1).min(data.len());
                 let raw = data.get(i..end).unwrap_or(&[]).to_vec();
                 i = end;
+                if port == PortId::Tft {
+                    let n = raw.iter().filter(|&&b| control_byte(b).is_some()).count();
+                    tft_control_bytes += n as u32;
+                }
                 h.write(port, &raw);
             }
             3 | 4 => {
-                let line = format!("{}\n", DICT[arg]);
+                let line = format!("{}\n", dict[arg]);
                 let port = if op == 4 { PortId::Tft } else { PortId::Usb };
                 h.write(port, line.as_bytes());
             }
@@ -125,4 +173,14 @@ pub fn run_executive(data: &[u8]) {
         }
     }
     h.finish();
+    // Control bytes on the TFT port act only where they were chosen: otherwise each one taken
+    // is dropped as noise (after a halt the rest is swallowed untaken by the count).
+    let ignored = h.p.port(PortId::Tft).stats().controls_ignored;
+    if tft_controls {
+        assert_eq!(ignored, 0);
+    } else if h.p.status().state != firmware::printer::State::Halted {
+        assert_eq!(ignored, tft_control_bytes, "TFT control bytes not dropped");
+    } else {
+        assert!(ignored <= tft_control_bytes);
+    }
 }

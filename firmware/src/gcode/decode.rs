@@ -28,7 +28,7 @@ pub(super) fn build_known(code: (u8, u16), w: &Words<'_>) -> Option<Result<Comma
                 // P: whole circles, 0..=100 as Marlin's G2_G3.cpp allows.
                 let circles = w.u8(b'P')?.unwrap_or(0);
                 if circles > crate::gcode::ARC_MAX_CIRCLES {
-                    return Err(err(ParseErrorKind::OutOfRange, 0));
+                    return Err(w.refuse(b'P', ParseErrorKind::OutOfRange));
                 }
                 Command::Arc {
                     clockwise: n == 2,
@@ -146,7 +146,7 @@ pub(super) fn build_known(code: (u8, u16), w: &Words<'_>) -> Option<Result<Comma
                 w.check(b"SP", b"")?;
                 let speed = w.f32(b'S')?;
                 if speed.is_some_and(|s| !(0.0..=255.0).contains(&s)) {
-                    return Err(err(ParseErrorKind::OutOfRange, 0));
+                    return Err(w.refuse(b'S', ParseErrorKind::OutOfRange));
                 }
                 Command::FanOn {
                     speed,
@@ -276,11 +276,11 @@ pub(super) fn build_known(code: (u8, u16), w: &Words<'_>) -> Option<Result<Comma
             (b'M', 761) => {
                 w.check(b"LZC", b"C")?;
                 if w.words.len() > 1 {
-                    return Err(err(ParseErrorKind::BadValue, 0));
+                    return Err(w.refuse_nth(1, ParseErrorKind::BadValue));
                 }
                 let s = if w.has(b'C') {
                     if w.find(b'C').is_some_and(|c| c.num.is_some()) {
-                        return Err(err(ParseErrorKind::BadValue, 0));
+                        return Err(w.refuse(b'C', ParseErrorKind::BadValue));
                     }
                     PauseSchedule::Clear
                 } else if let Some(l) = w.u32(b'L')? {

@@ -43,7 +43,7 @@ pub(super) fn build(n: u16, w: &Words<'_>) -> Result<DriverCommand, ParseError> 
                 None => None,
                 Some(0) => Some(false),
                 Some(1) => Some(true),
-                Some(_) => return Err(err(ParseErrorKind::OutOfRange, 0)),
+                Some(_) => return Err(w.refuse(b'S', ParseErrorKind::OutOfRange)),
             };
             DriverCommand::Chopper {
                 axes: w.flags(),

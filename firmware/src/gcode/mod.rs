@@ -9,9 +9,11 @@
 //! - a command word: `G`, `M` or `T` with a whole number (`G1`, `G01`, `M104`, `T0`; a subcode
 //!   such as `M862.3` makes an [`Command::Unknown`]), or a Klipper-style extended command name
 //!   (`SET_PRINT_STATS_INFO CURRENT_LAYER=3`; any other name is [`Command::Unknown`]);
-//! - parameter words: a letter and a decimal number (`X-1.5`, `E.03321`, `F7800`), no exponent
-//!   (`X1E5` is X=1, E=5), magnitude at most [`MAX_ABS_VALUE`] and, unless zero, at least
-//!   [`MIN_ABS_VALUE`]; some letters are flags that may stand alone (`G28 X Y`);
+//! - parameter words: a letter and a decimal number (`X-1.5`, `E.03321`, `F7800`), an exponent
+//!   part of the number as C's `strtof` reads it (`X1e-05` is X = 0.00001, never X1 and an
+//!   `E-05` word), magnitude at most [`MAX_ABS_VALUE`] and, unless zero, at least
+//!   [`MIN_ABS_VALUE`] (beyond: refused, never cut); some letters are flags that may stand alone
+//!   (`G28 X Y`);
 //! - comments: `;` to the end of the line, and `( … )` anywhere between words;
 //! - text commands (M117, M118): the rest of the line up to `;`, cut to [`TEXT_CAP`] bytes.
 //!

@@ -1,10 +1,15 @@
-//! Decimal numbers as G-code writes them: `[+-]? digits [. digits]` or `[+-]? . digits`.
+//! Decimal numbers as G-code writes them: `[+-]? digits [. digits] [exponent]` or
+//! `[+-]? . digits [exponent]`, the exponent `e`/`E` with an optional sign and at least one digit.
 //!
-//! There is no exponent (in G-code `X1E5` means X=1, E=5), no `nan`, no `inf`. A number is lexed
-//! once into an exact decimal (mantissa and count of fractional digits) and converted on demand:
-//! to `f32` with correct rounding (an exact fast path for the usual short numbers, an exact
-//! integer division otherwise: core's parser would link its 10 KiB power-of-five table and
-//! big-decimal code into the image) or to an integer (exact, or an error if it has a fraction).
+//! An exponent is part of the number, as C's `strtof` (Marlin's reader) takes it: `X1e-05` (what
+//! Python's `str()` and C's `%g` write for a small value) is X = 0.00001, never X = 1 plus an
+//! `E-05` word; a value that ends up out of range is refused, not cut. An `e`/`E` that is not
+//! followed by a digit (with an optional sign) is the next word's letter, as before (`G1 X1 E2`,
+//! `G1X1E`). No `nan`, no `inf`, no hexadecimal. A number is lexed once into an exact decimal
+//! (mantissa and power of ten) and converted on demand: to `f32` with correct rounding (an exact
+//! fast path for the usual short numbers, an exact integer division otherwise: core's parser
+//! would link its 10 KiB power-of-five table and big-decimal code into the image) or to an
+//! integer (exact, or an error if it has a fraction).
 
 use super::ParseErrorKind;
 
@@ -37,19 +42,58 @@ const POW10_U64: [u64; 20] = {
     t
 };
 
+/// Largest exponent magnitude kept while reading one (more digits saturate: the value is out
+/// of range long before).
+const MAX_EXPONENT: i32 = 9999;
+
 /// An exact decimal as written in the line: `(-1)^neg * mant / 10^scale`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub(crate) struct Num {
     /// Digits without the point.
     pub mant: u64,
-    /// Number of digits after the point.
-    pub scale: u8,
+    /// Power of ten the mantissa is divided by: the digits after the point less the exponent
+    /// (negative: multiplied, `1e5`).
+    pub scale: i16,
     /// A leading `-`.
     pub neg: bool,
     /// Start of the number text in the line (for the slow conversion path).
     pub start: u16,
     /// End (exclusive) of the number text in the line.
     pub end: u16,
+}
+
+/// The digits at `body[k..]`, accumulated into `acc` by `step`; returns the end.
+fn digits_from(body: &[u8], mut k: usize, mut step: impl FnMut(u8)) -> usize {
+    while let Some(d) = body
+        .get(k)
+        .map(|c| c.wrapping_sub(b'0'))
+        .filter(|d| *d <= 9)
+    {
+        step(d);
+        k += 1;
+    }
+    k
+}
+
+/// An exponent at `body[k..]` (`e`/`E`, an optional sign, at least one digit): its value and
+/// the position after it, or `None` when none starts there (the `e` is then a letter).
+fn exponent(body: &[u8], k: usize) -> Option<(i32, usize)> {
+    if !matches!(body.get(k), Some(b'e' | b'E')) {
+        return None;
+    }
+    let (neg, first) = match body.get(k + 1) {
+        Some(b'-') => (true, k + 2),
+        Some(b'+') => (false, k + 2),
+        _ => (false, k + 1),
+    };
+    if !body.get(first).is_some_and(u8::is_ascii_digit) {
+        return None;
+    }
+    let mut e: i32 = 0;
+    let end = digits_from(body, first, |d| {
+        e = (e * 10 + i32::from(d)).min(MAX_EXPONENT);
+    });
+    Some((if neg { -e } else { e }, end))
 }
 
 /// Lex a number starting at `pos` in `line`. Returns the number and the position after it, or
@@ -64,33 +108,18 @@ pub(crate) fn lex(line: &[u8], pos: usize) -> Result<Option<(Num, usize)>, Parse
     };
     let sign_len = rest.len() - body.len();
     let mut mant: u64 = 0;
-    let mut k = 0usize;
     // Integer digits, then an optional point and fraction digits. Wrapping arithmetic: the
     // result is exact whenever there are at most 19 significant digits, checked below.
-    while let Some(d) = body
-        .get(k)
-        .map(|c| c.wrapping_sub(b'0'))
-        .filter(|d| *d <= 9)
-    {
-        mant = mant.wrapping_mul(10).wrapping_add(u64::from(d));
-        k += 1;
-    }
+    let mut push = |d: u8| mant = mant.wrapping_mul(10).wrapping_add(u64::from(d));
+    let mut k = digits_from(body, 0, &mut push);
     let int_digits = k;
-    let mut scale = 0usize;
+    let mut frac = 0usize;
     if body.get(k) == Some(&b'.') {
-        k += 1;
-        let fs = k;
-        while let Some(d) = body
-            .get(k)
-            .map(|c| c.wrapping_sub(b'0'))
-            .filter(|d| *d <= 9)
-        {
-            mant = mant.wrapping_mul(10).wrapping_add(u64::from(d));
-            k += 1;
-        }
-        scale = k - fs;
+        let fs = k + 1;
+        k = digits_from(body, fs, &mut push);
+        frac = k - fs;
     }
-    let digits = int_digits + scale;
+    let digits = int_digits + frac;
     if digits == 0 {
         return Err(ParseErrorKind::MissingNumber);
     }
@@ -107,16 +136,26 @@ pub(crate) fn lex(line: &[u8], pos: usize) -> Result<Option<(Num, usize)>, Parse
             return Err(ParseErrorKind::TooManyDigits);
         }
     }
+    let mut exp = 0;
+    if let Some((e, end)) = exponent(body, k) {
+        exp = e;
+        k = end;
+        // `1e5.5`: no reading of it is the file's number.
+        if body.get(k) == Some(&b'.') {
+            return Err(ParseErrorKind::BadNumber);
+        }
+    }
     let len = sign_len + k;
     if len > MAX_NUMBER_LEN {
         return Err(ParseErrorKind::NumberTooLong);
     }
     let end = pos + len;
-    // `len <= MAX_NUMBER_LEN`, so scale fits in u8; positions saturate for the long lines only
-    // host tools parse.
+    // `frac < MAX_NUMBER_LEN` and `|exp| <= MAX_EXPONENT`, so the scale fits in i16; positions
+    // saturate for the long lines only host tools parse.
+    let scale = (frac as i32 - exp) as i16;
     let num = Num {
         mant,
-        scale: scale as u8,
+        scale,
         neg,
         start: pos.min(usize::from(u16::MAX)) as u16,
         end: end.min(usize::from(u16::MAX)) as u16,
@@ -125,17 +164,36 @@ pub(crate) fn lex(line: &[u8], pos: usize) -> Result<Option<(Num, usize)>, Parse
 }
 
 impl Num {
+    /// The value as `mant / 10^scale` with `scale` in `0..=`[`MAX_SCALE`]: a scale below zero
+    /// (an exponent that scales up) is multiplied in — exactly, or out of range — and a non-zero
+    /// value with a larger scale is below [`MIN_ABS_VALUE`] (the mantissa has at most 19
+    /// digits, so it is under `10^19 / 10^32`).
+    fn normal(self) -> Result<(u64, u8), ParseErrorKind> {
+        if self.mant == 0 {
+            return Ok((0, 0));
+        }
+        if self.scale < 0 {
+            let m = POW10_U64
+                .get(usize::from(self.scale.unsigned_abs()))
+                .and_then(|p| self.mant.checked_mul(*p))
+                .ok_or(ParseErrorKind::OutOfRange)?;
+            return Ok((m, 0));
+        }
+        match u8::try_from(self.scale) {
+            Ok(s) if s <= MAX_SCALE => Ok((self.mant, s)),
+            _ => Err(ParseErrorKind::OutOfRange),
+        }
+    }
+
     /// The value as `f32`, correctly rounded, within ±[`MAX_ABS_VALUE`].
     pub fn to_f32(self, _line: &[u8]) -> Result<f32, ParseErrorKind> {
-        let mag = if self.mant <= (1 << 24) && usize::from(self.scale) < POW10_F32.len() {
+        let (mant, scale) = self.normal()?;
+        let mag = if mant <= (1 << 24) && usize::from(scale) < POW10_F32.len() {
             // Both operands exact in f32, so the single division rounds correctly.
-            let p = POW10_F32
-                .get(usize::from(self.scale))
-                .copied()
-                .unwrap_or(1.0);
-            self.mant as f32 / p
+            let p = POW10_F32.get(usize::from(scale)).copied().unwrap_or(1.0);
+            mant as f32 / p
         } else {
-            exact_f32(self.mant, self.scale)
+            exact_f32(mant, scale)
         };
         if !mag.is_finite() || mag > MAX_ABS_VALUE || (mag != 0.0 && mag < MIN_ABS_VALUE) {
             return Err(ParseErrorKind::OutOfRange);
@@ -145,10 +203,10 @@ impl Num {
 
     /// The value as an exact integer; a fractional part that is not zero is an error.
     pub fn to_i64(self) -> Result<i64, ParseErrorKind> {
-        let whole = if self.scale == 0 {
-            self.mant
+        let whole = if self.scale <= 0 {
+            self.normal()?.0
         } else {
-            let Some(&p) = POW10_U64.get(usize::from(self.scale)) else {
+            let Some(&p) = POW10_U64.get(usize::from(self.scale.unsigned_abs())) else {
                 // More than 19 fractional digits: only an all-zero mantissa is whole.
                 return if self.mant == 0 {
                     Ok(0)
@@ -181,8 +239,8 @@ impl Num {
 }
 
 /// A whole text that is one decimal number (as in a G-code word), as `f32`: for numbers in
-/// comments (the layer detector's `;Z:0.3`), so nothing else parses floats (see the module
-/// documentation). None for anything else (exponents, `inf`, trailing text) or out of range.
+/// comments (the layer detector's `;Z:0.3`, `;Z:1e-3`), so nothing else parses floats (see the
+/// module documentation). None for anything else (`inf`, trailing text) or out of range.
 pub(crate) fn decimal(text: &[u8]) -> Option<f32> {
     match lex(text, 0) {
         Ok(Some((n, end))) if end == text.len() => n.to_f32(text).ok(),
@@ -190,15 +248,16 @@ pub(crate) fn decimal(text: &[u8]) -> Option<f32> {
     }
 }
 
-/// The largest `scale` [`lex`] can give: a number of at most [`MAX_NUMBER_LEN`] bytes has at
-/// most that many less one (the point) fractional digits. [`exact_f32`] relies on it (`r << 24`
-/// fits in `u128` only while `10^scale < 2^104`), so a longer number limit fails to compile.
-const MAX_SCALE: u8 = (MAX_NUMBER_LEN - 1) as u8;
-const _: () = assert!(MAX_SCALE <= 31);
+/// The largest scale converted ([`Num::normal`]; beyond it every non-zero value is below
+/// [`MIN_ABS_VALUE`]). [`exact_f32`] relies on it (`r << 24` fits in `u128` only while
+/// `10^scale < 2^104`).
+const MAX_SCALE: u8 = 31;
+const _: () = assert!(10u128.pow(MAX_SCALE as u32) < 1 << 104);
 
 /// `mant / 10^scale` as `f32`, correctly rounded (to nearest, ties to even), by integer
 /// division: the quotient's leading bits and whether anything was left over decide the
-/// rounding. Exact for every number [`lex`] gives (`mant < 10^19`, `scale <= 31`, so
+/// rounding. Exact for every number [`Num::normal`] gives (`mant < 10^19` or a product
+/// that fits in `u64`, `scale <= 31`, so
 /// `10^scale < 2^104` and every value is a normal `f32`).
 fn exact_f32(mant: u64, scale: u8) -> f32 {
     if mant == 0 {
@@ -270,6 +329,182 @@ mod tests {
     }
 
     #[test]
+    fn exponents_are_part_of_the_number() {
+        assert_eq!(f("1e-05"), Ok(1e-5));
+        assert_eq!(f("1E-05"), Ok(1e-5));
+        assert_eq!(f("-2.5e+03"), Ok(-2500.0));
+        assert_eq!(f(".5e1"), Ok(5.0));
+        assert_eq!(f("7.e2"), Ok(700.0));
+        assert_eq!(f("0e99999999"), Ok(0.0));
+        assert_eq!(f("1e7"), Ok(1e7));
+        // Out of range either way: refused, never cut.
+        assert_eq!(f("1e39"), Err(ParseErrorKind::OutOfRange));
+        assert_eq!(f("1e9"), Err(ParseErrorKind::OutOfRange));
+        assert_eq!(f("1e-13"), Err(ParseErrorKind::OutOfRange));
+        assert_eq!(f("1e-99999"), Err(ParseErrorKind::OutOfRange));
+        assert_eq!(f("1e99999"), Err(ParseErrorKind::OutOfRange));
+        assert_eq!(f("1e5.5"), Err(ParseErrorKind::BadNumber));
+        // Not an exponent: the `e` is the next letter.
+        for (text, end) in [("1e", 1), ("1e-", 1), ("1E+X", 1), ("1EX", 1)] {
+            let (n, at) = lex(text.as_bytes(), 0).unwrap().unwrap();
+            assert_eq!((n.to_f32(b"").unwrap(), at), (1.0, end), "{text}");
+        }
+        let (n, _) = lex(b"2e3", 0).unwrap().unwrap();
+        assert_eq!(n.to_u32(), Ok(2000));
+        let (n, _) = lex(b"25e-1", 0).unwrap().unwrap();
+        assert_eq!(n.to_u32(), Err(ParseErrorKind::NotWhole));
+        let (n, _) = lex(b"1e-40", 0).unwrap().unwrap();
+        assert_eq!(n.to_u32(), Err(ParseErrorKind::NotWhole));
+        let (n, _) = lex(b"1e30", 0).unwrap().unwrap();
+        assert_eq!(n.to_u32(), Err(ParseErrorKind::OutOfRange));
+        // The layer detector's comment numbers share the lexer.
+        assert_eq!(decimal(b"1e-3"), Some(1e-3));
+    }
+
+    /// What Python 3's `repr`/`str` of a float writes (`float_repr_style` "short"): the
+    /// shortest digits that read back, exponent form below 1e-4 and from 1e16, the exponent
+    /// with a sign and at least two digits, `.0` after a whole number in fixed form.
+    fn python_repr(x: f64) -> String {
+        let (digits, exp) = sci_digits(&format!("{x:e}"));
+        let neg = if x.is_sign_negative() { "-" } else { "" };
+        if !(-4..16).contains(&exp) {
+            return format!("{neg}{}e{}", point_after_first(&digits), exp_text(exp));
+        }
+        let fixed = fixed_from_digits(&digits, exp);
+        let fixed = if fixed.contains('.') {
+            fixed
+        } else {
+            fixed + ".0"
+        };
+        format!("{neg}{fixed}")
+    }
+
+    /// What C's `printf("%.<p>g")` writes (`%g` is p = 6; `%G` upper case): p significant
+    /// digits, exponent form when the exponent X is below -4 or at least p, trailing zeros and
+    /// a trailing point removed.
+    fn c_g(x: f64, p: usize, upper: bool) -> String {
+        let (digits, exp) = sci_digits(&format!("{:.*e}", p - 1, x.abs()));
+        let digits = digits.trim_end_matches('0');
+        let digits = if digits.is_empty() { "0" } else { digits };
+        let neg = if x.is_sign_negative() { "-" } else { "" };
+        let e = if upper { "E" } else { "e" };
+        if exp < -4 || exp >= p as i32 {
+            format!("{neg}{}{e}{}", point_after_first(digits), exp_text(exp))
+        } else {
+            format!("{neg}{}", fixed_from_digits(digits, exp))
+        }
+    }
+
+    /// Rust's `{:e}` text (`1.2345e-7`) as its digits (`12345`) and decimal exponent.
+    fn sci_digits(s: &str) -> (String, i32) {
+        let s = s.trim_start_matches('-');
+        let (m, e) = s.split_once('e').unwrap();
+        (m.replace('.', ""), e.parse().unwrap())
+    }
+
+    fn point_after_first(digits: &str) -> String {
+        match digits.len() {
+            1 => digits.to_string(),
+            _ => format!("{}.{}", &digits[..1], &digits[1..]),
+        }
+    }
+
+    fn exp_text(exp: i32) -> String {
+        format!("{}{:02}", if exp < 0 { '-' } else { '+' }, exp.abs())
+    }
+
+    /// `d.ddd × 10^exp` in fixed notation, no trailing zeros after a point.
+    fn fixed_from_digits(digits: &str, exp: i32) -> String {
+        if exp < 0 {
+            let zeros = "0".repeat((-exp - 1) as usize);
+            return format!("0.{zeros}{digits}");
+        }
+        let int_len = exp as usize + 1;
+        if digits.len() <= int_len {
+            format!("{digits}{}", "0".repeat(int_len - digits.len()))
+        } else {
+            format!("{}.{}", &digits[..int_len], &digits[int_len..])
+        }
+    }
+
+    /// The formatters above against the real tools' output (Python 3.11: `repr(v)`, and its
+    /// `%` formatting, which follows C's printf: `'%g' % v`, `'%G' % v`, `'%.17g' % v`).
+    #[test]
+    fn formatters_match_python_and_printf() {
+        let table: [(f64, &str, &str, &str, &str); 15] = [
+            (1e-05, "1e-05", "1e-05", "1E-05", "1.0000000000000001e-05"),
+            (0.1, "0.1", "0.1", "0.1", "0.10000000000000001"),
+            (
+                2.5e-05,
+                "2.5e-05",
+                "2.5e-05",
+                "2.5E-05",
+                "2.5000000000000001e-05",
+            ),
+            (
+                -3e-06,
+                "-3e-06",
+                "-3e-06",
+                "-3E-06",
+                "-3.0000000000000001e-06",
+            ),
+            (
+                1.5e-07,
+                "1.5e-07",
+                "1.5e-07",
+                "1.5E-07",
+                "1.4999999999999999e-07",
+            ),
+            (
+                123456789.0,
+                "123456789.0",
+                "1.23457e+08",
+                "1.23457E+08",
+                "123456789",
+            ),
+            (0.0001, "0.0001", "0.0001", "0.0001", "0.0001"),
+            (
+                0.00012345678901234,
+                "0.00012345678901234",
+                "0.000123457",
+                "0.000123457",
+                "0.00012345678901234001",
+            ),
+            (1e16, "1e+16", "1e+16", "1E+16", "10000000000000000"),
+            (9999999.5, "9999999.5", "1e+07", "1E+07", "9999999.5"),
+            (1e-12, "1e-12", "1e-12", "1E-12", "9.9999999999999998e-13"),
+            (
+                7.25e-10,
+                "7.25e-10",
+                "7.25e-10",
+                "7.25E-10",
+                "7.2499999999999998e-10",
+            ),
+            (200.0, "200.0", "200", "200", "200"),
+            (1e39, "1e+39", "1e+39", "1E+39", "9.9999999999999994e+38"),
+            (1e9, "1000000000.0", "1e+09", "1E+09", "1000000000"),
+        ];
+        for (v, repr, g, big_g, g17) in table {
+            assert_eq!(python_repr(v), repr, "{v}");
+            assert_eq!(c_g(v, 6, false), g, "{v}");
+            assert_eq!(c_g(v, 6, true), big_g, "{v}");
+            assert_eq!(c_g(v, 17, false), g17, "{v}");
+        }
+    }
+
+    /// What a formatted value must read as: core's correctly rounded `f32`, or refused as out
+    /// of range when that is beyond the accepted magnitudes.
+    fn want(s: &str) -> Result<u32, ParseErrorKind> {
+        let v: f32 = s.parse().unwrap();
+        let m = v.abs();
+        if m.is_finite() && (m == 0.0 || (MIN_ABS_VALUE..=MAX_ABS_VALUE).contains(&m)) {
+            Ok(v.to_bits())
+        } else {
+            Err(ParseErrorKind::OutOfRange)
+        }
+    }
+
+    #[test]
     fn integers() {
         let b = b"12.000";
         let (n, _) = lex(b, 0).unwrap().unwrap();
@@ -321,6 +556,41 @@ mod tests {
             }
             let want: f32 = s.parse().unwrap();
             prop_assert_eq!(exact_f32(mant, scale).to_bits(), want.to_bits(), "{}", s);
+        }
+
+        /// Floats as Python and C format them, exponents included, read as the one number the
+        /// text means (core's `str::parse`), in a G1 line too: never an extra `E` word.
+        #[test]
+        fn formatted_floats_read_as_written(
+            m in 1.0f64..10.0,
+            e in -15i32..10,
+            neg: bool,
+            p in 1usize..18,
+            style in 0u8..4,
+        ) {
+            let x = if neg { -m } else { m } * 10f64.powi(e);
+            let text = match style {
+                0 => python_repr(x),
+                1 => c_g(x, 6, false),
+                2 => c_g(x, 6, true),
+                _ => c_g(x, p, false),
+            };
+            let w = want(&text);
+            prop_assert_eq!(f(&text).map(f32::to_bits), w, "{}", text);
+            let line = format!("G1 X{text} Y20");
+            let parsed = crate::gcode::parse_line(line.as_bytes()).map(|l| l.command);
+            match (w, parsed) {
+                (Ok(bits), Ok(Some(crate::gcode::Command::Move { axes, .. }))) => {
+                    prop_assert_eq!(axes.0[0].map(f32::to_bits), Some(bits), "{}", line);
+                    prop_assert_eq!(axes.0[1], Some(20.0));
+                    prop_assert_eq!(axes.0[3], None, "{}: an extra E word", line);
+                }
+                (Err(k), Err(e)) => {
+                    prop_assert_eq!(e.kind, k);
+                    prop_assert_eq!(e.at, 4, "{}: the error names X's number", line);
+                }
+                (w, p) => prop_assert!(false, "{}: want {:?}, got {:?}", line, w, p),
+            }
         }
 
         /// Shortest round-trip text of any in-range f32 parses back to the same bits.

@@ -1,7 +1,7 @@
 //! The report M-codes hosts expect of a Marlin-class firmware: their parameters as parsed, and
 //! their G-code text. The executive's handlers are in `printer/report.rs`.
 
-use super::{err, ParseError, ParseErrorKind, Words};
+use super::{ParseError, ParseErrorKind, Words};
 use core::fmt::{self, Write};
 
 /// Longest period M155/M113 accept, s (Marlin takes a byte: 0–60 for M155, 1–60 for M113).
@@ -31,7 +31,7 @@ pub(super) fn build(n: u16, w: &Words<'_>) -> Result<ReportCommand, ParseError> 
     let period = |w: &Words<'_>| -> Result<Option<u32>, ParseError> {
         w.check(b"S", b"")?;
         match w.u32(b'S')? {
-            Some(s) if s > MAX_REPORT_PERIOD_S => Err(err(ParseErrorKind::OutOfRange, 0)),
+            Some(s) if s > MAX_REPORT_PERIOD_S => Err(w.refuse(b'S', ParseErrorKind::OutOfRange)),
             s => Ok(s),
         }
     };

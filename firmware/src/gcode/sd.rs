@@ -74,7 +74,9 @@ pub(super) fn build(n: u16, w: &Words<'_>) -> Result<SdCommand, ParseError> {
         _ => {
             w.check(b"SC", b"C")?;
             match w.u32(b'S')? {
-                Some(s) if s > MAX_SD_REPORT_S => return Err(err(ParseErrorKind::OutOfRange, 0)),
+                Some(s) if s > MAX_SD_REPORT_S => {
+                    return Err(w.refuse(b'S', ParseErrorKind::OutOfRange))
+                }
                 Some(s) => SdCommand::AutoReport(s),
                 None => SdCommand::CurrentFile,
             }

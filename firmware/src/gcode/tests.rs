@@ -44,12 +44,29 @@ fn moves() {
         }
     );
     assert_eq!(cmd("G01 X1"), cmd("G1 X1"));
-    // E is a letter, not an exponent.
+    // E is a letter after a blank or a complete number, an exponent inside one (as C's
+    // `strtof`, Marlin's reader, takes it): `X1e-05` is one number, never X1 and E-05.
+    assert_eq!(
+        cmd("G1 X1 E5"),
+        Command::Move {
+            rapid: false,
+            axes: AxisWords([Some(1.0), None, None, Some(5.0)]),
+            feed: None
+        }
+    );
+    assert_eq!(
+        cmd("G1 X1e-05 Y20"),
+        Command::Move {
+            rapid: false,
+            axes: AxisWords([Some(1e-5), Some(20.0), None, None]),
+            feed: None
+        }
+    );
     assert_eq!(
         cmd("G1 X1E5"),
         Command::Move {
             rapid: false,
-            axes: AxisWords([Some(1.0), None, None, Some(5.0)]),
+            axes: AxisWords([Some(1e5), None, None, None]),
             feed: None
         }
     );
@@ -79,8 +96,12 @@ fn errors_are_specific() {
     assert_eq!(kind("G1 Xnan"), ParseErrorKind::MissingNumber);
     assert_eq!(kind("G1 Xinf"), ParseErrorKind::MissingNumber);
     assert_eq!(kind("G1 X-"), ParseErrorKind::MissingNumber);
-    // `1e30` is not a number in G-code: in G1 it is X1 E30, elsewhere a stray E.
-    assert_eq!(kind("M104 S1e30"), ParseErrorKind::UnexpectedLetter);
+    // An exponent is part of the number: out of range is refused at the word, never an E.
+    assert_eq!(kind("M104 S1e30"), ParseErrorKind::OutOfRange);
+    assert_eq!(kind("G1 X1e39"), ParseErrorKind::OutOfRange);
+    assert_eq!(kind("G1 X20 E1e9"), ParseErrorKind::OutOfRange);
+    assert_eq!(parse_line(b"G1 X20 E1e9").unwrap_err().at, 8);
+    assert_eq!(kind("G1 X1e5.5"), ParseErrorKind::BadNumber);
     assert_eq!(
         kind("G1 X1000000000000000000000000000000"),
         ParseErrorKind::TooManyDigits
@@ -102,6 +123,21 @@ fn errors_are_specific() {
     assert_eq!(kind("M761 L3 Z2"), ParseErrorKind::BadValue);
     assert_eq!(kind("M25 S2"), ParseErrorKind::BadValue);
     assert_eq!(kind("T300"), ParseErrorKind::OutOfRange);
+    // A refused value names its word's column (issue 31: these blamed column 1).
+    for (line, col) in [
+        ("M569 S2 X", 7),
+        ("M113 S1000000", 7),
+        ("M155 S61", 7),
+        ("M106 S300", 7),
+        ("G2 X1 Y1 I1 P200", 14),
+        ("M761 L3 Z2", 9),
+        ("M761 C1", 7),
+        ("M27 S99999", 6),
+    ] {
+        let e = parse_line(line.as_bytes()).unwrap_err();
+        assert_eq!(e.at + 1, col, "{line}: {e}");
+        assert!(format!("{e}").ends_with(&format!("(column {col})")), "{e}");
+    }
     // Every error has a message and a position.
     let e = parse_line(b"G1 X1 X2").unwrap_err();
     assert_eq!(e.at, 6);

@@ -147,6 +147,20 @@ impl<'a> Words<'a> {
         }
     }
 
+    /// A refusal of word `c`'s value, at the column of its number (of the letter when it has
+    /// none): `M569 S2 X` blames column 7, not column 1.
+    pub(super) fn refuse(&self, c: u8, kind: ParseErrorKind) -> ParseError {
+        let at = self
+            .find(c)
+            .map_or(0, |w| usize::from(w.at) + usize::from(w.num.is_some()));
+        err(kind, at)
+    }
+
+    /// A refusal of the `i`-th word (in the order written), at its letter.
+    pub(super) fn refuse_nth(&self, i: usize, kind: ParseErrorKind) -> ParseError {
+        err(kind, self.words.get(i).map_or(0, |w| usize::from(w.at)))
+    }
+
     pub(super) fn has(&self, c: u8) -> bool {
         self.mask & bit(c) != 0
     }

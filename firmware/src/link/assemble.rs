@@ -4,8 +4,9 @@
 //! The command text is kept up to [`LINE_CAP`] bytes; past that the line is marked cut (its
 //! head is kept). Comment text (after `;`) is kept up to [`COMMENT_KEEP`] bytes and the rest
 //! dropped as it arrives: enough for every layer marker, never an error. The checksum is
-//! computed as the bytes arrive (XOR of everything before the last `*`), so a line whose
-//! comment was dropped is still checked exactly.
+//! computed as the bytes arrive (XOR of everything before the last `*`, as Marlin's
+//! `strrchr(command, '*')`), so a line whose comment was dropped is still checked exactly, and a
+//! `*` inside a comment the host kept (`G1 X10 ; a*0.85*44`) is text, not the checksum.
 
 use super::{COMMENT_KEEP, LINE_CAP};
 use heapless::Vec;
@@ -38,9 +39,45 @@ pub(super) struct Assembler {
     /// The last `*`: XOR of the bytes before it, and its index in `buf` if it was kept.
     star: Option<(u8, Option<usize>)>,
     tail: Tail,
-    /// `*<digit>` pairs seen (a checksum is one; two lines merged by a lost line end have two).
-    star_digits: u16,
-    prev: u8,
+    /// Where the line stands in the pattern of a line end lost between two numbered lines.
+    merge: MergeScan,
+    /// That pattern was seen: a checksum, then the start of another numbered line.
+    merged: bool,
+}
+
+/// The signature of two lines merged by a lost (or corrupted) line end: a checksum (`*` and
+/// one to three digits, a fourth if the line end became a digit), at most two other bytes
+/// (the line end turned into noise, a CR of CR LF), then `N` and a digit or `-` — the next
+/// numbered line (`N19 M400*317N19 M400*31`). A `*` in comment text (`; a*0.85`) is not
+/// followed by that, so it is not taken for a merge.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+enum MergeScan {
+    /// Outside the pattern.
+    #[default]
+    Idle,
+    /// After a `*` and this many digits.
+    Digits(u8),
+    /// After the digits and this many other bytes.
+    Gap(u8),
+    /// After the `N`.
+    N,
+}
+
+impl MergeScan {
+    /// The state after byte `b`; true when the pattern is complete.
+    fn step(self, b: u8) -> (Self, bool) {
+        let n = matches!(b, b'N' | b'n');
+        match self {
+            _ if b == b'*' => (Self::Digits(0), false),
+            Self::Digits(k) if b.is_ascii_digit() && k < 4 => (Self::Digits(k + 1), false),
+            Self::Digits(0) => (Self::Idle, false),
+            Self::Digits(_) | Self::Gap(_) if n => (Self::N, false),
+            Self::Digits(_) => (Self::Gap(1), false),
+            Self::Gap(g) if g < 2 => (Self::Gap(g + 1), false),
+            Self::N => (Self::Idle, b.is_ascii_digit() || b == b'-'),
+            Self::Gap(_) | Self::Idle => (Self::Idle, false),
+        }
+    }
 }
 
 /// A complete line, ready to be checked.
@@ -51,8 +88,8 @@ pub(super) struct Assembled<'a> {
     pub checksum: Option<u8>,
     /// Whether that checksum matches the line.
     pub sum_ok: bool,
-    /// A checksum, and another `*<digit>` before it (two lines merged by a lost line end):
-    /// never a valid line.
+    /// A checksum, and before it the signature of a lost line end ([`MergeScan`]): never a
+    /// valid line.
     pub merged: bool,
     /// Command text was longer than [`LINE_CAP`]: `raw` is its head.
     pub cut: bool,
@@ -73,8 +110,8 @@ impl Assembler {
                 blank_after: false,
                 other: false,
             },
-            star_digits: 0,
-            prev: 0,
+            merge: MergeScan::Idle,
+            merged: false,
         }
     }
 
@@ -99,9 +136,6 @@ impl Assembler {
             self.star = Some((self.xor, kept.then_some(at)));
             self.tail = Tail::default();
         } else {
-            if b.is_ascii_digit() && self.prev == b'*' {
-                self.star_digits = self.star_digits.saturating_add(1);
-            }
             if self.star.is_some() {
                 let t = &mut self.tail;
                 match b {
@@ -115,8 +149,10 @@ impl Assembler {
             }
             self.keep(b);
         }
+        let (merge, merged) = self.merge.step(b);
+        self.merge = merge;
+        self.merged |= merged;
         self.xor ^= b;
-        self.prev = b;
     }
 
     /// Keep `b` in the buffer if the rules allow; returns whether it was kept.
@@ -169,7 +205,7 @@ impl Assembler {
             raw: trim(raw),
             checksum,
             sum_ok,
-            merged: checksum.is_some() && self.star_digits > 1,
+            merged: checksum.is_some() && self.merged,
             cut: self.code_cut,
         }
     }

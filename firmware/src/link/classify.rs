@@ -42,9 +42,10 @@ pub(super) fn classify(a: &Assembled<'_>) -> Verdict {
         // `N` makes the line look unnumbered: it is resent all the same).
         (_, Some(_)) if !a.sum_ok => return Verdict::Resend("checksum mismatch"),
         // Two lines merged by a lost line end (`N19 M400*31` + its own resend): the XOR of the
-        // repeated text cancels and the sum of the merge can be right. A checksum-like
-        // `*<digit>` inside the text is refused as Marlin does (it checks up to the first
-        // `*`), so the host resends instead of the line being lost.
+        // repeated text cancels and the sum of the merge can be right. A checksum followed by
+        // the start of a numbered line is refused, so the host resends instead of the line
+        // being lost; a `*` in comment text is not (the checksum is the last `*`'s, as
+        // Marlin's).
         (_, Some(_)) if a.merged => return Verdict::Resend("checksum mismatch"),
         _ => {}
     }

@@ -107,6 +107,8 @@ mod output;
 mod ports;
 mod realtime;
 mod response;
+// M112/M108/M410 seen in bytes not taken yet.
+mod scan;
 mod sequence;
 
 pub use file::{FileLine, FileLines};
@@ -120,12 +122,14 @@ pub use response::{
     HostAction, PositionReport, Response, TempReport, CAPABILITIES, FIRMWARE_NAME,
     FIRMWARE_VERSION, PROTOCOL_VERSION,
 };
+pub use scan::{SCAN_LINE, SCAN_WINDOW};
 
 use crate::gcode;
 use crate::motion::Realtime;
 use assemble::Assembler;
 use classify::{classify, split_number, Verdict, TOO_LONG};
 use heapless::{Deque, Vec};
+use scan::{is_emergency, Judged, Scan};
 // What the tests' `use super::*` found here before the split.
 #[cfg(test)]
 use crate::{gcode::Command, motion::PauseMode};
@@ -226,6 +230,12 @@ pub struct LinkStats {
     pub duplicates: u32,
     /// Responses dropped because the output ring was full (the driver did not drain it).
     pub output_dropped: u32,
+    /// Emergency requests (M112, M108, M410, their control bytes) acted on from bytes not yet
+    /// taken (the emergency scan, `link/scan.rs`).
+    pub emergency_ahead: u32,
+    /// Control bytes dropped as noise on a port where they are not requests
+    /// ([`HostLink::set_control_bytes`]).
+    pub controls_ignored: u32,
 }
 
 /// The host link state of one port. See the module documentation.
@@ -234,7 +244,9 @@ pub struct HostLink {
     asm: Assembler,
     last_line: u32,
     lines: Deque<ReceivedLine, LINE_QUEUE>,
-    realtime: Deque<Realtime, REALTIME_QUEUE>,
+    /// Realtime requests, each with the number of lines that waited in the FIFO when it came
+    /// (lines received before it: [`HostPorts::request_lines_ahead`]).
+    realtime: Deque<(Realtime, u8), REALTIME_QUEUE>,
     estop: bool,
     /// An emergency stop was received or [`HostLink::halt`] called: input is swallowed unanswered.
     halted: bool,
@@ -245,6 +257,12 @@ pub struct HostLink {
     reset_pending: bool,
     out: Deque<u8, OUT_CAP>,
     stats: LinkStats,
+    /// Single control bytes are requests on this port (else dropped as noise).
+    control_bytes: bool,
+    /// The emergency scan of bytes not taken yet.
+    scan: Scan,
+    /// Events (line ends, control bytes) taken so far, counted as the scan counts them.
+    events: u32,
 }
 
 impl Default for HostLink {
@@ -273,47 +291,191 @@ impl HostLink {
                 rejected: 0,
                 duplicates: 0,
                 output_dropped: 0,
+                emergency_ahead: 0,
+                controls_ignored: 0,
             },
+            control_bytes: true,
+            scan: Scan::new(),
+            events: 0,
         }
+    }
+
+    /// Whether single control bytes (Ctrl-X, Ctrl-C, …, [`control_byte`]) are requests on this
+    /// port (the default of a new link) or noise to drop (a display's UART: one stray byte on
+    /// its cable must not halt the printer).
+    /// Changing it restarts the emergency scan at the taken point (set it before bytes
+    /// arrive).
+    pub fn set_control_bytes(&mut self, on: bool) {
+        if on != self.control_bytes {
+            self.control_bytes = on;
+            self.scan.restart(self.events, !self.asm.is_empty());
+        }
+    }
+
+    /// See [`HostLink::set_control_bytes`].
+    pub fn control_bytes(&self) -> bool {
+        self.control_bytes
     }
 
     /// Feed received bytes (any amount, any split). Takes only what it has room for and returns
     /// how many bytes it took, from the front: the caller keeps the rest and offers them again
-    /// later (flow control — the bytes stay in the pty or the USB endpoint NAKs). It stops
-    /// before a line end when the line FIFO is full, before a control byte or realtime line
-    /// when the realtime queue is full, and before any line end while fewer than
+    /// later, first (flow control — the bytes stay in the pty or the USB endpoint NAKs). It
+    /// stops before a line end when the line FIFO is full, before a control byte or realtime
+    /// line when the realtime queue is full, and before any line end while fewer than
     /// [`LINK_RESERVE`] output bytes are free. Realtime requests and control bytes are seen for
-    /// every byte taken. After an emergency stop every byte is taken and ignored, unanswered.
-    /// Never blocks, never panics.
+    /// every byte taken; `M112`, `M108`, `M410` and their control bytes also in the bytes not
+    /// taken, up to [`SCAN_WINDOW`] past the last one taken (the emergency scan, `scan.rs`).
+    /// After an emergency stop every byte is taken and ignored, unanswered. Never blocks, never
+    /// panics.
     #[must_use = "bytes not taken must be offered again later (flow control)"]
     pub fn receive(&mut self, bytes: &[u8]) -> usize {
+        if self.halted {
+            return bytes.len();
+        }
+        if self.scan.ahead > 0
+            && matches!((self.scan.first, bytes.first()), (Some(f), Some(b)) if f != *b)
+        {
+            // Not the bytes left over last time: scan again from here.
+            self.scan.restart(self.events, !self.asm.is_empty());
+        }
+        // bytes[..front] are scanned (the scan may have seen more than is offered now).
+        let mut front = usize::from(self.scan.ahead);
+        let mut taken = bytes.len();
         for (i, &b) in bytes.iter().enumerate() {
-            if self.halted {
-                return bytes.len();
+            if i >= front {
+                if !self.scan_byte(b) {
+                    taken = i;
+                    break;
+                }
+                front = i + 1;
             }
-            if let Some(rt) = control_byte(b) {
-                if rt != Realtime::EmergencyStop && self.realtime.is_full() {
-                    return i;
-                }
-                self.push_realtime(rt);
-            } else if b == b'\n' || b == b'\r' {
-                if !self.end_line() {
-                    return i;
-                }
-            } else {
-                self.asm.push(b);
+            if !self.take_byte(b) {
+                taken = i;
+                break;
             }
         }
-        bytes.len()
+        if self.halted {
+            // M112 (or Ctrl-X): as Marlin's kill(), everything is taken and ignored.
+            return bytes.len();
+        }
+        // Read on through what is not taken: the emergency scan.
+        let limit = bytes.len().min(taken.saturating_add(SCAN_WINDOW));
+        while front < limit {
+            let Some(&b) = bytes.get(front) else { break };
+            if !self.scan_byte(b) {
+                break;
+            }
+            front += 1;
+            if self.halted {
+                // An M112 ahead: as Marlin's kill(), everything is taken and ignored.
+                return bytes.len();
+            }
+        }
+        // At most SCAN_WINDOW (the read-ahead stops there, and an earlier frontier was
+        // within it of a taken point no later than this one).
+        self.scan.ahead = u16::try_from(front.saturating_sub(taken)).unwrap_or(u16::MAX);
+        // Unknown when the offer ended at the taken point (a shorter offer than before).
+        self.scan.first = bytes.get(taken).copied();
+        taken
+    }
+
+    /// Take one byte (scanned already). False: no room, the byte is not taken. Once halted
+    /// every byte is taken and ignored.
+    fn take_byte(&mut self, b: u8) -> bool {
+        if self.halted {
+            return true;
+        }
+        if let Some(rt) = control_byte(b) {
+            if !self.control_bytes {
+                self.stats.controls_ignored = self.stats.controls_ignored.saturating_add(1);
+                return true;
+            }
+            if self.scan.take_decided(self.events) {
+                // The scan acted on it already.
+            } else {
+                if rt != Realtime::EmergencyStop && self.realtime.is_full() {
+                    return false;
+                }
+                self.push_realtime(rt);
+            }
+            self.events = self.events.wrapping_add(1);
+        } else if b == b'\n' || b == b'\r' {
+            if !self.end_line() {
+                return false;
+            }
+            self.events = self.events.wrapping_add(1);
+        } else {
+            self.asm.push(b);
+        }
+        true
+    }
+
+    /// Scan one byte not taken yet (see `scan.rs`). False: the scan must wait here (no room to
+    /// record or queue what it found).
+    fn scan_byte(&mut self, b: u8) -> bool {
+        if self.halted {
+            return true;
+        }
+        if let Some(rt) = control_byte(b) {
+            if !self.control_bytes {
+                return true;
+            }
+            if is_emergency(rt) {
+                if !self.scan.has_room()
+                    || (rt != Realtime::EmergencyStop && self.realtime.is_full())
+                {
+                    return false;
+                }
+                self.scan.decide(self.scan.events);
+                self.act_ahead(rt);
+            }
+            self.scan.end_control();
+        } else if b == b'\n' || b == b'\r' {
+            if let Some(judged) = self.scan.judge_line() {
+                let act = match judged {
+                    Judged::Act(rt, _) => Some(rt),
+                    Judged::Again => None,
+                };
+                if !self.scan.has_room()
+                    || act
+                        .is_some_and(|rt| rt != Realtime::EmergencyStop && self.realtime.is_full())
+                {
+                    return false;
+                }
+                self.scan.decide(self.scan.events);
+                if let Judged::Act(rt, number) = judged {
+                    self.scan.acted(rt, number);
+                    self.act_ahead(rt);
+                }
+            }
+            self.scan.end_line();
+        } else {
+            self.scan.push(b);
+        }
+        true
+    }
+
+    /// An emergency request found by the scan (room was checked).
+    fn act_ahead(&mut self, rt: Realtime) {
+        self.stats.emergency_ahead = self.stats.emergency_ahead.saturating_add(1);
+        self.push_realtime(rt);
     }
 
     /// The next realtime request (an emergency stop first), if any.
     pub fn take_realtime(&mut self) -> Option<Realtime> {
+        self.take_request().map(|(rt, _)| rt)
+    }
+
+    /// [`HostLink::take_realtime`], and how many lines received before the request were
+    /// waiting in the FIFO when it came.
+    fn take_request(&mut self) -> Option<(Realtime, usize)> {
         if self.estop {
             self.estop = false;
-            return Some(Realtime::EmergencyStop);
+            return Some((Realtime::EmergencyStop, self.lines.len()));
         }
-        self.realtime.pop_front()
+        self.realtime
+            .pop_front()
+            .map(|(rt, ahead)| (rt, usize::from(ahead)))
     }
 
     /// Take the oldest checked line — call only when the command queue has room for it, then
@@ -360,7 +522,9 @@ impl HostLink {
             self.halted = true;
         } else {
             // The callers checked for room.
-            let _ = self.realtime.push_back(rt);
+            // LINE_QUEUE lines at most: fits in u8.
+            let ahead = u8::try_from(self.lines.len()).unwrap_or(u8::MAX);
+            let _ = self.realtime.push_back((rt, ahead));
         }
     }
 
@@ -381,7 +545,9 @@ impl HostLink {
                 return false;
             }
             Verdict::Realtime(_, rt)
-                if *rt != Realtime::EmergencyStop && self.realtime.is_full() =>
+                if *rt != Realtime::EmergencyStop
+                    && self.realtime.is_full()
+                    && self.scan.decided.front() != Some(&self.events) =>
             {
                 return false;
             }
@@ -398,7 +564,11 @@ impl HostLink {
                 self.reset_pending = true;
                 self.respond(Response::Ok);
             }
-            Verdict::Realtime(number, rt) => self.realtime_line(number, rt),
+            Verdict::Realtime(number, rt) => {
+                // Judged by the emergency scan: it acted (or knew not to) already.
+                let acted = self.scan.take_decided(self.events);
+                self.realtime_line(number, rt, acted)
+            }
             Verdict::Command(line) => self.command_line(line),
             Verdict::TooLong(number) => {
                 if self.number_ok(number) {
@@ -412,5 +582,7 @@ impl HostLink {
     }
 }
 
+#[cfg(test)]
+mod scan_tests;
 #[cfg(test)]
 mod tests;

@@ -34,6 +34,15 @@ impl PortId {
         }
     }
 
+    /// Whether single control bytes (Ctrl-X halt, Ctrl-C cancel, …) are requests on this port
+    /// when nothing else is configured: on the USB port, where a host program chose to send
+    /// them; never on the TFT's UART, where a display sends none and a stray byte of noise on
+    /// its cable would halt or cancel the print (issue 31). [`HostPorts::set_control_bytes`]
+    /// changes it.
+    pub const fn default_control_bytes(self) -> bool {
+        matches!(self, PortId::Usb)
+    }
+
     /// Its name in messages (`USB`, `TFT`).
     pub const fn name(self) -> &'static str {
         match self {
@@ -56,6 +65,9 @@ pub struct HostPorts {
     /// Port of the realtime request being handled (until the next `take_realtime` or
     /// `pop_line`).
     request_port: Option<PortId>,
+    /// Lines of that port received before the request and not taken yet (until the next
+    /// `take_realtime` or `pop_line`).
+    request_lines_ahead: usize,
     /// The port `pop_line` tries first, so one busy port cannot starve the other.
     next: usize,
     /// The line being handled was read from a file (the SD card): see
@@ -66,10 +78,13 @@ pub struct HostPorts {
 impl HostPorts {
     /// Idle links on every port.
     pub const fn new() -> Self {
+        let mut tft = HostLink::new();
+        tft.control_bytes = PortId::Tft.default_control_bytes();
         HostPorts {
-            links: [HostLink::new(), HostLink::new()],
+            links: [HostLink::new(), tft],
             line_port: None,
             request_port: None,
+            request_lines_ahead: 0,
             next: 0,
             file: false,
         }
@@ -92,15 +107,30 @@ impl HostPorts {
         }
     }
 
+    /// Whether single control bytes are requests on port `p` (see
+    /// [`PortId::default_control_bytes`], [`HostLink::set_control_bytes`]).
+    pub fn set_control_bytes(&mut self, p: PortId, on: bool) {
+        self.port_mut(p).set_control_bytes(on);
+    }
+
     /// Bytes received on port `p`; returns how many were taken (see [`HostLink::receive`]).
     pub fn receive(&mut self, p: PortId, bytes: &[u8]) -> usize {
         self.port_mut(p).receive(bytes)
+    }
+
+    /// Whether any port holds a realtime request. (The answer port of the last request is
+    /// forgotten by the [`HostPorts::take_realtime`] that returns `None`, so a caller that
+    /// takes requests until `None` may skip the call when this is false.)
+    #[inline]
+    pub fn has_realtime(&self) -> bool {
+        self.links.iter().any(|l| l.estop || !l.realtime.is_empty())
     }
 
     /// The next realtime request of any port (emergency stops first). Until the next call (or
     /// [`HostPorts::pop_line`]), [`HostPorts::respond`] answers the port it came from.
     pub fn take_realtime(&mut self) -> Option<Realtime> {
         self.request_port = None;
+        self.request_lines_ahead = 0;
         let first = PortId::ALL
             .into_iter()
             .find(|&p| self.port(p).estop)
@@ -109,9 +139,17 @@ impl HostPorts {
                     .into_iter()
                     .find(|&p| !self.port(p).realtime.is_empty())
             })?;
-        let rt = self.port_mut(first).take_realtime()?;
+        let (rt, ahead) = self.port_mut(first).take_request()?;
         self.request_port = Some(first);
+        self.request_lines_ahead = ahead;
         Some(rt)
+    }
+
+    /// How many lines of its port were received before the realtime request being handled
+    /// and wait in the FIFO (the moves a pause written in the same burst should stop; issue
+    /// 31). 0 outside a request.
+    pub fn request_lines_ahead(&self) -> usize {
+        self.request_lines_ahead
     }
 
     /// The oldest checked line of the next port that has one (ports take turns); its answers
@@ -126,6 +164,7 @@ impl HostPorts {
                 self.next = (i + 1) % PORTS;
                 self.line_port = Some(p);
                 self.request_port = None;
+                self.request_lines_ahead = 0;
                 self.file = false;
                 return Some(l);
             }
@@ -204,7 +243,9 @@ impl HostPorts {
     /// connection starts them anew.
     pub fn reset_port(&mut self, p: PortId) {
         let halted = self.port(p).is_halted();
+        let controls = self.port(p).control_bytes();
         *self.port_mut(p) = HostLink::new();
+        self.port_mut(p).control_bytes = controls;
         if halted {
             self.port_mut(p).halt();
         }

@@ -59,11 +59,15 @@ impl HostLink {
         }
     }
 
-    pub(super) fn realtime_line(&mut self, number: Option<u32>, rt: Realtime) {
+    /// A realtime line taken; `acted`: the emergency scan acted on it already (or knew it for
+    /// a resent line that had acted), so only its number and its `ok` are left to do.
+    pub(super) fn realtime_line(&mut self, number: Option<u32>, rt: Realtime, acted: bool) {
         // M112 halts: like Marlin's kill(), no `ok`.
         let answer = rt != Realtime::EmergencyStop;
         let Some(n) = number else {
-            self.push_realtime(rt);
+            if !acted {
+                self.push_realtime(rt);
+            }
             if answer {
                 self.respond(Response::Ok);
             }
@@ -72,7 +76,7 @@ impl HostLink {
         match self.seq(n) {
             Seq::Next => {
                 // Acted already when it first arrived ahead of its turn?
-                if self.early != Some((n, rt)) {
+                if self.early != Some((n, rt)) && !acted {
                     self.push_realtime(rt);
                 }
                 self.early = None;
@@ -86,7 +90,7 @@ impl HostLink {
                 self.respond(Response::Ok);
             }
             Seq::Gap => {
-                if self.early != Some((n, rt)) {
+                if self.early != Some((n, rt)) && !acted {
                     self.push_realtime(rt);
                     self.early = Some((n, rt));
                 }

@@ -457,6 +457,30 @@ fn printcore_session_start_with_line_minus_one() {
 }
 
 #[test]
+fn a_star_in_a_kept_comment_is_text_and_the_checksum_is_the_last() {
+    // Issue 32: a host that keeps comments sends `N2 G1 X10 ; a*0.85*44`; the checksum is the
+    // last `*`'s, as Marlin's `strrchr(command, '*')` (it was refused as a merge, and the host
+    // gave up after 9 resends).
+    let mut l = HostLink::new();
+    for (n, cmd) in [
+        (1, "G1 X10 ; a*0.85"),
+        (2, "G1 X11 ; x*2*3 Nozzle"),
+        (3, "M117 3*4=12"),
+    ] {
+        feed(&mut l, numbered(n, cmd).as_bytes());
+        assert_eq!(out(&mut l), "", "{cmd}");
+        assert_eq!(pop_text(&mut l).as_deref(), Some(cmd));
+    }
+    assert_eq!(l.last_line(), 3);
+    // A wrong checksum after such a comment is still a checksum mismatch.
+    feed(&mut l, b"N4 G1 X10 ; a*0.85*0\n");
+    assert_eq!(
+        out(&mut l),
+        "Error:checksum mismatch, Last Line: 3\nResend: 4\nok\n"
+    );
+}
+
+#[test]
 fn a_line_merged_with_its_own_resend_is_refused() {
     // The line end of `N2 M400*..` was lost and the host resent it: the XOR of the repeated
     // text cancels, so the merged line's final checksum is right. It must be refused (the host
@@ -477,6 +501,16 @@ fn a_line_merged_with_its_own_resend_is_refused() {
     assert_eq!(l.lines_waiting(), 1);
     feed(&mut l, one.as_bytes());
     assert_eq!(l.lines_waiting(), 2);
+    // The line end lost without a trace, or turned into noise: refused the same way.
+    for glue in ["", "\u{7f}", "~\u{1}"] {
+        let body = format!("{}{glue}N3 M400", numbered(3, "M400").trim_end());
+        let merged = format!("{body}*{}\n", checksum(body.as_bytes()));
+        feed(&mut l, merged.as_bytes());
+        assert!(
+            out(&mut l).starts_with("Error:checksum mismatch"),
+            "{glue:?}"
+        );
+    }
 }
 
 #[test]

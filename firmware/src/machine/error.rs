@@ -13,6 +13,8 @@ pub enum MachineError {
     StepOverflow(Axis),
     /// `F` is zero or negative.
     BadFeed,
+    /// `F` is below [`MIN_FEED_MM_MIN`](super::MIN_FEED_MM_MIN).
+    FeedTooLow,
     /// M220/M221 outside [`OVERRIDE_RANGE_PCT`](super::OVERRIDE_RANGE_PCT).
     OverrideOutOfRange,
     /// G4/M0 with a negative time.
@@ -37,6 +39,7 @@ impl MachineError {
             Self::OutOfBounds(_) => "move outside the build volume",
             Self::StepOverflow(_) => "position too large for the step counter",
             Self::BadFeed => "feed rate must be positive",
+            Self::FeedTooLow => "feed rate below 6 mm/min",
             Self::OverrideOutOfRange => "override must be 10..999 percent",
             Self::NegativeTime => "time must not be negative",
             Self::ArcNoCentre => "arc needs I/J or R",

@@ -8,6 +8,12 @@ use crate::motion::{round_i32, Axis, StepPos, AXES};
 /// Lowest and highest M220/M221 override, percent.
 pub const OVERRIDE_RANGE_PCT: core::ops::RangeInclusive<f32> = 10.0..=999.0;
 
+/// Slowest feed accepted, mm/min (0.1 mm/s; G20 inches converted first): the longest move of
+/// the Ender-3 (its 416 mm diagonal) then takes 69 min. `G1 X13 F0.0001` was an 83-day move
+/// (issue 31). Marlin refuses no feed but never steps slower than `MINIMAL_STEP_RATE` (120
+/// steps/s: 1.5 mm/s on the Ender-3's X and Y); no slicer file in the corpus goes below F200.
+pub const MIN_FEED_MM_MIN: f64 = 6.0;
+
 /// How far (mm) a target may lie outside the build volume and still count as inside: absorbs
 /// the rounding of decimal text, nothing more.
 pub const BOUNDS_TOLERANCE_MM: f64 = 1e-4;

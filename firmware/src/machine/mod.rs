@@ -52,7 +52,7 @@ pub use arc::{
 pub use error::MachineError;
 pub use interp::{Interpreter, Step};
 pub(crate) use limits::to_steps;
-pub use limits::{dwell_ms, BOUNDS_TOLERANCE_MM, OVERRIDE_RANGE_PCT};
+pub use limits::{dwell_ms, BOUNDS_TOLERANCE_MM, MIN_FEED_MM_MIN, OVERRIDE_RANGE_PCT};
 
 use crate::config::MachineConfig;
 use crate::gcode::{AxisFlags, AxisWords, Command};
@@ -233,9 +233,10 @@ impl MachineState {
     /// A new modal feed from an `F` word, or the current one.
     fn feed_from(&self, feed: Option<f32>) -> Result<f32, MachineError> {
         match feed {
+            Some(f) if f <= 0.0 => Err(MachineError::BadFeed),
+            Some(f) if self.units(f) < MIN_FEED_MM_MIN => Err(MachineError::FeedTooLow),
+            Some(f) => Ok((self.units(f) / 60.0) as f32),
             None => Ok(self.feed_mm_s),
-            Some(f) if f > 0.0 => Ok((self.units(f) / 60.0) as f32),
-            Some(_) => Err(MachineError::BadFeed),
         }
     }
 

@@ -83,6 +83,19 @@ fn inches_feed_and_overrides() {
     );
     assert_eq!(run(&mut m, "G1 X1 F0"), Err(MachineError::BadFeed));
     assert_eq!(run(&mut m, "G1 X1 F-5"), Err(MachineError::BadFeed));
+    // Issue 31: `G1 X13 F0.0001` was an 83-day move.
+    assert_eq!(run(&mut m, "G1 X13 F0.0001"), Err(MachineError::FeedTooLow));
+    assert_eq!(run(&mut m, "G1 X13 F5.99"), Err(MachineError::FeedTooLow));
+    // 6 mm/min with the 150 % override above.
+    assert!((mv(&mut m, "G1 X13 F6").feed_mm_s - 0.15).abs() < 1e-6);
+    run(&mut m, "G20").unwrap();
+    // 0.2 in/min = 5.08 mm/min.
+    assert_eq!(run(&mut m, "G1 F0.2"), Err(MachineError::FeedTooLow));
+    assert_eq!(run(&mut m, "G1 F0.3"), Ok(Action::None));
+    run(&mut m, "G21").unwrap();
+    assert!(MachineError::FeedTooLow
+        .message()
+        .contains(&format!("{MIN_FEED_MM_MIN} mm/min")));
     assert_eq!(run(&mut m, "M220"), Ok(Action::Executive));
 }
 
@@ -95,6 +108,7 @@ fn errors_leave_state_unchanged() {
         "G1 Y236",
         "G1 Z251 E5 F100",
         "G1 X5 F0",
+        "G1 X5 F0.0001",
         "G2 X20 Y10",
         "G2 X20 Y10 I5 R5",
         "G2 X10 Y10 R5",

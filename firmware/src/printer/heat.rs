@@ -172,15 +172,13 @@ impl Heat {
         self.thermal.reached(id)
     }
 
-    /// M104/M140 (and the target of M109/M190): set a target; the refusal is said.
-    pub(super) fn set_target(&mut self, id: HeaterId, c: f32, host: &mut Host) -> bool {
-        match self.thermal.set_target(id, c) {
-            Ok(()) => true,
-            Err(e) => {
-                host.warn(format_args!("{e}"));
-                false
-            }
-        }
+    /// M104/M140 (and the target of M109/M190): set a target (the caller says a refusal).
+    pub(super) fn set_target(
+        &mut self,
+        id: HeaterId,
+        c: f32,
+    ) -> Result<(), crate::thermal::ThermalError> {
+        self.thermal.set_target(id, c)
     }
 
     /// M106 S<speed> (no S: full) and M107.
@@ -241,15 +239,21 @@ impl Heat {
         now_us: u64,
         host: &mut Host,
     ) {
-        let id = if heater_index == Some(-1) {
-            HeaterId::Bed
-        } else {
-            HeaterId::Hotend
+        // Marlin's M303: E-1 the bed, E0 the hotend, else "Bad heater id".
+        let id = match heater_index {
+            Some(-1) => HeaterId::Bed,
+            None | Some(0) => HeaterId::Hotend,
+            Some(e) => {
+                host.warn(format_args!(
+                    "M303 E{e}: no such heater (E0 the hotend, E-1 the bed)"
+                ));
+                return;
+            }
         };
         let t = target_c.unwrap_or(if id == HeaterId::Bed { 70.0 } else { 200.0 });
         let c = cycles.unwrap_or(5).min(255) as u8;
         if let Err(e) = self.thermal.start_autotune(id, t, c, use_result, now_us) {
-            host.warn(format_args!("{e}"));
+            host.warn(format_args!("M303 S{t}: {e}"));
         }
     }
 

@@ -11,7 +11,14 @@ use crate::link::ReceivedLine;
 
 impl Printer {
     /// Realtime requests the link picked out of the byte stream, in order.
+    #[inline]
     pub(super) fn take_realtime(&mut self) {
+        if self.host.has_realtime() {
+            self.take_realtimes();
+        }
+    }
+
+    fn take_realtimes(&mut self) {
         while let Some(rt) = self.host.take_realtime() {
             let now = self.now_us;
             self.request(rt, now);

@@ -220,6 +220,12 @@ impl Printer {
         self.host.port(port)
     }
 
+    /// Whether single control bytes (Ctrl-X, Ctrl-C, …) are requests on `port` (by default on
+    /// the USB port only: [`PortId::default_control_bytes`]).
+    pub fn set_control_bytes(&mut self, port: PortId, on: bool) {
+        self.host.set_control_bytes(port, on);
+    }
+
     /// Host bytes in on the USB port: [`Printer::receive_on`] with [`PortId::Usb`].
     #[must_use = "bytes not taken must be offered again later (flow control)"]
     pub fn receive(&mut self, bytes: &[u8], now_us: u64) -> usize {
@@ -318,11 +324,16 @@ impl Printer {
     }
 
     /// Whether the printer is in a job — the same notion for pause and cancel: work queued or
-    /// moving, or a host streaming one (a line taken or a move ended within
+    /// moving, lines received before the request and not taken yet (a pause written in the
+    /// same burst as the moves it should stop: the link sees it before the executive takes
+    /// them, issue 31), or a host streaming one (a line taken or a move ended within
     /// [`LAYER_PAUSE_IDLE_US`]: between lines, or at a boundary the host drained with M400),
     /// and not a job just cancelled.
     fn in_job(&self) -> bool {
-        self.has_work() || (!self.intake.cancelled() && self.intake.recently_active(self.now_us))
+        self.has_work()
+            || self.host.request_lines_ahead() > 0
+            || self.intake.has_held_line()
+            || (!self.intake.cancelled() && self.intake.recently_active(self.now_us))
     }
 
     /// Realtime request (pause button, sim, or parsed from the byte stream).

@@ -173,11 +173,32 @@ impl Printer {
         use gcode::Command as G;
         match cmd {
             G::SetTemperature {
-                heater, wait, s, r, ..
+                heater,
+                wait,
+                s,
+                r,
+                tool,
             } => {
+                let code = match (heater, wait) {
+                    (gcode::Heater::Hotend, false) => "M104",
+                    (gcode::Heater::Hotend, true) => "M109",
+                    (gcode::Heater::Bed, false) => "M140",
+                    (gcode::Heater::Bed, true) => "M190",
+                };
+                // Marlin's `get_target_extruder_from_command`: an extruder that is not there is
+                // refused, never applied to the one that is (FlashPrint's `M104 S0 T1` for a
+                // second hotend switched the only one off; issue 31/32).
+                if let Some(t) = tool.filter(|t| *t != 0) {
+                    self.host.warn(format_args!(
+                        "{code} T{t}: invalid extruder (this printer has T0 only)"
+                    ));
+                    return false;
+                }
                 let id = heater_id(*heater);
+                let word = if r.is_some() { 'R' } else { 'S' };
                 if let Some(t) = r.or(*s) {
-                    if !self.heat.set_target(id, t, &mut self.host) {
+                    if let Err(e) = self.heat.set_target(id, t) {
+                        self.host.warn(format_args!("{code} {word}{t}: {e}"));
                         return false;
                     }
                 }
@@ -190,6 +211,17 @@ impl Printer {
                 let r = self.heat.report();
                 self.host.temperatures(r);
                 return true;
+            }
+            G::FanOn { fan: Some(f), .. } | G::FanOff { fan: Some(f) } if *f != 0 => {
+                // Marlin ignores a fan it does not have (`M106 P9`); here it is said.
+                let code = if matches!(cmd, G::FanOn { .. }) {
+                    "M106"
+                } else {
+                    "M107"
+                };
+                self.host.warn(format_args!(
+                    "{code} P{f}: no such fan (this printer has P0 only)"
+                ));
             }
             G::FanOn { speed, .. } => self.heat.set_fan(*speed),
             G::FanOff { .. } => self.heat.set_fan(Some(0.0)),
@@ -317,7 +349,10 @@ impl Printer {
                 self.host.report_command(c, self.now_us, view);
             }
             G::PrintStatsInfo { .. } | G::SetLineNumber(_) => {}
-            G::Tool(n) => self.host.warn(format_args!("T{n}: only one extruder")),
+            // Marlin on a single-extruder machine: `invalid_extruder_error`, nothing changes.
+            G::Tool(n) => self.host.warn(format_args!(
+                "T{n}: invalid extruder (this printer has T0 only)"
+            )),
             G::Stop { ms, s, .. } => {
                 if ms.is_some() || s.is_some() {
                     match crate::machine::dwell_ms(*ms, *s) {

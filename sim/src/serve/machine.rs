@@ -44,6 +44,8 @@ impl Machine {
         let cfg = body.as_ref().map_or(sc.machine, |(_, m, _)| m.config);
         let mut fw: PrinterExec = PrinterFactory.make(&cfg, &sc.knobs());
         fw.keep_executed = true;
+        fw.printer
+            .set_control_bytes(firmware::link::PortId::Tft, a.tft_control_bytes);
         let mut rec = Recorder::new();
         let body = match body {
             Some((b, _, pos)) => {

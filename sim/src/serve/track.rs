@@ -39,6 +39,8 @@ impl PauseTrack {
 #[derive(Default)]
 pub(super) struct Sniffer {
     pub(super) buf: Vec<u8>,
+    /// Single control bytes are requests on this port (as the firmware was told).
+    pub(super) control_bytes: bool,
     /// Complete non-empty lines seen, and of those the numbered ones.
     pub(super) lines: u64,
     pub(super) numbered: u64,
@@ -59,6 +61,14 @@ pub(super) struct Sniffer {
 const UNANSWERED_CAP: usize = 64;
 
 impl Sniffer {
+    /// A sniffer for a port where single control bytes are requests, or not.
+    pub(super) fn with_control_bytes(control_bytes: bool) -> Self {
+        Self {
+            control_bytes,
+            ..Self::default()
+        }
+    }
+
     /// Bytes the firmware took at `now_us`, read from the device at `read_us`; `parked`: the
     /// printer is parked.
     pub(super) fn feed(
@@ -70,7 +80,9 @@ impl Sniffer {
     ) {
         for &b in bytes {
             if let Some(r) = firmware::link::control_byte(b) {
-                out.push(r);
+                if self.control_bytes {
+                    out.push(r);
+                }
                 continue;
             }
             if b == b'\n' || b == b'\r' {

@@ -25,11 +25,12 @@ pub(super) struct PtyPort {
     master: OwnedFd,
     pub(super) path: PathBuf,
     /// Bytes read and not yet taken by the firmware (flow control: the device is not read
-    /// again until they are).
+    /// while [`firmware::link::SCAN_WINDOW`] bytes wait, so the firmware's emergency scan
+    /// sees that far ahead and the rest stays in the pty).
     rx_pending: Vec<u8>,
-    /// When `rx_pending` was read from the device, virtual µs (it is read only when empty:
-    /// all its bytes came at once).
-    rx_read_us: u64,
+    /// When the bytes of `rx_pending` were read from the device: (bytes, virtual µs), oldest
+    /// first.
+    rx_reads: std::collections::VecDeque<(usize, u64)>,
     /// Output the host has not read yet.
     tx_pending: Vec<u8>,
     /// A host holds the device.
@@ -55,7 +56,9 @@ pub(super) struct PtyPort {
 const OPEN_SETTLE: std::time::Duration = std::time::Duration::from_millis(100);
 
 impl PtyPort {
-    pub(super) fn open(id: PortId) -> anyhow::Result<Self> {
+    /// `control_bytes`: single control bytes are requests on this port (as the firmware is
+    /// told), for the record's notes.
+    pub(super) fn open(id: PortId, control_bytes: bool) -> anyhow::Result<Self> {
         let (master, slave, path) = open_pty()?;
         // Not kept: the master then sees whether a host holds the device.
         drop(slave);
@@ -64,11 +67,11 @@ impl PtyPort {
             master,
             path,
             rx_pending: Vec::new(),
-            rx_read_us: 0,
+            rx_reads: std::collections::VecDeque::new(),
             tx_pending: Vec::new(),
             open: false,
             ever_open: false,
-            sniff: Sniffer::default(),
+            sniff: Sniffer::with_control_bytes(control_bytes),
             owed_since: None,
             opening_since: None,
         })
@@ -107,6 +110,7 @@ impl PtyPort {
             self.ever_open |= open;
             if !open {
                 self.rx_pending.clear();
+                self.rx_reads.clear();
                 self.tx_pending.clear();
             }
             self.sniff.new_session();
@@ -114,8 +118,9 @@ impl PtyPort {
         }
     }
 
-    /// Offer pending bytes to the firmware, then read the device while the firmware takes
-    /// everything; realtime requests seen are noted for the record.
+    /// Offer pending bytes to the firmware, and read the device while fewer than
+    /// [`firmware::link::SCAN_WINDOW`] bytes wait (the firmware takes what it has room for
+    /// and scans the rest for M112/M108/M410); realtime requests seen are noted for the record.
     pub(super) fn receive(
         &mut self,
         fw: &mut PrinterExec,
@@ -133,13 +138,26 @@ impl PtyPort {
                 let n = fw.receive_on(self.id, &self.rx_pending, now_us);
                 let mut reqs = Vec::new();
                 let parked = fw.status().state == crate::port::State::Paused;
-                self.sniff
-                    .feed(&self.rx_pending[..n], &mut reqs, self.rx_read_us, parked);
+                // Each taken byte with the time it was read from the device.
+                let mut at = 0;
+                while at < n {
+                    let Some((len, read_us)) = self.rx_reads.front_mut() else {
+                        break;
+                    };
+                    let k = (*len).min(n - at);
+                    self.sniff
+                        .feed(&self.rx_pending[at..at + k], &mut reqs, *read_us, parked);
+                    *len -= k;
+                    at += k;
+                    if *len == 0 {
+                        self.rx_reads.pop_front();
+                    }
+                }
                 self.rx_pending.drain(..n);
                 for r in reqs {
                     note_request(pauses, r, now_us, rec, fw);
                 }
-                if !self.rx_pending.is_empty() {
+                if self.rx_pending.len() >= firmware::link::SCAN_WINDOW {
                     return Ok(got);
                 }
             }
@@ -149,7 +167,7 @@ impl PtyPort {
                     got = true;
                     self.owed_since = None;
                     self.rx_pending.extend_from_slice(&buf[..n]);
-                    self.rx_read_us = now_us;
+                    self.rx_reads.push_back((n, now_us));
                 }
                 // EIO: nobody holds the device (see the module documentation).
                 Err(nix::errno::Errno::EAGAIN | nix::errno::Errno::EIO) => return Ok(got),

@@ -46,6 +46,23 @@ impl Host {
         self.ports.take_realtime()
     }
 
+    /// Whether any port holds a realtime request (an idle poll's one compare).
+    #[inline]
+    pub(super) fn has_realtime(&self) -> bool {
+        self.ports.has_realtime()
+    }
+
+    /// Lines that were received before the pending request and are not taken yet (a pause
+    /// written in the same burst as the moves it should stop).
+    pub(super) fn request_lines_ahead(&self) -> usize {
+        self.ports.request_lines_ahead()
+    }
+
+    /// Whether single control bytes are requests on `port`.
+    pub(super) fn set_control_bytes(&mut self, port: PortId, on: bool) {
+        self.ports.set_control_bytes(port, on);
+    }
+
     /// The next checked line of any port; its answers go to its port.
     pub(super) fn pop_line(&mut self) -> Option<ReceivedLine> {
         self.ports.pop_line()
