@@ -3,7 +3,7 @@
 //! the flash store (a NOR-flash model), and M503's output sent back gives the same settings.
 
 use firmware::config::MachineConfig;
-use firmware::gcode::{parse_line, Command};
+use firmware::gcode::{parse_line, Command, HeatCommand};
 use firmware::printer::{Policy, Printer};
 use firmware::storage::{Moment, NorFlashModel, RecordStore, Settings, SettingsStore};
 
@@ -216,7 +216,9 @@ fn m503_sent_back_gives_the_same_settings() {
         let g = line.trim_start();
         // Everything the report prints is G-code our own parser reads.
         let parsed = parse_line(g.as_bytes()).unwrap_or_else(|e| panic!("{g:?}: {e:?}"));
-        if let Some(Command::Settings(_) | Command::SetPid { .. }) = parsed.command {
+        if let Some(Command::Settings(_) | Command::Heat(HeatCommand::SetPid { .. })) =
+            parsed.command
+        {
             sent += 1;
         }
         no_error(&fresh.send(g));

@@ -8,6 +8,7 @@
 //! boundary?), to split moves for `host-split`, and to write host-split's pause and resume
 //! sequences.
 
+use firmware::gcode::MotionCommand;
 use firmware::gcode::{parse_line, Command};
 use firmware::motion::AXES;
 
@@ -70,7 +71,8 @@ pub struct JobInfo {
 fn apply(st: &mut HostState, cmd: &Command) -> (bool, bool) {
     let unit = if st.inches { 25.4 } else { 1.0 };
     match cmd {
-        Command::Move { axes, feed, .. } | Command::Arc { axes, feed, .. } => {
+        Command::Motion(MotionCommand::Move { axes, feed, .. })
+        | Command::Motion(MotionCommand::Arc { axes, feed, .. }) => {
             if let Some(f) = feed {
                 st.feed_mm_min = f64::from(*f) * unit;
             }
@@ -87,33 +89,33 @@ fn apply(st: &mut HostState, cmd: &Command) -> (bool, bool) {
             let moves = xyz || de.abs() > 1e-9;
             (moves, xyz && de > 1e-9)
         }
-        Command::Absolute => {
+        Command::Motion(MotionCommand::Absolute) => {
             st.abs_xyz = true;
             st.abs_e = true;
             (false, false)
         }
-        Command::Relative => {
+        Command::Motion(MotionCommand::Relative) => {
             st.abs_xyz = false;
             st.abs_e = false;
             (false, false)
         }
-        Command::AbsoluteE => {
+        Command::Motion(MotionCommand::AbsoluteE) => {
             st.abs_e = true;
             (false, false)
         }
-        Command::RelativeE => {
+        Command::Motion(MotionCommand::RelativeE) => {
             st.abs_e = false;
             (false, false)
         }
-        Command::Inches => {
+        Command::Motion(MotionCommand::Inches) => {
             st.inches = true;
             (false, false)
         }
-        Command::Millimetres => {
+        Command::Motion(MotionCommand::Millimetres) => {
             st.inches = false;
             (false, false)
         }
-        Command::SetPosition(axes) => {
+        Command::Motion(MotionCommand::SetPosition(axes)) => {
             for (i, w) in axes.0.iter().enumerate() {
                 if let Some(v) = w {
                     st.pos_mm[i] = f64::from(*v) * unit;
@@ -121,7 +123,7 @@ fn apply(st: &mut HostState, cmd: &Command) -> (bool, bool) {
             }
             (false, false)
         }
-        Command::Home(flags) => {
+        Command::Motion(MotionCommand::Home(flags)) => {
             for i in 0..3 {
                 if flags.includes(firmware::motion::Axis::ALL[i]) {
                     st.pos_mm[i] = 0.0;

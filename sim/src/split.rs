@@ -8,6 +8,7 @@
 
 use crate::job::{HostState, JobInfo};
 use firmware::config::MachineConfig;
+use firmware::gcode::MotionCommand;
 use firmware::gcode::{parse_line, AxisWords, Command};
 
 /// A split job: the new lines and, for each, the original line it came from.
@@ -32,7 +33,9 @@ pub fn split_job(lines: &[String], piece_mm: f64) -> SplitJob {
     for (i, line) in lines.iter().enumerate() {
         let li = info.lines.get(i).copied();
         let parsed = parse_line(line.as_bytes()).ok().and_then(|l| l.command);
-        let (Some(li), Some(Command::Move { rapid, axes, feed })) = (li, parsed) else {
+        let (Some(li), Some(Command::Motion(MotionCommand::Move { rapid, axes, feed }))) =
+            (li, parsed)
+        else {
             out.lines.push(line.clone());
             out.source.push(i);
             continue;
@@ -69,11 +72,11 @@ pub fn split_job(lines: &[String], piece_mm: f64) -> SplitJob {
                     ((end[k] - start[k]) / n as f64) as f32
                 });
             }
-            let cmd = Command::Move {
+            let cmd = Command::Motion(MotionCommand::Move {
                 rapid,
                 axes: AxisWords(words),
                 feed: if p == 1 { feed } else { None },
-            };
+            });
             out.lines.push(fmt_cmd(&cmd));
             out.source.push(i);
         }

@@ -1,6 +1,7 @@
 //! The `parse_stream` target: bytes through the whole front end.
 
 use firmware::config::MachineConfig;
+use firmware::gcode::MotionCommand;
 use firmware::gcode::{
     parse_line, Command, MAX_ABS_VALUE, MAX_NUMBER_LEN, MAX_SIG_DIGITS, MIN_ABS_VALUE,
 };
@@ -104,10 +105,10 @@ fn check_number(token: &[u8]) {
         .len();
     match (ours, core.clone()) {
         (
-            Ok(Some(Command::Dwell {
+            Ok(Some(Command::Motion(MotionCommand::Dwell {
                 ms: Some(v),
                 s: None,
-            })),
+            }))),
             Ok(want),
         ) => {
             assert_eq!(v.to_bits(), want.to_bits(), "{text}");

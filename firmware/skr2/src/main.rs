@@ -8,12 +8,16 @@
 //! * `heaters` (every 1 ms): 10 Hz software PWM of the heaters; every 100 ms the thermistors
 //!   are sampled and fed to the executive's thermal control;
 //! * `usb` / `cdc`: USB CDC-ACM on the board's USB port; `uart`: the TFT header (USART1,
-//!   115200 Bd). Both feed `Printer::receive_on`, each port with its own line numbers and
-//!   `ok`s: a command's answers go to the port it came from, notices (halts, `Error:` lines,
-//!   start-up messages) to both.
+//!   115200 Bd). Both pass their bytes to the motion task, which feeds `Printer::receive_on`,
+//!   each port with its own line numbers and `ok`s: a command's answers go to the port it came
+//!   from, notices (halts, `Error:` lines, start-up messages) to both;
+//! * `card`: brings the micro-SD card up when the executive asks (the motion task serves the
+//!   card and the flash store in turn).
 //!
-//! This file brings the board up and spawns the tasks; the tasks live in `image/`: `motion.rs`,
-//! `heater.rs`, `host.rs` (USB and UART), `drivers.rs` (the TMC2209s).
+//! The executive has one owner, the motion task; the other tasks talk to it through embassy
+//! pipes, channels and signals (`image/channels.rs` has the table). This file brings the board
+//! up and spawns the tasks; the tasks live in `image/`: `motion.rs`, `heater.rs`, `host.rs`
+//! (USB and UART), `drivers.rs` (the TMC2209s).
 //!
 //! Bring-up, in order: cortex-m-rt's reset handler sets SP and VTOR (`set-sp`, `set-vtor`: the
 //! image base 0x08008000, whatever the bootloader left), runs [`__pre_init`] (SysTick off,
@@ -78,16 +82,12 @@ core::arch::global_asm!(
 
 #[cfg(target_os = "none")]
 mod image {
-    use core::cell::RefCell;
-
     use defmt_rtt as _;
     use embassy_executor::Spawner;
     use embassy_stm32::interrupt::{self, InterruptExt, Priority};
     use embassy_stm32::usart::{BufferedUart, Config as UartConfig};
     use embassy_stm32::usb::Driver;
     use embassy_stm32::{bind_interrupts, peripherals, usart, usb};
-    use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
-    use embassy_sync::pipe::Pipe;
     use embassy_time::{Duration, Ticker};
     use embassy_usb::class::cdc_acm::{CdcAcmClass, State as CdcState};
     use firmware::config::MachineConfig;
@@ -97,14 +97,15 @@ mod image {
 
     use crate::board::drivers::StepperPins;
     use crate::board::heaters::{Fans, SoftPwm};
-    use crate::board::SharedPrinter;
-    use crate::board::{clock, pins, safety, stack, stepper, tmc, watchdog};
+    use crate::board::{clock, flash, pins, safety, sd, stack, stepper, tmc, watchdog};
     use drivers::{configure_drivers, Drivers};
     use firmware::drivers::Liveness;
     use heater::heater_task;
     use host::{cdc_task, uart_task, usb_task};
-    use motion::{halted_task, motion_task};
+    use motion::{halted_task, motion_task, Devices};
 
+    // What the tasks say to each other.
+    mod channels;
     // The TMC2209 drivers' configuration and reports.
     mod drivers;
     // Thermistors, heater PWM and fans.
@@ -121,13 +122,9 @@ mod image {
 
     /// Baud rate of the TFT header.
     const UART_BAUD: u32 = 115_200;
-    /// Host-link bytes buffered per output port.
-    const OUT_PIPE: usize = 1024;
     /// The TFT UART driver's transmit and receive buffers, bytes.
     const UART_TX_BUF: usize = 512;
     const UART_RX_BUF: usize = 512;
-
-    type Shared = &'static SharedPrinter;
 
     /// Each of the motion and heater loops must beat this often for the watchdog to be fed, µs.
     const LIVENESS_GAP_US: u64 = 250_000;
@@ -144,9 +141,6 @@ mod image {
     }
 
     static PRINTER: StaticCell<Printer> = StaticCell::new();
-    static SHARED: StaticCell<SharedPrinter> = StaticCell::new();
-    static USB_OUT: Pipe<CriticalSectionRawMutex, OUT_PIPE> = Pipe::new();
-    static UART_OUT: Pipe<CriticalSectionRawMutex, OUT_PIPE> = Pipe::new();
 
     /// The executive's clock, ns (the board's TIM5 time base).
     fn printer_now_ns() -> u64 {
@@ -217,20 +211,17 @@ mod image {
         let cfg = MachineConfig::ENDER3;
         // Built in place in its static: `init(Printer::new(..))` built the 35 KiB `Printer` on
         // the stack and copied it (a 72 KiB frame for this function, over half the RAM).
-        let printer: Shared = SHARED.init(RefCell::new(Printer::init_in_place(
-            PRINTER.uninit(),
-            cfg,
-            Policy::FIRMWARE,
-        )));
+        // From here on it has one owner: this function until the motion task takes it.
+        let printer = Printer::init_in_place(PRINTER.uninit(), cfg, Policy::FIRMWARE);
         // G28 homes through the planner on the X/Y/Z minimum switches (Marlin's Ender-3 homing
         // feeds, bump and Z raise). Axes not homed move from where they stood (Marlin's
         // default); the step interrupt's limits guard homed axes.
-        printer.borrow_mut().enable_endstops(HomingConfig::ENDER3);
+        printer.enable_endstops(HomingConfig::ENDER3);
         announce_reset_cause(printer);
-        // Saved settings (M500) replace the factory ones; M500/M501 run in their own task.
-        crate::board::flash::start(&spawner, printer);
-        // The micro-SD slot: SD printing (M20–M32), in its own task.
-        crate::board::sd::start(&spawner, printer);
+        // Saved settings (M500) replace the factory ones; the motion task serves M500/M501.
+        let store = flash::start(printer);
+        // The micro-SD slot: SD printing (M20–M32); its task brings the card up.
+        let card = sd::start(&spawner, printer);
 
         // USB CDC-ACM.
         static EP_OUT: StaticCell<[u8; 256]> = StaticCell::new();
@@ -282,15 +273,14 @@ mod image {
         interrupt::DMA2_STREAM3.set_priority(PRIO_BULK);
 
         spawn(&spawner, usb_task(usb_dev));
-        spawn(&spawner, cdc_task(cdc, printer));
+        spawn(&spawner, cdc_task(cdc));
         match uart {
-            Ok(uart) => spawn(&spawner, uart_task(uart, printer)),
+            Ok(uart) => spawn(&spawner, uart_task(uart)),
             Err(_) => defmt::error!("TFT UART configuration rejected"),
         }
         spawn(
             &spawner,
             heater_task(
-                printer,
                 periph.adc,
                 SoftPwm::new(pins.heater_hotend),
                 SoftPwm::new(pins.heater_bed),
@@ -307,7 +297,7 @@ mod image {
                     defmt::error!("driver {} is backward: SAFE_POWER kept off", name);
                 }
             }
-            printer.borrow_mut().drivers_backward(&names);
+            printer.drivers_backward(&names);
             spawn(&spawner, halted_task(printer, pins.status_led));
             start_watchdog(&spawner, periph.watchdog);
             return;
@@ -323,7 +313,7 @@ mod image {
             pressed_high: cfg.endstop_hit_high_mask(),
         };
         let producer = stepper::init(steppers, endstops, PRIO_STEP);
-        stepper::with(|s| s.exec.follow(&printer.borrow().travel_frame()));
+        stepper::with(|s| s.exec.follow(&printer.travel_frame()));
 
         // The drivers, before any motion: a driver that does not answer halts the printer.
         let [tx, ty, tz, te] = pins.tmc_uart;
@@ -341,6 +331,7 @@ mod image {
             &spawner,
             motion_task(
                 printer,
+                Devices { store, card },
                 producer,
                 pins.pause_button,
                 pins.status_led,
@@ -364,12 +355,12 @@ mod image {
 
     /// A fault or watchdog reset before this start-up is said on every port (queued until a
     /// host reads it), as Marlin reports a watchdog reset.
-    fn announce_reset_cause(printer: Shared) {
+    fn announce_reset_cause(printer: &mut Printer) {
         if let Some(cause) = safety::reset_cause() {
             let mut t: heapless::String<160> = heapless::String::new();
             let _ = core::fmt::Write::write_fmt(&mut t, format_args!("{cause}"));
             defmt::warn!("reset cause: {}", t.as_str());
-            printer.borrow_mut().board_notice(&t);
+            printer.board_notice(&t);
         }
     }
 

@@ -2,6 +2,7 @@
 //! command): M569 chopper mode, M350 microsteps, M122 driver report. The executive's handlers
 //! are in `printer/drivers.rs`; the registers behind them in [`crate::drivers::tmc2209`].
 
+use super::emit::opt;
 use super::{err, AxisFlags, AxisWords, ParseError, ParseErrorKind, Words};
 use core::fmt::{self, Write};
 
@@ -27,16 +28,39 @@ pub enum DriverCommand {
     },
     /// `M122 [X Y Z E]`: read the drivers and report their state (none named = all).
     Report(AxisFlags),
+    /// `M17 [X Y Z E]`: enable steppers.
+    EnableSteppers(AxisFlags),
+    /// `M18` / `M84 [X Y Z E] [S<s>]`: disable steppers (or set the idle timeout with S).
+    DisableSteppers {
+        /// Written as M18 rather than M84.
+        m18: bool,
+        /// Axes named.
+        axes: AxisFlags,
+        /// `S`: idle timeout, seconds.
+        s: Option<f32>,
+    },
 }
 
 /// The M-codes parsed here.
 pub(super) fn is_driver_code(n: u16) -> bool {
-    matches!(n, 122 | 350 | 569)
+    matches!(n, 17 | 18 | 84 | 122 | 350 | 569)
 }
 
 /// Parse one of [`is_driver_code`]'s codes.
 pub(super) fn build(n: u16, w: &Words<'_>) -> Result<DriverCommand, ParseError> {
     let c = match n {
+        17 => {
+            w.check(b"XYZE", b"XYZE")?;
+            DriverCommand::EnableSteppers(w.flags())
+        }
+        n @ (18 | 84) => {
+            w.check(b"XYZES", b"XYZE")?;
+            DriverCommand::DisableSteppers {
+                m18: n == 18,
+                axes: w.flags(),
+                s: w.f32(b'S')?,
+            }
+        }
         569 => {
             w.check(b"SXYZE", b"XYZE")?;
             let stealthchop = match w.u8(b'S')? {
@@ -78,6 +102,15 @@ fn flags<W: Write>(w: &mut W, f: &AxisFlags) -> fmt::Result {
 /// Write a driver command as G-code.
 pub(super) fn write<W: Write>(w: &mut W, c: &DriverCommand) -> fmt::Result {
     match c {
+        DriverCommand::EnableSteppers(fl) => {
+            w.write_str("M17")?;
+            flags(w, fl)
+        }
+        DriverCommand::DisableSteppers { m18, axes: fl, s } => {
+            w.write_str(if *m18 { "M18" } else { "M84" })?;
+            flags(w, fl)?;
+            opt(w, 'S', *s)
+        }
         DriverCommand::Chopper { axes, stealthchop } => {
             w.write_str("M569")?;
             if let Some(s) = stealthchop {

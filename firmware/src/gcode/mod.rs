@@ -23,9 +23,12 @@
 //! out of range, bytes that are not G-code — are a [`ParseError`] with a static message.
 //!
 //! ```
-//! use firmware::gcode::{parse_line, Command};
+//! use firmware::gcode::{parse_line, Command, MotionCommand};
 //! let line = parse_line(b"G1 X10.5 Y-3 E.25 F1800 ; perimeter").unwrap();
-//! let Some(Command::Move { rapid: false, axes, feed }) = line.command else { panic!() };
+//! let Some(Command::Motion(MotionCommand::Move { rapid: false, axes, feed })) = line.command
+//! else {
+//!     panic!()
+//! };
 //! assert_eq!(axes.0, [Some(10.5), Some(-3.0), None, Some(0.25)]);
 //! assert_eq!(feed, Some(1800.0));
 //! assert_eq!(line.comment, Some(&b" perimeter"[..]));
@@ -58,7 +61,7 @@ mod settings;
 pub use settings::{Advanced, SettingsCommand};
 // Report M-codes hosts expect (M155 M113 M31 M27): parse and emit.
 mod report;
-pub use report::{ReportCommand, MAX_REPORT_PERIOD_S};
+pub use report::{Progress, ReportCommand, MAX_REPORT_PERIOD_S};
 // Stepper-driver M-codes (M122 M350 M569; M906 is a settings command): parse and emit.
 mod driver;
 pub use driver::DriverCommand;
@@ -68,11 +71,14 @@ pub use sd::{SdCommand, MAX_SD_REPORT_S};
 // Power-cut resume (M1000, M1000 C): parse and emit.
 mod recovery;
 pub use recovery::RecoveryCommand;
+mod motion;
+pub use motion::MotionCommand;
+mod heat;
+pub use heat::{HeatCommand, Heater};
+mod pause;
+pub use pause::{FilamentChange, PauseCommand, PauseParams, PauseSchedule};
 
-pub use command::{
-    AxisFlags, AxisWords, Command, FilamentChange, Heater, PauseParams, PauseSchedule, Progress,
-    Text, TEXT_CAP,
-};
+pub use command::{AxisFlags, AxisWords, Command, Text, TEXT_CAP};
 pub use emit::write_command;
 use error::err;
 pub use error::{ParseError, ParseErrorKind};

@@ -580,7 +580,7 @@ mod tests {
             let line = format!("G1 X{text} Y20");
             let parsed = crate::gcode::parse_line(line.as_bytes()).map(|l| l.command);
             match (w, parsed) {
-                (Ok(bits), Ok(Some(crate::gcode::Command::Move { axes, .. }))) => {
+                (Ok(bits), Ok(Some(crate::gcode::Command::Motion(crate::gcode::MotionCommand::Move { axes, .. })))) => {
                     prop_assert_eq!(axes.0[0].map(f32::to_bits), Some(bits), "{}", line);
                     prop_assert_eq!(axes.0[1], Some(20.0));
                     prop_assert_eq!(axes.0[3], None, "{}: an extra E word", line);

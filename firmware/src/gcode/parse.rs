@@ -4,6 +4,7 @@
 use super::decode::build_known;
 use super::lex::{is_space, paren};
 use super::words::{scan_words, Words};
+use super::ReportCommand;
 use super::{err, number, sd, Command, ParseError, ParseErrorKind, Text, TEXT_CAP};
 
 /// One parsed line: a command and/or a comment.
@@ -153,9 +154,9 @@ fn parse_classic<'a>(
             let (code, semi) = split_comment(line);
             let text = parse_text(code, code_end)?;
             let c = if num == 117 {
-                Command::Message(text)
+                Command::Report(ReportCommand::Message(text))
             } else {
-                Command::Echo(text)
+                Command::Report(ReportCommand::Echo(text))
             };
             return Ok((c, semi));
         }
@@ -298,8 +299,8 @@ fn parse_extended(code: &[u8], start: usize) -> Result<Command, ParseError> {
         *slot = Some(v);
         i = next;
     }
-    Ok(Command::PrintStatsInfo {
+    Ok(Command::Report(ReportCommand::PrintStatsInfo {
         current_layer,
         total_layer,
-    })
+    }))
 }

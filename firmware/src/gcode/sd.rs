@@ -1,12 +1,12 @@
 //! The SD-card M-codes (Marlin's `gcode/sd/M20.cpp` … `M32.cpp`): their parameters as parsed,
 //! and their G-code text. The executive's handlers are in `printer/sd/commands.rs`. M24
-//! (start/resume), M25 (pause) and M524 (cancel) are the realtime [`Command::Resume`],
-//! [`Command::Pause`] and [`Command::Cancel`]; plain M27 is
+//! (start/resume), M25 (pause) and M524 (cancel) are the realtime [`PauseCommand::Resume`],
+//! [`PauseCommand::Pause`] and [`PauseCommand::Cancel`]; plain M27 is
 //! [`super::ReportCommand::JobStatus`].
 //!
-//! [`Command::Resume`]: super::Command::Resume
-//! [`Command::Pause`]: super::Command::Pause
-//! [`Command::Cancel`]: super::Command::Cancel
+//! [`PauseCommand::Resume`]: super::PauseCommand::Resume
+//! [`PauseCommand::Pause`]: super::PauseCommand::Pause
+//! [`PauseCommand::Cancel`]: super::PauseCommand::Cancel
 
 use super::{err, ParseError, ParseErrorKind, Text, Words};
 use core::fmt::{self, Write};

@@ -2,6 +2,7 @@
 //! The executive's handlers are in `printer/settings.rs`; ranges and units in
 //! [`crate::storage`] and `docs/settings.md`.
 
+use super::emit::opt;
 use super::{err, AxisWords, ParseError, ParseErrorKind, Words};
 use core::fmt::{self, Write};
 
@@ -45,17 +46,37 @@ pub enum SettingsCommand {
     FactoryReset,
     /// `M503`: report every setting as G-code that can be sent back.
     Report,
+    /// `M204 [P] [R] [T] [S]`: accelerations, mm/s² (print, retract, travel, both).
+    Acceleration {
+        /// `P`: printing moves.
+        print: Option<f32>,
+        /// `R`: retract/prime moves.
+        retract: Option<f32>,
+        /// `T`: travel moves.
+        travel: Option<f32>,
+        /// `S`: printing and travel (legacy).
+        s: Option<f32>,
+    },
 }
 
 /// The M-codes parsed here.
 pub(super) fn is_settings_code(n: u16) -> bool {
-    matches!(n, 92 | 201 | 203 | 205 | 206 | 851 | 906 | 500..=503)
+    matches!(n, 92 | 201 | 203 | 204 | 205 | 206 | 851 | 906 | 500..=503)
 }
 
 /// Parse one of [`is_settings_code`]'s codes.
 pub(super) fn build(n: u16, w: &Words<'_>) -> Result<SettingsCommand, ParseError> {
     use SettingsCommand as S;
     let c = match n {
+        204 => {
+            w.check(b"PRTS", b"")?;
+            S::Acceleration {
+                print: w.f32(b'P')?,
+                retract: w.f32(b'R')?,
+                travel: w.f32(b'T')?,
+                s: w.f32(b'S')?,
+            }
+        }
         92 | 201 | 203 | 906 => {
             w.check(b"XYZE", b"")?;
             let a = w.axes()?;
@@ -114,6 +135,18 @@ fn axes<W: Write>(w: &mut W, code: &str, a: &AxisWords) -> fmt::Result {
 pub(super) fn write<W: Write>(w: &mut W, c: &SettingsCommand) -> fmt::Result {
     use SettingsCommand as S;
     match c {
+        S::Acceleration {
+            print,
+            retract,
+            travel,
+            s,
+        } => {
+            w.write_str("M204")?;
+            opt(w, 'P', *print)?;
+            opt(w, 'R', *retract)?;
+            opt(w, 'T', *travel)?;
+            opt(w, 'S', *s)
+        }
         S::StepsPerUnit(a) => axes(w, "M92", a),
         S::MaxAccel(a) => axes(w, "M201", a),
         S::MaxFeed(a) => axes(w, "M203", a),

@@ -1,4 +1,5 @@
 use super::*;
+use crate::motion::PauseMode;
 use proptest::prelude::*;
 
 /// The command `s` parses to (panics, naming `s`, if it parses to none or to an error).
@@ -29,46 +30,46 @@ fn emit(c: &Command) -> heapless::String<256> {
 fn moves() {
     assert_eq!(
         cmd("G1 X10 Y-2.5 Z.3 E0.05 F1800"),
-        Command::Move {
+        Command::Motion(MotionCommand::Move {
             rapid: false,
             axes: AxisWords([Some(10.0), Some(-2.5), Some(0.3), Some(0.05)]),
             feed: Some(1800.0)
-        }
+        })
     );
     assert_eq!(
         cmd("g0x1y2"),
-        Command::Move {
+        Command::Motion(MotionCommand::Move {
             rapid: true,
             axes: AxisWords([Some(1.0), Some(2.0), None, None]),
             feed: None
-        }
+        })
     );
     assert_eq!(cmd("G01 X1"), cmd("G1 X1"));
     // E is a letter after a blank or a complete number, an exponent inside one (as C's
     // `strtof`, Marlin's reader, takes it): `X1e-05` is one number, never X1 and E-05.
     assert_eq!(
         cmd("G1 X1 E5"),
-        Command::Move {
+        Command::Motion(MotionCommand::Move {
             rapid: false,
             axes: AxisWords([Some(1.0), None, None, Some(5.0)]),
             feed: None
-        }
+        })
     );
     assert_eq!(
         cmd("G1 X1e-05 Y20"),
-        Command::Move {
+        Command::Motion(MotionCommand::Move {
             rapid: false,
             axes: AxisWords([Some(1e-5), Some(20.0), None, None]),
             feed: None
-        }
+        })
     );
     assert_eq!(
         cmd("G1 X1E5"),
-        Command::Move {
+        Command::Motion(MotionCommand::Move {
             rapid: false,
             axes: AxisWords([Some(1e5), None, None, None]),
             feed: None
-        }
+        })
     );
 }
 
@@ -80,7 +81,9 @@ fn comments() {
     let l = parse_line(b"G28 (home) X ; all\r\n").unwrap();
     assert_eq!(
         l.command,
-        Some(Command::Home(AxisFlags([true, false, false, false])))
+        Some(Command::Motion(MotionCommand::Home(AxisFlags([
+            true, false, false, false
+        ]))))
     );
     assert_eq!(l.comment, Some(&b" all"[..]));
     let l = parse_line(b"(only paren)").unwrap();
@@ -170,24 +173,33 @@ fn unknown_commands() {
 fn text_commands() {
     assert_eq!(
         cmd("M117 Printing 1/3 (ok) ; c"),
-        Command::Message(Text::try_from("Printing 1/3 (ok)").unwrap())
+        Command::Report(ReportCommand::Message(
+            Text::try_from("Printing 1/3 (ok)").unwrap()
+        ))
     );
-    assert_eq!(cmd("M117"), Command::Message(Text::new()));
+    assert_eq!(
+        cmd("M117"),
+        Command::Report(ReportCommand::Message(Text::new()))
+    );
     assert_eq!(
         cmd("M118 E1 hello"),
-        Command::Echo(Text::try_from("E1 hello").unwrap())
+        Command::Report(ReportCommand::Echo(Text::try_from("E1 hello").unwrap()))
     );
     // Display text is cut, never refused (a long M117 must not stop a job).
     let long = format!("M117 {}", "x".repeat(TEXT_CAP + 1));
     assert_eq!(
         cmd(&long),
-        Command::Message(Text::try_from("x".repeat(TEXT_CAP).as_str()).unwrap())
+        Command::Report(ReportCommand::Message(
+            Text::try_from("x".repeat(TEXT_CAP).as_str()).unwrap()
+        ))
     );
     // ... at a character boundary: `é` (2 bytes) straddling the cap is dropped whole.
     let long = format!("M118 {}é{}", "x".repeat(TEXT_CAP - 1), "y".repeat(9));
     assert_eq!(
         cmd(&long),
-        Command::Echo(Text::try_from("x".repeat(TEXT_CAP - 1).as_str()).unwrap())
+        Command::Report(ReportCommand::Echo(
+            Text::try_from("x".repeat(TEXT_CAP - 1).as_str()).unwrap()
+        ))
     );
     let long = format!(
         "EXCLUDE_OBJECT_DEFINE NAME=a POLYGON=[{}]",
@@ -201,7 +213,7 @@ fn text_commands() {
 fn firmware_specific() {
     assert_eq!(
         cmd("M760 R2 Z5 X235 Y235 F3600 S3 V12 L0.2 T45"),
-        Command::PauseParams(PauseParams {
+        Command::Pause(PauseCommand::Params(PauseParams {
             retract_mm: Some(2.0),
             lift_z_mm: Some(5.0),
             park_x_mm: Some(235.0),
@@ -211,39 +223,48 @@ fn firmware_specific() {
             max_volumetric_mm3_s: Some(12.0),
             segment_len_mm: Some(0.2),
             nozzle_timeout_s: Some(45.0),
-        })
+        }))
     );
-    assert_eq!(cmd("M760"), Command::PauseParams(PauseParams::default()));
+    assert_eq!(
+        cmd("M760"),
+        Command::Pause(PauseCommand::Params(PauseParams::default()))
+    );
     assert_eq!(
         cmd("M761 L12"),
-        Command::SchedulePause(PauseSchedule::Layer(12))
+        Command::Pause(PauseCommand::Schedule(PauseSchedule::Layer(12)))
     );
     assert_eq!(
         cmd("M761 Z4.2"),
-        Command::SchedulePause(PauseSchedule::Z(4.2))
+        Command::Pause(PauseCommand::Schedule(PauseSchedule::Z(4.2)))
     );
-    assert_eq!(cmd("M761 C"), Command::SchedulePause(PauseSchedule::Clear));
-    assert_eq!(cmd("M761"), Command::SchedulePause(PauseSchedule::Report));
+    assert_eq!(
+        cmd("M761 C"),
+        Command::Pause(PauseCommand::Schedule(PauseSchedule::Clear))
+    );
+    assert_eq!(
+        cmd("M761"),
+        Command::Pause(PauseCommand::Schedule(PauseSchedule::Report))
+    );
     assert_eq!(
         cmd("M25 S1"),
-        Command::Pause {
+        Command::Pause(PauseCommand::Pause {
             m601: false,
-            now: true
-        }
+            mode: PauseMode::Now
+        })
     );
     assert_eq!(
         cmd("M601"),
-        Command::Pause {
+        Command::Pause(PauseCommand::Pause {
             m601: true,
-            now: false
-        }
+            mode: PauseMode::Layer
+        })
     );
     assert_eq!(
         cmd("SET_PRINT_STATS_INFO CURRENT_LAYER=3 TOTAL_LAYER=10"),
-        Command::PrintStatsInfo {
+        Command::Report(ReportCommand::PrintStatsInfo {
             current_layer: Some(3),
             total_layer: Some(10)
-        }
+        })
     );
     assert_eq!(
         kind("SET_PRINT_STATS_INFO CURRENT_LAYER=x"),
@@ -251,12 +272,12 @@ fn firmware_specific() {
     );
     assert_eq!(
         cmd("M73 P10 R20 L4"),
-        Command::Progress(Progress {
+        Command::Report(ReportCommand::Progress(Progress {
             percent: Some(10.0),
             remaining_min: Some(20.0),
             layer: Some(4),
             ..Progress::default()
-        })
+        }))
     );
 }
 
@@ -330,11 +351,23 @@ fn every_listed_code_is_known() {
 fn words_of_parameterless_commands_are_ignored() {
     let bit = |c: u8| 1u32 << (c - b'A');
     for (s, want, ignored) in [
-        ("M400 P100", Command::WaitMoves, bit(b'P')),
-        ("M400", Command::WaitMoves, 0),
-        ("G90 X", Command::Absolute, bit(b'X')),
-        ("M83 S1 T2", Command::RelativeE, bit(b'S') | bit(b'T')),
-        ("M112 Q", Command::EmergencyStop, bit(b'Q')),
+        (
+            "M400 P100",
+            Command::Motion(MotionCommand::WaitMoves),
+            bit(b'P'),
+        ),
+        ("M400", Command::Motion(MotionCommand::WaitMoves), 0),
+        ("G90 X", Command::Motion(MotionCommand::Absolute), bit(b'X')),
+        (
+            "M83 S1 T2",
+            Command::Motion(MotionCommand::RelativeE),
+            bit(b'S') | bit(b'T'),
+        ),
+        (
+            "M112 Q",
+            Command::Pause(PauseCommand::EmergencyStop),
+            bit(b'Q'),
+        ),
     ] {
         let l = parse_line(s.as_bytes()).unwrap();
         assert_eq!((l.command, l.ignored), (Some(want), ignored), "{s}");
@@ -347,7 +380,10 @@ fn words_of_parameterless_commands_are_ignored() {
     assert_eq!(kind("M104 S200 Q1"), ParseErrorKind::UnexpectedLetter);
     // G2/G3 P: circles, emitted and read back.
     let c = cmd("G3 Z.88 I-.86 J.861 P1  F30000");
-    assert!(matches!(c, Command::Arc { circles: 1, .. }), "{c:?}");
+    assert!(
+        matches!(c, Command::Motion(MotionCommand::Arc { circles: 1, .. })),
+        "{c:?}"
+    );
     assert_eq!(emit(&c).as_str(), "G3 Z0.88 I-0.86 J0.861 P1 F30000");
     assert_eq!(cmd(&emit(&c)), c);
 }
@@ -379,11 +415,9 @@ fn text() -> impl Strategy<Value = Text> {
 
 fn command() -> impl Strategy<Value = Command> {
     prop_oneof![
-        (any::<bool>(), axes(), onum()).prop_map(|(rapid, axes, feed)| Command::Move {
-            rapid,
-            axes,
-            feed
-        }),
+        (any::<bool>(), axes(), onum()).prop_map(|(rapid, axes, feed)| Command::Motion(
+            MotionCommand::Move { rapid, axes, feed }
+        )),
         (
             any::<bool>(),
             axes(),
@@ -391,49 +425,59 @@ fn command() -> impl Strategy<Value = Command> {
             0..=crate::gcode::ARC_MAX_CIRCLES,
             onum()
         )
-            .prop_map(|(clockwise, axes, (i, j, r), circles, feed)| Command::Arc {
-                clockwise,
-                axes,
-                i,
-                j,
-                r,
-                circles,
-                feed
-            }),
-        (onum(), onum()).prop_map(|(ms, s)| Command::Dwell { ms, s }),
+            .prop_map(
+                |(clockwise, axes, (i, j, r), circles, feed)| Command::Motion(MotionCommand::Arc {
+                    clockwise,
+                    axes,
+                    i,
+                    j,
+                    r,
+                    circles,
+                    feed
+                })
+            ),
+        (onum(), onum()).prop_map(|(ms, s)| Command::Motion(MotionCommand::Dwell { ms, s })),
         flags().prop_map(|mut f| {
             f.0[3] = false;
-            Command::Home(f)
+            Command::Motion(MotionCommand::Home(f))
         }),
-        axes().prop_map(Command::SetPosition),
-        (any::<bool>(), flags(), onum()).prop_map(|(m18, axes, s)| Command::DisableSteppers {
-            m18,
-            axes,
-            s
-        }),
-        (any::<bool>(), any::<bool>()).prop_map(|(m601, now)| Command::Pause { m601, now }),
+        axes().prop_map(|v| Command::Motion(MotionCommand::SetPosition(v))),
+        (any::<bool>(), flags(), onum()).prop_map(|(m18, axes, s)| Command::Driver(
+            DriverCommand::DisableSteppers { m18, axes, s }
+        )),
+        (any::<bool>(), any::<bool>()).prop_map(|(m601, now)| Command::Pause(
+            PauseCommand::Pause {
+                m601,
+                mode: if now {
+                    PauseMode::Now
+                } else {
+                    PauseMode::Layer
+                }
+            }
+        )),
         (any::<bool>(), onum(), onum(), proptest::option::of(0u8..8)).prop_map(
-            |(wait, s, r, tool)| Command::SetTemperature {
+            |(wait, s, r, tool)| Command::Heat(HeatCommand::SetTemperature {
                 heater: Heater::Hotend,
                 wait,
                 s,
                 r: if wait { r } else { None },
                 tool
-            }
+            })
         ),
         (
             proptest::option::of(0u8..=255),
             proptest::option::of(0u8..4)
         )
             .prop_map(|(s, fan)| {
-                Command::FanOn {
+                Command::Heat(HeatCommand::FanOn {
                     speed: s.map(f32::from),
                     fan,
-                }
+                })
             }),
-        proptest::option::of(any::<u32>()).prop_map(Command::SetLineNumber),
-        text().prop_map(Command::Message),
-        text().prop_map(Command::Echo),
+        proptest::option::of(any::<u32>())
+            .prop_map(|v| Command::Report(ReportCommand::SetLineNumber(v))),
+        text().prop_map(|v| Command::Report(ReportCommand::Message(v))),
+        text().prop_map(|v| Command::Report(ReportCommand::Echo(v))),
         (
             onum(),
             onum(),
@@ -442,14 +486,16 @@ fn command() -> impl Strategy<Value = Command> {
             onum(),
             proptest::option::of(any::<u32>())
         )
-            .prop_map(|(p, r, q, s, c, l)| Command::Progress(Progress {
-                percent: p,
-                remaining_min: r,
-                silent_percent: q,
-                silent_remaining_min: s,
-                change_min: c,
-                layer: l
-            })),
+            .prop_map(
+                |(p, r, q, s, c, l)| Command::Report(ReportCommand::Progress(Progress {
+                    percent: p,
+                    remaining_min: r,
+                    silent_percent: q,
+                    silent_remaining_min: s,
+                    change_min: c,
+                    layer: l
+                }))
+            ),
         (
             onum(),
             onum(),
@@ -462,7 +508,7 @@ fn command() -> impl Strategy<Value = Command> {
             onum()
         )
             .prop_map(
-                |(a, b, c, d, e, f, g, h, i)| Command::PauseParams(PauseParams {
+                |(a, b, c, d, e, f, g, h, i)| Command::Pause(PauseCommand::Params(PauseParams {
                     retract_mm: a,
                     lift_z_mm: b,
                     park_x_mm: c,
@@ -472,7 +518,7 @@ fn command() -> impl Strategy<Value = Command> {
                     max_volumetric_mm3_s: g,
                     segment_len_mm: h,
                     nozzle_timeout_s: i
-                })
+                }))
             ),
         prop_oneof![
             Just(PauseSchedule::Report),
@@ -480,7 +526,7 @@ fn command() -> impl Strategy<Value = Command> {
             any::<u32>().prop_map(PauseSchedule::Layer),
             num().prop_map(PauseSchedule::Z),
         ]
-        .prop_map(Command::SchedulePause),
+        .prop_map(|v| Command::Pause(PauseCommand::Schedule(v))),
         (
             proptest::option::of(-1i32..2),
             onum(),
@@ -488,24 +534,27 @@ fn command() -> impl Strategy<Value = Command> {
             any::<bool>()
         )
             .prop_map(|(heater_index, target_c, cycles, use_result)| {
-                Command::Autotune {
+                Command::Heat(HeatCommand::Autotune {
                     heater_index,
                     target_c,
                     cycles,
                     use_result,
-                }
+                })
             }),
         (
             proptest::option::of(any::<u32>()),
             proptest::option::of(any::<u32>())
         )
-            .prop_map(|(current_layer, total_layer)| Command::PrintStatsInfo {
-                current_layer,
-                total_layer
-            }),
-        (onum(), proptest::option::of(any::<bool>()))
-            .prop_map(|(min_temp_c, allow)| Command::ColdExtrusion { min_temp_c, allow }),
-        Just(Command::ReportEndstops),
+            .prop_map(|(current_layer, total_layer)| Command::Report(
+                ReportCommand::PrintStatsInfo {
+                    current_layer,
+                    total_layer
+                }
+            )),
+        (onum(), proptest::option::of(any::<bool>())).prop_map(
+            |(min_temp_c, allow)| Command::Heat(HeatCommand::ColdExtrusion { min_temp_c, allow })
+        ),
+        Just(Command::Report(ReportCommand::Endstops)),
         any::<u8>().prop_map(Command::Tool),
         (1000u16..9999, axes()).prop_map(|(code, a)| {
             let mut t = Text::new();
@@ -513,11 +562,11 @@ fn command() -> impl Strategy<Value = Command> {
             let mut s = heapless::String::<200>::new();
             let _ = emit::write_command(
                 &mut s,
-                &Command::Move {
+                &Command::Motion(MotionCommand::Move {
                     rapid: false,
                     axes: a,
                     feed: None,
-                },
+                }),
             );
             let _ = t.push_str(s.get(2..).unwrap_or(""));
             Command::Unknown(t)

@@ -87,6 +87,7 @@
 
 use crate::config::MachineConfig;
 use crate::gcode::{Command, Line};
+use crate::gcode::{DriverCommand, HeatCommand, ReportCommand};
 use crate::motion::{Axis, LayerMark, LayerSource, StepPos};
 use markers::{classify_comment, CommentMarker, Family};
 
@@ -411,11 +412,11 @@ impl LayerDetector {
 /// The layer number of a command marker (`M73 L<n>`, `SET_PRINT_STATS_INFO CURRENT_LAYER=<n>`).
 fn command_marker(cmd: &Command) -> Option<(Family, u32)> {
     match cmd {
-        Command::Progress(p) => p.layer.map(|l| (Family::M73, l)),
-        Command::PrintStatsInfo {
+        Command::Report(ReportCommand::Progress(p)) => p.layer.map(|l| (Family::M73, l)),
+        Command::Report(ReportCommand::PrintStatsInfo {
             current_layer: Some(l),
             ..
-        } => Some((Family::Klipper, *l)),
+        }) => Some((Family::Klipper, *l)),
         _ => None,
     }
 }
@@ -425,16 +426,16 @@ fn command_marker(cmd: &Command) -> Option<(Family, u32)> {
 /// end: some users switch it off part-way through a print.
 fn is_end_command(cmd: &Command) -> bool {
     match cmd {
-        Command::SetTemperature {
+        Command::Heat(HeatCommand::SetTemperature {
             heater: crate::gcode::Heater::Hotend,
             s,
             r,
             ..
-        } => {
+        }) => {
             let off = |v: &Option<f32>| v.is_some_and(|t| t <= 0.0);
             (off(s) && r.is_none()) || (off(r) && s.is_none()) || (off(s) && off(r))
         }
-        Command::DisableSteppers { axes, s: None, .. } => {
+        Command::Driver(DriverCommand::DisableSteppers { axes, s: None, .. }) => {
             axes.is_empty() || axes.includes(Axis::X) || axes.includes(Axis::Y)
         }
         _ => false,

@@ -3,6 +3,7 @@
 
 use super::assemble::{trim, Assembled};
 use super::{realtime_of, ReceivedLine};
+use crate::gcode::ReportCommand;
 use crate::gcode::{self, Command};
 use crate::motion::Realtime;
 use heapless::Vec;
@@ -61,13 +62,19 @@ pub(super) fn classify(a: &Assembled<'_>) -> Verdict {
         // anything else cut short could do the wrong thing.
         if !matches!(
             command,
-            Some(Command::Message(_) | Command::Echo(_) | Command::Unknown(_))
+            Some(
+                Command::Report(ReportCommand::Message(_))
+                    | Command::Report(ReportCommand::Echo(_))
+                    | Command::Unknown(_)
+            )
         ) {
             return Verdict::TooLong(number);
         }
     }
     match command {
-        Some(Command::SetLineNumber(m)) => return Verdict::SetLineNumber(m.or(number)),
+        Some(Command::Report(ReportCommand::SetLineNumber(m))) => {
+            return Verdict::SetLineNumber(m.or(number))
+        }
         Some(ref c) => {
             if let Some(rt) = realtime_of(c) {
                 return Verdict::Realtime(number, rt);

@@ -12,6 +12,7 @@
 
 use super::assemble::{trim, Assembler};
 use super::{realtime_of, split_number, ReceivedLine, LINE_CAP};
+use crate::gcode::ReportCommand;
 use crate::gcode::{self, Command};
 use crate::motion::Realtime;
 use heapless::Vec;
@@ -79,12 +80,22 @@ impl FileLines {
             };
             let display = matches!(
                 command,
-                Some(Command::Message(_) | Command::Echo(_) | Command::Unknown(_))
+                Some(
+                    Command::Report(ReportCommand::Message(_))
+                        | Command::Report(ReportCommand::Echo(_))
+                        | Command::Unknown(_)
+                )
             );
             match command.as_ref().and_then(realtime_of) {
                 Some(rt) => Some(FileLine::Realtime(rt)),
                 None if a.cut && !display => Some(FileLine::TooLong),
-                None if matches!(command, Some(Command::SetLineNumber(_))) => None,
+                None if matches!(
+                    command,
+                    Some(Command::Report(ReportCommand::SetLineNumber(_)))
+                ) =>
+                {
+                    None
+                }
                 None => {
                     let mut t: Vec<u8, LINE_CAP> = Vec::new();
                     // At most LINE_CAP bytes were kept.

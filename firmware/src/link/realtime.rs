@@ -2,6 +2,7 @@
 //! at once, ahead of the line FIFO.
 
 use crate::gcode::Command;
+use crate::gcode::PauseCommand;
 use crate::motion::{PauseMode, Realtime};
 
 /// Control byte: emergency stop (Ctrl-X, CAN).
@@ -36,13 +37,12 @@ pub const fn control_byte(b: u8) -> Option<Realtime> {
 /// The realtime request a parsed command stands for, if any (the host-link spellings).
 pub fn realtime_of(cmd: &Command) -> Option<Realtime> {
     match cmd {
-        Command::BreakWait => Some(Realtime::BreakWait),
-        Command::EmergencyStop => Some(Realtime::EmergencyStop),
-        Command::QuickStop => Some(Realtime::QuickStop),
-        Command::Pause { now: false, .. } => Some(Realtime::Pause(PauseMode::Layer)),
-        Command::Pause { now: true, .. } => Some(Realtime::Pause(PauseMode::Now)),
-        Command::Resume { .. } => Some(Realtime::Resume),
-        Command::Cancel => Some(Realtime::Cancel),
+        Command::Pause(PauseCommand::BreakWait) => Some(Realtime::BreakWait),
+        Command::Pause(PauseCommand::EmergencyStop) => Some(Realtime::EmergencyStop),
+        Command::Pause(PauseCommand::QuickStop) => Some(Realtime::QuickStop),
+        Command::Pause(PauseCommand::Pause { mode, .. }) => Some(Realtime::Pause(*mode)),
+        Command::Pause(PauseCommand::Resume { .. }) => Some(Realtime::Resume),
+        Command::Pause(PauseCommand::Cancel) => Some(Realtime::Cancel),
         _ => None,
     }
 }

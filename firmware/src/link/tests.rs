@@ -1,4 +1,5 @@
 use super::*;
+use crate::gcode::ReportCommand;
 use proptest::prelude::*;
 use std::string::String;
 use std::vec::Vec as StdVec;
@@ -148,7 +149,7 @@ fn long_command_lines_never_error() {
     feed(&mut l, m117.as_bytes());
     assert!(matches!(
         l.pop_line().unwrap().parse().unwrap().command,
-        Some(Command::Message(t)) if t.starts_with("Printing Printing")
+        Some(Command::Report(ReportCommand::Message(t))) if t.starts_with("Printing Printing")
     ));
     assert_eq!(out(&mut l), "");
     // Exactly LINE_CAP bytes of command is not long.

@@ -55,6 +55,7 @@ pub(crate) use limits::to_steps;
 pub use limits::{dwell_ms, BOUNDS_TOLERANCE_MM, MIN_FEED_MM_MIN, OVERRIDE_RANGE_PCT};
 
 use crate::config::MachineConfig;
+use crate::gcode::MotionCommand;
 use crate::gcode::{AxisFlags, AxisWords, Command};
 use crate::motion::{Axis, MoveRequest, StepPos, AXES};
 use limits::{check_axis, check_bounds, check_override};
@@ -133,8 +134,10 @@ impl MachineState {
     /// Interpret one command. On error nothing changes.
     pub fn apply(&mut self, cmd: &Command, cfg: &MachineConfig) -> Result<Action, MachineError> {
         match cmd {
-            Command::Move { axes, feed, .. } => self.linear(axes, *feed, cfg),
-            Command::Arc {
+            Command::Motion(MotionCommand::Move { axes, feed, .. }) => {
+                self.linear(axes, *feed, cfg)
+            }
+            Command::Motion(MotionCommand::Arc {
                 clockwise,
                 axes,
                 i,
@@ -142,22 +145,22 @@ impl MachineState {
                 r,
                 circles,
                 feed,
-            } => self.arc(*clockwise, axes, (*i, *j, *r), *circles, *feed, cfg),
-            Command::Dwell { ms, s } => {
+            }) => self.arc(*clockwise, axes, (*i, *j, *r), *circles, *feed, cfg),
+            Command::Motion(MotionCommand::Dwell { ms, s }) => {
                 let ms = dwell_ms(*ms, *s)?;
                 Ok(Action::Dwell { ms })
             }
-            Command::Retract => self.firmware_retract(true, cfg),
-            Command::Recover => self.firmware_retract(false, cfg),
-            Command::Inches => {
+            Command::Motion(MotionCommand::Retract) => self.firmware_retract(true, cfg),
+            Command::Motion(MotionCommand::Recover) => self.firmware_retract(false, cfg),
+            Command::Motion(MotionCommand::Inches) => {
                 self.inches = true;
                 Ok(Action::None)
             }
-            Command::Millimetres => {
+            Command::Motion(MotionCommand::Millimetres) => {
                 self.inches = false;
                 Ok(Action::None)
             }
-            Command::Home(flags) => {
+            Command::Motion(MotionCommand::Home(flags)) => {
                 let mut done = [false; AXES];
                 let mut pos = self.pos_mm;
                 for axis in [Axis::X, Axis::Y, Axis::Z] {
@@ -178,25 +181,25 @@ impl MachineState {
                 }
                 Ok(Action::Home(AxisFlags(done)))
             }
-            Command::Absolute => {
+            Command::Motion(MotionCommand::Absolute) => {
                 self.relative_xyz = false;
                 self.relative_e = false;
                 Ok(Action::None)
             }
-            Command::Relative => {
+            Command::Motion(MotionCommand::Relative) => {
                 self.relative_xyz = true;
                 self.relative_e = true;
                 Ok(Action::None)
             }
-            Command::AbsoluteE => {
+            Command::Motion(MotionCommand::AbsoluteE) => {
                 self.relative_e = false;
                 Ok(Action::None)
             }
-            Command::RelativeE => {
+            Command::Motion(MotionCommand::RelativeE) => {
                 self.relative_e = true;
                 Ok(Action::None)
             }
-            Command::SetPosition(axes) => {
+            Command::Motion(MotionCommand::SetPosition(axes)) => {
                 for axis in [Axis::X, Axis::Y, Axis::Z] {
                     if let Some(v) = axes.get(axis) {
                         let i = axis.index();
@@ -208,11 +211,11 @@ impl MachineState {
                 }
                 Ok(Action::None)
             }
-            Command::FeedOverride(Some(pct)) => {
+            Command::Motion(MotionCommand::FeedOverride(Some(pct))) => {
                 self.feed_pct = check_override(*pct)?;
                 Ok(Action::None)
             }
-            Command::FlowOverride(Some(pct)) => {
+            Command::Motion(MotionCommand::FlowOverride(Some(pct))) => {
                 self.flow_pct = check_override(*pct)?;
                 Ok(Action::None)
             }

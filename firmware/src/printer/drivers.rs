@@ -5,7 +5,7 @@
 //! [`Printer::driver_configured`] and [`Printer::driver_report`]. M906 (run current) is a
 //! settings command; the board re-applies a driver whose current changed.
 
-use super::Printer;
+use super::{Command, Printer, StepperRequest};
 use crate::drivers::tmc2209::{DriverReport, DriverSettings, TmcError};
 use crate::gcode::{AxisFlags, DriverCommand};
 use crate::link::Response;
@@ -121,9 +121,28 @@ impl Printer {
         self.host.respond(Response::Echo(&t));
     }
 
-    /// M569, M350, M122.
+    /// M17, M18/M84 (in the job's order, through the intake), M569, M350, M122.
     pub(super) fn driver_command(&mut self, c: &DriverCommand) {
         match c {
+            DriverCommand::EnableSteppers(axes) => {
+                let mask = mask_of(axes);
+                self.intake
+                    .push(Command::Steppers(StepperRequest::Enable { mask }));
+            }
+            DriverCommand::DisableSteppers { axes, s, .. } => match s {
+                Some(s) if s.is_finite() && *s >= 0.0 => {
+                    self.intake
+                        .push(Command::Steppers(StepperRequest::IdleTimeout { s: *s }));
+                }
+                Some(_) => self
+                    .host
+                    .warn(format_args!("M84 S: timeout must be >= 0 s")),
+                None => {
+                    let mask = mask_of(axes);
+                    self.intake
+                        .push(Command::Steppers(StepperRequest::Disable { mask }));
+                }
+            },
             DriverCommand::Chopper { axes, stealthchop } => {
                 let mask = mask_of(axes);
                 match stealthchop {

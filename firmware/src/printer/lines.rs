@@ -7,6 +7,7 @@
 use super::intake::{Interpreted, LineOutcome, Route};
 use super::Printer;
 use crate::gcode::{self, PauseSchedule};
+use crate::gcode::{HeatCommand, MotionCommand, PauseCommand};
 use crate::link::ReceivedLine;
 
 impl Printer {
@@ -237,24 +238,19 @@ pub(super) fn answered_without_room(line: &ReceivedLine) -> bool {
         Ok(gcode::Line {
             command: Some(c), ..
         }) => match c {
-            G::ReportTemperatures
-            | G::ReportPosition
-            | G::FirmwareInfo
-            | G::Message(_)
-            | G::Echo(_)
-            | G::Progress(_)
-            | G::Report(_)
-            | G::PrintStatsInfo { .. }
-            | G::FeedOverride(None)
-            | G::FlowOverride(None)
-            | G::SchedulePause(PauseSchedule::Report)
-            | G::SetLineNumber(_)
+            // The whole report family (M114 M115 M117 M118 M73 M110 M119 M155 M113 M31 M27,
+            // SET_PRINT_STATS_INFO) and the other families' reports.
+            G::Report(_)
+            | G::Heat(HeatCommand::Report)
+            | G::Motion(MotionCommand::FeedOverride(None))
+            | G::Motion(MotionCommand::FlowOverride(None))
+            | G::Pause(PauseCommand::Schedule(PauseSchedule::Report))
             | G::Tool(0)
             | G::Unknown(_) => true,
             // SD commands queue nothing (M24 is realtime); a listing while parked with a
             // full queue must not wait for the resume.
             G::Sd(_) => true,
-            G::PauseParams(p) => p.is_empty(),
+            G::Pause(PauseCommand::Params(p)) => p.is_empty(),
             _ => false,
         },
     }

@@ -40,6 +40,7 @@ macro_rules! cx {
 }
 
 mod board;
+mod commands;
 mod cx;
 mod drivers;
 mod guards;

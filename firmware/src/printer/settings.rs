@@ -13,6 +13,7 @@ use super::host::Host;
 use super::Printer;
 use crate::drivers::TravelFrame;
 use crate::gcode::{self, AxisWords, Heater, PauseParams, SettingsCommand};
+use crate::gcode::{HeatCommand, PauseCommand};
 use crate::link::Response;
 use crate::motion::{Axis, StepPos, AXES};
 use crate::storage::{
@@ -293,6 +294,14 @@ impl Printer {
     pub(super) fn settings_command(&mut self, c: &SettingsCommand) {
         use SettingsCommand as S;
         match c {
+            S::Acceleration {
+                print,
+                retract,
+                travel,
+                s,
+            } => self
+                .settings
+                .m204(*print, *retract, *travel, *s, &mut self.host),
             S::StepsPerUnit(a) => self.m92(a),
             S::MaxAccel(a) => self.set_axes("M201", a, &crate::storage::ACCEL, |cfg, i, v| {
                 cfg.axes[i].max_accel_mm_s2 = v
@@ -485,12 +494,12 @@ impl Printer {
             self.report_line(&c);
         }
         let c = &self.settings.cfg;
-        let accel = gcode::Command::SetAcceleration {
+        let accel = gcode::Command::Settings(SettingsCommand::Acceleration {
             print: Some(c.accel_print_mm_s2),
             retract: Some(c.accel_retract_mm_s2),
             travel: Some(c.accel_travel_mm_s2),
             s: None,
-        };
+        });
         self.report_line(&accel);
         for code in ["M205", "M206"] {
             let c = self.current(code);
@@ -501,20 +510,19 @@ impl Printer {
             (HeaterId::Bed, Heater::Bed),
         ] {
             if let Some(g) = self.heat.thermal().pid(id) {
-                self.report_line(&gcode::Command::SetPid {
+                self.report_line(&gcode::Command::Heat(HeatCommand::SetPid {
                     heater,
                     p: Some(g.kp),
                     i: Some(g.ki),
                     d: Some(g.kd),
-                });
+                }));
             }
         }
         let c = self.current("M906");
         self.report_line(&c);
         let timeout_s = self.heat.thermal().idle_config().map_or(0, |i| i.timeout_s);
-        self.report_line(&gcode::Command::PauseParams(PauseParams::from_config(
-            &self.settings.cfg.pause,
-            Some(timeout_s as f32),
+        self.report_line(&gcode::Command::Pause(PauseCommand::Params(
+            PauseParams::from_config(&self.settings.cfg.pause, Some(timeout_s as f32)),
         )));
     }
 }

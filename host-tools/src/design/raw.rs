@@ -16,6 +16,7 @@
 //! [`StateChange::Gcode`]: crate::design::model::StateChange::Gcode
 
 use firmware::gcode::{parse_line, Command, Heater};
+use firmware::gcode::{HeatCommand, MotionCommand};
 use glam::DVec3;
 
 /// What one raw text did, beyond moving the tracked state.
@@ -87,21 +88,21 @@ pub fn check_text(text: &str) -> Result<(), RawError> {
         };
         let parsed = parse_line(l.as_bytes()).map_err(|e| bad(&format!("{e}")))?;
         match parsed.command {
-            Some(Command::AbsoluteE | Command::RelativeE) => {
+            Some(Command::Motion(MotionCommand::AbsoluteE) | Command::Motion(MotionCommand::RelativeE)) => {
                 return Err(bad(
                     "changes absolute/relative E, which the printer profile sets for the whole file",
                 ))
             }
-            Some(Command::Inches) => {
+            Some(Command::Motion(MotionCommand::Inches)) => {
                 return Err(bad("switches to inches; the design is written in millimetres"))
             }
-            Some(Command::SetPosition(a)) if (0..3).any(|k| a.0[k].is_some()) => {
+            Some(Command::Motion(MotionCommand::SetPosition(a))) if (0..3).any(|k| a.0[k].is_some()) => {
                 return Err(bad(
                     "G92 with X, Y or Z shifts the coordinates of every later move; only `G92 E` is allowed",
                 ))
             }
-            Some(Command::Relative) => relative_xyz = Some((n, l.to_string())),
-            Some(Command::Absolute) => relative_xyz = None,
+            Some(Command::Motion(MotionCommand::Relative)) => relative_xyz = Some((n, l.to_string())),
+            Some(Command::Motion(MotionCommand::Absolute)) => relative_xyz = None,
             _ => {}
         }
     }
@@ -138,9 +139,10 @@ impl RawTracker {
             };
             let Some(cmd) = line.command else { continue };
             match cmd {
-                Command::Move { axes, feed, .. } | Command::Arc { axes, feed, .. } => {
+                Command::Motion(MotionCommand::Move { axes, feed, .. })
+                | Command::Motion(MotionCommand::Arc { axes, feed, .. }) => {
                     fx.feed |= feed.is_some();
-                    let arc = matches!(cmd, Command::Arc { .. });
+                    let arc = matches!(cmd, Command::Motion(MotionCommand::Arc { .. }));
                     for k in 0..3 {
                         if let Some(v) = axes.0[k] {
                             let v = f64::from(v);
@@ -159,7 +161,7 @@ impl RawTracker {
                         fx.e_changed = true;
                     }
                 }
-                Command::Home(flags) => {
+                Command::Motion(MotionCommand::Home(flags)) => {
                     fx.homes = true;
                     fx.moved = true;
                     let home = self.home.to_array();
@@ -169,34 +171,35 @@ impl RawTracker {
                         }
                     }
                 }
-                Command::SetPosition(a) => {
+                Command::Motion(MotionCommand::SetPosition(a)) => {
                     if let Some(e) = a.0[3] {
                         self.e_mm = f64::from(e);
                         fx.e_changed = true;
                     }
                 }
-                Command::Relative => {
+                Command::Motion(MotionCommand::Relative) => {
                     relative = true;
                     fx.modes = true;
                 }
-                Command::Absolute => {
+                Command::Motion(MotionCommand::Absolute) => {
                     relative = false;
                     fx.modes = true;
                 }
-                Command::AbsoluteE => abs_e = true,
-                Command::RelativeE => abs_e = false,
-                Command::SetTemperature {
+                Command::Motion(MotionCommand::AbsoluteE) => abs_e = true,
+                Command::Motion(MotionCommand::RelativeE) => abs_e = false,
+                Command::Heat(HeatCommand::SetTemperature {
                     heater: Heater::Hotend,
                     s,
                     r,
                     ..
-                } => {
+                }) => {
                     if let Some(c) = s.or(r) {
                         fx.hotend_c = Some(f64::from(c));
                     }
                 }
-                Command::FanOn { .. } | Command::FanOff { .. } => fx.fan = true,
-                Command::ColdExtrusion { min_temp_c, allow } => {
+                Command::Heat(HeatCommand::FanOn { .. })
+                | Command::Heat(HeatCommand::FanOff { .. }) => fx.fan = true,
+                Command::Heat(HeatCommand::ColdExtrusion { min_temp_c, allow }) => {
                     if let Some(a) = allow {
                         fx.cold_allowed = Some(a);
                     }

@@ -130,16 +130,16 @@ mod backend {
     fn convert(c: &fw::Command) -> Command {
         let mut p = Vec::new();
         let (letter, number) = match c {
-            fw::Command::Move {
+            fw::Command::Motion(fw::MotionCommand::Move {
                 rapid,
                 axes: a,
                 feed,
-            } => {
+            }) => {
                 axes(&mut p, a);
                 opt(&mut p, 'F', *feed);
                 ('G', if *rapid { 0 } else { 1 })
             }
-            fw::Command::Arc {
+            fw::Command::Motion(fw::MotionCommand::Arc {
                 clockwise,
                 axes: a,
                 i,
@@ -147,7 +147,7 @@ mod backend {
                 r,
                 circles,
                 feed,
-            } => {
+            }) => {
                 axes(&mut p, a);
                 opt(&mut p, 'I', *i);
                 opt(&mut p, 'J', *j);
@@ -158,9 +158,9 @@ mod backend {
                 opt(&mut p, 'F', *feed);
                 ('G', if *clockwise { 2 } else { 3 })
             }
-            fw::Command::Inches => ('G', 20),
-            fw::Command::Millimetres => ('G', 21),
-            fw::Command::Home(flags) => {
+            fw::Command::Motion(fw::MotionCommand::Inches) => ('G', 20),
+            fw::Command::Motion(fw::MotionCommand::Millimetres) => ('G', 21),
+            fw::Command::Motion(fw::MotionCommand::Home(flags)) => {
                 for (l, on) in ['X', 'Y', 'Z', 'E'].iter().zip(flags.0.iter()) {
                     if *on {
                         p.push((*l, 0.0));
@@ -168,24 +168,24 @@ mod backend {
                 }
                 ('G', 28)
             }
-            fw::Command::Absolute => ('G', 90),
-            fw::Command::Relative => ('G', 91),
-            fw::Command::SetPosition(a) => {
+            fw::Command::Motion(fw::MotionCommand::Absolute) => ('G', 90),
+            fw::Command::Motion(fw::MotionCommand::Relative) => ('G', 91),
+            fw::Command::Motion(fw::MotionCommand::SetPosition(a)) => {
                 axes(&mut p, a);
                 ('G', 92)
             }
-            fw::Command::AbsoluteE => ('M', 82),
-            fw::Command::RelativeE => ('M', 83),
-            fw::Command::WaitMoves => ('M', 400),
-            fw::Command::FlowOverride(s) => {
+            fw::Command::Motion(fw::MotionCommand::AbsoluteE) => ('M', 82),
+            fw::Command::Motion(fw::MotionCommand::RelativeE) => ('M', 83),
+            fw::Command::Motion(fw::MotionCommand::WaitMoves) => ('M', 400),
+            fw::Command::Motion(fw::MotionCommand::FlowOverride(s)) => {
                 opt(&mut p, 'S', *s);
                 ('M', 221)
             }
-            fw::Command::FeedOverride(s) => {
+            fw::Command::Motion(fw::MotionCommand::FeedOverride(s)) => {
                 opt(&mut p, 'S', *s);
                 ('M', 220)
             }
-            fw::Command::Dwell { .. } => ('G', 4),
+            fw::Command::Motion(fw::MotionCommand::Dwell { .. }) => ('G', 4),
             _ => ('?', 0),
         };
         Command {
@@ -214,12 +214,13 @@ mod backend {
         }
         let mut m = MachineState::new(&cfg);
         let err = |e: firmware::machine::MachineError| GcodeError(e.to_string());
-        m.apply(&fw::Command::Relative, &cfg).map_err(err)?;
+        m.apply(&fw::Command::Motion(fw::MotionCommand::Relative), &cfg)
+            .map_err(err)?;
         let mut d = [None; 4];
         for (k, v) in d.iter_mut().enumerate() {
             *v = Some((to[k] - from[k]) as f32);
         }
-        let arc = fw::Command::Arc {
+        let arc = fw::Command::Motion(fw::MotionCommand::Arc {
             clockwise: cmd.number == 2,
             axes: fw::AxisWords(d),
             i: cmd.get('I').map(|v| v as f32),
@@ -227,7 +228,7 @@ mod backend {
             r: cmd.get('R').map(|v| v as f32),
             circles: cmd.get('P').map_or(0, |v| v.clamp(0.0, 255.0) as u8),
             feed: None,
-        };
+        });
         let moves = match m.apply(&arc, &cfg).map_err(err)? {
             Action::Arc(moves) => moves,
             other => return Err(GcodeError(format!("not an arc: {other:?}"))),

@@ -16,6 +16,7 @@
 //! that do not move the head (temperatures, fans, unknown codes) are counted as skipped.
 
 use firmware::gcode::{parse_line, Command};
+use firmware::gcode::{MotionCommand, SettingsCommand};
 use firmware::layer::{LayerDetector, MoveFacts};
 pub use firmware::motion::LayerSource;
 
@@ -318,11 +319,11 @@ impl FirmwareReader {
     fn action(&mut self, cmd: &Command) -> Result<Option<Action>, &'static str> {
         let scale = self.scale();
         Ok(Some(match *cmd {
-            Command::Move { axes, feed, .. } => {
+            Command::Motion(MotionCommand::Move { axes, feed, .. }) => {
                 self.set_feed(feed);
                 Action::Line(self.target(&axes))
             }
-            Command::Arc {
+            Command::Motion(MotionCommand::Arc {
                 clockwise,
                 axes,
                 i,
@@ -330,7 +331,7 @@ impl FirmwareReader {
                 r,
                 circles,
                 feed,
-            } => {
+            }) => {
                 self.set_feed(feed);
                 let to = self.target(&axes);
                 let ij = match (i, j) {
@@ -349,7 +350,7 @@ impl FirmwareReader {
                 )?;
                 Action::Arc(to, (c, !clockwise, circles))
             }
-            Command::Dwell { ms, s } => {
+            Command::Motion(MotionCommand::Dwell { ms, s }) => {
                 let t = f64::from(s.unwrap_or(0.0)) + f64::from(ms.unwrap_or(0.0)) / 1000.0;
                 if t > 0.0 {
                     Action::Event(Event::Dwell(t))
@@ -357,33 +358,33 @@ impl FirmwareReader {
                     Action::None
                 }
             }
-            Command::Inches => {
+            Command::Motion(MotionCommand::Inches) => {
                 self.inch = true;
                 Action::None
             }
-            Command::Millimetres => {
+            Command::Motion(MotionCommand::Millimetres) => {
                 self.inch = false;
                 Action::None
             }
-            Command::Absolute => {
+            Command::Motion(MotionCommand::Absolute) => {
                 self.abs_xyz = true;
                 self.abs_e = true;
                 Action::None
             }
-            Command::Relative => {
+            Command::Motion(MotionCommand::Relative) => {
                 self.abs_xyz = false;
                 self.abs_e = false;
                 Action::None
             }
-            Command::AbsoluteE => {
+            Command::Motion(MotionCommand::AbsoluteE) => {
                 self.abs_e = true;
                 Action::None
             }
-            Command::RelativeE => {
+            Command::Motion(MotionCommand::RelativeE) => {
                 self.abs_e = false;
                 Action::None
             }
-            Command::SetPosition(axes) => {
+            Command::Motion(MotionCommand::SetPosition(axes)) => {
                 // Coordinates change, the head does not move.
                 if axes.is_empty() {
                     self.pos = [0.0; 4];
@@ -395,7 +396,7 @@ impl FirmwareReader {
                 }
                 Action::None
             }
-            Command::Home(flags) => {
+            Command::Motion(MotionCommand::Home(flags)) => {
                 let mut to = self.pos;
                 for (k, t) in to.iter_mut().enumerate().take(3) {
                     if flags.is_empty() || flags.0[k] {
@@ -404,9 +405,9 @@ impl FirmwareReader {
                 }
                 Action::Jump(to)
             }
-            Command::SetAcceleration {
+            Command::Settings(SettingsCommand::Acceleration {
                 print, travel, s, ..
-            } => Action::Event(Event::Accel {
+            }) => Action::Event(Event::Accel {
                 print_mm_s2: print.or(s).map(f64::from),
                 travel_mm_s2: travel.or(s).map(f64::from),
             }),

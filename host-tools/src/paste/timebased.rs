@@ -39,6 +39,7 @@
 
 use crate::design::motion::{MoveKind, Trajectory};
 use crate::job::read::{default_reader, Event, GcodeReader};
+use firmware::gcode::HeatCommand;
 use glam::DVec3;
 use std::fmt::Write as _;
 
@@ -269,9 +270,9 @@ pub fn first_temperatures(gcode: &[u8]) -> (Option<f64>, Option<f64>) {
     for line in gcode.split(|&b| b == b'\n') {
         if let Ok(firmware::gcode::Line {
             command:
-                Some(Command::SetTemperature {
+                Some(Command::Heat(HeatCommand::SetTemperature {
                     heater, s: Some(c), ..
-                }),
+                })),
             ..
         }) = parse_line(line)
         {

@@ -18,12 +18,10 @@
 //! while paused may erase ([`ERASE_WHILE_PAUSED`]). `memory.x` must end the image below
 //! `0x080C_0000` (see `docs/settings.md`).
 
-use super::SharedPrinter;
-use embassy_executor::Spawner;
 use embassy_stm32::flash::{Blocking, Error as FlashError, Flash};
 use embassy_stm32::pac;
-use embassy_time::Timer;
 use embedded_storage::nor_flash::{ErrorType, NorFlash, ReadNorFlash};
+use firmware::printer::Printer;
 use firmware::storage::{SettingsStore, SKR2_AREA};
 
 use super::{clock, safety, watchdog};
@@ -31,8 +29,8 @@ use super::{clock, safety, watchdog};
 /// Start of the flash: embassy-stm32's flash offsets count from here.
 const FLASH_BASE: u32 = 0x0800_0000;
 
-/// How often the store task looks for a pending M500/M501, ms.
-const POLL_MS: u64 = 20;
+/// How often the motion task serves the store (a pending M500/M501, a record), ms.
+pub const POLL_MS: u32 = 20;
 
 /// Most bytes programmed between two watchdog feeds (64 words: at most 6.4 ms at the
 /// datasheet's 100 µs per word).
@@ -167,10 +165,10 @@ fn erase_parallelism_x32() {
 /// The store on the chip's flash.
 pub type Store = SettingsStore<GuardedFlash>;
 
-/// Load the saved settings into `printer` now (before any host line is read) and start the
-/// task that carries out M500/M501. A misconfigured area is logged; the printer then runs on
-/// its factory values.
-pub fn start(spawner: &Spawner, printer: &'static SharedPrinter) {
+/// Load the saved settings into `printer` now (before any host line is read); the store is
+/// the caller's (the motion task serves M500/M501 with it: [`serve_store`]). A misconfigured
+/// area is logged; the printer then runs on its factory values.
+pub fn start(printer: &mut Printer) -> Option<Store> {
     // SAFETY: FLASH is used nowhere else in this image (`pins::split` does not take it), so
     // this is its only instance.
     let flash = Flash::new_blocking(unsafe { embassy_stm32::peripherals::FLASH::steal() });
@@ -184,25 +182,18 @@ pub fn start(spawner: &Spawner, printer: &'static SharedPrinter) {
         Ok(s) => s.erase_while_paused(ERASE_WHILE_PAUSED),
         Err(_) => {
             defmt::error!("settings store: area misconfigured; factory settings only");
-            return;
+            return None;
         }
     };
-    printer.borrow_mut().load_settings(&mut store);
-    match store_task(printer, store) {
-        Ok(t) => spawner.spawn(t),
-        Err(_) => defmt::error!("settings task could not be spawned"),
-    }
+    printer.load_settings(&mut store);
+    Some(store)
 }
 
-/// Carry out a pending M500/M501 or power-cut record once nothing moves
-/// (`Printer::service_store` waits for that), and the erase-ahead once idle.
-#[embassy_executor::task]
-async fn store_task(printer: &'static SharedPrinter, mut store: Store) {
-    loop {
-        Timer::after_millis(POLL_MS).await;
-        let mut p = printer.borrow_mut();
-        store.flash_mut().begin();
-        p.service_store(&mut store);
-        store.flash_mut().end();
-    }
+/// The executive's side (motion task, every [`POLL_MS`]): a pending M500/M501 or power-cut
+/// record once nothing moves (`Printer::service_store` waits for that), and the erase-ahead
+/// once idle.
+pub fn serve_store(p: &mut Printer, store: &mut Store) {
+    store.flash_mut().begin();
+    p.service_store(store);
+    store.flash_mut().end();
 }

@@ -27,7 +27,3 @@ pub mod stack;
 pub mod stepper;
 pub mod tmc;
 pub mod watchdog;
-
-/// The executive as the tasks share it: built in place in a `static` (`Printer::init_in_place`,
-/// no 35 KiB value on the stack), borrowed by one task at a time.
-pub type SharedPrinter = core::cell::RefCell<&'static mut firmware::printer::Printer>;

@@ -8,22 +8,25 @@
 //! `SDIO_CK_PIN PC12`, `SDIO_CMD_PIN PD2`; the on-board slot has no card-detect pin). DMA2
 //! stream 3 (channel 4) serves SDIO (RM0090 table 43).
 //!
-//! The card is brought up (`acquire`: CMD0, CMD8, ACMD41 …) by [`sd_task`] with `.await`, so a
-//! slow or absent card never stalls the other tasks; after that, block reads for the FAT code
+//! The card is brought up (`acquire`: CMD0, CMD8, ACMD41 …) by [`sd_task`] with `.await` when
+//! the executive asks for it ([`serve_card`] signals the task), so a slow or absent card never
+//! stalls the other tasks; the executive's owner (the motion task) serves the card requests
+//! and the job's lines with [`serve_card`] meanwhile only once that is over. After that, block
+//! reads for the FAT code
 //! run to completion with `embassy_futures::block_on` (embedded-sdmmc's trait is blocking): a
 //! 512-byte block at the 24 MHz bus takes well under a millisecond, and the step interrupt
 //! runs from its own queue meanwhile. A read error marks the card lost; the next M21 (or any
 //! SD command that needs the card) brings it up again.
 
-use super::SharedPrinter;
-use core::cell::{Cell, RefCell};
+use core::cell::RefCell;
+use core::sync::atomic::{AtomicBool, Ordering};
 use embassy_executor::Spawner;
 use embassy_stm32::sdmmc::sd::{Addressable, Card as SdCard, CmdBlock, DataBlock, StorageDevice};
 use embassy_stm32::sdmmc::{self, Sdmmc};
 use embassy_stm32::time::Hertz;
 use embassy_stm32::{bind_interrupts, dma, peripherals};
-use embassy_time::Timer;
 use embedded_sdmmc::{Block, BlockCount, BlockDevice, BlockIdx};
+use firmware::printer::Printer;
 use firmware::storage::sd::Card;
 use static_cell::StaticCell;
 
@@ -34,16 +37,29 @@ bind_interrupts!(struct Irqs {
 
 /// SDIO bus clock once the card is up (the F4's SDIO runs up to 48 MHz / 2 in this mode).
 const BUS_HZ: u32 = 24_000_000;
-/// How often the card task serves the executive, ms.
-const POLL_MS: u64 = 2;
+/// How often the motion task serves the card, ms.
+pub const POLL_MS: u32 = 2;
+
+/// A bring-up is asked for or under way: the card is not the executive's meanwhile.
+static BRINGING_UP: AtomicBool = AtomicBool::new(false);
+/// The executive wants the card up.
+static WANTED: embassy_sync::signal::Signal<
+    embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex,
+    (),
+> = embassy_sync::signal::Signal::new();
 
 type Device = StorageDevice<'static, 'static, SdCard>;
 
 /// The SDIO card, shared by the FAT code (blocking reads) and the card task (bring-up).
 pub struct SdioCard {
     dev: &'static RefCell<Device>,
-    up: &'static Cell<bool>,
 }
+
+/// The card is up (brought up by the card task; lost after a read or write error).
+static UP: AtomicBool = AtomicBool::new(false);
+/// The executive asked for a bring-up since it last served the card (one try per request:
+/// a card that does not come up is the executive's `SD init fail`, not a retry loop).
+static TRIED: AtomicBool = AtomicBool::new(false);
 
 /// Why a block could not be read.
 #[derive(Clone, Copy, Debug)]
@@ -60,7 +76,7 @@ impl BlockDevice for SdioCard {
     type Error = SdioError;
 
     fn read(&self, blocks: &mut [Block], start: BlockIdx) -> Result<(), Self::Error> {
-        if !self.up.get() {
+        if !UP.load(Ordering::Acquire) {
             return Err(SdioError::NotUp);
         }
         let mut dev = self.dev.try_borrow_mut().map_err(|_| SdioError::Busy)?;
@@ -69,7 +85,7 @@ impl BlockDevice for SdioCard {
             let idx = start.0.saturating_add(i as u32);
             if let Err(e) = embassy_futures::block_on(dev.read_block(idx, &mut data)) {
                 defmt::warn!("SD block {=u32} not read: {}", idx, e);
-                self.up.set(false);
+                UP.store(false, Ordering::Release);
                 return Err(SdioError::Card);
             }
             b.contents.copy_from_slice(&data[..]);
@@ -79,7 +95,7 @@ impl BlockDevice for SdioCard {
 
     fn write(&self, blocks: &[Block], start: BlockIdx) -> Result<(), Self::Error> {
         // Only the parked intake's spill file is written (storage/sd, printer/spill.rs).
-        if !self.up.get() {
+        if !UP.load(Ordering::Acquire) {
             return Err(SdioError::NotUp);
         }
         let mut dev = self.dev.try_borrow_mut().map_err(|_| SdioError::Busy)?;
@@ -89,7 +105,7 @@ impl BlockDevice for SdioCard {
             data.copy_from_slice(&b.contents);
             if let Err(e) = embassy_futures::block_on(dev.write_block(idx, &data)) {
                 defmt::warn!("SD block {=u32} not written: {}", idx, e);
-                self.up.set(false);
+                UP.store(false, Ordering::Release);
                 return Err(SdioError::Card);
             }
         }
@@ -97,7 +113,7 @@ impl BlockDevice for SdioCard {
     }
 
     fn num_blocks(&self) -> Result<BlockCount, Self::Error> {
-        if !self.up.get() {
+        if !UP.load(Ordering::Acquire) {
             return Err(SdioError::NotUp);
         }
         let dev = self.dev.try_borrow().map_err(|_| SdioError::Busy)?;
@@ -108,11 +124,10 @@ impl BlockDevice for SdioCard {
 }
 
 /// Take the SDIO peripheral, its pins and DMA stream, tell the executive it has a card slot,
-/// and start the card task.
-pub fn start(spawner: &Spawner, printer: &'static SharedPrinter) {
+/// and start the card task; the card is the caller's (the motion task serves it).
+pub fn start(spawner: &Spawner, printer: &mut Printer) -> Card<SdioCard> {
     static SDMMC: StaticCell<Sdmmc<'static>> = StaticCell::new();
     static DEV: StaticCell<RefCell<Device>> = StaticCell::new();
-    static UP: StaticCell<Cell<bool>> = StaticCell::new();
     // SAFETY: SDIO, DMA2 stream 3 and PC8–PC12, PD2 are used nowhere else in this image
     // (`pins::split` does not take them: see docs/board.md), so these are their only instances.
     let sdmmc = unsafe {
@@ -131,41 +146,50 @@ pub fn start(spawner: &Spawner, printer: &'static SharedPrinter) {
     };
     let sdmmc = SDMMC.init(sdmmc);
     let dev = DEV.init(RefCell::new(StorageDevice::new_uninit_sd_card(sdmmc)));
-    let up = UP.init(Cell::new(false));
-    printer.borrow_mut().attach_card();
-    match sd_task(printer, dev, up) {
+    printer.attach_card();
+    match sd_task(dev) {
         Ok(t) => spawner.spawn(t),
         Err(_) => defmt::error!("SD card task could not be spawned"),
     }
+    Card::new(SdioCard { dev })
 }
 
-/// Bring the card up when the executive needs it (at power-up, M21, a command after a lost
-/// card), then serve the executive's card requests and the job's lines.
+/// The executive's side (motion task, every [`POLL_MS`]): a card wanted and not up is
+/// brought up by the card task first; otherwise the executive's card requests and the job's
+/// lines are served.
+pub fn serve_card(p: &mut Printer, card: &mut Card<SdioCard>, now_us: u64) {
+    if BRINGING_UP.load(Ordering::Acquire) {
+        return;
+    }
+    if !UP.load(Ordering::Acquire) && p.sd_request_pending() && !TRIED.load(Ordering::Relaxed) {
+        TRIED.store(true, Ordering::Relaxed);
+        BRINGING_UP.store(true, Ordering::Release);
+        WANTED.signal(());
+        return;
+    }
+    TRIED.store(false, Ordering::Relaxed);
+    p.service_card(card, now_us);
+}
+
+/// Bring the card up when the executive wants it (at power-up, M21, a command after a lost
+/// card), then hand it back.
 #[embassy_executor::task]
-async fn sd_task(
-    printer: &'static SharedPrinter,
-    dev: &'static RefCell<Device>,
-    up: &'static Cell<bool>,
-) {
-    let mut card = Card::new(SdioCard { dev, up });
+async fn sd_task(dev: &'static RefCell<Device>) {
     let mut cmd = CmdBlock::new();
     loop {
-        Timer::after_millis(POLL_MS).await;
-        if !up.get() && printer.borrow().sd_request_pending() {
-            // Awaited, not blocked on: the other tasks run while the card answers (or not).
-            match bring_up(dev, &mut cmd).await {
-                Ok(()) => up.set(true),
-                Err(e) => defmt::warn!("SD card not up: {}", e),
-            }
+        WANTED.wait().await;
+        // Awaited, not blocked on: the other tasks run while the card answers (or not).
+        match bring_up(dev, &mut cmd).await {
+            Ok(()) => UP.store(true, Ordering::Release),
+            Err(e) => defmt::warn!("SD card not up: {}", e),
         }
-        let now_us = crate::board::clock::now_ns() / 1000;
-        printer.borrow_mut().service_card(&mut card, now_us);
+        BRINGING_UP.store(false, Ordering::Release);
     }
 }
 
 /// Bring the card up (CMD0, CMD8, ACMD41, … at 400 kHz, then the bus at [`BUS_HZ`]).
-// The borrow spans the await: only the card task touches `dev` (the FAT code reads blocks
-// inside `service_card`, in the same task, never during a bring-up).
+// The borrow spans the await: the executive leaves the card alone while `BRINGING_UP` is set
+// (the FAT code reads blocks only inside `service_card`, never during a bring-up).
 #[allow(clippy::await_holding_refcell_ref)]
 async fn bring_up(dev: &RefCell<Device>, cmd: &mut CmdBlock) -> Result<(), sdmmc::Error> {
     dev.borrow_mut().reacquire(cmd, Hertz(BUS_HZ)).await

@@ -3,9 +3,9 @@
 
 use firmware::drivers::tmc2209::DriverSettings;
 use firmware::motion::{Axis, Realtime};
-use firmware::printer::DriverRequest;
+use firmware::printer::{DriverRequest, Printer};
 
-use super::{printer_now_us, Shared};
+use super::printer_now_us;
 use crate::board::tmc;
 
 /// The four TMC2209 drivers and what was last written to each (None: not configured).
@@ -17,8 +17,7 @@ pub(super) struct Drivers {
 /// Configures the drivers in `mask` with the executive's settings for them, reports each
 /// outcome on the host link, and halts the printer if any does not answer or hold its
 /// settings (motion stays disabled: the halted motion loop keeps the drivers off).
-pub(super) fn configure_drivers(printer: Shared, d: &mut Drivers, mask: u8) {
-    let mut p = printer.borrow_mut();
+pub(super) fn configure_drivers(p: &mut Printer, d: &mut Drivers, mask: u8) {
     let mut ok = true;
     for (i, axis) in Axis::ALL.into_iter().enumerate() {
         if mask & (1 << i) == 0 {
@@ -40,29 +39,26 @@ pub(super) fn configure_drivers(printer: Shared, d: &mut Drivers, mask: u8) {
 
 /// Serves the executive's driver requests and re-applies a driver whose settings changed
 /// (M906, M569, M350, M501/M502), only while nothing moves.
-pub(super) fn service_drivers(printer: Shared, d: &mut Drivers) {
+pub(super) fn service_drivers(p: &mut Printer, d: &mut Drivers) {
     let mut reports = 0u8;
-    while let Some(r) = printer.borrow_mut().take_driver_request() {
+    while let Some(r) = p.take_driver_request() {
         if let DriverRequest::Report { mask } = r {
             reports |= mask;
         }
     }
     let mut changed = 0u8;
-    {
-        let p = printer.borrow();
-        for (i, axis) in Axis::ALL.into_iter().enumerate() {
-            if d.applied[i].is_some_and(|a| a != p.driver_settings(axis)) {
-                changed |= 1 << i;
-            }
+    for (i, axis) in Axis::ALL.into_iter().enumerate() {
+        if d.applied[i].is_some_and(|a| a != p.driver_settings(axis)) {
+            changed |= 1 << i;
         }
     }
     if changed != 0 {
-        configure_drivers(printer, d, changed);
+        configure_drivers(p, d, changed);
     }
     for (i, axis) in Axis::ALL.into_iter().enumerate() {
         if reports & (1 << i) != 0 {
             let r = d.tmc[i].report();
-            printer.borrow_mut().driver_report(axis, r);
+            p.driver_report(axis, r);
         }
     }
 }

@@ -1,13 +1,16 @@
-//! The heater task (every 1 ms): the thermistors sampled on ADC1 and fed to the executive's
-//! thermal control, 10 Hz software PWM of the heaters, and the fans.
+//! The heater task (every 1 ms): the thermistors sampled on ADC1 and sent to the executive's
+//! thermal control ([`TEMPS`]), 10 Hz software PWM of the heaters and the fans as
+//! the executive last said ([`HEAT`]); and the executive's side of that exchange
+//! ([`serve_heaters`], run by the motion task).
 
 use embassy_stm32::adc::{Adc, SampleTime};
 use embassy_stm32::peripherals;
 use embassy_time::{Duration, Ticker};
-use firmware::printer::State;
+use firmware::printer::{Printer, State};
 use firmware::thermal::HeaterId;
 
-use super::{beat, printer_now_us, Shared, LOOP_HEATERS};
+use super::channels::{HeatOut, Temps, HEAT, TEMPS};
+use super::{beat, printer_now_us, LOOP_HEATERS};
 use crate::board::drivers::adc::{AdcChannels, Oversampler};
 use crate::board::heaters::{self, Fans, SoftPwm, PWM_SLOTS};
 
@@ -32,9 +35,28 @@ impl AdcChannels for ThermistorAdc {
     }
 }
 
+/// The heaters go off when the executive has said nothing for this long, µs (it answers every
+/// reading within a motion tick; a stalled executive is the watchdog's, this only makes sure
+/// no heater stays on meanwhile on an old duty).
+const HEAT_STALE_US: u64 = 300_000;
+
+/// The executive's side (motion task, every tick): the latest temperatures into the thermal
+/// control, its duties and fans back to the heater task.
+pub(super) fn serve_heaters(p: &mut Printer) {
+    let Some(t) = TEMPS.try_take() else { return };
+    let hotend_duty = p.thermal_sample(HeaterId::Hotend, t.hotend_c, t.t_us);
+    let bed_duty = p.thermal_sample(HeaterId::Bed, t.bed_c, t.t_us);
+    HEAT.signal(HeatOut {
+        hotend_duty,
+        bed_duty,
+        hotend_fan_on: p.thermal().hotend_fan_on(),
+        part_fan_pwm: p.fan_pwm(),
+        halted: p.state() == State::Halted,
+    });
+}
+
 #[embassy_executor::task]
 pub(super) async fn heater_task(
-    printer: Shared,
     adc: (
         embassy_stm32::Peri<'static, peripherals::ADC1>,
         embassy_stm32::Peri<'static, peripherals::PA2>,
@@ -54,6 +76,7 @@ pub(super) async fn heater_task(
     let tables = heaters::tables();
     let mut ticker = Ticker::every(Duration::from_millis(1));
     let mut slot: u32 = 0;
+    let mut heard_us: u64 = 0;
     loop {
         ticker.next().await;
         beat(LOOP_HEATERS);
@@ -68,21 +91,28 @@ pub(super) async fn heater_task(
                 continue;
             };
             // Faults travel as ±∞ markers the thermal control understands.
-            let c_h = tables[0].celsius_marked(raw_h);
-            let c_b = tables[1].celsius_marked(raw_b);
-            let now = printer_now_us();
-            let mut p = printer.borrow_mut();
-            let d_h = p.thermal_sample(HeaterId::Hotend, c_h, now);
-            let d_b = p.thermal_sample(HeaterId::Bed, c_b, now);
-            if p.state() == State::Halted {
+            TEMPS.signal(Temps {
+                hotend_c: tables[0].celsius_marked(raw_h),
+                bed_c: tables[1].celsius_marked(raw_b),
+                t_us: printer_now_us(),
+            });
+        }
+        let now = printer_now_us();
+        if let Some(out) = HEAT.try_take() {
+            heard_us = now;
+            if out.halted {
                 hotend.off();
                 bed.off();
             } else {
-                hotend.set_duty(d_h);
-                bed.set_duty(d_b);
+                hotend.set_duty(out.hotend_duty);
+                bed.set_duty(out.bed_duty);
             }
-            fans.set_hotend(p.thermal().hotend_fan_on());
-            fans.set_part(p.fan_pwm());
+            fans.set_hotend(out.hotend_fan_on);
+            fans.set_part(out.part_fan_pwm);
+        } else if now.saturating_sub(heard_us) >= HEAT_STALE_US {
+            // Nothing said yet, or nothing for too long: heaters off (the fans as they were).
+            hotend.off();
+            bed.off();
         }
         hotend.tick(slot);
         bed.tick(slot);

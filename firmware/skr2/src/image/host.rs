@@ -1,5 +1,7 @@
-//! The host ports: USB CDC-ACM and the TFT header's UART, each feeding `Printer::receive_on`
-//! with flow control, and the executive's output pushed to each port's pipe.
+//! The host ports: USB CDC-ACM and the TFT header's UART. Their tasks move bytes between the
+//! wire and the pipes of `channels`; the motion task (the executive's owner) takes the bytes
+//! in with flow control ([`take_input`]: what `Printer::receive_on` does not take waits in
+//! [`Carry`] and holds the pipe back) and pushes the answers out ([`flush_output`]).
 
 use embassy_futures::join::join3;
 use embassy_futures::select::{select, Either};
@@ -12,7 +14,59 @@ use embassy_usb::UsbDevice;
 use firmware::link::PortId;
 use firmware::printer::Printer;
 
-use super::{printer_now_us, Shared, UART_OUT, UART_TX_BUF, USB_OUT};
+use super::channels::{SESSIONS, TFT_IN, TFT_OUT, USB_IN, USB_OUT};
+use super::{printer_now_us, UART_TX_BUF};
+
+/// Bytes taken from a port's pipe that the executive has not taken yet (its line assembler
+/// was full): offered again first, and no more is read from the pipe meanwhile.
+pub(super) struct Carry {
+    buf: [u8; 64],
+    start: usize,
+    end: usize,
+}
+
+impl Carry {
+    pub(super) const fn new() -> Self {
+        Self {
+            buf: [0; 64],
+            start: 0,
+            end: 0,
+        }
+    }
+}
+
+/// Offers each port's waiting bytes to the executive, as far as it takes them (at most four
+/// pipe reads a port per call, so one tick stays short).
+pub(super) fn take_input(p: &mut Printer, carry: &mut [Carry; 2]) {
+    let now_us = printer_now_us();
+    for (c, (port, pipe)) in carry
+        .iter_mut()
+        .zip([(PortId::Usb, &USB_IN), (PortId::Tft, &TFT_IN)])
+    {
+        for _ in 0..4 {
+            if c.start == c.end {
+                match pipe.try_read(&mut c.buf) {
+                    Ok(n) => (c.start, c.end) = (0, n),
+                    Err(_) => break,
+                }
+            }
+            let data = c.buf.get(c.start..c.end).unwrap_or(&[]);
+            let taken = p.receive_on(port, data, now_us);
+            c.start += taken;
+            if c.start < c.end {
+                // The executive is full: the rest waits here.
+                break;
+            }
+        }
+    }
+}
+
+/// Session changes the port tasks saw (DTR, USB reset), told to the executive.
+pub(super) fn take_sessions(p: &mut Printer) {
+    while let Ok((port, open)) = SESSIONS.try_receive() {
+        p.port_session(port, open, printer_now_us());
+    }
+}
 
 /// Pushes each port's pending host-link output to its pipe (USB, TFT UART), as far as the
 /// pipe has room; the executive keeps the rest in that port's output ring.
@@ -22,7 +76,7 @@ use super::{printer_now_us, Shared, UART_OUT, UART_TX_BUF, USB_OUT};
 /// rest lost the middle of lines (seen on the emulated board: a notice cut after 12 bytes).
 pub(super) fn flush_output(p: &mut Printer) {
     let mut buf = [0u8; 128];
-    for (port, pipe) in [(PortId::Usb, &USB_OUT), (PortId::Tft, &UART_OUT)] {
+    for (port, pipe) in [(PortId::Usb, &USB_OUT), (PortId::Tft, &TFT_OUT)] {
         loop {
             let room = pipe.free_capacity().min(buf.len());
             let n = p.read_output_on(port, buf.get_mut(..room).unwrap_or(&mut []));
@@ -54,7 +108,6 @@ pub(super) async fn usb_task(
 #[embassy_executor::task]
 pub(super) async fn cdc_task(
     class: CdcAcmClass<'static, Driver<'static, peripherals::USB_OTG_FS>>,
-    printer: Shared,
 ) {
     // The session (docs/frontend.md, "A session that ends while paused"): DTR set when a host
     // opens the port, cleared when it closes it; a USB reset or unplug ends it too.
@@ -66,9 +119,7 @@ pub(super) async fn cdc_task(
             let dtr = control.dtr();
             if dtr != open {
                 open = dtr;
-                printer
-                    .borrow_mut()
-                    .port_session(PortId::Usb, dtr, printer_now_us());
+                SESSIONS.send((PortId::Usb, dtr)).await;
             }
         }
     };
@@ -77,25 +128,12 @@ pub(super) async fn cdc_task(
         loop {
             rx.wait_connection().await;
             while let Ok(n) = rx.read_packet(&mut buf).await {
-                // Flow control: bytes the printer cannot take yet are offered again; the
-                // next packet is not read meanwhile, so the endpoint NAKs the host.
-                let mut data = buf.get(..n).unwrap_or(&[]);
-                loop {
-                    let taken =
-                        printer
-                            .borrow_mut()
-                            .receive_on(PortId::Usb, data, printer_now_us());
-                    data = data.get(taken..).unwrap_or(&[]);
-                    if data.is_empty() {
-                        break;
-                    }
-                    Timer::after_millis(1).await;
-                }
+                // Flow control: while the pipe is full this waits, the next packet is not
+                // read, and the endpoint NAKs the host.
+                USB_IN.write_all(buf.get(..n).unwrap_or(&[])).await;
             }
             // The endpoint went down (USB reset or unplug): the session ended.
-            printer
-                .borrow_mut()
-                .port_session(PortId::Usb, false, printer_now_us());
+            SESSIONS.send((PortId::Usb, false)).await;
         }
     };
     let send = async {
@@ -157,31 +195,26 @@ impl TftTx {
 }
 
 #[embassy_executor::task]
-pub(super) async fn uart_task(uart: BufferedUart<'static>, printer: Shared) {
+pub(super) async fn uart_task(uart: BufferedUart<'static>) {
     use embedded_io_async::Read;
     let (tx, mut rx) = uart.split();
     let mut tx = TftTx { tx };
     let mut inbuf = [0u8; 64];
     let mut outbuf = [0u8; 64];
     loop {
-        match select(rx.read(&mut inbuf), UART_OUT.read(&mut outbuf)).await {
+        match select(rx.read(&mut inbuf), TFT_OUT.read(&mut outbuf)).await {
             Either::First(Ok(n)) => {
-                // Port 1: its own line assembler, line numbers and `ok`s. Bytes not taken
-                // are offered again (the UART's RX buffer holds the rest meanwhile), while
+                // Port 1: its own line assembler, line numbers and `ok`s. While the pipe is
+                // full the rest waits (the UART's RX buffer holds what arrives meanwhile) and
                 // the answers keep flowing.
                 let mut data = inbuf.get(..n).unwrap_or(&[]);
-                loop {
-                    let taken =
-                        printer
-                            .borrow_mut()
-                            .receive_on(PortId::Tft, data, printer_now_us());
-                    data = data.get(taken..).unwrap_or(&[]);
-                    if data.is_empty() {
-                        break;
-                    }
-                    match UART_OUT.try_read(&mut outbuf) {
-                        Ok(k) => tx.send(outbuf.get(..k).unwrap_or(&[])).await,
-                        Err(_) => Timer::after_millis(1).await,
+                while !data.is_empty() {
+                    match TFT_IN.try_write(data) {
+                        Ok(k) => data = data.get(k..).unwrap_or(&[]),
+                        Err(_) => match TFT_OUT.try_read(&mut outbuf) {
+                            Ok(k) => tx.send(outbuf.get(..k).unwrap_or(&[])).await,
+                            Err(_) => Timer::after_millis(1).await,
+                        },
                     }
                 }
             }

@@ -1,6 +1,8 @@
-//! The motion task (every 1 ms): the pause button, G28 through the step interrupt, the
-//! executive's poll, step events into the step interrupt's queue, stepper enable/disable and
-//! idle timeout, halt handling, and the drivers serviced while nothing moves.
+//! The motion task (every 1 ms), the executive's one owner: the other tasks' messages in
+//! (host bytes, sessions, temperatures: `channels`), the pause button, G28 through the step
+//! interrupt, the executive's poll, step events into the step interrupt's queue, stepper
+//! enable/disable and idle timeout, halt handling, the answers and heater duties out; the
+//! flash store and the card served in turn, and the drivers while nothing moves.
 
 use embassy_stm32::gpio::Input;
 use embassy_time::{Duration, Ticker};
@@ -9,15 +11,19 @@ use firmware::stepgen::StepEvent;
 use heapless::spsc::Producer;
 
 use super::drivers::{service_drivers, Drivers};
-use super::host::flush_output;
-use super::{beat, printer_now_ns, printer_now_us, Shared, LOOP_MOTION};
+use super::heater::serve_heaters;
+use super::host::{flush_output, take_input, take_sessions, Carry};
+use super::{beat, printer_now_ns, printer_now_us, LOOP_MOTION};
 use crate::board::clock;
 use crate::board::drivers::homing_watch::EventFlags;
 use crate::board::drivers::retime::RetimeStats;
 use crate::board::drivers::{IdleTimeout, PauseButton};
+use crate::board::flash::{self, serve_store, Store};
+use crate::board::sd::{self, serve_card, SdioCard};
 use crate::board::stack;
 use crate::board::stepper::{self, PinEvent, LOOKAHEAD_NS};
 use firmware::printer::BoardStats;
+use firmware::storage::sd::Card;
 
 /// Stepper drivers switch off after this long without motion (Marlin's default 120 s).
 const STEPPER_IDLE_S: u32 = 120;
@@ -165,9 +171,42 @@ fn homing_after_poll(p: &mut Printer) {
     stepper::with(|s| s.exec.set_homed(homed, fresh, home));
 }
 
+/// What the other tasks sent the executive since the last tick: sessions, host bytes (as far
+/// as it takes them), temperatures (answered with the heaters' duties).
+fn messages_in(p: &mut Printer, carry: &mut [Carry; 2]) {
+    take_sessions(p);
+    take_input(p, carry);
+    serve_heaters(p);
+}
+
+/// The executive's devices besides motion, served by the motion task in turn.
+pub(super) struct Devices {
+    /// The settings store (none if its area was misconfigured).
+    pub(super) store: Option<Store>,
+    /// The micro-SD card.
+    pub(super) card: Card<SdioCard>,
+}
+
+impl Devices {
+    /// The store every [`flash::POLL_MS`] and the card every [`sd::POLL_MS`] ticks.
+    fn serve(&mut self, p: &mut Printer, tick: u32) {
+        if tick.is_multiple_of(sd::POLL_MS) {
+            serve_card(p, &mut self.card, printer_now_us());
+        }
+        if let Some(store) = self
+            .store
+            .as_mut()
+            .filter(|_| tick.is_multiple_of(flash::POLL_MS))
+        {
+            serve_store(p, store);
+        }
+    }
+}
+
 #[embassy_executor::task]
 pub(super) async fn motion_task(
-    printer: Shared,
+    p: &'static mut Printer,
+    mut devices: Devices,
     mut producer: Producer<'static, PinEvent>,
     button_pin: Input<'static>,
     mut led: embassy_stm32::gpio::Output<'static>,
@@ -182,25 +221,26 @@ pub(super) async fn motion_task(
     let mut held: Option<(StepEvent, EventFlags)> = None;
     let mut reported = RetimeStats::default();
     let mut config_epoch = None;
+    let mut carry = [Carry::new(), Carry::new()];
     loop {
         ticker.next().await;
         beat(LOOP_MOTION);
+        messages_in(p, &mut carry);
         if blink.is_multiple_of(STATS_MS) {
-            board_stats(&mut printer.borrow_mut(), &mut reported);
+            board_stats(p, &mut reported);
         }
         let now_us = printer_now_us();
         {
-            let mut p = printer.borrow_mut();
             let state = p.state();
             let paused = matches!(state, State::Paused | State::Pausing);
             if let Some(req) = button.update(button_pin.is_low(), now_us, paused) {
                 defmt::info!("pause button: {}", defmt::Debug2Format(&req));
                 p.request(req, now_us);
             }
-            homing_before_poll(&mut p, &mut held);
+            homing_before_poll(p, &mut held);
             p.poll(now_us);
-            homing_after_poll(&mut p);
-            let frame_ready = follow_config(&p, &mut config_epoch, &held);
+            homing_after_poll(p);
+            let frame_ready = follow_config(p, &mut config_epoch, &held);
             if p.state() == State::Halted {
                 if !halted {
                     halted = true;
@@ -212,7 +252,7 @@ pub(super) async fn motion_task(
                     stepper::kick();
                 }
             } else if frame_ready {
-                feed_steps(&mut p, &mut producer, &mut held);
+                feed_steps(p, &mut producer, &mut held);
             }
             let running = stepper::with(|s| s.running).unwrap_or(false);
             // M17/M18/M84 from the executive, in job order. A disable waits until the
@@ -267,15 +307,15 @@ pub(super) async fn motion_task(
                     p.board_notice(&t);
                 }
             }
-            flush_output(&mut p);
+            flush_output(p);
         }
+        devices.serve(p, blink);
         // The drivers' UART lines block the executor: only while nothing moves or is queued.
-        let quiet = {
-            let mut p = printer.borrow_mut();
-            p.state() == State::Idle && p.next_step_ns().is_none()
-        } && !stepper::with(|s| s.running).unwrap_or(false);
+        let quiet = p.state() == State::Idle
+            && p.next_step_ns().is_none()
+            && !stepper::with(|s| s.running).unwrap_or(false);
         if quiet && !halted {
-            service_drivers(printer, &mut drivers);
+            service_drivers(p, &mut drivers);
         }
         blink = blink.wrapping_add(1);
         let period = if halted { 100 } else { 500 };
@@ -289,21 +329,23 @@ pub(super) async fn motion_task(
 /// in backwards): no step interrupt, no drivers; the executive still answers (every line is
 /// refused: halted), its output reaches both ports, the watchdog is fed, the LED blinks fast.
 #[embassy_executor::task]
-pub(super) async fn halted_task(printer: Shared, mut led: embassy_stm32::gpio::Output<'static>) {
+pub(super) async fn halted_task(
+    p: &'static mut Printer,
+    mut led: embassy_stm32::gpio::Output<'static>,
+) {
     let mut ticker = Ticker::every(Duration::from_millis(1));
     let mut blink: u32 = 0;
     let mut reported = RetimeStats::default();
+    let mut carry = [Carry::new(), Carry::new()];
     loop {
         ticker.next().await;
         beat(LOOP_MOTION);
-        {
-            let mut p = printer.borrow_mut();
-            p.poll(printer_now_us());
-            if blink.is_multiple_of(STATS_MS) {
-                board_stats(&mut p, &mut reported);
-            }
-            flush_output(&mut p);
+        messages_in(p, &mut carry);
+        p.poll(printer_now_us());
+        if blink.is_multiple_of(STATS_MS) {
+            board_stats(p, &mut reported);
         }
+        flush_output(p);
         blink = blink.wrapping_add(1);
         if blink.is_multiple_of(100) {
             led.toggle();

@@ -204,6 +204,8 @@ impl Host {
                     (None, None) => self.say(format_args!("layer - state {state}")),
                 }
             }
+            // The executive's own reports (printer/commands/report.rs).
+            _ => {}
         }
     }
 }

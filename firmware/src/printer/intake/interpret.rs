@@ -7,6 +7,7 @@
 use super::Intake;
 use crate::config::MachineConfig;
 use crate::gcode;
+use crate::gcode::MotionCommand;
 use crate::layer::MoveFacts;
 use crate::link::ReceivedLine;
 use crate::machine::{Action, MachineState};
@@ -111,7 +112,10 @@ impl Intake {
             }
             // M400 after a layer's marker comments: the boundary is here (a host that drains
             // the queue at a boundary, then pauses, stops at this layer, not the next).
-            if matches!(parsed.command, Some(gcode::Command::WaitMoves)) {
+            if matches!(
+                parsed.command,
+                Some(gcode::Command::Motion(MotionCommand::WaitMoves))
+            ) {
                 if let Some(mark) = self.interp.layers.finish() {
                     let _ = self.cmds.push_back(Command::Layer(mark));
                     let _ = out.marks.push(mark);

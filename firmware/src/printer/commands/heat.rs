@@ -1,0 +1,88 @@
+//! The heat family's executive side: targets and waits, the temperature report, the fan,
+//! PID gains, autotune and M302, carried out by the heat part (`printer/heat.rs`).
+
+use crate::gcode::{HeatCommand, Heater};
+use crate::printer::heat::heater_id;
+use crate::printer::{Command, Printer};
+
+impl Printer {
+    /// Returns true when the `ok` was already sent (M105's report is its own `ok`).
+    pub(super) fn heat_command(&mut self, c: &HeatCommand) -> bool {
+        match c {
+            HeatCommand::SetTemperature {
+                heater,
+                wait,
+                s,
+                r,
+                tool,
+            } => {
+                let code = match (heater, wait) {
+                    (Heater::Hotend, false) => "M104",
+                    (Heater::Hotend, true) => "M109",
+                    (Heater::Bed, false) => "M140",
+                    (Heater::Bed, true) => "M190",
+                };
+                // Marlin's `get_target_extruder_from_command`: an extruder that is not there is
+                // refused, never applied to the one that is (FlashPrint's `M104 S0 T1` for a
+                // second hotend switched the only one off; issue 31/32).
+                if let Some(t) = tool.filter(|t| *t != 0) {
+                    self.host.warn(format_args!(
+                        "{code} T{t}: invalid extruder (this printer has T0 only)"
+                    ));
+                    return false;
+                }
+                let id = heater_id(*heater);
+                let word = if r.is_some() { 'R' } else { 'S' };
+                if let Some(t) = r.or(*s) {
+                    if let Err(e) = self.heat.set_target(id, t) {
+                        self.host.warn(format_args!("{code} {word}{t}: {e}"));
+                        return false;
+                    }
+                }
+                if *wait {
+                    self.intake.push(Command::WaitHeater(id));
+                }
+            }
+            HeatCommand::Report => {
+                let r = self.heat.report();
+                self.host.temperatures(r);
+                return true;
+            }
+            HeatCommand::FanOn { fan: Some(f), .. } | HeatCommand::FanOff { fan: Some(f) }
+                if *f != 0 =>
+            {
+                // Marlin ignores a fan it does not have (`M106 P9`); here it is said.
+                let code = if matches!(c, HeatCommand::FanOn { .. }) {
+                    "M106"
+                } else {
+                    "M107"
+                };
+                self.host.warn(format_args!(
+                    "{code} P{f}: no such fan (this printer has P0 only)"
+                ));
+            }
+            HeatCommand::FanOn { speed, .. } => self.heat.set_fan(*speed),
+            HeatCommand::FanOff { .. } => self.heat.set_fan(Some(0.0)),
+            HeatCommand::ColdExtrusion { min_temp_c, allow } => {
+                self.heat.m302(*min_temp_c, *allow, &mut self.host)
+            }
+            HeatCommand::SetPid { heater, p, i, d } => {
+                self.heat.pid_command(*heater, *p, *i, *d, &mut self.host)
+            }
+            HeatCommand::Autotune {
+                heater_index,
+                target_c,
+                cycles,
+                use_result,
+            } => self.heat.autotune(
+                *heater_index,
+                *target_c,
+                *cycles,
+                *use_result,
+                self.now_us,
+                &mut self.host,
+            ),
+        }
+        false
+    }
+}
