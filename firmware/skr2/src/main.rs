@@ -85,11 +85,8 @@ mod image {
     use defmt_rtt as _;
     use embassy_executor::Spawner;
     use embassy_stm32::interrupt::{self, InterruptExt, Priority};
-    use embassy_stm32::usart::{BufferedUart, Config as UartConfig};
-    use embassy_stm32::usb::Driver;
     use embassy_stm32::{bind_interrupts, peripherals, usart, usb};
     use embassy_time::{Duration, Ticker};
-    use embassy_usb::class::cdc_acm::{CdcAcmClass, State as CdcState};
     use firmware::config::MachineConfig;
     use firmware::homing::{HomingConfig, PinEndstops};
     use firmware::printer::{Policy, Printer};
@@ -168,31 +165,7 @@ mod image {
     async fn main(spawner: Spawner) {
         // Before anything can overflow the stack into the statics.
         stack::guard();
-        let mut config = embassy_stm32::Config::default();
-        config.dma_interrupt_priority = PRIO_BULK;
-        {
-            use embassy_stm32::rcc::*;
-            use embassy_stm32::time::Hertz;
-            // 8 MHz crystal → 168 MHz SYSCLK, 48 MHz for USB.
-            config.rcc.hse = Some(Hse {
-                freq: Hertz(pins::HSE_HZ),
-                mode: HseMode::Oscillator,
-            });
-            config.rcc.pll_src = PllSource::HSE;
-            config.rcc.pll = Some(Pll {
-                prediv: PllPreDiv::DIV4,
-                mul: PllMul::MUL168,
-                divp: Some(PllPDiv::DIV2),
-                divq: Some(PllQDiv::DIV7),
-                divr: None,
-            });
-            config.rcc.ahb_pre = AHBPrescaler::DIV1;
-            config.rcc.apb1_pre = APBPrescaler::DIV4;
-            config.rcc.apb2_pre = APBPrescaler::DIV2;
-            config.rcc.sys = Sysclk::PLL1_P;
-            config.rcc.mux.clk48sel = mux::Clk48sel::PLL1_Q;
-        }
-        let p = embassy_stm32::init(config);
+        let p = embassy_stm32::init(clock::chip_config(PRIO_BULK));
         clock::enable_flash_accelerator();
         interrupt::TIM2.set_priority(PRIO_TIME);
         let (mut pins, periph) = pins::split(p);
@@ -223,48 +196,9 @@ mod image {
         // The micro-SD slot: SD printing (M20–M32); its task brings the card up.
         let card = sd::start(&spawner, printer);
 
-        // USB CDC-ACM.
-        static EP_OUT: StaticCell<[u8; 256]> = StaticCell::new();
-        static CONFIG_DESC: StaticCell<[u8; 256]> = StaticCell::new();
-        static BOS_DESC: StaticCell<[u8; 256]> = StaticCell::new();
-        static CONTROL: StaticCell<[u8; 64]> = StaticCell::new();
-        static CDC_STATE: StaticCell<CdcState> = StaticCell::new();
-        let mut usb_config = usb::Config::default();
-        usb_config.vbus_detection = false;
-        let (usb_p, dp, dm) = periph.usb;
-        let driver = Driver::new_fs(usb_p, Irqs, dp, dm, EP_OUT.init([0; 256]), usb_config);
-        let mut dev = embassy_usb::Config::new(0x0483, 0x5740);
-        dev.manufacturer = Some("pause firmware");
-        dev.product = Some("SKR 2 printer");
-        dev.serial_number = Some("skr2");
-        dev.max_power = 100;
-        dev.max_packet_size_0 = 64;
-        let mut builder = embassy_usb::Builder::new(
-            driver,
-            dev,
-            CONFIG_DESC.init([0; 256]),
-            BOS_DESC.init([0; 256]),
-            &mut [],
-            CONTROL.init([0; 64]),
-        );
-        let cdc = CdcAcmClass::new(&mut builder, CDC_STATE.init(CdcState::new()), 64);
-        let usb_dev = builder.build();
-
-        // TFT header UART.
-        static UART_TX: StaticCell<[u8; UART_TX_BUF]> = StaticCell::new();
-        static UART_RX: StaticCell<[u8; UART_RX_BUF]> = StaticCell::new();
-        let mut ucfg = UartConfig::default();
-        ucfg.baudrate = UART_BAUD;
-        let (uart_p, rx, tx) = periph.uart;
-        let uart = BufferedUart::new(
-            uart_p,
-            rx,
-            tx,
-            UART_TX.init([0; UART_TX_BUF]),
-            UART_RX.init([0; UART_RX_BUF]),
-            Irqs,
-            ucfg,
-        );
+        // The host ports: USB CDC-ACM and the TFT header's UART.
+        let (usb_dev, cdc) = host::usb_port(periph.usb);
+        let uart = host::tft_port(periph.uart);
 
         // Every interrupt below the step timer (the drivers above enabled theirs).
         interrupt::OTG_FS.set_priority(PRIO_BULK);

@@ -98,3 +98,34 @@ pub fn now_ticks() -> u64 {
 pub fn now_ns() -> u64 {
     now_ticks() * NS_PER_TICK
 }
+
+/// The chip's configuration for `embassy_stm32::init`: 8 MHz crystal → 168 MHz SYSCLK (PLL
+/// 8/4×168/2), 48 MHz for USB (/7), AHB 168, APB1 42, APB2 84 MHz (RM0090 §6.3.2 limits: APB1
+/// ≤ 42, APB2 ≤ 84 MHz); DMA interrupts at `dma_priority`.
+pub fn chip_config(dma_priority: embassy_stm32::interrupt::Priority) -> embassy_stm32::Config {
+    let mut config = embassy_stm32::Config::default();
+    config.dma_interrupt_priority = dma_priority;
+    {
+        use embassy_stm32::rcc::*;
+        use embassy_stm32::time::Hertz;
+        // 8 MHz crystal → 168 MHz SYSCLK, 48 MHz for USB.
+        config.rcc.hse = Some(Hse {
+            freq: Hertz(super::pins::HSE_HZ),
+            mode: HseMode::Oscillator,
+        });
+        config.rcc.pll_src = PllSource::HSE;
+        config.rcc.pll = Some(Pll {
+            prediv: PllPreDiv::DIV4,
+            mul: PllMul::MUL168,
+            divp: Some(PllPDiv::DIV2),
+            divq: Some(PllQDiv::DIV7),
+            divr: None,
+        });
+        config.rcc.ahb_pre = AHBPrescaler::DIV1;
+        config.rcc.apb1_pre = APBPrescaler::DIV4;
+        config.rcc.apb2_pre = APBPrescaler::DIV2;
+        config.rcc.sys = Sysclk::PLL1_P;
+        config.rcc.mux.clk48sel = mux::Clk48sel::PLL1_Q;
+    }
+    config
+}

@@ -15,7 +15,72 @@ use firmware::link::PortId;
 use firmware::printer::Printer;
 
 use super::channels::{SESSIONS, TFT_IN, TFT_OUT, USB_IN, USB_OUT};
-use super::{printer_now_us, UART_TX_BUF};
+use super::{printer_now_us, Irqs, UART_BAUD, UART_RX_BUF, UART_TX_BUF};
+use embassy_stm32::usart::Config as UartConfig;
+use embassy_stm32::usb;
+use embassy_usb::class::cdc_acm::State as CdcState;
+use static_cell::StaticCell;
+
+/// The USB CDC-ACM device on the board's USB port (VID 0x0483 / PID 0x5740, as the STM32's own
+/// virtual COM port), its control and descriptor buffers in statics.
+pub(super) fn usb_port(
+    (usb_p, dp, dm): (
+        embassy_stm32::Peri<'static, peripherals::USB_OTG_FS>,
+        embassy_stm32::Peri<'static, peripherals::PA12>,
+        embassy_stm32::Peri<'static, peripherals::PA11>,
+    ),
+) -> (
+    UsbDevice<'static, Driver<'static, peripherals::USB_OTG_FS>>,
+    CdcAcmClass<'static, Driver<'static, peripherals::USB_OTG_FS>>,
+) {
+    static EP_OUT: StaticCell<[u8; 256]> = StaticCell::new();
+    static CONFIG_DESC: StaticCell<[u8; 256]> = StaticCell::new();
+    static BOS_DESC: StaticCell<[u8; 256]> = StaticCell::new();
+    static CONTROL: StaticCell<[u8; 64]> = StaticCell::new();
+    static CDC_STATE: StaticCell<CdcState> = StaticCell::new();
+    let mut usb_config = usb::Config::default();
+    usb_config.vbus_detection = false;
+    let driver = Driver::new_fs(usb_p, Irqs, dp, dm, EP_OUT.init([0; 256]), usb_config);
+    let mut dev = embassy_usb::Config::new(0x0483, 0x5740);
+    dev.manufacturer = Some("pause firmware");
+    dev.product = Some("SKR 2 printer");
+    dev.serial_number = Some("skr2");
+    dev.max_power = 100;
+    dev.max_packet_size_0 = 64;
+    let mut builder = embassy_usb::Builder::new(
+        driver,
+        dev,
+        CONFIG_DESC.init([0; 256]),
+        BOS_DESC.init([0; 256]),
+        &mut [],
+        CONTROL.init([0; 64]),
+    );
+    let cdc = CdcAcmClass::new(&mut builder, CDC_STATE.init(CdcState::new()), 64);
+    (builder.build(), cdc)
+}
+
+/// The TFT header's UART (USART1, [`UART_BAUD`]), buffered both ways.
+pub(super) fn tft_port(
+    (uart_p, rx, tx): (
+        embassy_stm32::Peri<'static, peripherals::USART1>,
+        embassy_stm32::Peri<'static, peripherals::PA10>,
+        embassy_stm32::Peri<'static, peripherals::PA9>,
+    ),
+) -> Result<BufferedUart<'static>, embassy_stm32::usart::ConfigError> {
+    static UART_TX: StaticCell<[u8; UART_TX_BUF]> = StaticCell::new();
+    static UART_RX: StaticCell<[u8; UART_RX_BUF]> = StaticCell::new();
+    let mut ucfg = UartConfig::default();
+    ucfg.baudrate = UART_BAUD;
+    BufferedUart::new(
+        uart_p,
+        rx,
+        tx,
+        UART_TX.init([0; UART_TX_BUF]),
+        UART_RX.init([0; UART_RX_BUF]),
+        Irqs,
+        ucfg,
+    )
+}
 
 /// Bytes taken from a port's pipe that the executive has not taken yet (its line assembler
 /// was full): offered again first, and no more is read from the pipe meanwhile.
