@@ -37,6 +37,9 @@ pub const SPEED_WINDOW: usize = 8;
 pub const TICK_US: u64 = 1000;
 /// Tick while nothing moves (dwells, heater waits), µs.
 pub const IDLE_TICK_US: u64 = 1_000_000;
+/// How long a parked printer may take to answer an `M400` and an `M105` (every byte taken
+/// before them): the parked intake's pace is at most 3 s a line (docs/frontend.md).
+pub const PARKED_ANSWER_US: u64 = 10_000_000;
 /// Longest dwell the parser allows is P1e7 ms (2.8 h): the final drain may take this long.
 pub const DRAIN_LIMIT_US: u64 = 4 * 3600 * 1_000_000;
 
@@ -161,6 +164,17 @@ impl Harness {
                     state: State::Paused,
                     ..
                 } => self.paused += 1,
+                Record::State {
+                    state: State::Cancelled,
+                    ..
+                } => {
+                    // Issue 31: a cancel leaves nothing hot (no line is taken between the
+                    // cancel's end and this record).
+                    let t = self.p.thermal();
+                    let targets = [HeaterId::Hotend, HeaterId::Bed].map(|id| t.target_c(id));
+                    assert_eq!(targets, [0.0; 2], "heaters on after a cancel");
+                    assert_eq!(self.p.fan_pwm(), 0, "fan on after a cancel");
+                }
                 _ => {}
             }
         }
@@ -266,6 +280,45 @@ impl Harness {
             self.request(Realtime::Resume);
         }
         self.p.status().state
+    }
+
+    /// Issue 31: parked, a host's `M400` and `M105` (unnumbered: a console's; manual lines for
+    /// a host that numbers its job) get their answers within [`PARKED_ANSWER_US`], plus 3 s
+    /// for each of up to 8 lines still waiting before them; before, an M400 answered `busy:
+    /// paused for user` for ever.
+    pub fn answers_while_parked(&mut self) {
+        if !self.run_to_rest(DRAIN_LIMIT_US) || self.p.status().state != State::Paused {
+            return;
+        }
+        // Lines still waiting (flow control) are read first, each within the parked intake's
+        // pace; behind many of them the RAM fallback without a card may end the intake
+        // (docs/frontend.md): not judged here.
+        let waiting = self.pending[0].iter().filter(|&&b| b == b'\n').count() as u64;
+        if waiting > 8 || !self.pending[1].is_empty() {
+            return;
+        }
+        let limit_us = PARKED_ANSWER_US + waiting * 3_000_000;
+        // Only the answers from here on are looked at. The M105 is read only after the
+        // M400's `ok` (an owed M400 holds the next line), so its `ok T:` answers both.
+        self.out[0].clear();
+        self.write(PortId::Usb, b"\nM400\nM105\n");
+        let start = self.now_us;
+        let mut answered = false;
+        while self.now_us - start < limit_us {
+            self.tick(TICK_US);
+            if self.out[0].contains("ok T:") {
+                answered = true;
+                break;
+            }
+            if self.p.status().state != State::Paused {
+                return;
+            }
+        }
+        assert!(
+            answered,
+            "parked: M400/M105 not answered within {limit_us} µs: {:?}",
+            self.out[0]
+        );
     }
 
     /// The end of a run: a final `M400` on the USB port, every pause resumed, and the checks
