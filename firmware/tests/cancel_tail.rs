@@ -160,7 +160,13 @@ fn a_cancelled_tail_cools_and_reports_but_neither_moves_nor_heats() {
     // The host heats the nozzle from its console (unnumbered: taken).
     b.send("M104 S150");
     let parked = b.p.status().position;
-    for l in ["G1 X50 Y50 F6000", "M104 S210", "M140 S70", "G28", "M106 S200"] {
+    for l in [
+        "G1 X50 Y50 F6000",
+        "M104 S210",
+        "M140 S70",
+        "G28",
+        "M106 S200",
+    ] {
         b.send_numbered(l);
     }
     assert_eq!(b.targets(), (150.0, 0.0), "heat-ups discarded: {}", b.out);
@@ -229,13 +235,21 @@ fn a_console_m400_while_parked_is_answered() {
     b.send("G91");
     b.send("G1 Z1 F600");
     let (_, waited_us) = b.send("M400");
-    assert_eq!(b.p.status().position[2], before[2] + 400, "the jog ended first");
+    assert_eq!(
+        b.p.status().position[2],
+        before[2] + 400,
+        "the jog ended first"
+    );
     assert!(waited_us > 0);
     b.send("G90");
     b.request("M602");
     b.until(State::Printing);
     b.send_numbered("M400");
-    assert_eq!(b.p.status().state, State::Idle, "the job's M400 after the resume waits for the job");
+    assert_eq!(
+        b.p.status().state,
+        State::Idle,
+        "the job's M400 after the resume waits for the job"
+    );
 }
 
 /// printcore streams into the parked printer: a job M400 taken by the parked intake is

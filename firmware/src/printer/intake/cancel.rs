@@ -63,10 +63,7 @@ pub(in crate::printer) enum TailLine {
 pub(in crate::printer) fn honoured_in_tail(cmd: &Command) -> bool {
     match cmd {
         Command::SetTemperature {
-            wait: false,
-            s,
-            r,
-            ..
+            wait: false, s, r, ..
         } => matches!(r.or(*s), Some(t) if t <= 0.0),
         Command::FanOff { .. } => true,
         Command::FanOn { speed, .. } => matches!(speed, Some(s) if *s <= 0.0),

@@ -10,8 +10,8 @@
 
 mod cancel;
 mod interpret;
-mod sync;
 pub(super) mod spill;
+mod sync;
 
 pub(super) use cancel::TailLine;
 pub(super) use interpret::{Interpreted, LineOutcome};

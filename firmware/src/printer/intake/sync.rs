@@ -73,7 +73,11 @@ impl Intake {
 
     /// Pay an owed `ok` the machine's rest allows: `parked` and `service_busy` (manual
     /// moves queued or the head moving). Whether an `ok` is to be paid.
-    pub(in crate::printer) fn pay_sync_at_rest(&mut self, parked: bool, service_busy: bool) -> bool {
+    pub(in crate::printer) fn pay_sync_at_rest(
+        &mut self,
+        parked: bool,
+        service_busy: bool,
+    ) -> bool {
         match self.sync.owed {
             Some(Owed::Manual) if !service_busy => {}
             Some(Owed::Queued) if parked && !service_busy => {
