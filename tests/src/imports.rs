@@ -44,10 +44,24 @@ pub fn read_crate(src: &Path) -> std::io::Result<Graph> {
         }
     }
     let mut texts = BTreeMap::new();
+    let mut test_only = BTreeSet::new();
     for rel in files.keys() {
-        let text = std::fs::read_to_string(src.join(rel))?;
-        texts.insert(rel.clone(), strip_tests(&strip_comments_and_strings(&text)));
+        let text = strip_comments_and_strings(&std::fs::read_to_string(src.join(rel))?);
+        // `#[cfg(test)] mod x;`: the file of `x` is a test's (a test may reach anywhere).
+        for (at, _) in text.match_indices("#[cfg(test)]") {
+            let after = text[at + "#[cfg(test)]".len()..].trim_start();
+            let Some(decl) = after.strip_prefix("mod ") else { continue };
+            let Some(name) = decl.split(';').next().map(str::trim) else { continue };
+            if name.chars().all(|c| c.is_alphanumeric() || c == '_') {
+                let mut m = files[rel].clone();
+                m.push(name.to_string());
+                test_only.insert(m);
+            }
+        }
+        texts.insert(rel.clone(), strip_tests(&text));
     }
+    files.retain(|_, m| !test_only.contains(m));
+    texts.retain(|f, _| files.contains_key(f));
     let by_mod: BTreeMap<ModPath, PathBuf> =
         files.iter().map(|(f, m)| (m.clone(), f.clone())).collect();
     let reexports: BTreeMap<PathBuf, BTreeMap<String, ModPath>> = texts

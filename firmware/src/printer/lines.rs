@@ -217,7 +217,7 @@ impl Printer {
                 self.motion.push_service(m);
                 self.host.ok();
             }
-            LineOutcome::Execute(gcode::Command::WaitMoves) if manual => {
+            LineOutcome::Execute(gcode::Command::Motion(MotionCommand::WaitMoves)) if manual => {
                 // A console M400 while parked waits for the manual moves, not the held job.
                 self.intake.owe_manual_sync();
             }

@@ -51,14 +51,16 @@ impl Printer {
             HeatCommand::FanOn { fan: Some(f), .. } | HeatCommand::FanOff { fan: Some(f) }
                 if *f != 0 =>
             {
-                // Marlin ignores a fan it does not have (`M106 P9`); here it is said.
+                // Marlin ignores a fan it does not have (`M106 P9`); here it is said, as a
+                // note, not a refusal: slicers address fans a printer may lack (Bambu's
+                // auxiliary `M106 P2`, chamber `P3`), and nothing of the job is lost.
                 let code = if matches!(c, HeatCommand::FanOn { .. }) {
                     "M106"
                 } else {
                     "M107"
                 };
-                self.host.warn(format_args!(
-                    "{code} P{f}: no such fan (this printer has P0 only)"
+                self.host.say(format_args!(
+                    "{code} P{f}: no such fan, ignored (this printer has P0 only)"
                 ));
             }
             HeatCommand::FanOn { speed, .. } => self.heat.set_fan(*speed),

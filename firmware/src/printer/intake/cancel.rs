@@ -13,7 +13,7 @@
 //! messages are discarded (docs/frontend.md, "Cancel").
 
 use super::{Intake, LAYER_PAUSE_IDLE_US};
-use crate::gcode::{Command, ReportCommand};
+use crate::gcode::{Command, DriverCommand, HeatCommand, ReportCommand};
 use crate::link::ReceivedLine;
 use crate::printer::host::Host;
 
@@ -62,19 +62,21 @@ pub(in crate::printer) enum TailLine {
 /// cancel parked the head; a tail's "present the bed" move is the file's, not the host's.
 pub(in crate::printer) fn honoured_in_tail(cmd: &Command) -> bool {
     match cmd {
-        Command::SetTemperature {
+        Command::Heat(HeatCommand::SetTemperature {
             wait: false, s, r, ..
-        } => matches!(r.or(*s), Some(t) if t <= 0.0),
-        Command::FanOff { .. } => true,
-        Command::FanOn { speed, .. } => matches!(speed, Some(s) if *s <= 0.0),
-        Command::DisableSteppers { .. } => true,
-        Command::ReportTemperatures
-        | Command::ReportPosition
-        | Command::ReportEndstops
-        | Command::FirmwareInfo => true,
+        }) => matches!(r.or(*s), Some(t) if t <= 0.0),
+        Command::Heat(HeatCommand::FanOff { .. }) => true,
+        Command::Heat(HeatCommand::FanOn { speed, .. }) => matches!(speed, Some(s) if *s <= 0.0),
+        Command::Driver(DriverCommand::DisableSteppers { .. }) => true,
+        Command::Heat(HeatCommand::Report) => true,
         Command::Report(r) => matches!(
             r,
-            ReportCommand::PrintTime | ReportCommand::JobStatus | ReportCommand::AutoTemp(_)
+            ReportCommand::Position
+                | ReportCommand::Endstops
+                | ReportCommand::FirmwareInfo
+                | ReportCommand::PrintTime
+                | ReportCommand::JobStatus
+                | ReportCommand::AutoTemp(_)
         ),
         _ => false,
     }
