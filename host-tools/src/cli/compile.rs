@@ -25,7 +25,8 @@ pub struct Args {
     /// Skip the printability checks.
     #[arg(long)]
     pub no_check: bool,
-    /// Refuse to write when a check finds anything.
+    /// Refuse to write when a check finds anything (a travel into printed material is
+    /// refused always).
     #[arg(long)]
     pub strict: bool,
     /// Leave out the profile's start and end code.
@@ -95,6 +96,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     String::new()
                 }
             );
+            if rep.errors() > 0 {
+                anyhow::bail!(
+                    "{} travel(s) would drive the nozzle into printed material; nothing written \
+                     (--no-check skips the checks)",
+                    rep.errors()
+                );
+            }
             if args.strict {
                 anyhow::bail!("printability checks failed (--strict)");
             }

@@ -3,7 +3,8 @@
 use crate::design::motion::{MotionLimits, Trajectory};
 use crate::design::profile::Profile;
 use crate::paste::cure::{check, heat_map_svg, summary, CureParams};
-use crate::paste::timebased::{design_window, is_timebased, read_timebased, TimedPath, PERIOD_MS};
+use crate::paste::timebased::{is_timebased, read_timebased, TimedPath, PERIOD_MS};
+use crate::paste::window::design_window;
 use std::io::Write;
 use std::path::PathBuf;
 
@@ -61,9 +62,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             .map_err(|e| anyhow::anyhow!("{}: {e}", a.input.display()))?;
         let p = a.period_ms / 1000.0;
         // The design only, as `timebased` resamples it.
-        let (t0, t1) = design_window(&traj)
+        let w = design_window(&traj, &input)
             .ok_or_else(|| anyhow::anyhow!("{}: nothing is printed", a.input.display()))?;
-        (p, traj.samples_between(t0, t1, p))
+        (p, traj.samples_between(w.t0_s, w.t1_s, p))
     };
     let params = CureParams {
         period_s,

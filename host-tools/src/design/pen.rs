@@ -29,19 +29,13 @@
 use crate::design::model::{StateChange, Step};
 use crate::design::profile::{Primer, Retraction};
 use crate::design::turtle::{finite, Turtle, TurtleError};
-use crate::job::annotation;
+use crate::gcode::annotation;
 use glam::DVec3;
 use std::f64::consts::PI;
 
-/// How a line's cross-section follows from its width and height (FullControl's area models).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub enum AreaModel {
-    /// width × height.
-    #[default]
-    Rectangle,
-    /// A rectangle with semicircular sides: (width − height)·height + π(height/2)².
-    Stadium,
-}
+/// How a line's cross-section follows from its width and height (FullControl's area
+/// models; declared in the G-code for the 3D page, [`crate::gcode::bead`]).
+pub use crate::gcode::bead::AreaModel;
 
 impl AreaModel {
     /// Parses `"rectangle"` or `"stadium"`.
@@ -220,7 +214,10 @@ impl Turtle {
         model: AreaModel,
     ) -> Result<(), TurtleError> {
         let c = model.cross_mm2(width_mm, height_mm)?;
-        self.set_cross_section(c)
+        self.set_cross_section(c)?;
+        // The 3D page draws the beads from here on with this model.
+        self.state_change(StateChange::Bead(model));
+        Ok(())
     }
 
     /// Retraction for the travels from here on.
@@ -258,12 +255,7 @@ impl Turtle {
 
     /// Speed of the travels from here on, mm/s (> 0; replaces the profile's).
     pub fn set_travel_speed(&mut self, mm_s: f64) -> Result<(), TurtleError> {
-        let v = finite("travel speed", mm_s)?;
-        if v <= 0.0 {
-            return Err(TurtleError::BadArgument(format!(
-                "travel speed must be > 0 mm/s, got {v}"
-            )));
-        }
+        let v = crate::design::turtle::speed_mm_s("travel speed", mm_s, self.speed_limit_mm_s)?;
         self.state_change(StateChange::TravelSpeed(v));
         Ok(())
     }
@@ -286,7 +278,7 @@ impl Turtle {
     }
 
     /// An annotation for viewers (FullControl's `PlotAnnotation`), written as the comment
-    /// `; ANNOTATION X<x> Y<y> Z<z>: <label>` ([`crate::job::annotation`]: mm, at most three
+    /// `; ANNOTATION X<x> Y<y> Z<z>: <label>` ([`crate::gcode::annotation`]: mm, at most three
     /// decimals, the label on one line) at `at`, the pen's position when `None`; the 3D
     /// preview shows it there.
     pub fn annotate(&mut self, at: Option<DVec3>, label: &str) -> Result<(), TurtleError> {

@@ -50,6 +50,29 @@ pub struct Turtle {
     pub(crate) model: Model,
     /// What has been printed so far, for travels that lift over it (filled lazily).
     pub(crate) heights: HeightMap,
+    /// The printer's axis speed limit, mm/s: a speed above it is refused as a likely mm/min
+    /// value ([`speed_mm_s`]); unbounded for a turtle made without a printer.
+    pub(crate) speed_limit_mm_s: f64,
+}
+
+/// A speed as the design gives it, mm/s: finite, > 0 and at most the printer's axis limit.
+/// Every speed entry point of a design uses this, so a FullControl value in mm/min
+/// (`set_travel_speed(9000)`) is refused with the conversion instead of being written as
+/// `F540000`.
+pub fn speed_mm_s(name: &str, v: f64, limit_mm_s: f64) -> Result<f64, TurtleError> {
+    if !(v.is_finite() && v > 0.0) {
+        return Err(TurtleError::BadArgument(format!(
+            "{name} must be > 0 mm/s, got {v}"
+        )));
+    }
+    if v > limit_mm_s {
+        return Err(TurtleError::BadArgument(format!(
+            "{name} {v} mm/s is beyond the printer's {limit_mm_s} mm/s axis limit (speeds here \
+             are mm/s; FullControl's are mm/min: {v} mm/min = {:.1} mm/s)",
+            v / 60.0
+        )));
+    }
+    Ok(v)
 }
 
 pub(crate) fn finite(name: &str, v: f64) -> Result<f64, TurtleError> {
@@ -114,6 +137,7 @@ impl Turtle {
             stack: Vec::new(),
             model,
             heights: HeightMap::new(),
+            speed_limit_mm_s: f64::INFINITY,
         })
     }
 
@@ -130,7 +154,15 @@ impl Turtle {
             stack: Vec::new(),
             model: Model::new([pos.x, pos.y]),
             heights: HeightMap::new(),
+            speed_limit_mm_s: f64::INFINITY,
         }
+    }
+
+    /// Refuses speeds above `limit_mm_s` from here on (the printer's axis limit; see
+    /// [`speed_mm_s`]).
+    pub fn with_speed_limit(mut self, limit_mm_s: f64) -> Turtle {
+        self.speed_limit_mm_s = limit_mm_s;
+        self
     }
 
     /// Moves `r` mm along the heading while rising `dz` mm: a string (pen down) or a travel.
@@ -181,14 +213,9 @@ impl Turtle {
         self.forward(0.0, -dz)
     }
 
-    /// Sets the head speed, mm/s (> 0).
+    /// Sets the head speed, mm/s (> 0, at most the printer's axis limit).
     pub fn set_velocity(&mut self, v: f64) -> Result<(), TurtleError> {
-        if !(v.is_finite() && v > 0.0) {
-            return Err(TurtleError::BadArgument(format!(
-                "velocity must be > 0, got {v}"
-            )));
-        }
-        self.state.speed_mm_s = v;
+        self.state.speed_mm_s = speed_mm_s("velocity", v, self.speed_limit_mm_s)?;
         Ok(())
     }
 

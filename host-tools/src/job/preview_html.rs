@@ -17,10 +17,11 @@
 //! an id buffer for picking and a layer range — about 400 lines — while three.js (~600 KB
 //! minified) or plotly.js (~3.5 MB) would have to be inlined into every page.
 
-use crate::design::motion::{plan_gcode_with, MotionLimits, Segment};
+use crate::design::motion::{plan_marks, prelude_marks, LayerMark, MotionLimits, Segment};
 use crate::design::profile::Profile;
-use crate::job::preview_moves::{push_num, scan_annotations, PageData};
-use crate::job::read::{default_reader, BadLines, ReadError};
+use crate::gcode::number::push_num;
+use crate::job::preview_moves::{scan_annotations, scan_beads, PageData};
+use crate::gcode::read::{default_reader, BadLines, ReadError};
 use std::cell::RefCell;
 
 /// What an HTML preview holds.
@@ -52,7 +53,10 @@ pub fn html(input: &[u8], profile: &Profile, title: &str) -> Result<(String, Htm
     let area = profile.filament_area_mm2();
     let nozzle = profile.nozzle_diameter_mm;
     let (mut notes, dropped) = scan_annotations(input);
-    let data = RefCell::new(PageData::with_capacity(input.len() / 2 + 4096));
+    let data = RefCell::new(PageData::with_capacity(
+        input.len() / 2 + 4096,
+        scan_beads(input),
+    ));
     let mut too_many = false;
     let mut sink = |s: Segment| {
         let mut d = data.borrow_mut();
@@ -62,10 +66,10 @@ pub fn html(input: &[u8], profile: &Profile, title: &str) -> Result<(String, Htm
         }
         d.push(&s, &mut notes, area, nozzle);
     };
-    let mut layer = |number: u32, z: Option<f64>, _t: f64| data.borrow_mut().mark(number, z);
+    let mut layer = |m: LayerMark| data.borrow_mut().mark(m);
     let mut reader = default_reader();
     reader.bad_line_policy = BadLines::Skip;
-    let totals = plan_gcode_with(&mut reader, input, limits, &mut sink, &mut layer)
+    let totals = plan_marks(&mut reader, input, limits, &mut sink, &mut layer)
         .map_err(|e: ReadError| e.to_string())?;
     if too_many {
         return Err(format!(
@@ -74,9 +78,10 @@ pub fn html(input: &[u8], profile: &Profile, title: &str) -> Result<(String, Htm
     }
     let mut d = data.into_inner();
     d.finish_notes(&mut notes);
+    let prelude = prelude_marks(&d.marks);
     let b = &profile.bed;
     let meta = format!(
-        "{{\"title\":{},\"bed\":[{},{},{},{}],\"profile\":{},\"time\":{:.1},\"notes_dropped\":{}}}",
+        "{{\"title\":{},\"bed\":[{},{},{},{}],\"profile\":{},\"time\":{:.1},\"notes_dropped\":{},\"prelude\":{}}}",
         script_json(title),
         b.x_min_mm,
         b.y_min_mm,
@@ -84,19 +89,23 @@ pub fn html(input: &[u8], profile: &Profile, title: &str) -> Result<(String, Htm
         b.y_max_mm,
         script_json(&profile.name),
         totals.time_s,
-        dropped
+        dropped,
+        prelude
     );
-    // Layer index k (k ≥ 1) is the k-th mark: [firmware number, Z or null].
+    // Layer index k (k ≥ 1) is the k-th mark: [firmware number, the height the layer prints
+    // at or null]. The first `prelude` marks are the start code's (a purge line the firmware
+    // numbers before its count starts again at the first layer): the page shows them as the
+    // start, as `stats` counts their time before the first layer.
     let mut layers = String::from("[");
-    for (k, (number, z)) in d.marks.iter().enumerate() {
-        if k > 0 {
+    for (k, m) in d.marks.iter().enumerate().skip(prelude) {
+        if k > prelude {
             layers.push(',');
         }
         layers.push('[');
-        layers.push_str(&number.to_string());
+        layers.push_str(&m.number.to_string());
         layers.push(',');
-        match z {
-            Some(z) => push_num(&mut layers, *z, 3),
+        match d.heights.get(k as u32 + 1).or(m.z_mm) {
+            Some(z) => push_num(&mut layers, z, 3),
             None => layers.push_str("null"),
         }
         layers.push(']');
@@ -142,7 +151,7 @@ pub fn html(input: &[u8], profile: &Profile, title: &str) -> Result<(String, Htm
         HtmlSummary {
             print_moves: d.print_moves,
             travels: d.travels,
-            layers: totals.layer_marks,
+            layers: totals.layer_marks.saturating_sub(prelude as u32),
             time_s: totals.time_s,
             annotations: shown,
             annotations_dropped: dropped,

@@ -5,3 +5,4 @@ mod bins;
 pub mod cure;
 pub mod grow;
 pub mod timebased;
+pub mod window;

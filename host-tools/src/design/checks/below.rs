@@ -227,19 +227,31 @@ pub(super) fn travel_check<P: Printed>(
     }
     let n = ((len - 2.0 * skip) / o.sample_mm).ceil() as usize;
     let r = o.nozzle_radius_mm;
+    // Material within the clearance of the nozzle's height is stringing; material standing
+    // higher than that is in the nozzle's way: a collision.
+    let mut grazes: Option<DVec3> = None;
     for k in 0..=n.min(100_000) {
         let d = skip + (len - 2.0 * skip) * k as f64 / n.max(1) as f64;
         let p = from.lerp(to, d / len);
-        if tree.any_at_or_above(
-            [p.x - r, p.y - r],
-            [p.x + r, p.y + r],
-            p.z - o.travel_clearance_mm,
-        ) {
-            rep.add(o.max_listed, IssueKind::TravelCrossesPrint, i, p, || format!(
-                        "travel from ({:.2}, {:.2}) to ({:.2}, {:.2}) at z {:.2} passes over printed material (stringing)",
-                        from.x, from.y, to.x, to.y, p.z
-                    ));
+        let (lo, hi) = ([p.x - r, p.y - r], [p.x + r, p.y + r]);
+        if !tree.any_at_or_above(lo, hi, p.z - o.travel_clearance_mm) {
+            continue;
+        }
+        if tree.any_at_or_above(lo, hi, p.z + o.travel_clearance_mm) {
+            rep.add(o.max_listed, IssueKind::TravelHitsPrint, i, p, || format!(
+                "travel from ({:.2}, {:.2}, {:.2}) to ({:.2}, {:.2}, {:.2}) drives the nozzle into \
+                 printed material standing above it at ({:.2}, {:.2}, {:.2}): use travel_to (it \
+                 lifts over what is printed) or print in another order",
+                from.x, from.y, from.z, to.x, to.y, to.z, p.x, p.y, p.z
+            ));
             return;
         }
+        grazes.get_or_insert(p);
+    }
+    if let Some(p) = grazes {
+        rep.add(o.max_listed, IssueKind::TravelCrossesPrint, i, p, || format!(
+            "travel from ({:.2}, {:.2}) to ({:.2}, {:.2}) at z {:.2} passes over printed material (stringing)",
+            from.x, from.y, to.x, to.y, p.z
+        ));
     }
 }

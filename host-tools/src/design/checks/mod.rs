@@ -9,7 +9,8 @@
 //!   string's width (width ≈ cross-section ÷ vertical gap), so the wall cannot stack (the
 //!   paper's collapsing cylinder): an overhang is flagged from `atan(w / 2h)` from the
 //!   vertical — 45° for lines twice as wide as high;
-//! - **travel crosses printed material** at or above the nozzle's height;
+//! - **travel crosses printed material** at the nozzle's height (stringing), and **travel hits
+//!   printed material** standing above the nozzle (a collision: an error);
 //! - **flow above the profile's maximum** (cross-section × speed);
 //! - **line width** (cross-section ÷ the bead's thickness: its distance to the string it
 //!   rests on, or its height above the bed) outside `min_width_ratio..=max_width_ratio` × the
@@ -110,10 +111,13 @@ pub enum IssueKind {
     ColdExtrusion,
     /// Raw G-code homes the axes after printing started.
     HomesMidPrint,
+    /// A travel drives the nozzle into printed material standing above it (a collision, not
+    /// stringing): an error, `compile` writes nothing.
+    TravelHitsPrint,
 }
 
 /// Number of issue kinds.
-const KINDS: usize = 8;
+const KINDS: usize = 9;
 
 impl IssueKind {
     /// Short name.
@@ -127,7 +131,14 @@ impl IssueKind {
             IssueKind::LineWidth => "line-width",
             IssueKind::ColdExtrusion => "cold-extrusion",
             IssueKind::HomesMidPrint => "homes-mid-print",
+            IssueKind::TravelHitsPrint => "travel-hits-print",
         }
+    }
+
+    /// True for issues that make the G-code destroy the print or the printer (refused even
+    /// without `--strict`).
+    pub fn is_error(&self) -> bool {
+        matches!(self, IssueKind::TravelHitsPrint)
     }
 }
 
@@ -167,6 +178,11 @@ impl CheckReport {
     /// Count of one kind.
     pub fn count(&self, kind: IssueKind) -> usize {
         self.counts[kind as usize]
+    }
+
+    /// Number of issues that are errors ([`IssueKind::is_error`]).
+    pub fn errors(&self) -> usize {
+        self.counts[IssueKind::TravelHitsPrint as usize]
     }
 
     /// Counts an issue of `kind` and lists it while fewer than `max` of its kind are: the

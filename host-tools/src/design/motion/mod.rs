@@ -24,7 +24,9 @@ mod trajectory;
 
 pub use planner::{PlanMove, Planner, OVERLAP, WINDOW};
 pub use segment::Segment;
-pub use trajectory::{plan_gcode, plan_gcode_with, plan_marks, LayerMark, PlanTotals, Trajectory};
+pub use trajectory::{
+    plan_gcode, plan_gcode_with, plan_marks, prelude_marks, LayerMark, PlanTotals, Trajectory,
+};
 
 use crate::design::profile::Profile;
 
@@ -67,6 +69,45 @@ impl MotionLimits {
             accel_retract_mm_s2: l.accel_retract_mm_s2,
             junction_deviation_mm: l.junction_deviation_mm,
         }
+    }
+}
+
+/// The height each layer prints at: where its first extruding move starts — never a travel's
+/// lift, whatever Z a marker or the first move after it names. The one notion of a layer's
+/// height for `stats`, the 3D page, `timebased` and the cure check (the design's own `;Z:`
+/// is written the same way). Layer index as [`Segment::layer`] (0 before the first mark).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PrintHeights {
+    z_mm: Vec<Option<f64>>,
+}
+
+impl PrintHeights {
+    /// Heights of every layer of `segments`.
+    pub fn of(segments: &[Segment]) -> PrintHeights {
+        let mut h = PrintHeights::default();
+        for s in segments {
+            h.note(s);
+        }
+        h
+    }
+
+    /// Notes one segment (in job order).
+    pub fn note(&mut self, s: &Segment) {
+        if s.kind != MoveKind::Print {
+            return;
+        }
+        let l = s.layer as usize;
+        if self.z_mm.len() <= l {
+            self.z_mm.resize(l + 1, None);
+        }
+        if self.z_mm[l].is_none() {
+            self.z_mm[l] = Some(s.start[2]);
+        }
+    }
+
+    /// The height layer index `layer` prints at; `None` when nothing in it prints.
+    pub fn get(&self, layer: u32) -> Option<f64> {
+        self.z_mm.get(layer as usize).copied().flatten()
     }
 }
 

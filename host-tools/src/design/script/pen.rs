@@ -27,9 +27,11 @@ fn register_move(
     });
 }
 
-pub(super) fn register_pen(e: &mut Engine) {
-    e.register_fn("turtle", |p: Dynamic| -> Res<Turtle> {
-        Ok(Turtle::at(pt(&p, "start")?, 0.2, 20.0))
+/// `max_xy_mm_s`: the printer's axis speed limit (speeds above it are refused as likely
+/// mm/min values).
+pub(super) fn register_pen(e: &mut Engine, max_xy_mm_s: f64) {
+    e.register_fn("turtle", move |p: Dynamic| -> Res<Turtle> {
+        Ok(Turtle::at(pt(&p, "start")?, 0.2, 20.0).with_speed_limit(max_xy_mm_s))
     });
     register_move(e, "extrude_to", Turtle::extrude_to);
     register_move(e, "travel_to", Turtle::travel_to);

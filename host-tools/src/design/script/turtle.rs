@@ -63,12 +63,14 @@ fn init_options(o: &Map) -> Res<InitOptions> {
 
 pub(super) fn register_turtle(e: &mut Engine, profile: Profile) {
     e.register_type_with_name::<Turtle>("Turtle");
+    let p = profile.clone();
     e.register_fn("init", move |o: Map| -> Res<Turtle> {
-        Turtle::init_with(&init_options(&o)?, &profile).map_err(err)
+        Turtle::init_with(&init_options(&o)?, &p).map_err(err)
     });
+    let max_xy = profile.limits.max_feed_xy_mm_s;
     e.register_fn(
         "init",
-        |fd: Dynamic,
+        move |fd: Dynamic,
          head: Dynamic,
          bed: Dynamic,
          c: Dynamic,
@@ -85,17 +87,19 @@ pub(super) fn register_turtle(e: &mut Engine, profile: Profile) {
                 num(&y, "y0")?,
                 num(&z, "z0")?,
             )
+            .map(|t| t.with_speed_limit(max_xy))
             .map_err(err)
         },
     );
     e.register_fn(
         "turtle",
-        |x: Dynamic, y: Dynamic, z: Dynamic| -> Res<Turtle> {
+        move |x: Dynamic, y: Dynamic, z: Dynamic| -> Res<Turtle> {
             Ok(Turtle::at(
                 DVec3::new(num(&x, "x")?, num(&y, "y")?, num(&z, "z")?),
                 0.2,
                 20.0,
-            ))
+            )
+            .with_speed_limit(max_xy))
         },
     );
     e.register_fn("forward", |t: &mut Turtle, r: Dynamic| -> Res<()> {

@@ -4,6 +4,34 @@
 use super::WriteError;
 use crate::design::model::{Model, StateChange, Step};
 
+/// Rejects speeds above the printer's axis limit `max_mm_s` (strings, travels and travel
+/// speeds of parts, `map_strings`, `scale_speed` as much as the turtle's): speeds are mm/s
+/// everywhere, and a value above the limit is almost always one in mm/min.
+pub fn speeds(model: &Model, max_mm_s: f64) -> Result<(), WriteError> {
+    for (index, s) in model.steps.iter().enumerate() {
+        let (what, v) = match s {
+            Step::String(s) => ("string speed", s.speed_mm_s),
+            Step::Travel {
+                speed_mm_s: Some(v),
+                ..
+            } => ("travel speed", *v),
+            Step::State(StateChange::TravelSpeed(v)) => ("travel speed", *v),
+            _ => continue,
+        };
+        if v > max_mm_s {
+            return Err(WriteError::BadStep {
+                index,
+                msg: format!(
+                    "{what} {v} mm/s is beyond the printer's {max_mm_s} mm/s axis limit (speeds \
+                     are mm/s; FullControl's are mm/min: {v} mm/min = {:.1} mm/s)",
+                    v / 60.0
+                ),
+            });
+        }
+    }
+    Ok(())
+}
+
 /// Rejects values that cannot become G-code (non-finite points, non-positive speeds, negative
 /// cross-sections or filament diameters).
 pub fn validate(model: &Model) -> Result<(), WriteError> {
@@ -92,7 +120,7 @@ pub fn validate(model: &Model) -> Result<(), WriteError> {
                     );
                 }
             }
-            Step::State(StateChange::Pause { .. }) => {}
+            Step::State(StateChange::Pause { .. } | StateChange::Bead(_)) => {}
             Step::Comment(_) | Step::Type(_) => {}
         }
     }
