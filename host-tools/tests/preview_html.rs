@@ -150,8 +150,9 @@ const CROSS_MM2: [f64; 3] = [0.12, 0.12, 0.30];
 const RIPPLES: f64 = 24.0;
 
 /// The start of an MK3S job (PrusaSlicer's): home, then a purge line along the bed's front
-/// edge, outside the print area.
-const START: &str = "G90\nM82\nG28\nG1 Z0.2 F720\nG1 Y-3 F1000\nG92 E0\n\
+/// edge, outside the print area. The beads are declared stadiums (as PrusaSlicer models
+/// them; the page's default is FullControl's rectangle).
+const START: &str = ";AREA_MODEL:stadium\nG90\nM82\nG28\nG1 Z0.2 F720\nG1 Y-3 F1000\nG92 E0\n\
                      G1 X60 E9 F1000\nG1 X100 E12.5 F1000\nG92 E0\n";
 
 /// Three vases printed layer by layer, written here line by line (not by the compiler), after

@@ -242,30 +242,39 @@ mod tests {
 
     #[test]
     fn bead_height_is_the_rise_over_the_last_printed_layer() {
-        // Layers at Z 0.2 (on the bed), 0.5, 0.8 (travel only), 1.0; E for 0.2 mm² beads.
+        // Layers at Z 0.2 (on the bed), 0.5, 0.8 (travel only), 1.0; E for 0.3 mm² beads,
+        // drawn as FullControl's rectangles; then the same declared as stadiums.
         let area = Profile::ender3().filament_area_mm2();
-        let e = |mm: f64| 0.2 * mm / area;
-        let g = format!(
-            "G90\nM82\nG92 E0\n;LAYER_CHANGE\n;Z:0.2\nG0 X10 Y10 Z0.2 F6000\nG1 X20 E{:.5} F1200\n\
-             ;LAYER_CHANGE\n;Z:0.5\nG0 Z0.5\nG1 X10 E{:.5}\n;LAYER_CHANGE\n;Z:0.8\nG0 Z0.8\n\
-             G0 X20\n;LAYER_CHANGE\n;Z:1.0\nG0 Z1.0\nG1 X10 E{:.5}\n",
-            e(10.0),
-            e(20.0),
-            e(30.0)
-        );
-        let (page, s) = html(g.as_bytes(), &Profile::ender3(), "h").expect("page");
-        assert_eq!(s.print_moves, 3);
-        let printed: Vec<(f64, f64)> = moves(&page)
-            .iter()
-            .filter(|m| m[0] as u32 & 1 == 1)
-            .map(|m| (m[10], m[11]))
-            .collect();
-        let heights: Vec<f64> = printed.iter().map(|p| p.1).collect();
-        assert_eq!(heights, vec![0.2, 0.3, 0.5]);
-        // Width: the stadium of 0.2 mm² at that height (to the page's 3 decimals).
-        for (w, h) in printed {
-            let expected = 0.2 / h + h * (1.0 - std::f64::consts::FRAC_PI_4);
-            assert!((w - expected).abs() < 2e-3, "{w} vs {expected} at h {h}");
+        let e = |mm: f64| 0.3 * mm / area;
+        for (decl, stadium) in [("", false), (";AREA_MODEL:stadium\n", true)] {
+            let g = format!(
+                "G90\nM82\nG92 E0\n{decl};LAYER_CHANGE\n;Z:0.2\nG0 X10 Y10 Z0.2 F6000\n\
+                 G1 X20 E{:.5} F1200\n;LAYER_CHANGE\n;Z:0.5\nG0 Z0.5\nG1 X10 E{:.5}\n\
+                 ;LAYER_CHANGE\n;Z:0.8\nG0 Z0.8\nG0 X20\n;LAYER_CHANGE\n;Z:1.0\nG0 Z1.0\n\
+                 G1 X10 E{:.5}\n",
+                e(10.0),
+                e(20.0),
+                e(30.0)
+            );
+            let (page, s) = html(g.as_bytes(), &Profile::ender3(), "h").expect("page");
+            assert_eq!(s.print_moves, 3);
+            let printed: Vec<(f64, f64)> = moves(&page)
+                .iter()
+                .filter(|m| m[0] as u32 & 1 == 1)
+                .map(|m| (m[10], m[11]))
+                .collect();
+            let heights: Vec<f64> = printed.iter().map(|p| p.1).collect();
+            assert_eq!(heights, vec![0.2, 0.3, 0.5]);
+            // Width: the declared model of 0.3 mm² at that height (to the page's 3 decimals).
+            for (w, h) in printed {
+                let round = if stadium {
+                    h * (1.0 - std::f64::consts::FRAC_PI_4)
+                } else {
+                    0.0
+                };
+                let expected = 0.3 / h + round;
+                assert!((w - expected).abs() < 2e-3, "{w} vs {expected} at h {h}");
+            }
         }
     }
 

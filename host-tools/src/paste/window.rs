@@ -151,6 +151,26 @@ fn classify(text: &[u8]) -> Kind {
     }
 }
 
+/// The line of the last layer marker (comment or command) at or before line `line` (`line`
+/// itself when none is found).
+fn marker_line_before(src: &[u8], line: u32) -> u32 {
+    let detector = firmware::layer::LayerDetector::new();
+    let mut found = line;
+    for (n, l) in lines(src) {
+        if n > line {
+            break;
+        }
+        // Only comments and M73 / Klipper commands can be markers: parse just those.
+        let t = l.trim_ascii_start();
+        if matches!(t.first(), Some(b';' | b'M' | b'm' | b'S' | b's'))
+            && parse_line(t).is_ok_and(|p| detector.is_marker(&p))
+        {
+            found = n;
+        }
+    }
+    found
+}
+
 /// The design's window of `traj` (planned from `src`) with its state lines; `None` when
 /// nothing prints.
 pub fn design_window(traj: &Trajectory, src: &[u8]) -> Option<Window> {
@@ -179,7 +199,13 @@ pub fn design_window(traj: &Trajectory, src: &[u8]) -> Option<Window> {
     let first = prints().find(|s| s.line >= from_line)?;
     let last = prints().next_back()?;
     let (t0_s, t1_s) = (first.t_start_s, last.t_end_s().max(first.t_start_s));
-    let start_line = begin.unwrap_or(if from_line > 0 { from_line } else { first.line });
+    // A mark's line is that of the move it goes before: the design starts at the marker
+    // itself (its comment or command), so what the slicer sets right after it is the design's.
+    let start_line = begin.unwrap_or(if from_line > 0 {
+        marker_line_before(src, from_line)
+    } else {
+        first.line
+    });
     let end_line = end.unwrap_or(last.line);
     let mut w = Window {
         t0_s,
@@ -260,6 +286,6 @@ mod tests {
         let w = window(src);
         assert_eq!(w.state.len(), 1);
         assert_eq!(w.state[0].text, "M106 S255");
-        assert!(w.t0_s > 4.0, "{}", w.t0_s);
+        assert!(w.t0_s > 2.5, "the purge line is not the design: {}", w.t0_s);
     }
 }

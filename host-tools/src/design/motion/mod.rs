@@ -101,7 +101,8 @@ impl PrintHeights {
             self.z_mm.resize(l + 1, None);
         }
         if self.z_mm[l].is_none() {
-            self.z_mm[l] = Some(s.start[2]);
+            // To 0.1 µm: the reader's f32 noise (0.4000000059604645) is not a height.
+            self.z_mm[l] = Some((s.start[2] * 1e4).round() / 1e4);
         }
     }
 
