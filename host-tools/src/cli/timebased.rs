@@ -5,7 +5,7 @@ use crate::design::profile::Profile;
 use crate::paste::timebased::{
     approach, timed_lines, with_start_end, write_timebased, TimedLine, TimedPath, PERIOD_MS,
 };
-use crate::paste::window::design_window;
+use crate::paste::window::{design_window, fan_duty, last_fan_duty};
 use std::path::PathBuf;
 
 /// Arguments of `host-tools timebased`.
@@ -51,16 +51,18 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let samples = traj.samples_between(t0, t1, period_s);
     let hotend_c = w.hotend_c.unwrap_or(profile.hotend_c);
     let bed_c = w.bed_c.unwrap_or(profile.bed_c);
+    let mut start = profile.start_code(hotend_c, bed_c);
+    // The fan the source had on where the design starts, unless the start code leaves it so.
     let mut lines: Vec<TimedLine> = w
         .fan
         .iter()
+        .filter(|f| fan_duty(f.as_bytes()) != last_fan_duty(&start))
         .map(|f| TimedLine {
             t_s: t0,
             text: f.clone(),
         })
         .collect();
     lines.extend(timed_lines(&traj, &w));
-    let mut start = profile.start_code(hotend_c, bed_c);
     if let Some(first) = samples.first() {
         let from = crate::additive::job::start_position(&profile).ok();
         if !start.is_empty() && !start.ends_with('\n') {

@@ -37,7 +37,7 @@
 //! deposit material. The file is ordinary G-code that any firmware runs at the right pace,
 //! and `cure-check` reads it back sample by sample (with the same reader as `stats`).
 
-use crate::design::motion::{MoveKind, PrintHeights, Trajectory};
+use crate::design::motion::{prelude_marks, MoveKind, PrintHeights, Trajectory};
 use crate::gcode::read::{default_reader, Event, GcodeReader, LayerSource};
 use crate::paste::window::Window;
 use glam::DVec3;
@@ -192,7 +192,10 @@ pub fn timed_lines(traj: &Trajectory, w: &Window) -> Vec<TimedLine> {
             *t = Some(seg.t_start_s);
         }
     }
-    for (k, m) in traj.layers.iter().enumerate() {
+    // Marks of a prelude (what prints before the first layer, as the firmware counts it) are
+    // no layers: the time-based file has no marker for them either.
+    let prelude = prelude_marks(&traj.layers);
+    for (k, m) in traj.layers.iter().enumerate().skip(prelude) {
         if m.source == LayerSource::End || m.line < w.lines.0 || m.line > w.lines.1 {
             continue;
         }

@@ -171,6 +171,22 @@ fn marker_line_before(src: &[u8], line: u32) -> u32 {
     found
 }
 
+/// The part-fan duty (0..=1) a line sets, if it is `M106`/`M107` (of the part fan).
+pub fn fan_duty(line: &[u8]) -> Option<f64> {
+    match parse_line(line).ok()?.command? {
+        Command::FanOn { speed, fan: None | Some(0) } => {
+            Some(f64::from(speed.unwrap_or(255.0)).clamp(0.0, 255.0) / 255.0)
+        }
+        Command::FanOff { fan: None | Some(0) } => Some(0.0),
+        _ => None,
+    }
+}
+
+/// The part-fan duty the last `M106`/`M107` of `text` leaves, if any.
+pub fn last_fan_duty(text: &str) -> Option<f64> {
+    text.lines().filter_map(|l| fan_duty(l.as_bytes())).last()
+}
+
 /// The design's window of `traj` (planned from `src`) with its state lines; `None` when
 /// nothing prints.
 pub fn design_window(traj: &Trajectory, src: &[u8]) -> Option<Window> {

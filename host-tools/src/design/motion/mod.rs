@@ -72,10 +72,26 @@ impl MotionLimits {
     }
 }
 
-/// The height each layer prints at: where its first extruding move starts — never a travel's
-/// lift, whatever Z a marker or the first move after it names. The one notion of a layer's
-/// height for `stats`, the 3D page, `timebased` and the cure check (the design's own `;Z:`
-/// is written the same way). Layer index as [`Segment::layer`] (0 before the first mark).
+/// How far a layer's first extruding move may climb and still start at the layer's height,
+/// mm: a helix turn's first string climbs a fraction of its pitch; a move that climbs more
+/// comes onto the layer from below (a time-based file's sample chord out of the rise).
+pub const LAYER_CLIMB_MM: f64 = 0.05;
+
+/// The height a layer prints at, from its first extruding move (start and end Z): where it
+/// starts, or where it ends when it comes onto the layer — down from above (a time-based
+/// sample chord out of a lift's descent) or climbing more than [`LAYER_CLIMB_MM`].
+pub fn layer_height_of(start_z_mm: f64, end_z_mm: f64) -> f64 {
+    if end_z_mm < start_z_mm - 1e-6 || end_z_mm - start_z_mm > LAYER_CLIMB_MM {
+        end_z_mm
+    } else {
+        start_z_mm
+    }
+}
+
+/// The height each layer prints at ([`layer_height_of`] its first extruding move) — never a
+/// travel's lift, whatever Z a marker or the first move after it names. The one notion of a
+/// layer's height for `stats`, the 3D page, `timebased` and the cure check (the design's own
+/// `;Z:` is written the same way). Layer index as [`Segment::layer`] (0 before the first mark).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct PrintHeights {
     z_mm: Vec<Option<f64>>,
@@ -102,7 +118,7 @@ impl PrintHeights {
         }
         if self.z_mm[l].is_none() {
             // To 0.1 µm: the reader's f32 noise (0.4000000059604645) is not a height.
-            self.z_mm[l] = Some((s.start[2] * 1e4).round() / 1e4);
+            self.z_mm[l] = Some((layer_height_of(s.start[2], s.end[2]) * 1e4).round() / 1e4);
         }
     }
 

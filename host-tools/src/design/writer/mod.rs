@@ -382,7 +382,7 @@ fn print_heights(steps: &[Step]) -> Vec<f64> {
             }
             Step::String(st) if open => {
                 if let Some(z) = out.last_mut() {
-                    *z = st.start.z;
+                    *z = crate::design::motion::layer_height_of(st.start.z, st.end.z);
                 }
                 open = false;
             }
