@@ -370,7 +370,9 @@ impl<'p> GcodeWriter<'p> {
 /// The height each marker's layer prints at, in marker order: where the first string after
 /// it (before the next marker) starts — a turtle's `mark_layer` records the pen's Z, which is
 /// still the layer below until the next string climbs (the `;Z:` of `fc_speed_lattice` was one
-/// layer behind) — else the marker's own Z.
+/// layer behind) — else the marker's own Z. (A design's string starts on its layer: a helical
+/// arc's whole turn is one string; the G-code reader's rule for moves that come onto a layer,
+/// `motion::layer_height_of`, gives the same height for the G-code written here.)
 fn print_heights(steps: &[Step]) -> Vec<f64> {
     let mut out = Vec::new();
     let mut open = false;
@@ -382,7 +384,7 @@ fn print_heights(steps: &[Step]) -> Vec<f64> {
             }
             Step::String(st) if open => {
                 if let Some(z) = out.last_mut() {
-                    *z = crate::design::motion::layer_height_of(st.start.z, st.end.z);
+                    *z = st.start.z;
                 }
                 open = false;
             }
