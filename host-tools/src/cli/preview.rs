@@ -19,8 +19,8 @@ pub struct Args {
     pub output: Option<PathBuf>,
     /// Write the self-contained 3D page (HTML, no network): `--html FILE.gcode -o OUT.html`,
     /// or with the page's name, `--html OUT.html FILE.gcode`.
-    #[arg(long, num_args = 0..=1, default_missing_value = "", value_name = "FILE")]
-    pub html: Option<PathBuf>,
+    #[arg(long, num_args = 0..=1, value_name = "FILE")]
+    pub html: Option<Option<PathBuf>>,
     /// Colour printing moves by speed or by cross-section.
     #[arg(long, value_enum, default_value = "speed")]
     pub color: ColorBy,
@@ -91,7 +91,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 /// OUT.html`, `FILE.gcode --html -o OUT.html`) or with the page's name (`--html OUT.html
 /// FILE.gcode`); of `--html`'s value and the file, the one named `.html` is the page.
 fn files(args: &Args) -> anyhow::Result<(PathBuf, Vec<PathBuf>)> {
-    let html = args.html.as_ref().filter(|p| !p.as_os_str().is_empty());
+    let html = args.html.as_ref().and_then(Option::as_ref);
     let (file, page) = match (html, &args.file) {
         (Some(h), Some(f)) if has_html_ext(h) => (f.clone(), Some(h.clone())),
         (Some(h), Some(f)) if has_html_ext(f) => (h.clone(), Some(f.clone())),
