@@ -85,7 +85,9 @@ fn is_tag(line: &[u8], tag: &str) -> bool {
 /// top of a file: layer markers (every family the firmware knows), `;Z:`, `;HEIGHT:`,
 /// `;LAYER_COUNT:`, `;FLAVOR:` and our design tags.
 fn is_frame_comment(comment: &[u8]) -> bool {
-    let c = String::from_utf8_lossy(comment).trim_start().to_ascii_uppercase();
+    let c = String::from_utf8_lossy(comment)
+        .trim_start()
+        .to_ascii_uppercase();
     [
         "Z:",
         "HEIGHT:",
@@ -174,17 +176,20 @@ fn marker_line_before(src: &[u8], line: u32) -> u32 {
 /// The part-fan duty (0..=1) a line sets, if it is `M106`/`M107` (of the part fan).
 pub fn fan_duty(line: &[u8]) -> Option<f64> {
     match parse_line(line).ok()?.command? {
-        Command::FanOn { speed, fan: None | Some(0) } => {
-            Some(f64::from(speed.unwrap_or(255.0)).clamp(0.0, 255.0) / 255.0)
-        }
-        Command::FanOff { fan: None | Some(0) } => Some(0.0),
+        Command::FanOn {
+            speed,
+            fan: None | Some(0),
+        } => Some(f64::from(speed.unwrap_or(255.0)).clamp(0.0, 255.0) / 255.0),
+        Command::FanOff {
+            fan: None | Some(0),
+        } => Some(0.0),
         _ => None,
     }
 }
 
 /// The part-fan duty the last `M106`/`M107` of `text` leaves, if any.
 pub fn last_fan_duty(text: &str) -> Option<f64> {
-    text.lines().filter_map(|l| fan_duty(l.as_bytes())).last()
+    text.lines().rev().find_map(|l| fan_duty(l.as_bytes()))
 }
 
 /// The design's window of `traj` (planned from `src`) with its state lines; `None` when
@@ -231,7 +236,11 @@ pub fn design_window(traj: &Trajectory, src: &[u8]) -> Option<Window> {
         bed_c: None,
         fan: None,
         lines: (start_line, end_line),
-        starts: traj.segments.iter().map(|s| (s.line, s.t_start_s)).collect(),
+        starts: traj
+            .segments
+            .iter()
+            .map(|s| (s.line, s.t_start_s))
+            .collect(),
         duration_s: traj.duration_s,
     };
     for (n, l) in lines(src) {

@@ -32,9 +32,12 @@ fn math1(name: &'static str, f: fn(f64) -> f64, why: &'static str) -> impl Fn(f6
     }
 }
 
+/// A guarded one-argument function: its script name, the function, why a NaN comes out.
+type Math1 = (&'static str, fn(f64) -> f64, &'static str);
+
 /// Registers the NaN-checked math functions for floats and integers.
 fn register_math(e: &mut Engine) {
-    let one: [(&'static str, fn(f64) -> f64, &'static str); 7] = [
+    let one: [Math1; 7] = [
         ("sqrt", f64::sqrt, "square root of a negative number"),
         ("ln", f64::ln, "logarithm of a negative number"),
         ("log", f64::log10, "logarithm of a negative number"),
