@@ -105,10 +105,10 @@ impl Turtle {
             t.set_primer(p)?;
         }
         if let Some(d) = filament {
-            t.model.push(Step::State(StateChange::FilamentDiameter(d)));
+            t.push_step(Step::State(StateChange::FilamentDiameter(d)));
         }
         if o.area_model != AreaModel::Rectangle {
-            t.model.push(Step::State(StateChange::Bead(o.area_model)));
+            t.push_step(Step::State(StateChange::Bead(o.area_model)));
         }
         if let Some(b) = o.bed_temp_c {
             t.bed(b.max(0.0), true)?;
@@ -123,7 +123,7 @@ impl Turtle {
             t.set_travel_speed(v)?;
         }
         if o.start.is_some() {
-            t.model.push(Step::Travel {
+            t.push_step(Step::Travel {
                 to: at,
                 speed_mm_s: None,
             });

@@ -133,7 +133,7 @@ impl Turtle {
             c + glam::DVec2::from_angle(a) * r
         };
         let to = end.extend(from.z + dz);
-        self.model.push(Step::String(crate::design::model::Str {
+        self.push_step(Step::String(crate::design::model::Str {
             start: from,
             end: to,
             cross_mm2: self.state.cross_mm2,
@@ -167,7 +167,7 @@ impl Turtle {
     }
 
     fn state_change(&mut self, sc: StateChange) {
-        self.model.push(Step::State(sc));
+        self.push_step(Step::State(sc));
     }
 
     /// Part-cooling fan, percent of full speed (0..=100).
@@ -263,7 +263,7 @@ impl Turtle {
     /// The profile's primer (its purge line) or none; only before the first move.
     pub fn set_primer(&mut self, primer: Primer) -> Result<(), TurtleError> {
         if self
-            .model
+            .model()
             .steps
             .iter()
             .any(|s| matches!(s, Step::String(_) | Step::Travel { .. }))
@@ -285,7 +285,7 @@ impl Turtle {
         let p = point(at.unwrap_or(self.state.pos))?;
         let text = annotation::comment(Some(p.to_array()), label)
             .ok_or_else(|| TurtleError::BadArgument(format!("point must be finite, got {p:?}")))?;
-        self.model.push(Step::Comment(text));
+        self.push_step(Step::Comment(text));
         Ok(())
     }
 

@@ -47,7 +47,9 @@ pub enum TurtleError {
 pub struct Turtle {
     pub(crate) state: TurtleState,
     stack: Vec<TurtleState>,
-    pub(crate) model: Model,
+    /// Shared until changed (`Rc::make_mut`): a script's final `t` hands the runner a copy of
+    /// the turtle, and the model of a 45,000-point design was copied with it.
+    model: std::rc::Rc<Model>,
     /// What has been printed so far, for travels that lift over it (filled lazily).
     pub(crate) heights: HeightMap,
     /// The printer's axis speed limit, mm/s: a speed above it is refused as a likely mm/min
@@ -135,7 +137,7 @@ impl Turtle {
                 pen_down: true,
             },
             stack: Vec::new(),
-            model,
+            model: std::rc::Rc::new(model),
             heights: HeightMap::new(),
             speed_limit_mm_s: f64::INFINITY,
         })
@@ -152,7 +154,7 @@ impl Turtle {
                 pen_down: true,
             },
             stack: Vec::new(),
-            model: Model::new([pos.x, pos.y]),
+            model: std::rc::Rc::new(Model::new([pos.x, pos.y])),
             heights: HeightMap::new(),
             speed_limit_mm_s: f64::INFINITY,
         }
@@ -177,14 +179,14 @@ impl Turtle {
     pub(crate) fn go(&mut self, to: DVec3) {
         let from = self.state.pos;
         if self.state.pen_down {
-            self.model.push(Step::String(Str::line(
+            self.push_step(Step::String(Str::line(
                 from,
                 to,
                 self.state.cross_mm2,
                 self.state.speed_mm_s,
             )));
         } else {
-            self.model.push(Step::Travel {
+            self.push_step(Step::Travel {
                 to,
                 speed_mm_s: None,
             });
@@ -239,7 +241,7 @@ impl Turtle {
     /// Travels (never extrudes) to an absolute point.
     pub fn goto(&mut self, x: f64, y: f64, z: f64) -> Result<(), TurtleError> {
         let to = DVec3::new(finite("x", x)?, finite("y", y)?, finite("z", z)?);
-        self.model.push(Step::Travel {
+        self.push_step(Step::Travel {
             to,
             speed_mm_s: None,
         });
@@ -249,12 +251,12 @@ impl Turtle {
 
     /// Writes a comment into the G-code.
     pub fn comment(&mut self, text: &str) {
-        self.model.push(Step::Comment(text.to_string()));
+        self.push_step(Step::Comment(text.to_string()));
     }
 
     /// Marks the start of a helix turn (a layer change for layer-based tools).
     pub fn mark_turn(&mut self, pitch_mm: f64) {
-        self.model.push(Step::Marker {
+        self.push_step(Step::Marker {
             kind: MarkerKind::Turn,
             z_mm: self.state.pos.z,
             height_mm: pitch_mm,
@@ -263,7 +265,7 @@ impl Turtle {
 
     /// Marks the start of a layer.
     pub fn mark_layer(&mut self, height_mm: f64) {
-        self.model.push(Step::Marker {
+        self.push_step(Step::Marker {
             kind: MarkerKind::Layer,
             z_mm: self.state.pos.z,
             height_mm,
@@ -303,7 +305,7 @@ impl Turtle {
     pub fn travel_safely(&mut self, to: DVec3) {
         self.heights.catch_up(&self.model);
         for p in self.heights.route(self.state.pos, to) {
-            self.model.push(Step::Travel {
+            self.push_step(Step::Travel {
                 to: p,
                 speed_mm_s: None,
             });
@@ -321,9 +323,14 @@ impl Turtle {
         &self.model
     }
 
-    /// Finishes: the model drawn.
+    /// Appends a step to the model (copied first when a copy of the turtle shares it).
+    pub(crate) fn push_step(&mut self, step: Step) {
+        std::rc::Rc::make_mut(&mut self.model).push(step);
+    }
+
+    /// Finishes: the model drawn (without a copy when no other turtle shares it).
     pub fn into_model(self) -> Model {
-        self.model
+        std::rc::Rc::try_unwrap(self.model).unwrap_or_else(|m| (*m).clone())
     }
 }
 

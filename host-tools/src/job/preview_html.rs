@@ -20,8 +20,8 @@
 use crate::design::motion::{plan_marks, prelude_marks, LayerMark, MotionLimits, Segment};
 use crate::design::profile::Profile;
 use crate::gcode::number::push_num;
-use crate::job::preview_moves::{scan_annotations, scan_beads, PageData};
 use crate::gcode::read::{default_reader, BadLines, ReadError};
+use crate::job::preview_moves::{scan_annotations, scan_beads, PageData};
 use std::cell::RefCell;
 
 /// What an HTML preview holds.

@@ -7,8 +7,8 @@
 //! Everything is written straight into compact JSON number lists while the job streams through
 //! the motion model, so a 1.5 M-move job costs its text, not a vector of structs.
 
-use crate::design::motion::{MoveKind, Segment};
 use crate::design::motion::{LayerMark, PrintHeights};
+use crate::design::motion::{MoveKind, Segment};
 use crate::gcode::annotation;
 use crate::gcode::bead::AreaModel;
 use crate::gcode::number::push_num;
@@ -294,7 +294,10 @@ mod tests {
         // FullControl's default: a 0.5 × 0.25 rectangle is drawn 0.5 wide (the issue's
         // 0.554 came from the stadium formula).
         let (w, h) = bead_mm(AreaModel::Rectangle, 0.125, 0.25, 0.4);
-        assert!((w - 0.5).abs() < 1e-12 && (h - 0.25).abs() < 1e-12, "{w} {h}");
+        assert!(
+            (w - 0.5).abs() < 1e-12 && (h - 0.25).abs() < 1e-12,
+            "{w} {h}"
+        );
         // A stadium where the design declares one: 0.12 mm² at 0.3 mm layers is
         // w = 0.4 + 0.3·(1 − π/4), and its stadium area is the extruded area.
         let (w, h) = bead_mm(AreaModel::Stadium, 0.12, 0.3, 0.4);

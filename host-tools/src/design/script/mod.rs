@@ -175,6 +175,9 @@ impl ScriptRunner {
             // found", a call stack), never its generated closure names.
             at(without_closure_names(&msg), innermost_position(&e))
         })?;
+        // The script's variables hold what the result may share (a final `t` is a copy of
+        // the turtle, sharing its model): dropped first, the model is taken without a copy.
+        drop(scope);
         let model = if result.is::<Model>() {
             result.cast::<Model>()
         } else if result.is::<Turtle>() {

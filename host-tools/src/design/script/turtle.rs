@@ -71,13 +71,13 @@ pub(super) fn register_turtle(e: &mut Engine, profile: Profile) {
     e.register_fn(
         "init",
         move |fd: Dynamic,
-         head: Dynamic,
-         bed: Dynamic,
-         c: Dynamic,
-         x: Dynamic,
-         y: Dynamic,
-         z: Dynamic|
-         -> Res<Turtle> {
+              head: Dynamic,
+              bed: Dynamic,
+              c: Dynamic,
+              x: Dynamic,
+              y: Dynamic,
+              z: Dynamic|
+              -> Res<Turtle> {
             Turtle::init(
                 num(&fd, "filament diameter")?,
                 num(&head, "head temperature")?,

@@ -279,7 +279,11 @@ impl<'p> GcodeWriter<'p> {
                     match p.markers {
                         Markers::Prusa => {
                             buf.extend_from_slice(b";LAYER_CHANGE\n;Z:");
-                            push_fixed(buf, layer_z.get(sum.markers).copied().unwrap_or(*z_mm), dec);
+                            push_fixed(
+                                buf,
+                                layer_z.get(sum.markers).copied().unwrap_or(*z_mm),
+                                dec,
+                            );
                             buf.extend_from_slice(b"\n;HEIGHT:");
                             push_fixed(buf, *height_mm, dec);
                             buf.push(b'\n');

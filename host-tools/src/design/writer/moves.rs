@@ -77,7 +77,10 @@ impl<'p> GcodeWriter<'p> {
         scale: f64,
         sum: &mut WriteSummary,
     ) {
-        let dist = st.pos_f.map(|f| f.distance(to) + then_mm).unwrap_or(f64::INFINITY);
+        let dist = st
+            .pos_f
+            .map(|f| f.distance(to) + then_mm)
+            .unwrap_or(f64::INFINITY);
         let retract = st.retraction.length_mm > 0.0
             && st.pos_f.is_some()
             && st.e_total > 0.0
