@@ -482,7 +482,10 @@ fn cure_check_meets_known_recoat_times() {
         }
         let t_layer = starts[2] - starts[1];
         assert!(
-            starts.windows(2).skip(1).all(|w| ((w[1] - w[0]) - t_layer).abs() < 1e-6),
+            starts
+                .windows(2)
+                .skip(1)
+                .all(|w| ((w[1] - w[0]) - t_layer).abs() < 1e-6),
             "identical layers: {starts:?}"
         );
         let w = design_window(&traj, g.as_bytes()).unwrap();
@@ -501,17 +504,28 @@ fn cure_check_meets_known_recoat_times() {
                     min_dz_mm: 0.1,
                 };
                 let r = check(s, &params(1e9));
-                let first_layer = s.iter().filter(|x| x.extruding).map(|x| x.layer).min().unwrap();
+                let first_layer = s
+                    .iter()
+                    .filter(|x| x.extruding)
+                    .map(|x| x.layer)
+                    .min()
+                    .unwrap();
                 let upper: Vec<usize> = (0..s.len())
                     .filter(|&i| s[i].extruding && s[i].layer > first_layer)
                     .collect();
-                let ctx = format!("{side} mm at {v} mm/s, dwell {dwell} s, period {period} s, {how}");
+                let ctx =
+                    format!("{side} mm at {v} mm/s, dwell {dwell} s, period {period} s, {how}");
                 assert!(upper.len() > 20, "{ctx}");
                 // Where the chords of the layer below cut a corner by more than the radius
                 // (half a chord), nothing of it may be within reach: those spots go
                 // unmeasured, never misdated.
                 let chord = v * period;
-                let corners = [(100, 100), (100 + side, 100), (100 + side, 100 + side), (100, 100 + side)];
+                let corners = [
+                    (100, 100),
+                    (100 + side, 100),
+                    (100 + side, 100 + side),
+                    (100, 100 + side),
+                ];
                 let near_corner = |i: usize| {
                     corners.iter().any(|&(x, y)| {
                         (s[i].pos.x - x as f64).hypot(s[i].pos.y - y as f64) < chord / 2.0 + 1.0
@@ -528,22 +542,39 @@ fn cure_check_meets_known_recoat_times() {
                                 s[i]
                             );
                         }
-                        None => assert!(near_corner(i), "{ctx}: sample {i} {:?}: nothing below", s[i]),
+                        None => assert!(
+                            near_corner(i),
+                            "{ctx}: sample {i} {:?}: nothing below",
+                            s[i]
+                        ),
                     }
                 }
-                assert!(measured * 10 >= upper.len() * 9, "{ctx}: {measured} of {}", upper.len());
+                assert!(
+                    measured * 10 >= upper.len() * 9,
+                    "{ctx}: {measured} of {}",
+                    upper.len()
+                );
                 // The first and last depositing samples of every layer above the first.
                 for l in first_layer + 1..=s.iter().map(|x| x.layer).max().unwrap() {
-                    let of: Vec<usize> = upper.iter().copied().filter(|&i| s[i].layer == l).collect();
+                    let of: Vec<usize> =
+                        upper.iter().copied().filter(|&i| s[i].layer == l).collect();
                     for i in [of[0], of[of.len() - 1]] {
                         if let Some(e) = r.elapsed_s[i] {
-                            assert!((e - t_layer).abs() <= tol, "{ctx}: layer {l}, sample {i}: {e}");
+                            assert!(
+                                (e - t_layer).abs() <= tol,
+                                "{ctx}: layer {l}, sample {i}: {e}"
+                            );
                             firsts_lasts += 1;
                         }
                     }
                 }
                 let none = check(s, &params(t_layer - tol - 1e-6));
-                assert_eq!(none.violation_count, 0, "{ctx}: {:?}", none.violations.first());
+                assert_eq!(
+                    none.violation_count,
+                    0,
+                    "{ctx}: {:?}",
+                    none.violations.first()
+                );
                 let all = check(s, &params(t_layer + tol + 1e-6));
                 assert_eq!(all.violation_count, measured, "{ctx}");
             }
@@ -574,7 +605,15 @@ fn forty_layers_of_squares_cure_five_and_ten() {
     assert_eq!(five.violation_count, 0, "{:?}", five.violations.first());
     let ten = check(&samples, &params(10.0));
     assert_eq!(ten.violation_count, ten.supported);
-    let first_layer = samples.iter().filter(|x| x.extruding).map(|x| x.layer).min().unwrap();
-    let upper = samples.iter().filter(|x| x.extruding && x.layer > first_layer).count();
+    let first_layer = samples
+        .iter()
+        .filter(|x| x.extruding)
+        .map(|x| x.layer)
+        .min()
+        .unwrap();
+    let upper = samples
+        .iter()
+        .filter(|x| x.extruding && x.layer > first_layer)
+        .count();
     assert_eq!(ten.supported, upper);
 }

@@ -7,14 +7,19 @@
 mod track;
 
 use host_tools::design::checks::{check, CheckOptions, IssueKind};
-use host_tools::design::profile::Profile;
+use host_tools::design::model::{StateChange, Step};
+use host_tools::design::profile::{Profile, Retraction};
 use host_tools::design::script::{ScriptError, ScriptOutput, ScriptRunner};
 use host_tools::design::writer::{GcodeWriter, WriteOptions};
 use std::path::Path;
 use std::process::Command;
 
 fn run(src: &str) -> Result<ScriptOutput, ScriptError> {
-    ScriptRunner::new(Profile::builtin("ender3").expect("ender3")).run("d.rhai", src, Path::new("."))
+    ScriptRunner::new(Profile::builtin("ender3").expect("ender3")).run(
+        "d.rhai",
+        src,
+        Path::new("."),
+    )
 }
 
 #[test]
@@ -25,17 +30,28 @@ fn speeds_above_the_axis_limit_are_refused_with_the_unit() {
         ("t.set_travel_speed(9000);", 2),
         ("t.set_speed(1200);", 2),
         ("t.set_velocity(3000);", 2),
+        // A retraction speed against the extruder's limit (ender3: 50 mm/s); before, 2700
+        // (FullControl's mm/min) wrote `G1 F162000 E-…`.
+        ("t.set_retraction(#{ length: 1, speed: 2700 });", 2),
     ] {
-        let src = format!("let t = turtle(100, 100, 0.2);\n{call}\nt.extrude_to(110, 100, 0.2);\nt");
+        let src =
+            format!("let t = turtle(100, 100, 0.2);\n{call}\nt.extrude_to(110, 100, 0.2);\nt");
         let e = run(&src).expect_err(call);
         assert_eq!(e.line, line, "{call}: {e}");
-        assert!(e.msg.contains("mm/s") && e.msg.contains("mm/min"), "{call}: {e}");
+        assert!(
+            e.msg.contains("mm/s") && e.msg.contains("mm/min"),
+            "{call}: {e}"
+        );
     }
     let e = run("let t = init(#{ travel_speed: 8000 });\nt.extrude_to(BED_X + 5, BED_Y, 0.2);\nt")
         .expect_err("init");
     assert!(e.msg.contains("mm/min"), "{e}");
+    // A huge value is named readably (not as 309 digits).
+    let e = run("let t = turtle(100, 100, 0.2);\nt.set_velocity(1e308);\nt").expect_err("1e308");
+    assert!(e.msg.len() < 300 && e.msg.contains("1.000e308"), "{e}");
     // In range: written as mm/min F words (120 mm/s = F7200).
     let ok = run("let t = turtle(100, 100, 0.2);\nt.set_travel_speed(120);\n\
+                  t.set_retraction(#{ length: 1, speed: 40 });\n\
                   t.extrude_to(110, 100, 0.2);\nt.travel_to(150, 150, 0.2);\nt.extrude_to(160, 150, 0.2);\nt")
     .expect("in range");
     let p = Profile::builtin("ender3").expect("ender3");
@@ -43,8 +59,35 @@ fn speeds_above_the_axis_limit_are_refused_with_the_unit() {
         .to_string(&ok.model)
         .expect("write");
     assert!(g.lines().any(|l| l.starts_with("G0 F7200")), "{g}");
+    // The retraction at 40 mm/s: E back by 1 mm at F2400, read with the tests' own tracker.
+    let t = track::track(&g);
+    assert!(
+        t.moves
+            .iter()
+            .any(|m| m.de < -0.999 && m.de > -1.001 && m.f == 2400.0 && m.from == m.to),
+        "{g}"
+    );
+    // A model's retraction (not from the turtle) is refused when written, the unit named.
+    let mut m = ok.model.clone();
+    m.steps.insert(
+        0,
+        Step::State(StateChange::Retraction(Retraction {
+            length_mm: 1.0,
+            speed_mm_s: 2700.0,
+            min_travel_mm: 1.0,
+        })),
+    );
+    let e = GcodeWriter::new(&p, WriteOptions::default())
+        .to_string(&m)
+        .expect_err("2700 mm/s retraction");
+    assert!(
+        e.to_string().contains("extruder") && e.to_string().contains("mm/min"),
+        "{e}"
+    );
     // Parts and model operations: refused when written, the step and unit named.
-    let m = run("helix(#{ speed: 1800, turns: 1 })").expect("a part takes any number").model;
+    let m = run("helix(#{ speed: 1800, turns: 1 })")
+        .expect("a part takes any number")
+        .model;
     let e = GcodeWriter::new(&p, WriteOptions::default())
         .to_string(&m)
         .expect_err("1800 mm/s");
@@ -58,13 +101,20 @@ fn a_nan_is_reported_where_the_script_makes_it() {
         .expect_err("sqrt(-4)");
     assert_eq!(e.line, 2, "{e}");
     assert!(e.msg.contains("sqrt"), "{e}");
-    for (expr, name) in [("ln(-1.0)", "ln"), ("acos(2.0)", "acos"), ("asin(-3)", "asin"), ("log(-2.0)", "log")] {
+    for (expr, name) in [
+        ("ln(-1.0)", "ln"),
+        ("acos(2.0)", "acos"),
+        ("asin(-3)", "asin"),
+        ("log(-2.0)", "log"),
+    ] {
         let e = run(&format!("let x = {expr};\nturtle(0, 0, 0.2).model()")).expect_err(expr);
         assert!(e.line == 1 && e.msg.contains(name), "{expr}: {e}");
     }
     // Numbers are still numbers.
-    run("let a = sqrt(16.0) + sqrt(9) + ln(1.0) + acos(1.0);\nif a != 7.0 { throw \"sqrt\"; }\n\
-         let t = turtle(100, 100, 0.2); t.extrude_to(101, 100, 0.2); t")
+    run(
+        "let a = sqrt(16.0) + sqrt(9) + ln(1.0) + acos(1.0);\nif a != 7.0 { throw \"sqrt\"; }\n\
+         let t = turtle(100, 100, 0.2); t.extrude_to(101, 100, 0.2); t",
+    )
     .expect("plain math");
 }
 
@@ -94,7 +144,11 @@ fn a_travel_into_printed_material_is_an_error() {
     // printed material (stringing)", exit 0).
     let m = run(&ring_then("travel_straight_to")).expect("script").model;
     let rep = check(&m, &p, &CheckOptions::default());
-    assert!(rep.count(IssueKind::TravelHitsPrint) >= 1, "{:?}", rep.issues);
+    assert!(
+        rep.count(IssueKind::TravelHitsPrint) >= 1,
+        "{:?}",
+        rep.issues
+    );
     assert!(rep.errors() >= 1);
     // The same travel with travel_to lifts over the wall: no collision.
     let m = run(&ring_then("travel_to")).expect("script").model;
@@ -118,7 +172,10 @@ fn a_travel_into_printed_material_is_an_error() {
         assert_eq!(out.status.success(), ok, "{travel}: {err}");
         assert_eq!(out_path.exists(), ok, "{travel}");
         if !ok {
-            assert!(err.contains("travel-hits-print") && err.contains("nothing written"), "{err}");
+            assert!(
+                err.contains("travel-hits-print") && err.contains("nothing written"),
+                "{err}"
+            );
         }
     }
     let _ = std::fs::remove_dir_all(&dir);

@@ -610,7 +610,10 @@ fn cli_writes_the_page() {
     std::fs::write(&gcode, g).expect("write gcode");
     let exe = env!("CARGO_BIN_EXE_host-tools");
     let page = dir.join("out.html");
-    let (gs, ps) = (gcode.to_str().expect("utf-8"), page.to_str().expect("utf-8"));
+    let (gs, ps) = (
+        gcode.to_str().expect("utf-8"),
+        page.to_str().expect("utf-8"),
+    );
     for args in [
         vec!["--html", gs, "-o", ps],
         vec![gs, "--html", "-o", ps],
@@ -625,7 +628,11 @@ fn cli_writes_the_page() {
             .args(&args)
             .output()
             .expect("run");
-        assert!(out.status.success(), "{args:?}: {}", String::from_utf8_lossy(&out.stderr));
+        assert!(
+            out.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
         let text = std::fs::read_to_string(&page).expect("page");
         assert!(
             text.starts_with("<!DOCTYPE html>") && text.contains("const MOVES = ["),
@@ -634,7 +641,11 @@ fn cli_writes_the_page() {
     }
     let txt = dir.join("out.txt");
     let ts = txt.to_str().expect("utf-8");
-    for args in [vec!["--html", ts, gs], vec!["--html", gs], vec!["--html", gs, "-o", ts]] {
+    for args in [
+        vec!["--html", ts, gs],
+        vec!["--html", gs],
+        vec!["--html", gs, "-o", ts],
+    ] {
         let bad = Command::new(exe)
             .arg("preview")
             .args(&args)
@@ -657,13 +668,21 @@ fn a_page_without_layer_marks_says_so() {
     for k in 1..=48 {
         let th = 2.0 * PI * k as f64 / 48.0;
         e += 0.05;
-        let _ = writeln!(g, "G1 X{:.3} Y{:.3} E{e:.4} F1200", 100.0 + 10.0 * th.cos(), 100.0 + 10.0 * th.sin());
+        let _ = writeln!(
+            g,
+            "G1 X{:.3} Y{:.3} E{e:.4} F1200",
+            100.0 + 10.0 * th.cos(),
+            100.0 + 10.0 * th.sin()
+        );
     }
     let dir = tmp_dir("nomarks");
     let page = write_page(&dir, &g, &Profile::builtin("ender3").expect("ender3"));
     let (_, dom) = open(&browser, &page, "", 800, 600);
     assert_eq!(element_text(&dom, "range"), "whole job (no layer marks)");
     let info = element_text(&dom, "info");
-    assert!(info.contains("no layer marks") && !info.contains("0 layers"), "{info}");
+    assert!(
+        info.contains("no layer marks") && !info.contains("0 layers"),
+        "{info}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -362,7 +362,10 @@ fn numbers_and_heights_agree_with_layerref() {
     .expect("example");
     for name in BUILTIN {
         let p = Profile::builtin(name).expect("profile");
-        for (what, src) in [("floor first", FLOOR_FIRST), ("speed lattice", lattice.as_str())] {
+        for (what, src) in [
+            ("floor first", FLOOR_FIRST),
+            ("speed lattice", lattice.as_str()),
+        ] {
             if what == "speed lattice" && p.limits.max_feed_xy_mm_s < 120.0 {
                 continue; // the paste printer: its 120 mm/s travels are refused, rightly
             }
@@ -388,7 +391,10 @@ fn numbers_and_heights_agree_with_layerref() {
                 .collect();
             assert_eq!(got.len(), want.len(), "{ctx}: {got:?} vs layerref {want:?}");
             for (a, b) in got.iter().zip(&want) {
-                assert!(a.0 == b.0 && (a.1 - b.1).abs() < 1e-4, "{ctx}: {got:?} vs {want:?}");
+                assert!(
+                    a.0 == b.0 && (a.1 - b.1).abs() < 1e-4,
+                    "{ctx}: {got:?} vs {want:?}"
+                );
             }
             // The numbers count from 1, every one once (no prelude restart).
             let nums: Vec<u32> = got.iter().map(|l| l.0).collect();
@@ -417,7 +423,10 @@ fn numbers_and_heights_agree_with_layerref() {
                 .unwrap_or_else(|e| panic!("{ctx}: {e}: {table}"));
             assert_eq!(rows.len(), got.len(), "{ctx}: page {rows:?}");
             for (r, l) in rows.iter().zip(&got) {
-                assert!(r.0 == l.0 && (r.1 - l.1).abs() < 1e-3, "{ctx}: page {r:?} vs {l:?}");
+                assert!(
+                    r.0 == l.0 && (r.1 - l.1).abs() < 1e-3,
+                    "{ctx}: page {r:?} vs {l:?}"
+                );
             }
         }
     }

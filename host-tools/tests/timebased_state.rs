@@ -83,9 +83,18 @@ fn check(design: &Path, printer: &str, expect_state: &[&str]) {
         std::fs::read_to_string(&tb).expect("output"),
     );
     let (a, b) = (state_lines(&source), state_lines(&output));
-    assert_eq!(a, b, "{}: state lines of the source and the time-based file", design.display());
+    assert_eq!(
+        a,
+        b,
+        "{}: state lines of the source and the time-based file",
+        design.display()
+    );
     for want in expect_state {
-        assert!(a.iter().any(|l| l == want), "{}: {want} in {a:?}", design.display());
+        assert!(
+            a.iter().any(|l| l == want),
+            "{}: {want} in {a:?}",
+            design.display()
+        );
     }
     let e_src = net_e_between(&source, ";DESIGN_BEGIN", ";DESIGN_END");
     let e_out = net_e_between(&output, ";TIMEBASED_BEGIN", ";TIMEBASED_END");
@@ -106,7 +115,12 @@ fn check(design: &Path, printer: &str, expect_state: &[&str]) {
             .as_array()
             .expect("layer_times")
             .iter()
-            .map(|l| (l["layer"].as_u64().unwrap_or(0), l["z_mm"].as_f64().unwrap_or(-1.0)))
+            .map(|l| {
+                (
+                    l["layer"].as_u64().unwrap_or(0),
+                    l["z_mm"].as_f64().unwrap_or(-1.0),
+                )
+            })
             .collect()
     };
     // A time-based layer's first extruding piece may start in the rise onto it (a sample
@@ -158,7 +172,14 @@ fn lamp_keeps_fan_pause_raw_lines_and_floor() {
         check(
             &design,
             printer,
-            &["M106 S77", "M106 S153", "M106 S255", "M601", "M117 halfway", "M104 S205"],
+            &[
+                "M106 S77",
+                "M106 S153",
+                "M106 S255",
+                "M601",
+                "M117 halfway",
+                "M104 S205",
+            ],
         );
     }
     let _ = std::fs::remove_dir_all(&dir);

@@ -27,7 +27,7 @@
 //! ```
 
 use crate::design::model::{StateChange, Step};
-use crate::design::profile::{Primer, Retraction};
+use crate::design::profile::{speed_beyond_limit, Primer, Retraction};
 use crate::design::turtle::{finite, Turtle, TurtleError};
 use crate::gcode::annotation;
 use glam::DVec3;
@@ -228,6 +228,14 @@ impl Turtle {
         {
             return Err(TurtleError::BadArgument(format!(
                 "retraction: length ≥ 0, speed > 0, min travel ≥ 0, got {r:?}"
+            )));
+        }
+        if r.speed_mm_s > self.retract_limit_mm_s {
+            return Err(TurtleError::BadArgument(speed_beyond_limit(
+                "retraction speed",
+                r.speed_mm_s,
+                "extruder",
+                self.retract_limit_mm_s,
             )));
         }
         self.state_change(StateChange::Retraction(r));

@@ -6,6 +6,7 @@
 //! (the paper's stringing problem).
 
 use crate::design::model::{MarkerKind, Model, StateChange, Step, Str};
+use crate::design::profile::{speed_beyond_limit, Limits};
 use crate::design::travel::HeightMap;
 use glam::DVec3;
 
@@ -55,6 +56,8 @@ pub struct Turtle {
     /// The printer's axis speed limit, mm/s: a speed above it is refused as a likely mm/min
     /// value ([`speed_mm_s`]); unbounded for a turtle made without a printer.
     pub(crate) speed_limit_mm_s: f64,
+    /// The printer's extruder speed limit, mm/s, for retraction speeds (as `speed_limit_mm_s`).
+    pub(crate) retract_limit_mm_s: f64,
 }
 
 /// A speed as the design gives it, mm/s: finite, > 0 and at most the printer's axis limit.
@@ -68,10 +71,8 @@ pub fn speed_mm_s(name: &str, v: f64, limit_mm_s: f64) -> Result<f64, TurtleErro
         )));
     }
     if v > limit_mm_s {
-        return Err(TurtleError::BadArgument(format!(
-            "{name} {v} mm/s is beyond the printer's {limit_mm_s} mm/s axis limit (speeds here \
-             are mm/s; FullControl's are mm/min: {v} mm/min = {:.1} mm/s)",
-            v / 60.0
+        return Err(TurtleError::BadArgument(speed_beyond_limit(
+            name, v, "axis", limit_mm_s,
         )));
     }
     Ok(v)
@@ -140,6 +141,7 @@ impl Turtle {
             model: std::rc::Rc::new(model),
             heights: HeightMap::new(),
             speed_limit_mm_s: f64::INFINITY,
+            retract_limit_mm_s: f64::INFINITY,
         })
     }
 
@@ -157,13 +159,15 @@ impl Turtle {
             model: std::rc::Rc::new(Model::new([pos.x, pos.y])),
             heights: HeightMap::new(),
             speed_limit_mm_s: f64::INFINITY,
+            retract_limit_mm_s: f64::INFINITY,
         }
     }
 
-    /// Refuses speeds above `limit_mm_s` from here on (the printer's axis limit; see
-    /// [`speed_mm_s`]).
-    pub fn with_speed_limit(mut self, limit_mm_s: f64) -> Turtle {
-        self.speed_limit_mm_s = limit_mm_s;
+    /// Refuses speeds above the printer's `limits` from here on: its X/Y axis limit for
+    /// print and travel speeds, its extruder limit for retraction speeds (see [`speed_mm_s`]).
+    pub fn with_speed_limit(mut self, limits: &Limits) -> Turtle {
+        self.speed_limit_mm_s = limits.max_feed_xy_mm_s;
+        self.retract_limit_mm_s = limits.max_feed_e_mm_s;
         self
     }
 

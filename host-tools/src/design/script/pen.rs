@@ -5,7 +5,7 @@
 use super::args::{arr3, err, num, Opts, Res};
 use super::points::{flag, path_of, pt};
 use crate::design::pen::AreaModel;
-use crate::design::profile::{Primer, Retraction};
+use crate::design::profile::{Limits, Primer, Retraction};
 use crate::design::turtle::{Turtle, TurtleError};
 use glam::DVec3;
 use rhai::{Array, Dynamic, Engine, Map};
@@ -27,11 +27,11 @@ fn register_move(
     });
 }
 
-/// `max_xy_mm_s`: the printer's axis speed limit (speeds above it are refused as likely
-/// mm/min values).
-pub(super) fn register_pen(e: &mut Engine, max_xy_mm_s: f64) {
+/// `limits`: the printer's speed limits (speeds above them are refused as likely mm/min
+/// values).
+pub(super) fn register_pen(e: &mut Engine, limits: Limits) {
     e.register_fn("turtle", move |p: Dynamic| -> Res<Turtle> {
-        Ok(Turtle::at(pt(&p, "start")?, 0.2, 20.0).with_speed_limit(max_xy_mm_s))
+        Ok(Turtle::at(pt(&p, "start")?, 0.2, 20.0).with_speed_limit(&limits))
     });
     register_move(e, "extrude_to", Turtle::extrude_to);
     register_move(e, "travel_to", Turtle::travel_to);

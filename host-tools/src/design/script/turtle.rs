@@ -67,7 +67,7 @@ pub(super) fn register_turtle(e: &mut Engine, profile: Profile) {
     e.register_fn("init", move |o: Map| -> Res<Turtle> {
         Turtle::init_with(&init_options(&o)?, &p).map_err(err)
     });
-    let max_xy = profile.limits.max_feed_xy_mm_s;
+    let limits = profile.limits;
     e.register_fn(
         "init",
         move |fd: Dynamic,
@@ -87,7 +87,7 @@ pub(super) fn register_turtle(e: &mut Engine, profile: Profile) {
                 num(&y, "y0")?,
                 num(&z, "z0")?,
             )
-            .map(|t| t.with_speed_limit(max_xy))
+            .map(|t| t.with_speed_limit(&limits))
             .map_err(err)
         },
     );
@@ -99,7 +99,7 @@ pub(super) fn register_turtle(e: &mut Engine, profile: Profile) {
                 0.2,
                 20.0,
             )
-            .with_speed_limit(max_xy))
+            .with_speed_limit(&limits))
         },
     );
     e.register_fn("forward", |t: &mut Turtle, r: Dynamic| -> Res<()> {

@@ -3,29 +3,34 @@
 
 use super::WriteError;
 use crate::design::model::{Model, StateChange, Step};
+use crate::design::profile::{speed_beyond_limit, Limits};
 
-/// Rejects speeds above the printer's axis limit `max_mm_s` (strings, travels and travel
-/// speeds of parts, `map_strings`, `scale_speed` as much as the turtle's): speeds are mm/s
-/// everywhere, and a value above the limit is almost always one in mm/min.
-pub fn speeds(model: &Model, max_mm_s: f64) -> Result<(), WriteError> {
+/// Rejects speeds above the printer's `limits` (strings, travels and travel speeds of parts,
+/// `map_strings`, `scale_speed` as much as the turtle's against the X/Y axis limit; a design's
+/// retraction speed against the extruder's): speeds are mm/s everywhere, and a value above
+/// the limit is almost always one in mm/min.
+pub fn speeds(model: &Model, limits: &Limits) -> Result<(), WriteError> {
+    let xy = limits.max_feed_xy_mm_s;
     for (index, s) in model.steps.iter().enumerate() {
-        let (what, v) = match s {
-            Step::String(s) => ("string speed", s.speed_mm_s),
+        let (what, v, axis, max_mm_s) = match s {
+            Step::String(s) => ("string speed", s.speed_mm_s, "axis", xy),
             Step::Travel {
                 speed_mm_s: Some(v),
                 ..
-            } => ("travel speed", *v),
-            Step::State(StateChange::TravelSpeed(v)) => ("travel speed", *v),
+            } => ("travel speed", *v, "axis", xy),
+            Step::State(StateChange::TravelSpeed(v)) => ("travel speed", *v, "axis", xy),
+            Step::State(StateChange::Retraction(r)) => (
+                "retraction speed",
+                r.speed_mm_s,
+                "extruder",
+                limits.max_feed_e_mm_s,
+            ),
             _ => continue,
         };
         if v > max_mm_s {
             return Err(WriteError::BadStep {
                 index,
-                msg: format!(
-                    "{what} {v} mm/s is beyond the printer's {max_mm_s} mm/s axis limit (speeds \
-                     are mm/s; FullControl's are mm/min: {v} mm/min = {:.1} mm/s)",
-                    v / 60.0
-                ),
+                msg: speed_beyond_limit(what, v, axis, max_mm_s),
             });
         }
     }
