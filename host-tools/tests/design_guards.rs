@@ -30,7 +30,8 @@ fn speeds_above_the_axis_limit_are_refused_with_the_unit() {
         ("t.set_travel_speed(9000);", 2),
         ("t.set_speed(1200);", 2),
         ("t.set_velocity(3000);", 2),
-        // A retraction speed against the extruder's limit (ender3: 50 mm/s); before, 2700
+        // A retraction speed against the extruder's limit (ender3: 60 mm/s, its profile's own
+        // retraction; the firmware's E limit is 50); before, 2700
         // (FullControl's mm/min) wrote `G1 F162000 E-…`.
         ("t.set_retraction(#{ length: 1, speed: 2700 });", 2),
     ] {

@@ -100,7 +100,7 @@ impl Turtle {
                 "init: start must be finite, got {at:?}"
             )));
         }
-        let mut t = Turtle::at(at, cross, speed).with_speed_limit(&profile.limits);
+        let mut t = Turtle::at(at, cross, speed).with_speed_limit(profile);
         if let Some(p) = o.primer {
             t.set_primer(p)?;
         }

@@ -6,7 +6,7 @@
 //! (the paper's stringing problem).
 
 use crate::design::model::{MarkerKind, Model, StateChange, Step, Str};
-use crate::design::profile::{speed_beyond_limit, Limits};
+use crate::design::profile::{speed_beyond_limit, Profile};
 use crate::design::travel::HeightMap;
 use glam::DVec3;
 
@@ -56,7 +56,7 @@ pub struct Turtle {
     /// The printer's axis speed limit, mm/s: a speed above it is refused as a likely mm/min
     /// value ([`speed_mm_s`]); unbounded for a turtle made without a printer.
     pub(crate) speed_limit_mm_s: f64,
-    /// The printer's extruder speed limit, mm/s, for retraction speeds (as `speed_limit_mm_s`).
+    /// The fastest retraction, mm/s ([`Profile::max_retract_mm_s`]; as `speed_limit_mm_s`).
     pub(crate) retract_limit_mm_s: f64,
 }
 
@@ -163,11 +163,12 @@ impl Turtle {
         }
     }
 
-    /// Refuses speeds above the printer's `limits` from here on: its X/Y axis limit for
-    /// print and travel speeds, its extruder limit for retraction speeds (see [`speed_mm_s`]).
-    pub fn with_speed_limit(mut self, limits: &Limits) -> Turtle {
-        self.speed_limit_mm_s = limits.max_feed_xy_mm_s;
-        self.retract_limit_mm_s = limits.max_feed_e_mm_s;
+    /// Refuses speeds above the printer's limits from here on: its X/Y axis limit for print
+    /// and travel speeds, [`Profile::max_retract_mm_s`] for retraction speeds (see
+    /// [`speed_mm_s`]).
+    pub fn with_speed_limit(mut self, profile: &Profile) -> Turtle {
+        self.speed_limit_mm_s = profile.limits.max_feed_xy_mm_s;
+        self.retract_limit_mm_s = profile.max_retract_mm_s();
         self
     }
 

@@ -69,6 +69,16 @@ pub fn speed_beyond_limit(what: &str, v_mm_s: f64, axis: &str, limit_mm_s: f64) 
     )
 }
 
+impl Profile {
+    /// The fastest retraction a design may ask for, mm/s: the extruder's limit, or the
+    /// profile's own retraction speed where that is higher (vendor profiles retract above the
+    /// firmware's E limit, which then clamps: the Ender 3's 60 mm/s against 50). A design's
+    /// value above it is refused as a likely mm/min number.
+    pub fn max_retract_mm_s(&self) -> f64 {
+        self.limits.max_feed_e_mm_s.max(self.retraction.speed_mm_s)
+    }
+}
+
 /// Motion limits (Marlin's M203/M201/M204/M205 J), used by the time estimate and checks.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

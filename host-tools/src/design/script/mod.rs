@@ -238,7 +238,7 @@ impl ScriptRunner {
         model_ops::register_model_ops(&mut e, shared, self.profile.clone());
         parts::register_parts(&mut e);
         points::register_points(&mut e);
-        pen::register_pen(&mut e, self.profile.limits);
+        pen::register_pen(&mut e, std::rc::Rc::new(self.profile.clone()));
         model::register_model_geometry(&mut e);
         aliases::register_kanada(&mut e);
         let dir = dir.to_path_buf();

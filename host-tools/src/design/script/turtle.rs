@@ -63,11 +63,13 @@ fn init_options(o: &Map) -> Res<InitOptions> {
 
 pub(super) fn register_turtle(e: &mut Engine, profile: Profile) {
     e.register_type_with_name::<Turtle>("Turtle");
+    // Shared by the constructors (each closure owns a handle).
+    let profile = std::rc::Rc::new(profile);
     let p = profile.clone();
     e.register_fn("init", move |o: Map| -> Res<Turtle> {
         Turtle::init_with(&init_options(&o)?, &p).map_err(err)
     });
-    let limits = profile.limits;
+    let limits = profile.clone();
     e.register_fn(
         "init",
         move |fd: Dynamic,
@@ -99,7 +101,7 @@ pub(super) fn register_turtle(e: &mut Engine, profile: Profile) {
                 0.2,
                 20.0,
             )
-            .with_speed_limit(&limits))
+            .with_speed_limit(&profile))
         },
     );
     e.register_fn("forward", |t: &mut Turtle, r: Dynamic| -> Res<()> {

@@ -156,7 +156,7 @@ impl<'p> GcodeWriter<'p> {
     pub fn write_into(&self, model: &Model, buf: &mut Vec<u8>) -> Result<WriteSummary, WriteError> {
         validate(model)?;
         let p = self.profile;
-        speeds(model, &p.limits)?;
+        speeds(model, p)?;
         let steps = &model.steps;
         let dec = p.decimals;
         let scale = 10f64.powi(dec as i32);

@@ -3,14 +3,14 @@
 
 use super::WriteError;
 use crate::design::model::{Model, StateChange, Step};
-use crate::design::profile::{speed_beyond_limit, Limits};
+use crate::design::profile::{speed_beyond_limit, Profile};
 
-/// Rejects speeds above the printer's `limits` (strings, travels and travel speeds of parts,
+/// Rejects speeds above the printer's limits (strings, travels and travel speeds of parts,
 /// `map_strings`, `scale_speed` as much as the turtle's against the X/Y axis limit; a design's
-/// retraction speed against the extruder's): speeds are mm/s everywhere, and a value above
+/// retraction speed against [`Profile::max_retract_mm_s`]): speeds are mm/s everywhere, and a value above
 /// the limit is almost always one in mm/min.
-pub fn speeds(model: &Model, limits: &Limits) -> Result<(), WriteError> {
-    let xy = limits.max_feed_xy_mm_s;
+pub fn speeds(model: &Model, profile: &Profile) -> Result<(), WriteError> {
+    let xy = profile.limits.max_feed_xy_mm_s;
     for (index, s) in model.steps.iter().enumerate() {
         let (what, v, axis, max_mm_s) = match s {
             Step::String(s) => ("string speed", s.speed_mm_s, "axis", xy),
@@ -23,7 +23,7 @@ pub fn speeds(model: &Model, limits: &Limits) -> Result<(), WriteError> {
                 "retraction speed",
                 r.speed_mm_s,
                 "extruder",
-                limits.max_feed_e_mm_s,
+                profile.max_retract_mm_s(),
             ),
             _ => continue,
         };
