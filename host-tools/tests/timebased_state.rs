@@ -5,7 +5,8 @@
 //! files read with the tests' own line reader (`tests/track` and the word split below, not
 //! the firmware's parser): the same sequence of state lines in the source and the output,
 //! and the same net extrusion in the source's design (between its design tags) and in the
-//! output's samples, and the same layers (numbers and heights) in `stats` of both. Before the fix the output had no M106/M601 at all and lost the floor
+//! output's samples, and the same layers (numbers and heights) in `stats` of both; each state
+//! line of the design sits in the samples within one period of where the source has it. Before the fix the output had no M106/M601 at all and lost the floor
 //! ring's filament. Cost: three compiles and three resamplings of small designs, ~1 s.
 
 mod track;
@@ -59,6 +60,54 @@ fn net_e_between(text: &str, from: &str, to: &str) -> f64 {
         .sum()
 }
 
+/// A state line, its line number, the head's position before it and at the next motion line
+/// after it, and the net filament pushed since the window's start at those two places.
+type Place = (String, usize, [f64; 3], [f64; 3], f64, f64);
+
+/// Where each state line of `text` between the lines `from` and `to` takes effect: the line
+/// and the head's position before it and at the next motion line after it (a `G4` sample
+/// leaves the head where it is), from the tests' tracker.
+fn state_places(text: &str, from: &str, to: &str) -> Vec<Place> {
+    let lines: Vec<&str> = text.lines().collect();
+    let a = lines.iter().position(|l| l.trim() == from).expect(from) + 1;
+    let b = lines.iter().position(|l| l.trim() == to).expect(to) + 1;
+    let moves = track::track(text).moves;
+    // The head's position after line `n` (1-based): the last move at or before it.
+    let at = |n: usize| {
+        moves
+            .iter()
+            .take_while(|m| m.line <= n)
+            .last()
+            .map_or([0.0; 3], |m| m.to)
+    };
+    // Net filament pushed from the window's start to the end of line `n`.
+    let e_at = |n: usize| -> f64 {
+        moves
+            .iter()
+            .filter(|m| m.line > a && m.line <= n)
+            .map(|m| m.de)
+            .sum()
+    };
+    let mut out = Vec::new();
+    for (i, l) in lines.iter().enumerate().take(b - 1).skip(a) {
+        let n = i + 1;
+        let state = state_lines(l);
+        let Some(line) = state.first() else { continue };
+        let next = (n + 1..b)
+            .find(|&k| {
+                let c = lines[k - 1].split(';').next().unwrap_or("").trim();
+                ["G0 ", "G1 ", "G4 "].iter().any(|p| c.starts_with(p))
+            })
+            .unwrap_or(n);
+        out.push((line.clone(), n, at(n), at(next), e_at(n), e_at(next)));
+    }
+    out
+}
+
+fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
+    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+}
+
 fn check(design: &Path, printer: &str, expect_state: &[&str]) {
     let dir = std::env::temp_dir().join(format!(
         "ht-tbstate-{}-{}",
@@ -93,6 +142,76 @@ fn check(design: &Path, printer: &str, expect_state: &[&str]) {
         assert!(
             a.iter().any(|l| l == want),
             "{}: {want} in {a:?}",
+            design.display()
+        );
+    }
+    // At the time they happen: a state line of the design takes effect where the head is at
+    // that line of the source (P). The time-based file writes it before the first sample at
+    // or after that time, so the samples around it are less than one period from P in time:
+    // within `v_max × period` of P in space, `v_max` the fastest feed of the source's design.
+    // What the design sets before its first printing move is in force from its first sample
+    // on: there P is where that move starts.
+    let period_s = 0.1;
+    let src_moves = track::track(&source).moves;
+    let v_max = src_moves.iter().map(|m| m.f / 60.0).fold(0.0, f64::max);
+    let begin = source
+        .lines()
+        .position(|l| l.trim() == ";DESIGN_BEGIN")
+        .expect("tag")
+        + 1;
+    let first_print = src_moves
+        .iter()
+        .find(|m| m.line > begin && m.extrudes())
+        .expect("a printing move");
+    // The fastest filament feed of the design, mm/s: E over each printing move's time.
+    let e_rate = src_moves
+        .iter()
+        .filter(|m| m.line > begin && m.extrudes())
+        .map(|m| m.de * m.f / 60.0 / dist(m.from, m.to))
+        .fold(0.0, f64::max);
+    let e_before_first: f64 = src_moves
+        .iter()
+        .filter(|m| m.line > begin && m.line < first_print.line)
+        .map(|m| m.de)
+        .sum();
+    let (pa, pb) = (
+        state_places(&source, ";DESIGN_BEGIN", ";DESIGN_END"),
+        state_places(&output, ";TIMEBASED_BEGIN", ";TIMEBASED_END"),
+    );
+    assert_eq!(
+        pa.iter().map(|p| &p.0).collect::<Vec<_>>(),
+        pb.iter().map(|p| &p.0).collect::<Vec<_>>(),
+        "{}: the design's state lines in its window and in the samples",
+        design.display()
+    );
+    assert!(!pa.is_empty(), "{}", design.display());
+    for ((line, n, p, _, e_p, _), (_, _, before, after, e_before, e_after)) in pa.iter().zip(&pb) {
+        // ... and as far into the design's filament: the samples' E counts from the first
+        // sample, the design's from its window (less what it primed before printing).
+        let e_p = if *n < first_print.line {
+            0.0
+        } else {
+            e_p - e_before_first
+        };
+        // E passes e_p between the two samples: within their range (a retraction may lie
+        // between them), widened by what the fastest print pushes in a period.
+        let e_reach = e_rate * period_s + 1e-4;
+        assert!(
+            e_p >= e_before.min(*e_after) - e_reach && e_p <= e_before.max(*e_after) + e_reach,
+            "{}: {line} after {e_p} mm of the design's filament, between samples at {e_before} \
+             and {e_after} mm (more than {e_reach} mm outside)",
+            design.display()
+        );
+        let p = if *n < first_print.line {
+            &first_print.from
+        } else {
+            p
+        };
+        let reach = v_max * period_s + 1e-3;
+        assert!(
+            dist(*p, *before) <= reach && dist(*p, *after) <= reach,
+            "{}: {line} at {p:?} in the source, between samples at {before:?} and {after:?} \
+             (more than {reach} mm away)",
             design.display()
         );
     }
