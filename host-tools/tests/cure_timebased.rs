@@ -3,7 +3,8 @@
 use glam::DVec3;
 use host_tools::design::motion::{MotionLimits, MoveKind, Trajectory};
 use host_tools::design::profile::Profile;
-use host_tools::paste::cure::{check, heat_map_svg, CureParams, CureReport};
+use host_tools::paste::cure::{check, CureParams, CureReport};
+use host_tools::paste::cure_report::heat_map_svg;
 use host_tools::paste::timebased::{
     is_timebased, read_timebased, timed_lines, write_timebased, Sample, TimedLine, TimedPath,
 };

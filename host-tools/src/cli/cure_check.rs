@@ -2,7 +2,8 @@
 
 use crate::design::motion::{MotionLimits, Trajectory};
 use crate::design::profile::Profile;
-use crate::paste::cure::{check, heat_map_svg, summary, CureParams};
+use crate::paste::cure::{check, CureParams};
+use crate::paste::cure_report::{heat_map_svg, summary};
 use crate::paste::timebased::{is_timebased, read_timebased, TimedPath, PERIOD_MS};
 use crate::paste::window::design_window;
 use std::io::Write;
