@@ -8,7 +8,7 @@ use crate::design::motion::{plan_gcode, MotionLimits};
 use crate::design::profile::Profile;
 use crate::design::script::{Limits, ScriptRunner};
 use crate::design::writer::{GcodeWriter, WriteOptions};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Arguments of `host-tools compile`.
 #[derive(clap::Args, Debug)]
@@ -48,6 +48,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if super::list_profiles_if_asked(&args.printer)? {
         return Ok(());
     }
+    crate::fileio::refuse_inputs_as_outputs(
+        &[&args.output],
+        &[&args.design, Path::new(&args.printer)],
+    )?;
     let profile = Profile::load(&args.printer)?;
     let spinner = indicatif::ProgressBar::new_spinner();
     spinner.set_message(format!("running {}", args.design.display()));

@@ -7,7 +7,7 @@ use crate::paste::cure_report::{heat_map_svg, summary};
 use crate::paste::timebased::{is_timebased, read_timebased, TimedPath, PERIOD_MS};
 use crate::paste::window::design_window;
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Arguments of `host-tools cure-check`.
 #[derive(clap::Args, Debug)]
@@ -42,6 +42,9 @@ pub struct Args {
 
 /// Runs the subcommand.
 pub fn run(a: Args) -> anyhow::Result<()> {
+    if let Some(h) = &a.heatmap {
+        crate::fileio::refuse_inputs_as_outputs(&[h], &[&a.input, Path::new(&a.printer)])?;
+    }
     for (name, v) in [
         ("--cure", a.cure),
         ("--radius", a.radius),

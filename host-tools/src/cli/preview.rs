@@ -46,6 +46,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         anyhow::bail!("--size must be within 100..=4000 pixels");
     }
     let (file, outputs) = files(&args)?;
+    let targets: Vec<&std::path::Path> = outputs.iter().map(PathBuf::as_path).collect();
+    crate::fileio::refuse_inputs_as_outputs(
+        &targets,
+        &[&file, std::path::Path::new(&args.printer)],
+    )?;
     let data = crate::fileio::read_bounded(&file, crate::fileio::Limit::Gcode)?;
     for target in &outputs {
         let spinner = indicatif::ProgressBar::new_spinner();

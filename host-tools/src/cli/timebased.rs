@@ -6,7 +6,7 @@ use crate::paste::timebased::{
     approach, timed_lines, with_start_end, write_timebased, TimedLine, TimedPath, PERIOD_MS,
 };
 use crate::paste::window::{design_window, fan_duty, last_fan_duty};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Arguments of `host-tools timebased`.
 #[derive(clap::Args, Debug)]
@@ -26,6 +26,7 @@ pub struct Args {
 
 /// Runs the subcommand.
 pub fn run(a: Args) -> anyhow::Result<()> {
+    crate::fileio::refuse_inputs_as_outputs(&[&a.output], &[&a.input, Path::new(&a.printer)])?;
     let profile = Profile::load(&a.printer)?;
     let input = crate::fileio::read_bounded(&a.input, crate::fileio::Limit::Gcode)?;
     let traj = Trajectory::from_gcode(&input, MotionLimits::from_profile(&profile))
