@@ -316,3 +316,73 @@ fn examples_keep_their_state_and_prime_line() {
         &["M106 S128", "M106 S255"],
     );
 }
+
+/// Issue 33: the cure check on the lamp (a ring every layer, 15 mm radius as a 64-gon at
+/// 30 mm/s) through the CLI. Every spot of a ring is printed over once per layer, so each
+/// sample above the floor has the ring below it, laid at least one ring's printing time
+/// earlier (64 × 2 × 15 × sin(π/64) = 94.2 mm at 30 mm/s: 3.14 s, the geometry's bound, not
+/// the motion model's) and well under 4 s (the ring, a 1 mm lift, the travel back). So
+/// `--cure 3` flags nothing (before: 19 false alarms at the layers' first samples, measured
+/// against their own rising piece) and `--cure 4` flags every measured sample.
+#[test]
+fn lamp_cure_check_knows_its_recoat_time() {
+    let dir = std::env::temp_dir().join(format!("ht-tbstate-cure-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("tmp");
+    let (design, src) = (dir.join("lamp.rhai"), dir.join("lamp.gcode"));
+    std::fs::write(&design, LAMP).expect("design");
+    let s = |p: &Path| p.to_str().expect("utf-8 path").to_string();
+    run(&[
+        "compile",
+        &s(&design),
+        "-o",
+        &s(&src),
+        "--printer",
+        "ender3",
+    ]);
+    let cure = |cure_s: &str| -> serde_json::Value {
+        let out = bin()
+            .args([
+                "cure-check",
+                &s(&src),
+                "--printer",
+                "ender3",
+                "--cure",
+                cure_s,
+            ])
+            .arg("--json")
+            .output()
+            .expect("cure-check");
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        serde_json::from_slice(&out.stdout).expect("json")
+    };
+    let three = cure("3");
+    let four = cure("4");
+    let n = |v: &serde_json::Value, k: &str| v[k].as_u64().unwrap_or(u64::MAX);
+    // Samples above the floor: every layer after the prelude (layer 0).
+    let above: u64 = three["layers"]
+        .as_array()
+        .expect("layers")
+        .iter()
+        .filter(|l| l["layer"].as_u64() > Some(0))
+        .map(|l| l["samples"].as_u64().unwrap_or(0))
+        .sum();
+    assert!(above > 400, "{above}");
+    assert_eq!(
+        n(&three, "violation_count"),
+        0,
+        "{:?}",
+        three["violations"][0]
+    );
+    assert!(
+        n(&three, "supported") * 10 >= above * 9,
+        "{} of {above} measured",
+        n(&three, "supported")
+    );
+    assert!(three["min_elapsed_s"].as_f64().unwrap_or(0.0) >= 3.14 - 1e-3);
+    assert_eq!(n(&four, "violation_count"), n(&four, "supported"));
+    let _ = std::fs::remove_dir_all(&dir);
+}
