@@ -311,7 +311,9 @@ fn stats_numbers_corpus_layers_as_the_firmware() {
         let st = stats(text.as_bytes(), &p).expect("stats");
         let nums: Vec<u32> = st.layer_times.iter().map(|l| l.layer).collect();
         assert!(fw.len() > 3, "{}: {} layers", f.display(), fw.len());
-        assert_eq!(nums, fw, "{}", f.display());
+        // The prelude (a purge line the firmware's height rule numbered before the slicer's
+        // first marker, its count then starting again) is left out as the firmware leaves it.
+        assert_eq!(nums, without_prelude(&fw), "{}", f.display());
         // A bad line in the middle of the file: skipped, reported, nothing else changes.
         let lines: Vec<&str> = text.lines().collect();
         let mid = lines.len() / 2;

@@ -362,12 +362,13 @@ fn lamp_cure_check_knows_its_recoat_time() {
     let three = cure("3");
     let four = cure("4");
     let n = |v: &serde_json::Value, k: &str| v[k].as_u64().unwrap_or(u64::MAX);
-    // Samples above the floor: every layer after the prelude (layer 0).
-    let above: u64 = three["layers"]
-        .as_array()
-        .expect("layers")
+    // Samples above the floor: every layer after the lowest-numbered one (the floor ring, a
+    // prelude or a layer of its own, as the firmware's detector numbers it).
+    let layers = three["layers"].as_array().expect("layers");
+    let floor = layers.iter().filter_map(|l| l["layer"].as_u64()).min();
+    let above: u64 = layers
         .iter()
-        .filter(|l| l["layer"].as_u64() > Some(0))
+        .filter(|l| l["layer"].as_u64() > floor)
         .map(|l| l["samples"].as_u64().unwrap_or(0))
         .sum();
     assert!(above > 400, "{above}");
