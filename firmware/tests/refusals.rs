@@ -74,7 +74,10 @@ fn an_extruder_or_fan_that_is_not_there_is_refused_never_applied_to_the_one_that
         ),
     ] {
         let out = ask(&mut p, &mut now, line);
-        assert!(out.contains(note) && !out.contains("refused"), "{line}: {out}");
+        assert!(
+            out.contains(note) && !out.contains("refused"),
+            "{line}: {out}"
+        );
         assert_eq!(p.fan_pwm(), 128, "{line}");
     }
     ask(&mut p, &mut now, "M106 P0 S0");

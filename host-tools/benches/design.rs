@@ -9,7 +9,7 @@ use host_tools::design::modulate::{globe, Bitmap, Globe};
 use host_tools::design::profile::Profile;
 use host_tools::design::script::ScriptRunner;
 use host_tools::design::writer::{GcodeWriter, WriteOptions};
-use host_tools::job::read::{default_reader, GcodeReader};
+use host_tools::gcode::read::{default_reader, GcodeReader};
 use host_tools::job::stats::stats;
 use std::hint::black_box;
 use std::path::PathBuf;

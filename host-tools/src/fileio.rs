@@ -207,6 +207,26 @@ fn write_replace<T>(
     Ok(v)
 }
 
+/// Refuses output paths that name one of the `inputs` — the same file, through any link or
+/// hard link (`same-file` compares device and inode): writing it would replace what the
+/// command reads (before, `compile d.rhai -o d.rhai` replaced the design with its G-code).
+/// An input that does not exist (a built-in profile's name) names no file.
+pub fn refuse_inputs_as_outputs(outputs: &[&Path], inputs: &[&Path]) -> anyhow::Result<()> {
+    for o in outputs {
+        for i in inputs {
+            if same_file::is_same_file(o, i).unwrap_or(false) {
+                anyhow::bail!(
+                    "{}: that is the input {}; writing it would destroy it (choose another \
+                     output)",
+                    o.display(),
+                    i.display()
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Writes `bytes` to `path` with [`write_output`].
 pub fn write_bytes(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
     write_output(path, |w| Ok(w.write_all(bytes)?))

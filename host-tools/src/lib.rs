@@ -3,6 +3,9 @@
 //! so the host reads exactly what the printer reads.
 //!
 //! The folders follow the architecture:
+//! - [`gcode`]: G-code text as the printer reads it (the reader on the firmware's parser), the
+//!   annotation comment and compact numbers: the floor the design compiler and the job tools
+//!   stand on;
 //! - [`design`]: the design model, its generators (turtle, strings, scripts, deformations,
 //!   modulation, parts), the checks and the G-code writer;
 //! - [`job`]: G-code jobs: reading, the job model and its edits, stats, preview, the sender;
@@ -16,6 +19,7 @@ pub mod additive;
 pub mod cli;
 pub mod design;
 pub mod fileio;
+pub mod gcode;
 pub mod job;
 pub mod mem;
 pub mod paste;

@@ -35,6 +35,7 @@ enum Cmd {
 }
 
 fn main() -> std::process::ExitCode {
+    host_tools::mem::keep_freed_memory();
     let cli = Cli::parse();
     let result = match cli.cmd {
         Cmd::Compile(a) => cli::compile::run(a),

@@ -328,3 +328,73 @@ fn runaway_scripts_stop_at_the_memory_budget() {
         assert!(!out.exists(), "{name} wrote output");
     }
 }
+
+/// An output path that names an input — the same path, a symbolic link or a hard link to it —
+/// is refused before anything is written, and the input stays as it was (before, `compile
+/// d.rhai -o d.rhai` replaced the design with its G-code, and `timebased` its source).
+#[test]
+fn an_output_that_is_an_input_is_refused() {
+    let d = tmp("same");
+    let design = script(&d);
+    let gcode = d.join("job.gcode");
+    let o = run(&["compile", s(&design), "-o", s(&gcode)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (design_text, gcode_text) = (
+        std::fs::read(&design).expect("design"),
+        std::fs::read(&gcode).expect("gcode"),
+    );
+    std::os::unix::fs::symlink(&gcode, d.join("link.gcode")).expect("symlink");
+    std::fs::hard_link(&gcode, d.join("hard.gcode")).expect("hard link");
+    let (link, hard) = (d.join("link.gcode"), d.join("hard.gcode"));
+    let stl = d.join("cube.stl");
+    ascii_stl(&stl, 10.0);
+    let cases: Vec<Vec<&str>> = vec![
+        vec!["compile", s(&design), "-o", s(&design)],
+        vec!["timebased", s(&gcode), "-o", s(&gcode)],
+        vec!["timebased", s(&gcode), "-o", s(&link)],
+        vec!["timebased", s(&link), "-o", s(&hard)],
+        vec![
+            "cure-check",
+            s(&gcode),
+            "--cure",
+            "5",
+            "--heatmap",
+            s(&hard),
+        ],
+        vec!["preview", s(&gcode), "--html", "-o", s(&gcode)],
+        vec![
+            "additive",
+            "--base",
+            s(&stl),
+            "--shape",
+            s(&stl),
+            "--face",
+            "0",
+            "-o",
+            s(&stl),
+        ],
+    ];
+    for args in cases {
+        let o = run(&args);
+        assert!(!o.status.success(), "{args:?} succeeded");
+        assert!(
+            !String::from_utf8_lossy(&o.stderr).contains("panicked"),
+            "{args:?}"
+        );
+        assert_eq!(
+            std::fs::read(&design).expect("design"),
+            design_text,
+            "{args:?}"
+        );
+        assert_eq!(
+            std::fs::read(&gcode).expect("gcode"),
+            gcode_text,
+            "{args:?}"
+        );
+    }
+    let o = run(&["timebased", s(&gcode), "-o", s(&hard)]);
+    assert_clean_error(&o, "that is the input");
+    let o = run(&["compile", s(&design), "-o", s(&design)]);
+    assert_clean_error(&o, "that is the input");
+    let _ = std::fs::remove_dir_all(&d);
+}

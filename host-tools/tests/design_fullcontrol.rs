@@ -1,7 +1,7 @@
 //! FullControl's reach (issue 15): building from points, state changes at any point of a
 //! script, travels that never collide, Kanada's names and errors that point at the script
 //! line. Every G-code check reads the output back with the project's reader
-//! (`host_tools::job::read`), independent of the writer's internals; the collision check is
+//! (`host_tools::gcode::read`), independent of the writer's internals; the collision check is
 //! this file's own: it samples every travel against the printed strings' volumes (and a base
 //! part's box) computed here.
 
@@ -14,7 +14,7 @@ use host_tools::design::model::Model;
 use host_tools::design::profile::Profile;
 use host_tools::design::script::{ScriptError, ScriptOutput, ScriptRunner};
 use host_tools::design::writer::{GcodeWriter, WriteOptions};
-use host_tools::job::read::{default_reader, Event, GcodeReader};
+use host_tools::gcode::read::{default_reader, Event, GcodeReader};
 use std::path::Path;
 
 fn run(src: &str) -> Result<ScriptOutput, ScriptError> {

@@ -9,7 +9,7 @@ use host_tools::design::parts::Helix;
 use host_tools::design::profile::Profile;
 use host_tools::design::turtle::Turtle;
 use host_tools::design::writer::{GcodeWriter, WriteOptions};
-use host_tools::job::read::{default_reader, Event, GcodeReader};
+use host_tools::gcode::read::{default_reader, Event, GcodeReader};
 use proptest::prelude::*;
 
 #[derive(Clone, Debug)]

@@ -12,7 +12,7 @@ use host_tools::design::modulate::{globe, Bitmap, Globe};
 use host_tools::design::parts::Helix;
 use host_tools::design::profile::Profile;
 use host_tools::design::writer::{GcodeWriter, WriteOptions};
-use host_tools::job::read::{default_reader, Event, GcodeReader, LayerSource};
+use host_tools::gcode::read::{default_reader, Event, GcodeReader, LayerSource};
 
 fn outputs() -> Vec<(String, String)> {
     let mut v = Vec::new();

@@ -150,8 +150,9 @@ const CROSS_MM2: [f64; 3] = [0.12, 0.12, 0.30];
 const RIPPLES: f64 = 24.0;
 
 /// The start of an MK3S job (PrusaSlicer's): home, then a purge line along the bed's front
-/// edge, outside the print area.
-const START: &str = "G90\nM82\nG28\nG1 Z0.2 F720\nG1 Y-3 F1000\nG92 E0\n\
+/// edge, outside the print area. The beads are declared stadiums (as PrusaSlicer models
+/// them; the page's default is FullControl's rectangle).
+const START: &str = ";AREA_MODEL:stadium\nG90\nM82\nG28\nG1 Z0.2 F720\nG1 Y-3 F1000\nG92 E0\n\
                      G1 X60 E9 F1000\nG1 X100 E12.5 F1000\nG92 E0\n";
 
 /// Three vases printed layer by layer, written here line by line (not by the compiler), after
@@ -582,22 +583,27 @@ fn a_designs_annotations_reach_the_page() {
     };
     let notes_at = html.find("const NOTES = ").expect("notes") + 14;
     let notes = &html[notes_at..notes_at + html[notes_at..].find('\n').expect("end")];
-    // [text, line, x, y, z, layer index]: all three on the first layer (index 1: the start
-    // code is index 0), before the mark of the second.
+    // [text, line, x, y, z, layer index]: all three on the design's first layer, before the
+    // mark of the second. The page lists the start code (index 0), the profile's purge line
+    // (index 1: before the first marker the firmware's height rule numbers it as a layer of
+    // its own, docs/profiles.md), then the design's first layer (index 2).
     for (text, x, y, z) in [
         ("corner", "110", "100", "0.2"),
         ("pen", "110", "110", "0.2"),
         ("above", "95.5", "104.25", "3"),
     ] {
         let want = format!(
-            "[\"{text}\",{},{x},{y},{z},1]",
+            "[\"{text}\",{},{x},{y},{z},2]",
             line_of(&format!(": {text}"))
         );
         assert!(notes.contains(&want), "{want} in {notes}");
     }
 }
 
-/// The CLI writes the page (`preview --html`), self-contained, and refuses another extension.
+/// The CLI writes the page however users type it (issue 33: `preview --html OUT.gcode -o
+/// page.html` failed, `--html` took the G-code for the page's name): `--html FILE -o PAGE`,
+/// `FILE --html -o PAGE`, `FILE -o PAGE.html` and the older `--html PAGE FILE`; the page is
+/// self-contained; a page name not ending in `.html`, or no page name, is refused.
 #[test]
 fn cli_writes_the_page() {
     let (_, g) = helix_job();
@@ -606,21 +612,82 @@ fn cli_writes_the_page() {
     std::fs::write(&gcode, g).expect("write gcode");
     let exe = env!("CARGO_BIN_EXE_host-tools");
     let page = dir.join("out.html");
-    let st = Command::new(exe)
-        .args(["preview", "--profile", "mk3s", "--html"])
-        .arg(&page)
-        .arg(&gcode)
-        .status()
-        .expect("run");
-    assert!(st.success());
-    let text = std::fs::read_to_string(&page).expect("page");
-    assert!(text.starts_with("<!DOCTYPE html>") && text.contains("const MOVES = ["));
-    let bad = Command::new(exe)
-        .args(["preview", "--html"])
-        .arg(dir.join("out.txt"))
-        .arg(&gcode)
-        .output()
-        .expect("run");
-    assert!(!bad.status.success());
+    let (gs, ps) = (
+        gcode.to_str().expect("utf-8"),
+        page.to_str().expect("utf-8"),
+    );
+    for args in [
+        vec!["--html", gs, "-o", ps],
+        vec![gs, "--html", "-o", ps],
+        vec!["--html", "-o", ps, gs],
+        vec![gs, "-o", ps],
+        vec!["--html", ps, gs],
+        vec![gs, "--html", ps],
+    ] {
+        let _ = std::fs::remove_file(&page);
+        let out = Command::new(exe)
+            .args(["preview", "--profile", "mk3s"])
+            .args(&args)
+            .output()
+            .expect("run");
+        assert!(
+            out.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let text = std::fs::read_to_string(&page).expect("page");
+        assert!(
+            text.starts_with("<!DOCTYPE html>") && text.contains("const MOVES = ["),
+            "{args:?}"
+        );
+    }
+    let txt = dir.join("out.txt");
+    let ts = txt.to_str().expect("utf-8");
+    for args in [
+        vec!["--html", ts, gs],
+        vec!["--html", gs],
+        vec!["--html", gs, "-o", ts],
+    ] {
+        let bad = Command::new(exe)
+            .arg("preview")
+            .args(&args)
+            .output()
+            .expect("run");
+        assert!(!bad.status.success(), "{args:?}");
+        assert!(!txt.exists(), "{args:?}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A job without layer marks (a flat ring after a Cura-style header, which switches the
+/// height rule off: no layers at all) is shown as one piece — "whole job (no layer marks)",
+/// not "start–start of start" and "0 layers" (issue 33).
+#[test]
+fn a_page_without_layer_marks_says_so() {
+    let Some(browser) = chromium() else { return };
+    let mut g = String::from(";FLAVOR:Marlin\nG90\nM82\nG92 E0\nG0 X110 Y100 Z0.2 F6000\n");
+    let mut e = 0.0;
+    for k in 1..=48 {
+        let th = 2.0 * PI * k as f64 / 48.0;
+        e += 0.05;
+        let _ = writeln!(
+            g,
+            "G1 X{:.3} Y{:.3} E{e:.4} F1200",
+            100.0 + 10.0 * th.cos(),
+            100.0 + 10.0 * th.sin()
+        );
+    }
+    let dir = tmp_dir("nomarks");
+    let page = write_page(&dir, &g, &Profile::builtin("ender3").expect("ender3"));
+    let (_, dom) = open(&browser, &page, "", 800, 600);
+    // No marker: the firmware finds the one layer from the heights (a header chooses no
+    // marker family), and the page names it — never "0 layers" or "start–start".
+    let range = element_text(&dom, "range");
+    assert_eq!(range, "start–1 of 1");
+    let info = element_text(&dom, "info");
+    assert!(
+        !info.contains("0 layers") && !info.contains("start–start"),
+        "{info}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }

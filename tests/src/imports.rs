@@ -50,8 +50,12 @@ pub fn read_crate(src: &Path) -> std::io::Result<Graph> {
         // `#[cfg(test)] mod x;`: the file of `x` is a test's (a test may reach anywhere).
         for (at, _) in text.match_indices("#[cfg(test)]") {
             let after = text[at + "#[cfg(test)]".len()..].trim_start();
-            let Some(decl) = after.strip_prefix("mod ") else { continue };
-            let Some(name) = decl.split(';').next().map(str::trim) else { continue };
+            let Some(decl) = after.strip_prefix("mod ") else {
+                continue;
+            };
+            let Some(name) = decl.split(';').next().map(str::trim) else {
+                continue;
+            };
             if name.chars().all(|c| c.is_alphanumeric() || c == '_') {
                 let mut m = files[rel].clone();
                 m.push(name.to_string());

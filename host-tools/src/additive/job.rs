@@ -13,7 +13,7 @@ use super::slice::slice_layers;
 use super::stl::{validate, Mesh, MeshReport, MAX_COORD_MM};
 use crate::design::profile::Profile;
 use crate::design::travel::HeightMap;
-use crate::job::read::{default_reader, BadLines, Event, GcodeReader};
+use crate::gcode::read::{default_reader, BadLines, Event, GcodeReader};
 use anyhow::bail;
 use glam::{DMat4, DVec3};
 

@@ -12,7 +12,7 @@ use crate::additive::stl::read_stl;
 use crate::design::profile::Profile;
 use crate::design::writer::{GcodeWriter, WriteOptions};
 use glam::{DVec2, DVec3};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Arguments of `host-tools additive`.
 #[derive(clap::Args, Debug)]
@@ -103,6 +103,10 @@ fn parse_xy(s: &str) -> Result<DVec2, String> {
 
 /// Runs the subcommand.
 pub fn run(a: Args) -> anyhow::Result<()> {
+    let outputs: Vec<&Path> = std::iter::once(a.output.as_path())
+        .chain(a.preview.as_deref())
+        .collect();
+    crate::fileio::refuse_inputs_as_outputs(&outputs, &[&a.base, &a.shape, Path::new(&a.printer)])?;
     let profile = Profile::load(&a.printer)?;
     let base = read_stl(&a.base)?;
     let shape = read_stl(&a.shape)?;

@@ -8,7 +8,7 @@ use crate::design::motion::{plan_gcode, MotionLimits};
 use crate::design::profile::Profile;
 use crate::design::script::{Limits, ScriptRunner};
 use crate::design::writer::{GcodeWriter, WriteOptions};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Arguments of `host-tools compile`.
 #[derive(clap::Args, Debug)]
@@ -25,7 +25,8 @@ pub struct Args {
     /// Skip the printability checks.
     #[arg(long)]
     pub no_check: bool,
-    /// Refuse to write when a check finds anything.
+    /// Refuse to write when a check finds anything (a travel into printed material is
+    /// refused always).
     #[arg(long)]
     pub strict: bool,
     /// Leave out the profile's start and end code.
@@ -47,6 +48,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if super::list_profiles_if_asked(&args.printer)? {
         return Ok(());
     }
+    crate::fileio::refuse_inputs_as_outputs(
+        &[&args.output],
+        &[&args.design, Path::new(&args.printer)],
+    )?;
     let profile = Profile::load(&args.printer)?;
     let spinner = indicatif::ProgressBar::new_spinner();
     spinner.set_message(format!("running {}", args.design.display()));
@@ -95,6 +100,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     String::new()
                 }
             );
+            if rep.errors() > 0 {
+                anyhow::bail!(
+                    "{} travel(s) would drive the nozzle into printed material; nothing written \
+                     (--no-check skips the checks)",
+                    rep.errors()
+                );
+            }
             if args.strict {
                 anyhow::bail!("printability checks failed (--strict)");
             }

@@ -2,10 +2,12 @@
 
 use crate::design::motion::{MotionLimits, Trajectory};
 use crate::design::profile::Profile;
-use crate::paste::cure::{check, heat_map_svg, summary, CureParams};
-use crate::paste::timebased::{design_window, is_timebased, read_timebased, TimedPath, PERIOD_MS};
+use crate::paste::cure::{check, CureParams};
+use crate::paste::cure_report::{heat_map_svg, summary};
+use crate::paste::timebased::{is_timebased, read_timebased, TimedPath, PERIOD_MS};
+use crate::paste::window::design_window;
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Arguments of `host-tools cure-check`.
 #[derive(clap::Args, Debug)]
@@ -40,6 +42,9 @@ pub struct Args {
 
 /// Runs the subcommand.
 pub fn run(a: Args) -> anyhow::Result<()> {
+    if let Some(h) = &a.heatmap {
+        crate::fileio::refuse_inputs_as_outputs(&[h], &[&a.input, Path::new(&a.printer)])?;
+    }
     for (name, v) in [
         ("--cure", a.cure),
         ("--radius", a.radius),
@@ -61,9 +66,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             .map_err(|e| anyhow::anyhow!("{}: {e}", a.input.display()))?;
         let p = a.period_ms / 1000.0;
         // The design only, as `timebased` resamples it.
-        let (t0, t1) = design_window(&traj)
+        let w = design_window(&traj, &input)
             .ok_or_else(|| anyhow::anyhow!("{}: nothing is printed", a.input.display()))?;
-        (p, traj.samples_between(t0, t1, p))
+        (p, traj.samples_between(w.t0_s, w.t1_s, p))
     };
     let params = CureParams {
         period_s,

@@ -9,7 +9,7 @@ use crate::paste::grow::{
 };
 use anyhow::Context;
 use glam::DVec2;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// Arguments of `host-tools grow`.
@@ -68,6 +68,14 @@ pub const MAX_STRINGS: usize = 20_000_000;
 
 /// Runs the subcommand.
 pub fn run(a: Args) -> anyhow::Result<()> {
+    let outputs: Vec<&Path> = std::iter::once(a.output.as_path())
+        .chain(a.svg.as_deref())
+        .chain(a.preview.as_deref())
+        .collect();
+    crate::fileio::refuse_inputs_as_outputs(
+        &outputs,
+        &[Path::new(&a.boundary), Path::new(&a.printer)],
+    )?;
     if !(a.density > 0.0 && a.density <= 1.0) {
         anyhow::bail!("--density must be in (0, 1], got {}", a.density);
     }

@@ -15,8 +15,8 @@ pub mod timebased;
 /// number within its range, every line valid. Generated G-code that fails is a bug or an input
 /// beyond the limits; it is refused before anything is written.
 pub(crate) fn check_readable(gcode: &[u8]) -> anyhow::Result<()> {
-    use crate::job::read::GcodeReader as _;
-    crate::job::read::default_reader()
+    use crate::gcode::read::GcodeReader as _;
+    crate::gcode::read::default_reader()
         .read(gcode, &mut |_| {})
         .map_err(|e| {
             anyhow::anyhow!("the generated G-code would not be readable ({e}); nothing written")

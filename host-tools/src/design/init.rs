@@ -11,7 +11,7 @@
 use crate::design::model::{StateChange, Step};
 use crate::design::pen::AreaModel;
 use crate::design::profile::{Primer, Profile};
-use crate::design::turtle::{Turtle, TurtleError};
+use crate::design::turtle::{speed_mm_s, Turtle, TurtleError};
 use glam::DVec3;
 
 /// Head speed of a turtle that sets none, mm/s.
@@ -58,17 +58,8 @@ fn positive(name: &str, v: Option<f64>) -> Result<Option<f64>, TurtleError> {
 }
 
 fn speed_within(name: &str, v: Option<f64>, max: f64) -> Result<Option<f64>, TurtleError> {
-    let v = positive(name, v)?;
-    if let Some(x) = v {
-        if x > max {
-            return Err(TurtleError::BadArgument(format!(
-                "init: {name} {x} mm/s is beyond the printer's {max} mm/s axis limit \
-                 (speeds here are mm/s; FullControl's are mm/min: {x} mm/min = {:.1} mm/s)",
-                x / 60.0
-            )));
-        }
-    }
-    Ok(v)
+    v.map(|x| speed_mm_s(&format!("init: {name}"), x, max))
+        .transpose()
 }
 
 impl Turtle {
@@ -109,12 +100,15 @@ impl Turtle {
                 "init: start must be finite, got {at:?}"
             )));
         }
-        let mut t = Turtle::at(at, cross, speed);
+        let mut t = Turtle::at(at, cross, speed).with_speed_limit(profile);
         if let Some(p) = o.primer {
             t.set_primer(p)?;
         }
         if let Some(d) = filament {
-            t.model.push(Step::State(StateChange::FilamentDiameter(d)));
+            t.push_step(Step::State(StateChange::FilamentDiameter(d)));
+        }
+        if o.area_model != AreaModel::Rectangle {
+            t.push_step(Step::State(StateChange::Bead(o.area_model)));
         }
         if let Some(b) = o.bed_temp_c {
             t.bed(b.max(0.0), true)?;
@@ -129,7 +123,7 @@ impl Turtle {
             t.set_travel_speed(v)?;
         }
         if o.start.is_some() {
-            t.model.push(Step::Travel {
+            t.push_step(Step::Travel {
                 to: at,
                 speed_mm_s: None,
             });

@@ -82,6 +82,31 @@ impl Str {
     }
 }
 
+/// Adds the points where arc string `s` turns through the ±X and ±Y directions of its centre
+/// (at the height it has there: the Z of a helical arc changes linearly with the angle).
+fn add_arc_extremes(b: &mut BBox, s: &Str, a: Arc) {
+    let c = glam::DVec2::from(a.center_xy);
+    let r = (s.start.truncate() - c).length();
+    let a0 = (s.start.y - c.y).atan2(s.start.x - c.x);
+    let sweep = arc_sweep_rad(s.start, s.end, a);
+    if !(r.is_finite() && sweep.is_finite()) || sweep == 0.0 {
+        return;
+    }
+    for k in 0..4 {
+        let axis = f64::from(k) * std::f64::consts::FRAC_PI_2;
+        // The first turn of the sweep's direction at which the arc points along `axis`.
+        let mut d = (axis - a0).rem_euclid(std::f64::consts::TAU);
+        if sweep < 0.0 {
+            d = (a0 - axis).rem_euclid(std::f64::consts::TAU);
+        }
+        if d <= sweep.abs() {
+            let t = d / sweep.abs();
+            let z = s.start.z + (s.end.z - s.start.z) * t;
+            b.add(DVec3::new(c.x + r * axis.cos(), c.y + r * axis.sin(), z));
+        }
+    }
+}
+
 /// Signed sweep of an arc from `start` to `end` about its centre, radians: positive for
 /// counter-clockwise; a full circle when start and end coincide.
 pub fn arc_sweep_rad(start: DVec3, end: DVec3, arc: Arc) -> f64 {
@@ -139,6 +164,10 @@ pub enum StateChange {
     /// Whether the profile's primer (its purge line) is written in the start code; only
     /// before the design's first move.
     Primer(crate::design::profile::Primer),
+    /// The beads' cross-section model from here on (`set_extrusion`'s `area_model`), written
+    /// as the `;AREA_MODEL:` comment for the 3D page when it changes
+    /// ([`crate::gcode::bead`]).
+    Bead(crate::gcode::bead::AreaModel),
 }
 
 /// Kind of a progress marker.
@@ -329,17 +358,15 @@ impl Model {
         self.strings().map(Str::volume_mm3).sum()
     }
 
-    /// Bounding box of every string and travel end point.
+    /// Bounding box of what is printed: every string, arcs with the points where they turn
+    /// through ±X or ±Y — not travels (a lift 1 mm above the top is not the part's height).
     pub fn bbox(&self) -> BBox {
         let mut b = BBox::empty();
-        for s in &self.steps {
-            match s {
-                Step::String(s) => {
-                    b.add(s.start);
-                    b.add(s.end);
-                }
-                Step::Travel { to, .. } => b.add(*to),
-                _ => {}
+        for s in self.strings() {
+            b.add(s.start);
+            b.add(s.end);
+            if let Some(a) = s.arc {
+                add_arc_extremes(&mut b, s, a);
             }
         }
         b

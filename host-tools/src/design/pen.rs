@@ -27,21 +27,15 @@
 //! ```
 
 use crate::design::model::{StateChange, Step};
-use crate::design::profile::{Primer, Retraction};
+use crate::design::profile::{speed_beyond_limit, Primer, Retraction};
 use crate::design::turtle::{finite, Turtle, TurtleError};
-use crate::job::annotation;
+use crate::gcode::annotation;
 use glam::DVec3;
 use std::f64::consts::PI;
 
-/// How a line's cross-section follows from its width and height (FullControl's area models).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub enum AreaModel {
-    /// width × height.
-    #[default]
-    Rectangle,
-    /// A rectangle with semicircular sides: (width − height)·height + π(height/2)².
-    Stadium,
-}
+/// How a line's cross-section follows from its width and height (FullControl's area
+/// models; declared in the G-code for the 3D page, [`crate::gcode::bead`]).
+pub use crate::gcode::bead::AreaModel;
 
 impl AreaModel {
     /// Parses `"rectangle"` or `"stadium"`.
@@ -139,7 +133,7 @@ impl Turtle {
             c + glam::DVec2::from_angle(a) * r
         };
         let to = end.extend(from.z + dz);
-        self.model.push(Step::String(crate::design::model::Str {
+        self.push_step(Step::String(crate::design::model::Str {
             start: from,
             end: to,
             cross_mm2: self.state.cross_mm2,
@@ -173,7 +167,7 @@ impl Turtle {
     }
 
     fn state_change(&mut self, sc: StateChange) {
-        self.model.push(Step::State(sc));
+        self.push_step(Step::State(sc));
     }
 
     /// Part-cooling fan, percent of full speed (0..=100).
@@ -220,7 +214,10 @@ impl Turtle {
         model: AreaModel,
     ) -> Result<(), TurtleError> {
         let c = model.cross_mm2(width_mm, height_mm)?;
-        self.set_cross_section(c)
+        self.set_cross_section(c)?;
+        // The 3D page draws the beads from here on with this model.
+        self.state_change(StateChange::Bead(model));
+        Ok(())
     }
 
     /// Retraction for the travels from here on.
@@ -231,6 +228,14 @@ impl Turtle {
         {
             return Err(TurtleError::BadArgument(format!(
                 "retraction: length ≥ 0, speed > 0, min travel ≥ 0, got {r:?}"
+            )));
+        }
+        if r.speed_mm_s > self.retract_limit_mm_s {
+            return Err(TurtleError::BadArgument(speed_beyond_limit(
+                "retraction speed",
+                r.speed_mm_s,
+                "extruder",
+                self.retract_limit_mm_s,
             )));
         }
         self.state_change(StateChange::Retraction(r));
@@ -258,12 +263,7 @@ impl Turtle {
 
     /// Speed of the travels from here on, mm/s (> 0; replaces the profile's).
     pub fn set_travel_speed(&mut self, mm_s: f64) -> Result<(), TurtleError> {
-        let v = finite("travel speed", mm_s)?;
-        if v <= 0.0 {
-            return Err(TurtleError::BadArgument(format!(
-                "travel speed must be > 0 mm/s, got {v}"
-            )));
-        }
+        let v = crate::design::turtle::speed_mm_s("travel speed", mm_s, self.speed_limit_mm_s)?;
         self.state_change(StateChange::TravelSpeed(v));
         Ok(())
     }
@@ -271,7 +271,7 @@ impl Turtle {
     /// The profile's primer (its purge line) or none; only before the first move.
     pub fn set_primer(&mut self, primer: Primer) -> Result<(), TurtleError> {
         if self
-            .model
+            .model()
             .steps
             .iter()
             .any(|s| matches!(s, Step::String(_) | Step::Travel { .. }))
@@ -286,14 +286,14 @@ impl Turtle {
     }
 
     /// An annotation for viewers (FullControl's `PlotAnnotation`), written as the comment
-    /// `; ANNOTATION X<x> Y<y> Z<z>: <label>` ([`crate::job::annotation`]: mm, at most three
+    /// `; ANNOTATION X<x> Y<y> Z<z>: <label>` ([`crate::gcode::annotation`]: mm, at most three
     /// decimals, the label on one line) at `at`, the pen's position when `None`; the 3D
     /// preview shows it there.
     pub fn annotate(&mut self, at: Option<DVec3>, label: &str) -> Result<(), TurtleError> {
         let p = point(at.unwrap_or(self.state.pos))?;
         let text = annotation::comment(Some(p.to_array()), label)
             .ok_or_else(|| TurtleError::BadArgument(format!("point must be finite, got {p:?}")))?;
-        self.model.push(Step::Comment(text));
+        self.push_step(Step::Comment(text));
         Ok(())
     }
 

@@ -10,7 +10,7 @@
 
 use crate::design::motion::{plan_gcode, MotionLimits};
 use crate::design::profile::Profile;
-use crate::job::read::ReadError;
+use crate::gcode::read::ReadError;
 
 /// Inserts progress lines into `buf` at the byte offsets `at` (each at the start of a line,
 /// ascending, all ≥ `body_start`; the last one is where the end code begins). The G-code from

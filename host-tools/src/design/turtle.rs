@@ -6,6 +6,7 @@
 //! (the paper's stringing problem).
 
 use crate::design::model::{MarkerKind, Model, StateChange, Step, Str};
+use crate::design::profile::{speed_beyond_limit, Profile};
 use crate::design::travel::HeightMap;
 use glam::DVec3;
 
@@ -47,9 +48,34 @@ pub enum TurtleError {
 pub struct Turtle {
     pub(crate) state: TurtleState,
     stack: Vec<TurtleState>,
-    pub(crate) model: Model,
+    /// Shared until changed (`Rc::make_mut`): a script's final `t` hands the runner a copy of
+    /// the turtle, and the model of a 45,000-point design was copied with it.
+    model: std::rc::Rc<Model>,
     /// What has been printed so far, for travels that lift over it (filled lazily).
     pub(crate) heights: HeightMap,
+    /// The printer's axis speed limit, mm/s: a speed above it is refused as a likely mm/min
+    /// value ([`speed_mm_s`]); unbounded for a turtle made without a printer.
+    pub(crate) speed_limit_mm_s: f64,
+    /// The fastest retraction, mm/s ([`Profile::max_retract_mm_s`]; as `speed_limit_mm_s`).
+    pub(crate) retract_limit_mm_s: f64,
+}
+
+/// A speed as the design gives it, mm/s: finite, > 0 and at most the printer's axis limit.
+/// Every speed entry point of a design uses this, so a FullControl value in mm/min
+/// (`set_travel_speed(9000)`) is refused with the conversion instead of being written as
+/// `F540000`.
+pub fn speed_mm_s(name: &str, v: f64, limit_mm_s: f64) -> Result<f64, TurtleError> {
+    if !(v.is_finite() && v > 0.0) {
+        return Err(TurtleError::BadArgument(format!(
+            "{name} must be > 0 mm/s, got {v}"
+        )));
+    }
+    if v > limit_mm_s {
+        return Err(TurtleError::BadArgument(speed_beyond_limit(
+            name, v, "axis", limit_mm_s,
+        )));
+    }
+    Ok(v)
 }
 
 pub(crate) fn finite(name: &str, v: f64) -> Result<f64, TurtleError> {
@@ -112,8 +138,10 @@ impl Turtle {
                 pen_down: true,
             },
             stack: Vec::new(),
-            model,
+            model: std::rc::Rc::new(model),
             heights: HeightMap::new(),
+            speed_limit_mm_s: f64::INFINITY,
+            retract_limit_mm_s: f64::INFINITY,
         })
     }
 
@@ -128,9 +156,20 @@ impl Turtle {
                 pen_down: true,
             },
             stack: Vec::new(),
-            model: Model::new([pos.x, pos.y]),
+            model: std::rc::Rc::new(Model::new([pos.x, pos.y])),
             heights: HeightMap::new(),
+            speed_limit_mm_s: f64::INFINITY,
+            retract_limit_mm_s: f64::INFINITY,
         }
+    }
+
+    /// Refuses speeds above the printer's limits from here on: its X/Y axis limit for print
+    /// and travel speeds, [`Profile::max_retract_mm_s`] for retraction speeds (see
+    /// [`speed_mm_s`]).
+    pub fn with_speed_limit(mut self, profile: &Profile) -> Turtle {
+        self.speed_limit_mm_s = profile.limits.max_feed_xy_mm_s;
+        self.retract_limit_mm_s = profile.max_retract_mm_s();
+        self
     }
 
     /// Moves `r` mm along the heading while rising `dz` mm: a string (pen down) or a travel.
@@ -145,14 +184,14 @@ impl Turtle {
     pub(crate) fn go(&mut self, to: DVec3) {
         let from = self.state.pos;
         if self.state.pen_down {
-            self.model.push(Step::String(Str::line(
+            self.push_step(Step::String(Str::line(
                 from,
                 to,
                 self.state.cross_mm2,
                 self.state.speed_mm_s,
             )));
         } else {
-            self.model.push(Step::Travel {
+            self.push_step(Step::Travel {
                 to,
                 speed_mm_s: None,
             });
@@ -181,14 +220,9 @@ impl Turtle {
         self.forward(0.0, -dz)
     }
 
-    /// Sets the head speed, mm/s (> 0).
+    /// Sets the head speed, mm/s (> 0, at most the printer's axis limit).
     pub fn set_velocity(&mut self, v: f64) -> Result<(), TurtleError> {
-        if !(v.is_finite() && v > 0.0) {
-            return Err(TurtleError::BadArgument(format!(
-                "velocity must be > 0, got {v}"
-            )));
-        }
-        self.state.speed_mm_s = v;
+        self.state.speed_mm_s = speed_mm_s("velocity", v, self.speed_limit_mm_s)?;
         Ok(())
     }
 
@@ -212,7 +246,7 @@ impl Turtle {
     /// Travels (never extrudes) to an absolute point.
     pub fn goto(&mut self, x: f64, y: f64, z: f64) -> Result<(), TurtleError> {
         let to = DVec3::new(finite("x", x)?, finite("y", y)?, finite("z", z)?);
-        self.model.push(Step::Travel {
+        self.push_step(Step::Travel {
             to,
             speed_mm_s: None,
         });
@@ -222,12 +256,12 @@ impl Turtle {
 
     /// Writes a comment into the G-code.
     pub fn comment(&mut self, text: &str) {
-        self.model.push(Step::Comment(text.to_string()));
+        self.push_step(Step::Comment(text.to_string()));
     }
 
     /// Marks the start of a helix turn (a layer change for layer-based tools).
     pub fn mark_turn(&mut self, pitch_mm: f64) {
-        self.model.push(Step::Marker {
+        self.push_step(Step::Marker {
             kind: MarkerKind::Turn,
             z_mm: self.state.pos.z,
             height_mm: pitch_mm,
@@ -236,7 +270,7 @@ impl Turtle {
 
     /// Marks the start of a layer.
     pub fn mark_layer(&mut self, height_mm: f64) {
-        self.model.push(Step::Marker {
+        self.push_step(Step::Marker {
             kind: MarkerKind::Layer,
             z_mm: self.state.pos.z,
             height_mm,
@@ -276,7 +310,7 @@ impl Turtle {
     pub fn travel_safely(&mut self, to: DVec3) {
         self.heights.catch_up(&self.model);
         for p in self.heights.route(self.state.pos, to) {
-            self.model.push(Step::Travel {
+            self.push_step(Step::Travel {
                 to: p,
                 speed_mm_s: None,
             });
@@ -294,9 +328,14 @@ impl Turtle {
         &self.model
     }
 
-    /// Finishes: the model drawn.
+    /// Appends a step to the model (copied first when a copy of the turtle shares it).
+    pub(crate) fn push_step(&mut self, step: Step) {
+        std::rc::Rc::make_mut(&mut self.model).push(step);
+    }
+
+    /// Finishes: the model drawn (without a copy when no other turtle shares it).
     pub fn into_model(self) -> Model {
-        self.model
+        std::rc::Rc::try_unwrap(self.model).unwrap_or_else(|m| (*m).clone())
     }
 }
 

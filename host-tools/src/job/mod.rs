@@ -1,4 +1,4 @@
-//! G-code jobs: reading them with the firmware's parser ([`read`]), their statistics
+//! G-code jobs: reading them with the firmware's parser ([`crate::gcode::read`]), their statistics
 //! ([`stats`]), the preview ([`preview`]) and the interactive sender ([`sender`]); and the job
 //! model of SPEC §1: start code (heating, homing), main code as a list of layers (each a
 //! list of commands) and end code (cooling, park). Built from any slicer's G-code with the
@@ -6,14 +6,12 @@
 //! writer emits layer/turn markers the same detector reads). Operations that edit the rest of a
 //! job at a paused layer boundary live in [`ops`].
 
-pub mod annotation;
 pub mod gcode;
 pub mod modal;
 pub mod ops;
 pub mod preview;
 pub mod preview_html;
 pub mod preview_moves;
-pub mod read;
 pub mod sender;
 pub mod stats;
 

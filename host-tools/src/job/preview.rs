@@ -6,7 +6,7 @@
 //! [`crate::job::preview_html`] instead.
 
 use crate::design::profile::Profile;
-use crate::job::read::{default_reader, Event, GcodeReader, ReadError};
+use crate::gcode::read::{default_reader, Event, GcodeReader, ReadError};
 use plotters::prelude::*;
 use std::path::Path;
 

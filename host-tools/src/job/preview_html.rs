@@ -17,10 +17,11 @@
 //! an id buffer for picking and a layer range — about 400 lines — while three.js (~600 KB
 //! minified) or plotly.js (~3.5 MB) would have to be inlined into every page.
 
-use crate::design::motion::{plan_gcode_with, MotionLimits, Segment};
+use crate::design::motion::{plan_marks, prelude_marks, LayerMark, MotionLimits, Segment};
 use crate::design::profile::Profile;
-use crate::job::preview_moves::{push_num, scan_annotations, PageData};
-use crate::job::read::{default_reader, BadLines, ReadError};
+use crate::gcode::number::push_num;
+use crate::gcode::read::{default_reader, BadLines, ReadError};
+use crate::job::preview_moves::{scan_annotations, scan_beads, PageData};
 use std::cell::RefCell;
 
 /// What an HTML preview holds.
@@ -52,7 +53,10 @@ pub fn html(input: &[u8], profile: &Profile, title: &str) -> Result<(String, Htm
     let area = profile.filament_area_mm2();
     let nozzle = profile.nozzle_diameter_mm;
     let (mut notes, dropped) = scan_annotations(input);
-    let data = RefCell::new(PageData::with_capacity(input.len() / 2 + 4096));
+    let data = RefCell::new(PageData::with_capacity(
+        input.len() / 2 + 4096,
+        scan_beads(input),
+    ));
     let mut too_many = false;
     let mut sink = |s: Segment| {
         let mut d = data.borrow_mut();
@@ -62,10 +66,10 @@ pub fn html(input: &[u8], profile: &Profile, title: &str) -> Result<(String, Htm
         }
         d.push(&s, &mut notes, area, nozzle);
     };
-    let mut layer = |number: u32, z: Option<f64>, _t: f64| data.borrow_mut().mark(number, z);
+    let mut layer = |m: LayerMark| data.borrow_mut().mark(m);
     let mut reader = default_reader();
     reader.bad_line_policy = BadLines::Skip;
-    let totals = plan_gcode_with(&mut reader, input, limits, &mut sink, &mut layer)
+    let totals = plan_marks(&mut reader, input, limits, &mut sink, &mut layer)
         .map_err(|e: ReadError| e.to_string())?;
     if too_many {
         return Err(format!(
@@ -74,9 +78,10 @@ pub fn html(input: &[u8], profile: &Profile, title: &str) -> Result<(String, Htm
     }
     let mut d = data.into_inner();
     d.finish_notes(&mut notes);
+    let prelude = prelude_marks(&d.marks);
     let b = &profile.bed;
     let meta = format!(
-        "{{\"title\":{},\"bed\":[{},{},{},{}],\"profile\":{},\"time\":{:.1},\"notes_dropped\":{}}}",
+        "{{\"title\":{},\"bed\":[{},{},{},{}],\"profile\":{},\"time\":{:.1},\"notes_dropped\":{},\"prelude\":{}}}",
         script_json(title),
         b.x_min_mm,
         b.y_min_mm,
@@ -84,19 +89,23 @@ pub fn html(input: &[u8], profile: &Profile, title: &str) -> Result<(String, Htm
         b.y_max_mm,
         script_json(&profile.name),
         totals.time_s,
-        dropped
+        dropped,
+        prelude
     );
-    // Layer index k (k ≥ 1) is the k-th mark: [firmware number, Z or null].
+    // Layer index k (k ≥ 1) is the k-th mark: [firmware number, the height the layer prints
+    // at or null]. The first `prelude` marks are the start code's (a purge line the firmware
+    // numbers before its count starts again at the first layer): the page shows them as the
+    // start, as `stats` counts their time before the first layer.
     let mut layers = String::from("[");
-    for (k, (number, z)) in d.marks.iter().enumerate() {
-        if k > 0 {
+    for (k, m) in d.marks.iter().enumerate().skip(prelude) {
+        if k > prelude {
             layers.push(',');
         }
         layers.push('[');
-        layers.push_str(&number.to_string());
+        layers.push_str(&m.number.to_string());
         layers.push(',');
-        match z {
-            Some(z) => push_num(&mut layers, *z, 3),
+        match d.heights.get(k as u32 + 1).or(m.z_mm) {
+            Some(z) => push_num(&mut layers, z, 3),
             None => layers.push_str("null"),
         }
         layers.push(']');
@@ -142,7 +151,7 @@ pub fn html(input: &[u8], profile: &Profile, title: &str) -> Result<(String, Htm
         HtmlSummary {
             print_moves: d.print_moves,
             travels: d.travels,
-            layers: totals.layer_marks,
+            layers: totals.layer_marks.saturating_sub(prelude as u32),
             time_s: totals.time_s,
             annotations: shown,
             annotations_dropped: dropped,
@@ -233,30 +242,39 @@ mod tests {
 
     #[test]
     fn bead_height_is_the_rise_over_the_last_printed_layer() {
-        // Layers at Z 0.2 (on the bed), 0.5, 0.8 (travel only), 1.0; E for 0.2 mm² beads.
+        // Layers at Z 0.2 (on the bed), 0.5, 0.8 (travel only), 1.0; E for 0.3 mm² beads,
+        // drawn as FullControl's rectangles; then the same declared as stadiums.
         let area = Profile::ender3().filament_area_mm2();
-        let e = |mm: f64| 0.2 * mm / area;
-        let g = format!(
-            "G90\nM82\nG92 E0\n;LAYER_CHANGE\n;Z:0.2\nG0 X10 Y10 Z0.2 F6000\nG1 X20 E{:.5} F1200\n\
-             ;LAYER_CHANGE\n;Z:0.5\nG0 Z0.5\nG1 X10 E{:.5}\n;LAYER_CHANGE\n;Z:0.8\nG0 Z0.8\n\
-             G0 X20\n;LAYER_CHANGE\n;Z:1.0\nG0 Z1.0\nG1 X10 E{:.5}\n",
-            e(10.0),
-            e(20.0),
-            e(30.0)
-        );
-        let (page, s) = html(g.as_bytes(), &Profile::ender3(), "h").expect("page");
-        assert_eq!(s.print_moves, 3);
-        let printed: Vec<(f64, f64)> = moves(&page)
-            .iter()
-            .filter(|m| m[0] as u32 & 1 == 1)
-            .map(|m| (m[10], m[11]))
-            .collect();
-        let heights: Vec<f64> = printed.iter().map(|p| p.1).collect();
-        assert_eq!(heights, vec![0.2, 0.3, 0.5]);
-        // Width: the stadium of 0.2 mm² at that height (to the page's 3 decimals).
-        for (w, h) in printed {
-            let expected = 0.2 / h + h * (1.0 - std::f64::consts::FRAC_PI_4);
-            assert!((w - expected).abs() < 2e-3, "{w} vs {expected} at h {h}");
+        let e = |mm: f64| 0.3 * mm / area;
+        for (decl, stadium) in [("", false), (";AREA_MODEL:stadium\n", true)] {
+            let g = format!(
+                "G90\nM82\nG92 E0\n{decl};LAYER_CHANGE\n;Z:0.2\nG0 X10 Y10 Z0.2 F6000\n\
+                 G1 X20 E{:.5} F1200\n;LAYER_CHANGE\n;Z:0.5\nG0 Z0.5\nG1 X10 E{:.5}\n\
+                 ;LAYER_CHANGE\n;Z:0.8\nG0 Z0.8\nG0 X20\n;LAYER_CHANGE\n;Z:1.0\nG0 Z1.0\n\
+                 G1 X10 E{:.5}\n",
+                e(10.0),
+                e(20.0),
+                e(30.0)
+            );
+            let (page, s) = html(g.as_bytes(), &Profile::ender3(), "h").expect("page");
+            assert_eq!(s.print_moves, 3);
+            let printed: Vec<(f64, f64)> = moves(&page)
+                .iter()
+                .filter(|m| m[0] as u32 & 1 == 1)
+                .map(|m| (m[10], m[11]))
+                .collect();
+            let heights: Vec<f64> = printed.iter().map(|p| p.1).collect();
+            assert_eq!(heights, vec![0.2, 0.3, 0.5]);
+            // Width: the declared model of 0.3 mm² at that height (to the page's 3 decimals).
+            for (w, h) in printed {
+                let round = if stadium {
+                    h * (1.0 - std::f64::consts::FRAC_PI_4)
+                } else {
+                    0.0
+                };
+                let expected = 0.3 / h + round;
+                assert!((w - expected).abs() < 2e-3, "{w} vs {expected} at h {h}");
+            }
         }
     }
 

@@ -1,14 +1,17 @@
 //! The moves, layers and annotations of a job as the 3D page ([`crate::job::preview_html`])
 //! embeds them: each printing move with its bead (width × height, from E, the layer's rise and
 //! the filament), its source line, commanded feed and the motion model's speed and time; the
-//! firmware's layers; and the design's annotation comments ([`crate::job::annotation`]) placed
+//! firmware's layers; and the design's annotation comments ([`crate::gcode::annotation`]) placed
 //! at their point or where the nozzle is.
 //!
 //! Everything is written straight into compact JSON number lists while the job streams through
 //! the motion model, so a 1.5 M-move job costs its text, not a vector of structs.
 
+use crate::design::motion::{LayerMark, PrintHeights};
 use crate::design::motion::{MoveKind, Segment};
-use crate::job::annotation;
+use crate::gcode::annotation;
+use crate::gcode::bead::AreaModel;
+use crate::gcode::number::push_num;
 use std::fmt::Write as _;
 
 /// Most annotations kept (the rest are counted and dropped).
@@ -20,7 +23,7 @@ pub const MAX_ANNOTATION_CHARS: usize = 200;
 /// de, width, height`).
 pub const MOVE_FIELDS: usize = 12;
 
-/// An annotation comment of the G-code ([`crate::job::annotation`]).
+/// An annotation comment of the G-code ([`crate::gcode::annotation`]).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Annotation {
     /// 1-based line of the comment.
@@ -35,7 +38,7 @@ pub struct Annotation {
     pub at: Option<([f64; 3], u32)>,
 }
 
-/// Finds the annotations of `input` (each line read by [`crate::job::annotation::parse`]).
+/// Finds the annotations of `input` (each line read by [`crate::gcode::annotation::parse`]).
 /// At most [`MAX_ANNOTATIONS`]; returns them (in line order) and how many more there were.
 pub fn scan_annotations(input: &[u8]) -> (Vec<Annotation>, usize) {
     let mut out = Vec::new();
@@ -65,14 +68,15 @@ fn place(point: [Option<f64>; 3], nozzle: [f64; 3]) -> [f64; 3] {
 
 /// The bead a printing move lays: `(width, height)` in mm.
 ///
-/// The height is the layer's rise (`rise_mm`: this layer's Z over the layer below, the bed for
-/// the first) when it is plausible (0.02 mm up to 1.5 nozzle diameters); otherwise (a spiral
-/// whose layers were found per move, a purge line far above the bed) the bead is taken as one
-/// nozzle wide. The width is that of a stadium — a rectangle with semicircular sides, as
-/// slicers model a bead — of area `cross_mm2` (ΔE × filament area ÷ length) and that height:
-/// `w = A/h + h(1 − π/4)`. A bead thinner than a circle of diameter `h` is drawn as that
-/// circle's equal-area circle.
-pub fn bead_mm(cross_mm2: f64, rise_mm: f64, nozzle_mm: f64) -> (f64, f64) {
+/// The height is the layer's rise (`rise_mm`: the height this layer prints at over the layer
+/// below, the bed for the first) when it is plausible (0.02 mm up to 1.5 nozzle diameters);
+/// otherwise (a spiral whose layers were found per move, a purge line far above the bed) the
+/// bead is taken as one nozzle wide. The width is the one `model` gives a bead of area
+/// `cross_mm2` (ΔE × filament area ÷ length) and that height: `A/h` for FullControl's
+/// rectangle (the default), `A/h + h(1 − π/4)` for a stadium (a rectangle with semicircular
+/// sides, as PrusaSlicer models a bead) where the design declares one. A bead narrower than
+/// high is drawn as the equal-area circle.
+pub fn bead_mm(model: AreaModel, cross_mm2: f64, rise_mm: f64, nozzle_mm: f64) -> (f64, f64) {
     let nozzle = if nozzle_mm.is_finite() && nozzle_mm > 0.0 {
         nozzle_mm
     } else {
@@ -88,13 +92,27 @@ pub fn bead_mm(cross_mm2: f64, rise_mm: f64, nozzle_mm: f64) -> (f64, f64) {
     } else {
         (a / nozzle).clamp(0.02, nozzle)
     };
-    let w = a / h + h * (1.0 - std::f64::consts::FRAC_PI_4);
-    if w >= h {
-        (w, h)
-    } else {
-        let d = (4.0 * a / std::f64::consts::PI).sqrt();
-        (d, d)
+    match model.width_mm(a, h) {
+        Some(w) => (w, h),
+        None => {
+            let d = (4.0 * a / std::f64::consts::PI).sqrt();
+            (d, d)
+        }
     }
+}
+
+/// The bead models a job declares (`;AREA_MODEL:` comments, [`crate::gcode::bead`]): the
+/// 1-based line of each and the model from there on.
+pub fn scan_beads(input: &[u8]) -> Vec<(u32, AreaModel)> {
+    let mut out = Vec::new();
+    for (i, raw) in input.split(|&b| b == b'\n').enumerate() {
+        if raw.contains(&b';') {
+            if let Some(m) = AreaModel::parse_comment(raw) {
+                out.push((u32::try_from(i + 1).unwrap_or(u32::MAX), m));
+            }
+        }
+    }
+    out
 }
 
 /// What the page embeds, built move by move.
@@ -112,21 +130,29 @@ pub struct PageData {
     pub print_moves: usize,
     /// Travels written.
     pub travels: usize,
-    /// The firmware's number and Z of each layer mark, in order (mark k starts index k + 1).
-    pub marks: Vec<(u32, Option<f64>)>,
-    /// The layer index printed last, its Z (the mark's, else its first printing move's) and
-    /// its rise over the layer printed before it (the bed for the first).
+    /// The firmware's layer marks, in order (mark k starts index k + 1).
+    pub marks: Vec<LayerMark>,
+    /// The layer index printed last, the height it prints at and its rise over the layer
+    /// printed before it (the bed for the first).
     printing: Option<(u32, f64, f64)>,
+    /// The height each layer prints at (its first printing move's start).
+    pub heights: PrintHeights,
+    /// The job's bead declarations ([`scan_beads`]) and how many are in force.
+    beads: Vec<(u32, AreaModel)>,
+    next_bead: usize,
+    bead: AreaModel,
     last_end: Option<[f64; 3]>,
     last_layer: u32,
     next_note: usize,
 }
 
 impl PageData {
-    /// Empty, with room for about `bytes` of move text.
-    pub fn with_capacity(bytes: usize) -> PageData {
+    /// Empty, with room for about `bytes` of move text, drawing beads as `beads` declares
+    /// ([`scan_beads`]).
+    pub fn with_capacity(bytes: usize, beads: Vec<(u32, AreaModel)>) -> PageData {
         PageData {
             moves: String::with_capacity(bytes),
+            beads,
             ..PageData::default()
         }
     }
@@ -142,8 +168,8 @@ impl PageData {
     }
 
     /// A layer mark (the motion model's layer callback).
-    pub fn mark(&mut self, number: u32, z_mm: Option<f64>) {
-        self.marks.push((number, z_mm));
+    pub fn mark(&mut self, m: LayerMark) {
+        self.marks.push(m);
     }
 
     /// Places the annotations whose line comes before the move on `line` (at `start`, the
@@ -183,29 +209,33 @@ impl PageData {
             return;
         }
         let print = s.kind == MoveKind::Print;
-        let layer = s.layer as usize;
         let de = s.end[3] - s.start[3];
+        self.heights.note(s);
         let (w, h) = if print {
             let rise = match self.printing {
                 Some((l, _, rise)) if l == s.layer => rise,
                 below => {
-                    // The first printing move of a layer (layers only grow along the file).
-                    let from_mark = layer
-                        .checked_sub(1)
-                        .and_then(|k| self.marks.get(k))
-                        .and_then(|m| m.1);
-                    let z = from_mark.unwrap_or(start[2].min(end[2]));
+                    // The first printing move of a layer (layers only grow along the file):
+                    // the height the layer prints at, never a marker's or a lift's.
+                    let z = self.heights.get(s.layer).unwrap_or(start[2]);
                     let rise = z - below.map_or(0.0, |b| b.1);
                     self.printing = Some((s.layer, z, rise));
                     rise
                 }
             };
+            while let Some((line, m)) = self.beads.get(self.next_bead) {
+                if *line > s.line {
+                    break;
+                }
+                self.bead = *m;
+                self.next_bead += 1;
+            }
             let cross = if s.len_mm > 0.0 {
                 de * area_mm2 / s.len_mm
             } else {
                 0.0
             };
-            bead_mm(cross, rise, nozzle_mm)
+            bead_mm(self.bead, cross, rise, nozzle_mm)
         } else {
             (0.0, 0.0)
         };
@@ -254,59 +284,40 @@ impl PageData {
     }
 }
 
-/// Writes `v` with at most `dec` decimals and no trailing zeros (`0.200` → `0.2`); a value
-/// that is not finite is written as 0 (JSON has no NaN).
-pub fn push_num(out: &mut String, v: f64, dec: usize) {
-    let v = if v.is_finite() { v } else { 0.0 };
-    let at = out.len();
-    let _ = write!(out, "{v:.dec$}");
-    if dec > 0 {
-        let trimmed = out[at..].trim_end_matches('0').trim_end_matches('.').len();
-        out.truncate(at + trimmed);
-    }
-    if &out[at..] == "-0" {
-        out.truncate(at);
-        out.push('0');
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
     #[test]
-    fn numbers_are_short_and_valid_json() {
-        let mut s = String::new();
-        for (v, d) in [
-            (0.2, 3),
-            (12.0, 3),
-            (-0.0001, 3),
-            (f64::NAN, 2),
-            (1.23456, 2),
-            (7.0, 0),
-        ] {
-            push_num(&mut s, v, d);
-            s.push(' ');
-        }
-        assert_eq!(s, "0.2 12 0 0 1.23 7 ");
-    }
-
-    #[test]
-    fn bead_is_a_stadium_of_the_extruded_area() {
-        // 0.12 mm² at 0.3 mm layers: w = 0.4 + 0.3·(1 − π/4).
-        let (w, h) = bead_mm(0.12, 0.3, 0.4);
+    fn bead_is_the_declared_model_of_the_extruded_area() {
+        use std::f64::consts::{FRAC_PI_4, PI};
+        // FullControl's default: a 0.5 × 0.25 rectangle is drawn 0.5 wide (the issue's
+        // 0.554 came from the stadium formula).
+        let (w, h) = bead_mm(AreaModel::Rectangle, 0.125, 0.25, 0.4);
+        assert!(
+            (w - 0.5).abs() < 1e-12 && (h - 0.25).abs() < 1e-12,
+            "{w} {h}"
+        );
+        // A stadium where the design declares one: 0.12 mm² at 0.3 mm layers is
+        // w = 0.4 + 0.3·(1 − π/4), and its stadium area is the extruded area.
+        let (w, h) = bead_mm(AreaModel::Stadium, 0.12, 0.3, 0.4);
         assert!((h - 0.3).abs() < 1e-12);
-        assert!((w - (0.4 + 0.3 * (1.0 - std::f64::consts::FRAC_PI_4))).abs() < 1e-12);
-        // Its stadium area is the extruded area.
-        let area = (w - h) * h + std::f64::consts::PI * h * h / 4.0;
+        assert!((w - (0.4 + 0.3 * (1.0 - FRAC_PI_4))).abs() < 1e-12);
+        let area = (w - h) * h + PI * h * h / 4.0;
         assert!((area - 0.12).abs() < 1e-12);
         // An implausible rise (a spiral's per-move layers) falls back to a nozzle-wide bead.
-        let (w, h) = bead_mm(0.12, 0.003, 0.4);
+        let (w, h) = bead_mm(AreaModel::Stadium, 0.12, 0.003, 0.4);
         assert!((h - 0.3).abs() < 1e-12 && w > 0.4, "{w} {h}");
-        // Too little material for a stadium: an equal-area circle.
-        let (w, h) = bead_mm(0.01, 0.3, 0.4);
-        assert!((w - h).abs() < 1e-12 && (std::f64::consts::PI * w * w / 4.0 - 0.01).abs() < 1e-12);
-        assert_eq!(bead_mm(-1.0, 0.2, 0.4), (0.0, 0.0));
+        // Too little material for the model at that height: an equal-area circle.
+        for m in [AreaModel::Rectangle, AreaModel::Stadium] {
+            let (w, h) = bead_mm(m, 0.01, 0.3, 0.4);
+            assert!((w - h).abs() < 1e-12 && (PI * w * w / 4.0 - 0.01).abs() < 1e-12);
+            assert_eq!(bead_mm(m, -1.0, 0.2, 0.4), (0.0, 0.0));
+        }
+        assert_eq!(
+            scan_beads(b"G1 X1\n;AREA_MODEL:stadium\nG1 X2\n; area_model: rectangle\n"),
+            vec![(2, AreaModel::Stadium), (4, AreaModel::Rectangle)]
+        );
     }
 
     #[test]

@@ -9,6 +9,10 @@
 
 const MF = 12;
 const NM = Math.floor(MOVES.length / MF);
+// Marks of the start code (a purge line the firmware counts before its first layer): shown
+// as the start, as `stats` counts them.
+const PRELUDE = META.prelude || 0;
+const unprelude = k => (k > PRELUDE ? k - PRELUDE : 0);
 const mv = {
   print: new Uint8Array(NM), layer: new Uint32Array(NM), line: new Uint32Array(NM),
   s: new Float32Array(3 * NM), e: new Float32Array(3 * NM), t: new Float64Array(NM),
@@ -22,7 +26,7 @@ const tubeMove = [], travelMove = [];
     const o = i * MF, f = MOVES[o];
     if (f & 2) { px = JUMPS[ji]; py = JUMPS[ji + 1]; pz = JUMPS[ji + 2]; ji += 3; mv.jump[i] = 1; }
     mv.print[i] = f & 1;
-    mv.layer[i] = MOVES[o + 1];
+    mv.layer[i] = unprelude(MOVES[o + 1]);
     mv.line[i] = MOVES[o + 2];
     mv.s[3 * i] = px; mv.s[3 * i + 1] = py; mv.s[3 * i + 2] = pz;
     px = mv.e[3 * i] = MOVES[o + 3]; py = mv.e[3 * i + 1] = MOVES[o + 4]; pz = mv.e[3 * i + 2] = MOVES[o + 5];
@@ -35,8 +39,11 @@ const NT = tubeMove.length, NTR = travelMove.length;
 let maxLayer = LAYERS.length;
 for (let i = 0; i < NM; i++) maxLayer = Math.max(maxLayer, mv.layer[i]);
 
-// The layer as the firmware numbers it (what `stats` and M761 L<n> call it).
+for (const n of NOTES) n[5] = unprelude(n[5]);
+// The layer as the firmware numbers it (what `stats` and M761 L<n> call it); a job without
+// layer marks is one piece ("all").
 function layerName(k) {
+  if (LAYERS.length === 0) return "all";
   if (k === 0) return "start";
   const l = LAYERS[k - 1];
   return l ? String(l[0]) : "#" + k;
@@ -234,7 +241,8 @@ function drawNow() {
   lastFrame = f;
   const [a, b] = isFinite(f.range[0]) ? f.range : [0, 0];
   gfx.draw(Object.assign({}, f, { range: [a, b > a ? b : a + 1] }));
-  $("range").textContent = layerName(f.l0) + "–" + layerName(f.l1) + " of " + layerName(maxLayer);
+  $("range").textContent = LAYERS.length === 0 ? "whole job (no layer marks)"
+    : layerName(f.l0) + "–" + layerName(f.l1) + " of " + layerName(maxLayer);
   legend(f);
   placeNotes(f, dpr);
 }
@@ -376,7 +384,8 @@ function start() {
     if (isFinite(x) && isFinite(y)) { hoverAt(x, y, true); drawNow(); }
   }
   const bench = +q.get("bench") || 0;
-  let info = NT + " printing moves · " + NTR + " travels · " + LAYERS.length + " layers · " +
+  let info = NT + " printing moves · " + NTR + " travels · " +
+    (LAYERS.length ? LAYERS.length + " layers · " : "no layer marks · ") +
     fmtTime(META.time) + " · " + NOTES.length + " notes" +
     (META.notes_dropped > 0 ? " (" + META.notes_dropped + " more left out)" : "") +
     " · profile " + META.profile;

@@ -9,9 +9,11 @@
 //! found from the path — the same boundaries the printer's layer pause stops at, numbered as
 //! the printer numbers them (from 1, as the slicers' previews do).
 
-use crate::design::motion::{plan_gcode_with, MotionLimits, MoveKind, Segment};
+use crate::design::motion::{
+    plan_marks, prelude_marks, LayerMark, MotionLimits, MoveKind, PrintHeights, Segment,
+};
 use crate::design::profile::Profile;
-use crate::job::read::{default_reader, BadLines, ReadError};
+use crate::gcode::read::{default_reader, BadLines, ReadError};
 use serde::Serialize;
 
 /// Bounding box in JSON form.
@@ -30,7 +32,8 @@ pub struct LayerTime {
     /// layer: the n-th layer printed, from 1 (the slicers' preview numbers; Cura's
     /// `;LAYER:n` is layer n + 1).
     pub layer: u32,
-    /// Height of the layer when known, mm.
+    /// The height the layer prints at — where its first extruding move starts, never a
+    /// travel's lift — else the marker's, mm.
     pub z_mm: Option<f64>,
     /// Time from this layer's start to the next one's, s.
     pub time_s: f64,
@@ -106,7 +109,9 @@ pub fn stats(input: &[u8], profile: &Profile) -> Result<Stats, ReadError> {
             }
         }
     };
+    let mut heights = PrintHeights::default();
     let mut seg_sink = |s: Segment| {
+        heights.note(&s);
         let d = s.duration_s();
         net_e += s.end[3] - s.start[3];
         grow(&mut bb_all, &s.end);
@@ -129,32 +134,39 @@ pub fn stats(input: &[u8], profile: &Profile) -> Result<Stats, ReadError> {
         }
         marker_time[li] += d;
     };
-    // The firmware's number and height of each mark, in order (mark k starts segment layer k+1).
-    let mut marks: Vec<(u32, Option<f64>)> = Vec::new();
-    let mut layer_sink = |number: u32, z: Option<f64>, _t: f64| marks.push((number, z));
+    // The firmware's marks, in order (mark k starts segment layer k+1).
+    let mut marks: Vec<LayerMark> = Vec::new();
     let mut reader = default_reader();
     reader.bad_line_policy = BadLines::Skip;
-    let totals = plan_gcode_with(&mut reader, input, limits, &mut seg_sink, &mut layer_sink)?;
-    let n = marks.len();
-    if marker_time.len() <= n {
-        marker_time.resize(n + 1, 0.0);
+    let totals = plan_marks(&mut reader, input, limits, &mut seg_sink, &mut |m| {
+        marks.push(m)
+    })?;
+    if marker_time.len() <= marks.len() {
+        marker_time.resize(marks.len() + 1, 0.0);
     }
-    // A purge line above the first layer (Cura's Ender-3 start code) is marked as layer 1 by
-    // the height rule, then the first layer as layer 1 again: the first was a prelude, part
-    // of the time before the first layer. Start codes with two purges (the i3 Mega's, at
-    // Z 0.3 then Z 0.2, before the first marker) make two such preludes.
-    while marks.len() >= 2 && marks[0].0 == 1 && marks[1].0 == 1 {
-        let prelude = marker_time.remove(1);
-        marker_time[0] += prelude;
-        marks.remove(0);
+    // What prints before the first layer is no layer (docs/planner.md, "What a layer is"):
+    // the firmware's detector numbers Z rises from 1 before it knows the file's markers (a
+    // purge line; the i3 Mega's two at Z 0.3 and 0.2), then starts again at 1 with the first
+    // marker or the first layer proper — the number its layer pause and `M761 L<n>` use. The
+    // marks before that restart are the prelude: their time is the time before the first layer.
+    let prelude = prelude_marks(&marks);
+    let mut heights_of: Vec<Option<f64>> = (0..marks.len())
+        .map(|k| heights.get(k as u32 + 1).or(marks[k].z_mm))
+        .collect();
+    if prelude > 0 {
+        let t: f64 = marker_time.drain(1..=prelude).sum();
+        marker_time[0] += t;
+        marks.drain(..prelude);
+        heights_of.drain(..prelude);
     }
     let n = marks.len();
     let before_first_layer_s = marker_time.first().copied().unwrap_or(0.0);
     let layer_times = marks
         .iter()
+        .zip(&heights_of)
         .zip(marker_time.iter().skip(1))
-        .map(|((number, z), t)| LayerTime {
-            layer: *number,
+        .map(|((m, z), t)| LayerTime {
+            layer: m.number,
             z_mm: *z,
             time_s: *t,
         })

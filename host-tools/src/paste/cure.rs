@@ -1,9 +1,8 @@
 //! Cure check on time-based samples (SPEC §4): for every deposited sample, the nearest
-//! material *directly below it* — on the path deposited earlier, lower by at least
-//! `min_dz_mm`, horizontally within `radius_mm`, and on an earlier layer when the job has layer
-//! marks (so neighbouring samples of one tilted or helical layer never count as "below") — and
-//! the time since that material was laid. Spots below the cure time are violations. The same
-//! check is an FDM minimum-layer-time check.
+//! material *directly below it* — laid before it by **another pass** of the head, on the
+//! **layer one down** when the job has layer marks, lower by at least `min_dz_mm` and
+//! horizontally within `radius_mm` — and the time since that material was laid. Spots below
+//! the cure time are violations. The same check is an FDM minimum-layer-time check.
 //!
 //! The material below is the **deposited path**: the segments between consecutive depositing
 //! samples, not the samples themselves (at 40 mm/s and 100 ms the samples of the layer below
@@ -11,6 +10,21 @@
 //! of a layer). The point below is the XY-nearest point of a segment; its time is interpolated
 //! along the segment, `elapsed = t_i − (j − 1 + u) × period` for the point at fraction `u` of
 //! the segment from sample `j − 1` to `j` (the head moves along a segment within one period).
+//! A segment that crosses a layer change (the seam: the end of one layer, the rise, the
+//! start of the next) is material of both layers, as far as it is low enough (of the new
+//! one only when the head rose, travelled or waited before it). A sample where the head
+//! rises away from printing (its piece climbs by at least `min_dz_mm`, nothing deposited
+//! after it) lays the end of its layer on the way up and is not measured.
+//!
+//! **Another pass.** The head's way into the sample — the samples before it that stay within
+//! the radius, along at most π × radius of path — is the pass that lays the sample, not
+//! material below it: at a layer's first sample that is the end of the layer below arriving
+//! at the seam a moment before (before issue 33 it was measured against its own rising
+//! segment, 0.02 s, a false alarm at every layer's start). **One layer down**: with layer
+//! marks only material of the layer right below counts (before, a layer's last sample, at
+//! the seam, could be measured against the start of that layer two passes ago). Among points
+//! equally near (the seam, where a layer starts and ends), the most recent counts: it has had
+//! the least time.
 //!
 //! **Index**: every depositing segment is entered in each XY column (cell = radius) it
 //! crosses; columns are sorted by the segments' lowest z. A query looks at the 3×3 columns
@@ -213,12 +227,21 @@ impl Columns {
     }
 }
 
-/// The material below a sample: its time in sample periods (`j - 1 + u`) and the squared
-/// distance to it.
+/// The material below a sample: its time in sample periods (`j - 1 + u`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Found {
-    d2: f64,
     at: f64,
+}
+
+/// A point of the deposited path below a sample: its horizontal distance, height below,
+/// time (`j − 1 + u` periods) and how far its piece may lie from the head's true path (half
+/// the piece's length, at most the radius: a chord cuts a corner by less).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Candidate {
+    dxy: f64,
+    dz: f64,
+    at: f64,
+    slack: f64,
 }
 
 /// Runs the check.
@@ -228,12 +251,19 @@ pub fn check(samples: &[Sample], p: &CureParams) -> CureReport {
     let r2 = p.radius_mm * p.radius_mm;
     let below: Vec<Option<Found>> = (0..samples.len())
         .into_par_iter()
-        .map(|i| {
+        .map_init(Vec::new, |scratch, i| {
             let s = samples[i];
-            if !s.extruding || !s.pos.is_finite() {
+            if !s.extruding || !s.pos.is_finite() || leaves_printing(samples, i, p.min_dz_mm) {
                 return None;
             }
-            nearest_below(&cols, samples, i, r2, p.min_dz_mm, layered)
+            let q = Query {
+                i,
+                pass: pass_start(samples, i, p.radius_mm),
+                r2,
+                min_dz: p.min_dz_mm,
+                layered,
+            };
+            nearest_below(&cols, samples, &q, scratch)
         })
         .collect();
     let mut report = CureReport {
@@ -295,20 +325,74 @@ pub fn check(samples: &[Sample], p: &CureParams) -> CureReport {
     report
 }
 
-/// The nearest point of the deposited path below sample `i` (see the module docs).
+/// The first sample of the pass that lays sample `i`: the samples before it that stay
+/// within `radius` of it (XY), along at most π × `radius` of path (a path circling inside
+/// the radius longer than that comes round again: another pass).
+fn pass_start(samples: &[Sample], i: usize, radius: f64) -> usize {
+    let here = samples[i].pos.truncate();
+    let (r2, max_len) = (radius * radius, std::f64::consts::PI * radius);
+    let (mut m, mut len) = (i, 0.0);
+    while m > 0 {
+        let prev = samples[m - 1].pos.truncate();
+        let step = prev.distance(samples[m].pos.truncate());
+        if !(prev.distance_squared(here) <= r2 && len + step <= max_len) {
+            break;
+        }
+        len += step;
+        m -= 1;
+    }
+    m
+}
+
+/// Whether the piece ending at sample `j` lays material of layer `layer`: its own layer, and
+/// for a piece that crosses a layer change (the seam) also the layer it leaves when the head
+/// was printing that layer as it began (not after a rise, travel or wait: then the piece is
+/// the new layer's start only).
+fn of_layer(samples: &[Sample], j: usize, layer: u32) -> bool {
+    let (a, b) = (&samples[j - 1], &samples[j]);
+    b.layer == layer || (a.layer == layer && a.extruding)
+}
+
+/// True when sample `i` is where the head rises away from printing: its piece climbs by at
+/// least `min_dz` and nothing is deposited after it (a rise, travel or wait follows). That
+/// piece lays the end of the layer on the way up; it is not measured.
+fn leaves_printing(samples: &[Sample], i: usize, min_dz: f64) -> bool {
+    i > 0
+        && samples[i].pos.z - samples[i - 1].pos.z >= min_dz.max(1e-9)
+        && !samples.get(i + 1).is_some_and(|n| n.extruding)
+}
+
+/// What [`nearest_below`] looks for.
+struct Query {
+    /// The sample.
+    i: usize,
+    /// The first sample of the pass that lays it ([`pass_start`]).
+    pass: usize,
+    /// The radius, squared, mm².
+    r2: f64,
+    /// Least height below, mm.
+    min_dz: f64,
+    /// The job has layer marks: only the layer right below counts.
+    layered: bool,
+}
+
+/// The material right below sample `q.i` (see the module docs): of the points of earlier
+/// passes within the radius, the horizontally nearest — and among those that may be as near
+/// (within their piece's slack: the samples do not show the path between them), the most
+/// recent. `scratch` is reused between queries.
 fn nearest_below(
     cols: &Columns,
     samples: &[Sample],
-    i: usize,
-    r2: f64,
-    min_dz: f64,
-    layered: bool,
+    q: &Query,
+    scratch: &mut Vec<Candidate>,
 ) -> Option<Found> {
+    let i = q.i;
     let s = samples[i].pos;
-    let zmax = s.z - min_dz;
+    let zmax = s.z - q.min_dz;
+    let radius = q.r2.sqrt();
     let g = (s.truncate() - cols.origin) / cols.cell;
     let (cx, cy) = (g.x.floor() as i64, g.y.floor() as i64);
-    let mut best: Option<Found> = None;
+    scratch.clear();
     for y in cy - 1..=cy + 1 {
         if y < 0 || y >= cols.ny as i64 {
             continue;
@@ -322,19 +406,19 @@ fn nearest_below(
             let zs = &cols.zs[a..b];
             // Entries [a, a + k) start low enough.
             let k = zs.partition_point(|&z| z <= zmax);
+            // The shallowest point found in this column: material more than a radius
+            // deeper than it is not what the sample rests on.
+            let mut top_dz = f64::INFINITY;
             for t in (0..k).rev() {
                 // Lowest possible height difference of this and every later entry.
-                let dz_min = s.z - zs[t] - cols.max_rise;
-                if let Some(bf) = best {
-                    if dz_min > 0.0 && dz_min * dz_min > bf.d2 {
-                        break;
-                    }
+                if s.z - zs[t] - cols.max_rise > top_dz + radius {
+                    break;
                 }
                 let j = cols.order[a + t] as usize;
-                // A piece that crosses a layer change belongs to the layer it leaves (it
-                // lays the end of that layer: the seam).
-                let layer = samples[j].layer.min(samples[j - 1].layer);
-                if j > i || (layered && layer >= samples[i].layer) {
+                // Only pieces of earlier passes, and with layer marks only those of the layer
+                // right below. A piece that crosses a layer change (the seam) belongs to both
+                // layers: it lays the end of the one and the start of the other.
+                if j >= q.pass || (q.layered && !of_layer(samples, j, samples[i].layer - 1)) {
                     continue;
                 }
                 let (p0, p1) = (samples[j - 1].pos, samples[j].pos);
@@ -354,182 +438,31 @@ fn nearest_below(
                         continue;
                     }
                 }
-                let q = p0.lerp(p1, u);
+                let p = p0.lerp(p1, u);
                 // Laid before the sample (the piece reaching sample i itself only in part).
-                if q.z > zmax + 1e-12 || (j - 1) as f64 + u >= i as f64 {
+                if p.z > zmax + 1e-12 || (j - 1) as f64 + u >= i as f64 {
                     continue;
                 }
-                let dxy2 = (q.truncate() - s.truncate()).length_squared();
-                if dxy2 > r2 {
+                let dxy2 = (p.truncate() - s.truncate()).length_squared();
+                if dxy2 > q.r2 {
                     continue;
                 }
-                let dz = s.z - q.z;
-                let f = Found {
-                    d2: dxy2 + dz * dz,
+                top_dz = top_dz.min(s.z - p.z);
+                scratch.push(Candidate {
+                    dxy: dxy2.sqrt(),
+                    dz: s.z - p.z,
                     at: (j - 1) as f64 + u,
-                };
-                // Ties go to the earlier time: a point where the head stood still (between
-                // two pieces) was laid when the head arrived, not when it left.
-                if best.is_none_or(|bf| f.d2 < bf.d2 || (f.d2 == bf.d2 && f.at < bf.at)) {
-                    best = Some(f);
-                }
+                    slack: (l2.sqrt() / 2.0).min(radius),
+                });
             }
         }
     }
-    best
-}
-
-/// Text summary (and every violation when `list` is set).
-pub fn summary(r: &CureReport, list: bool) -> String {
-    let mut out = String::new();
-    if list {
-        for v in &r.violations {
-            out.push_str(&format!(
-                "violation: layer {} at ({:.2}, {:.2}, {:.2}) t={:.1} s: {:.1} s after the material below (needs {:.1} s)\n",
-                v.layer,
-                v.x,
-                v.y,
-                v.z,
-                v.index as f64 * r.period_s,
-                v.elapsed_s,
-                r.cure_s
-            ));
-        }
-    }
-    out.push_str(&format!(
-        "{} samples ({} deposited, {} on material below); {} spots below the cure time of {:.1} s; shortest elapsed {}\n",
-        r.samples,
-        r.deposited,
-        r.supported,
-        r.violation_count,
-        r.cure_s,
-        r.min_elapsed_s
-            .map_or("n/a (nothing is laid on earlier material)".to_string(), |m| format!("{m:.1} s"))
-    ));
-    let bad: Vec<String> = r
-        .layers
+    let nearest = scratch.iter().map(|c| c.dxy).reduce(f64::min)?;
+    // Of the points that may be as near as the nearest, the most recent: it has had the
+    // least time (at a seam, where the layer below starts and ends, the end).
+    scratch
         .iter()
-        .filter(|l| l.violations > 0)
-        .map(|l| {
-            format!(
-                "{} ({} spots, min {:.1} s)",
-                l.layer,
-                l.violations,
-                l.min_elapsed_s.unwrap_or(0.0)
-            )
-        })
-        .collect();
-    if !bad.is_empty() {
-        out.push_str(&format!("layers with violations: {}\n", bad.join(", ")));
-    }
-    out
-}
-
-/// Heat map (SVG): one row per layer (bottom layer at the bottom), columns the progress
-/// through the layer in 200 bins; colour the shortest elapsed time in the bin relative to the
-/// cure time (red below it, yellow at it, green at 3× and beyond); grey where nothing is below.
-pub fn heat_map_svg(samples: &[Sample], r: &CureReport) -> String {
-    const BINS: usize = 200;
-    let (w, row_h) = (800.0, 6.0f64);
-    // Indices of deposited samples per layer.
-    let mut per_layer: Vec<Vec<usize>> = Vec::new();
-    for (i, s) in samples.iter().enumerate() {
-        if s.extruding {
-            let l = s.layer as usize;
-            if per_layer.len() <= l {
-                per_layer.resize(l + 1, Vec::new());
-            }
-            per_layer[l].push(i);
-        }
-    }
-    let rows: Vec<(usize, &Vec<usize>)> = per_layer
-        .iter()
-        .enumerate()
-        .filter(|(_, v)| !v.is_empty())
-        .collect();
-    let row_h = if rows.len() as f64 * row_h > 900.0 {
-        (900.0 / rows.len().max(1) as f64).max(0.5)
-    } else {
-        row_h
-    };
-    let h = rows.len() as f64 * row_h;
-    let mut svg = format!(
-        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{}\" height=\"{:.0}\" font-family=\"sans-serif\" font-size=\"12\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n",
-        w + 160.0,
-        h + 70.0
-    );
-    svg.push_str(&format!(
-        "<text x=\"60\" y=\"16\">elapsed time over the material below, per layer (cure {:.1} s; {} violations)</text>\n",
-        r.cure_s, r.violation_count
-    ));
-    for (row, (layer, idx)) in rows.iter().enumerate() {
-        let y = 30.0 + h - (row as f64 + 1.0) * row_h;
-        let mut bins: Vec<Option<f64>> = vec![None; BINS];
-        let mut seen = [false; BINS];
-        for (k, &i) in idx.iter().enumerate() {
-            let b = k * BINS / idx.len();
-            seen[b] = true;
-            if let Some(e) = r.elapsed_s[i] {
-                bins[b] = Some(bins[b].map_or(e, |m: f64| m.min(e)));
-            }
-        }
-        for b in 0..BINS {
-            if !seen[b] {
-                continue;
-            }
-            let color = match bins[b] {
-                None => "#d0d0d0".to_string(),
-                Some(e) => heat_color(e / r.cure_s.max(1e-9)),
-            };
-            svg.push_str(&format!(
-                "<rect x=\"{:.2}\" y=\"{:.2}\" width=\"{:.2}\" height=\"{:.2}\" fill=\"{}\"/>\n",
-                60.0 + b as f64 * w / BINS as f64,
-                y,
-                w / BINS as f64 + 0.05,
-                row_h + 0.05,
-                color
-            ));
-        }
-        if row % (20.0 / row_h).ceil().max(1.0) as usize == 0 {
-            svg.push_str(&format!(
-                "<text x=\"4\" y=\"{:.1}\">L{}</text>\n",
-                y + row_h,
-                layer
-            ));
-        }
-    }
-    // Legend.
-    let ly = h + 45.0;
-    for k in 0..=30 {
-        let ratio = k as f64 / 10.0;
-        svg.push_str(&format!(
-            "<rect x=\"{:.1}\" y=\"{:.1}\" width=\"10\" height=\"10\" fill=\"{}\"/>\n",
-            60.0 + k as f64 * 10.0,
-            ly,
-            heat_color(ratio)
-        ));
-    }
-    svg.push_str(&format!(
-        "<text x=\"60\" y=\"{:.1}\">0</text><text x=\"155\" y=\"{:.1}\">cure</text><text x=\"355\" y=\"{:.1}\">3× cure</text><rect x=\"420\" y=\"{:.1}\" width=\"10\" height=\"10\" fill=\"#d0d0d0\"/><text x=\"435\" y=\"{:.1}\">nothing below</text>\n</svg>\n",
-        ly + 24.0, ly + 24.0, ly + 24.0, ly, ly + 10.0
-    ));
-    svg
-}
-
-/// Red below 1, red→yellow→green from 1 to 3.
-fn heat_color(ratio: f64) -> String {
-    if ratio < 1.0 {
-        let k = (ratio.max(0.0) * 120.0) as u8;
-        return format!("rgb({},{},{})", 200 + k / 3, k / 3, k / 3);
-    }
-    let t = ((ratio - 1.0) / 2.0).clamp(0.0, 1.0);
-    let (r, g) = if t < 0.5 {
-        (255.0, 180.0 + 150.0 * t)
-    } else {
-        (
-            255.0 * (1.0 - (t - 0.5) * 2.0) + 60.0 * (t - 0.5) * 2.0,
-            255.0 - 75.0 * (t - 0.5) * 2.0,
-        )
-    };
-    format!("rgb({:.0},{:.0},60)", r.min(255.0), g.min(255.0))
+        .filter(|c| c.dxy - c.slack <= nearest + 1e-9)
+        .max_by(|a, b| a.at.total_cmp(&b.at).then(b.dz.total_cmp(&a.dz)))
+        .map(|c| Found { at: c.at })
 }

@@ -3,5 +3,7 @@
 
 mod bins;
 pub mod cure;
+pub mod cure_report;
 pub mod grow;
 pub mod timebased;
+pub mod window;

@@ -37,9 +37,9 @@
 //! deposit material. The file is ordinary G-code that any firmware runs at the right pace,
 //! and `cure-check` reads it back sample by sample (with the same reader as `stats`).
 
-use crate::design::motion::{MoveKind, Trajectory};
-use crate::job::read::{default_reader, Event, GcodeReader};
-use firmware::gcode::HeatCommand;
+use crate::design::motion::{prelude_marks, MoveKind, PrintHeights, Trajectory};
+use crate::gcode::read::{default_reader, Event, GcodeReader, LayerSource};
+use crate::paste::window::Window;
 use glam::DVec3;
 use std::fmt::Write as _;
 
@@ -82,30 +82,6 @@ pub trait TimedPath {
     }
 }
 
-/// The design's part of a job, from the start of its first printing move to the end of its
-/// last one (s): a start code's homing, heating and purge line come before it, an end code's
-/// retract, lift and park after it. When the job has explicit layer marks (slicer comments,
-/// our markers, `M73 L`), its first printing move after the first such mark starts it, so a
-/// purge line before the marks is left out; a job without marks starts at its first printing
-/// move (a purge line there counts as the design's). `None` when nothing prints.
-pub fn design_window(t: &Trajectory) -> Option<(f64, f64)> {
-    use crate::job::read::LayerSource;
-    let first_mark = t
-        .layers
-        .iter()
-        .find(|m| {
-            matches!(
-                m.source,
-                LayerSource::Comment | LayerSource::Command | LayerSource::Turn
-            )
-        })
-        .map_or(0, |m| m.line);
-    let prints = || t.segments.iter().filter(|s| s.kind == MoveKind::Print);
-    let first = prints().find(|s| s.line >= first_mark)?;
-    let last = prints().next_back()?;
-    Some((first.t_start_s, last.t_end_s().max(first.t_start_s)))
-}
-
 impl TimedPath for Trajectory {
     fn duration_s(&self) -> f64 {
         self.duration_s
@@ -127,23 +103,38 @@ impl TimedPath for Trajectory {
         let span = (t1_s - t0_s).max(0.0);
         let n = (span / period_s).ceil() as usize;
         let mut idx = self.segment_at(t0_s).unwrap_or(0);
+        // A sample belongs to the layer the head printed last: a layer starts with its first
+        // printing move, not with the rise, travel or wait before it (the time-based file
+        // places its markers there, `timed_lines`).
+        let print_layer = |i: usize| {
+            let s = &self.segments[i];
+            (s.kind == MoveKind::Print).then_some(s.layer)
+        };
+        let mut layer = (0..=idx).rev().find_map(print_layer).unwrap_or(0);
         let mut e0 = None;
         let mut out = Vec::with_capacity(n + 1);
         for k in 0..=n {
             let t = (t0_s + k as f64 * period_s).min(t1_s.max(t0_s));
             while idx + 1 < self.segments.len() && self.segments[idx + 1].t_start_s <= t {
                 idx += 1;
+                layer = print_layer(idx).unwrap_or(layer);
             }
             let seg = &self.segments[idx];
             let p = seg.position_at(t);
             let e = e_at(idx, p);
             let e0 = *e0.get_or_insert(e);
-            let moving = t >= seg.t_start_s && t <= seg.t_end_s() + 1e-9;
+            let pos = DVec3::new(p[0], p[1], p[2]);
+            // Deposits when E grew while the head moved since the sample before (as the file
+            // is read back): the interval that ends a layer's printing in a rise deposits the
+            // end of that layer.
+            let extruding = out.last().is_some_and(|prev: &Sample| {
+                e - e0 > prev.e_mm + 1e-9 && (pos - prev.pos).length_squared() > 1e-18
+            });
             out.push(Sample {
-                pos: DVec3::new(p[0], p[1], p[2]),
+                pos,
                 e_mm: e - e0,
-                extruding: k > 0 && moving && seg.kind == MoveKind::Print,
-                layer: seg.layer,
+                extruding,
+                layer,
             });
         }
         out
@@ -165,8 +156,74 @@ pub fn approach(from: Option<DVec3>, to: DVec3, travel_mm_s: f64, z_mm_s: f64) -
     )
 }
 
-/// Writes samples as time-based G-code (see the module docs for the format).
-pub fn write_timebased(samples: &[Sample], period_s: f64, source: &str) -> String {
+/// A line of the source kept in the time-based file (a state change, a layer marker) with
+/// the time it takes effect.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TimedLine {
+    /// Time, s from the start of the source job.
+    pub t_s: f64,
+    /// The text (one line or more, without the final line break).
+    pub text: String,
+}
+
+/// The lines the time-based file carries besides its samples: every state line of the
+/// design's window, and a `;LAYER_CHANGE` / `;Z:` marker (the height the layer prints at)
+/// where each of the source's layers starts, in the source's order.
+pub fn timed_lines(traj: &Trajectory, w: &Window) -> Vec<TimedLine> {
+    let heights = PrintHeights::of(&traj.segments);
+    let mut out: Vec<(u32, TimedLine)> = w
+        .state
+        .iter()
+        .map(|s| {
+            (
+                s.line,
+                TimedLine {
+                    t_s: s.t_s,
+                    text: s.text.clone(),
+                },
+            )
+        })
+        .collect();
+    // Each layer's first printing move: where its marker goes (after the rise, travel or
+    // wait that lead to it, so the samples up to there are the layer below's).
+    let mut first_print: Vec<Option<f64>> = vec![None; traj.layers.len() + 1];
+    for seg in traj.segments.iter().filter(|s| s.kind == MoveKind::Print) {
+        if let Some(t @ None) = first_print.get_mut(seg.layer as usize) {
+            *t = Some(seg.t_start_s);
+        }
+    }
+    // Marks of a prelude (what prints before the first layer, as the firmware counts it) are
+    // no layers: the time-based file has no marker for them either.
+    let prelude = prelude_marks(&traj.layers);
+    for (k, m) in traj.layers.iter().enumerate().skip(prelude) {
+        if m.source == LayerSource::End || m.line < w.lines.0 || m.line > w.lines.1 {
+            continue;
+        }
+        // Segment layer k + 1 starts at mark k.
+        let z = heights.get(k as u32 + 1).or(m.z_mm);
+        let t_s = first_print[k + 1]
+            .unwrap_or_else(|| w.time_of_line(m.line))
+            .clamp(w.t0_s, w.t1_s);
+        let text = match z {
+            Some(z) => format!(";LAYER_CHANGE\n;Z:{}", fmt_num(z, 3)),
+            None => ";LAYER_CHANGE".to_string(),
+        };
+        out.push((m.line, TimedLine { t_s, text }));
+    }
+    out.sort_by(|a, b| a.1.t_s.total_cmp(&b.1.t_s).then(a.0.cmp(&b.0)));
+    out.into_iter().map(|(_, l)| l).collect()
+}
+
+/// Writes samples as time-based G-code (see the module docs for the format): sample `k` is
+/// the head at `t0_s + k × period_s`, and each of `lines` (sorted by time) goes before the
+/// first sample at or after its time.
+pub fn write_timebased(
+    samples: &[Sample],
+    period_s: f64,
+    source: &str,
+    t0_s: f64,
+    lines: &[TimedLine],
+) -> String {
     let mut out = String::with_capacity(samples.len() * 40 + 512);
     let period_ms = period_s * 1000.0;
     let _ = writeln!(
@@ -181,12 +238,14 @@ pub fn write_timebased(samples: &[Sample], period_s: f64, source: &str) -> Strin
     out.push_str(BEGIN_TAG);
     out.push_str("\nG90\nM82\nG92 E0\n");
     let mut prev: Option<Sample> = None;
-    let mut last_layer = 0u32;
     let mut last_f = f64::NAN;
-    for s in samples {
-        if s.layer != last_layer {
-            last_layer = s.layer;
-            let _ = writeln!(out, ";LAYER_CHANGE\n;Z:{}", fmt_num(s.pos.z, 3));
+    let mut next_line = lines.iter().peekable();
+    for (k, s) in samples.iter().enumerate() {
+        // The source's lines that take effect before this sample's time, in their order.
+        let t_k = t0_s + k as f64 * period_s;
+        while let Some(l) = next_line.next_if(|l| l.t_s <= t_k + 1e-9) {
+            out.push_str(&l.text);
+            out.push('\n');
         }
         let Some(p) = prev else {
             let _ = writeln!(
@@ -235,6 +294,10 @@ pub fn write_timebased(samples: &[Sample], period_s: f64, source: &str) -> Strin
         out.push('\n');
         prev = Some(*s);
     }
+    for l in next_line {
+        out.push_str(&l.text);
+        out.push('\n');
+    }
     out.push_str(END_TAG);
     out.push('\n');
     out
@@ -260,33 +323,6 @@ pub fn with_start_end(timebased: &str, start: &str, end: &str) -> String {
         out.push('\n');
     }
     out
-}
-
-/// The first hot-end and bed targets a G-code file sets (`M104`/`M109`, `M140`/`M190` `S`),
-/// read with the firmware's parser; `None` when the file sets none.
-pub fn first_temperatures(gcode: &[u8]) -> (Option<f64>, Option<f64>) {
-    use firmware::gcode::{parse_line, Command, Heater};
-    let (mut hotend, mut bed) = (None, None);
-    for line in gcode.split(|&b| b == b'\n') {
-        if let Ok(firmware::gcode::Line {
-            command:
-                Some(Command::Heat(HeatCommand::SetTemperature {
-                    heater, s: Some(c), ..
-                })),
-            ..
-        }) = parse_line(line)
-        {
-            match heater {
-                Heater::Hotend if hotend.is_none() => hotend = Some(f64::from(c)),
-                Heater::Bed if bed.is_none() => bed = Some(f64::from(c)),
-                _ => {}
-            }
-            if hotend.is_some() && bed.is_some() {
-                break;
-            }
-        }
-    }
-    (hotend, bed)
 }
 
 /// The sample section of a time-based file: between the begin and end tags when present.

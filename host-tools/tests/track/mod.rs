@@ -1,5 +1,5 @@
 //! A G-code reader written for the tests, independent of the code under test (neither the
-//! firmware's parser nor `job::read`): absolute/relative XYZ and E, `G92`, `G28`, fan and
+//! firmware's parser nor `gcode::read`): absolute/relative XYZ and E, `G92`, `G28`, fan and
 //! temperature commands, and feed. Enough for the files host-tools writes.
 
 #![allow(dead_code)]

@@ -34,42 +34,36 @@ impl Below<'_> {
         }
     }
 
-    /// XY distance from `q` to the printed path through sample `k` (the pieces ending at
-    /// `k` and, when printed and joined, at `k + 1`).
-    fn side_mm<P: Printed>(&self, tree: &P, k: usize, q: DVec3) -> f64 {
+    /// Distances from `q` to the printed path through sample `k` (the pieces ending at `k`
+    /// and, when printed and joined, at `k + 1`): `(side, thickness)` — in XY (the widening's
+    /// offset) and in 3D (the bead's thickness over the string it rests on; not the drop to
+    /// the sample combined with the side to the path: on a wavy layer below, those are two
+    /// different places, the spacer's rings measured 0.32 mm that way, 0.42 mm to the path).
+    /// One pass over the same pieces for both.
+    fn side_and_thickness<P: Printed>(&self, tree: &P, k: usize, q: DVec3) -> (f64, f64) {
         let p = tree.point(k);
-        let mut d = seg_dist_xy(q, self.from_xy.get(k).copied().unwrap_or([p[0], p[1]]), p);
+        let pv = DVec3::from_array(p);
+        let from = self.from_xy.get(k).copied().unwrap_or([p[0], p[1]]);
+        let mut side = seg_dist_xy(q, from, p);
+        // The piece ending at `k` starts at sample `k - 1` unless `k` is a line's first point.
+        let prev = k.checked_sub(1).map(|i| tree.point(i));
+        let mut thick = match prev {
+            Some(a) if [a[0], a[1]] == from => seg_dist(q, DVec3::from_array(a), pv),
+            _ => q.distance(pv),
+        };
         if let Some(next_from) = self.from_xy.get(k + 1) {
             if *next_from == [p[0], p[1]] && k + 1 < tree.printed() {
-                d = d.min(seg_dist_xy(q, [p[0], p[1]], tree.point(k + 1)));
+                let n = tree.point(k + 1);
+                side = side.min(seg_dist_xy(q, [p[0], p[1]], n));
+                thick = thick.min(seg_dist(q, pv, DVec3::from_array(n)));
             }
         }
-        d
+        (side, thick)
     }
 
-    /// Distance from `q` to the printed path through sample `k` (as [`Below::side_mm`], in
-    /// 3D): the bead's thickness over the string it rests on. Not the drop to the sample
-    /// combined with the side to the path: on a wavy layer below, those are two different
-    /// places (the spacer's rings measured 0.32 mm that way, 0.42 mm to the path).
+    /// [`Below::side_and_thickness`]'s thickness alone.
     fn thickness_mm<P: Printed>(&self, tree: &P, k: usize, q: DVec3) -> f64 {
-        let p = DVec3::from_array(tree.point(k));
-        let joined = |j: usize| {
-            // The piece ending at sample `j` starts at sample `j - 1` unless it is a line's
-            // first point.
-            let prev = j.checked_sub(1).map(|i| tree.point(i));
-            match (prev, self.from_xy.get(j)) {
-                (Some(a), Some(f)) if [a[0], a[1]] == *f => Some(DVec3::from_array(a)),
-                _ => None,
-            }
-        };
-        let mut d = match joined(k) {
-            Some(a) => seg_dist(q, a, p),
-            None => q.distance(p),
-        };
-        if k + 1 < tree.printed() && joined(k + 1).is_some() {
-            d = d.min(seg_dist(q, p, DVec3::from_array(tree.point(k + 1))));
-        }
-        d
+        self.side_and_thickness(tree, k, q).1
     }
 
     /// Flags a line laid `height` mm thick whose width is outside the sane range.
@@ -189,13 +183,12 @@ pub(super) fn support_check<P: Printed>(
         Some(_) if !end => true,
         Some(k) => {
             let drop = q.z - tree.point(k)[2];
-            let side = below.side_mm(tree, k, q);
+            let (side, t) = below.side_and_thickness(tree, k, q);
             let width = cross / drop.max(0.05);
             // The bead's thickness is its distance to the string it rests on: the drop on a
             // vertical wall, more on a leaning one (a dish's strings lie nearly side by side);
             // not judged against the line's own trail.
             if !below.is_trail(k, qi) {
-                let t = below.thickness_mm(tree, k, q);
                 below.width_check(o, i, q, cross, t, false, rep);
             }
             if side > 0.5 * width + 1e-9 {
@@ -227,19 +220,33 @@ pub(super) fn travel_check<P: Printed>(
     }
     let n = ((len - 2.0 * skip) / o.sample_mm).ceil() as usize;
     let r = o.nozzle_radius_mm;
+    // Material within the clearance of the nozzle's height is stringing; material standing
+    // higher than that is in the nozzle's way: a collision.
+    let mut grazes: Option<DVec3> = None;
     for k in 0..=n.min(100_000) {
         let d = skip + (len - 2.0 * skip) * k as f64 / n.max(1) as f64;
         let p = from.lerp(to, d / len);
-        if tree.any_at_or_above(
-            [p.x - r, p.y - r],
-            [p.x + r, p.y + r],
-            p.z - o.travel_clearance_mm,
-        ) {
-            rep.add(o.max_listed, IssueKind::TravelCrossesPrint, i, p, || format!(
-                        "travel from ({:.2}, {:.2}) to ({:.2}, {:.2}) at z {:.2} passes over printed material (stringing)",
-                        from.x, from.y, to.x, to.y, p.z
-                    ));
+        let (lo, hi) = ([p.x - r, p.y - r], [p.x + r, p.y + r]);
+        if !tree.any_at_or_above(lo, hi, p.z - o.travel_clearance_mm) {
+            continue;
+        }
+        if tree.any_at_or_above(lo, hi, p.z + o.travel_clearance_mm) {
+            rep.add(o.max_listed, IssueKind::TravelHitsPrint, i, p, || {
+                format!(
+                "travel from ({:.2}, {:.2}, {:.2}) to ({:.2}, {:.2}, {:.2}) drives the nozzle into \
+                 printed material standing above it at ({:.2}, {:.2}, {:.2}): use travel_to (it \
+                 lifts over what is printed) or print in another order",
+                from.x, from.y, from.z, to.x, to.y, to.z, p.x, p.y, p.z
+            )
+            });
             return;
         }
+        grazes.get_or_insert(p);
+    }
+    if let Some(p) = grazes {
+        rep.add(o.max_listed, IssueKind::TravelCrossesPrint, i, p, || format!(
+            "travel from ({:.2}, {:.2}) to ({:.2}, {:.2}) at z {:.2} passes over printed material (stringing)",
+            from.x, from.y, to.x, to.y, p.z
+        ));
     }
 }

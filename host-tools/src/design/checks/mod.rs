@@ -9,7 +9,8 @@
 //!   string's width (width ≈ cross-section ÷ vertical gap), so the wall cannot stack (the
 //!   paper's collapsing cylinder): an overhang is flagged from `atan(w / 2h)` from the
 //!   vertical — 45° for lines twice as wide as high;
-//! - **travel crosses printed material** at or above the nozzle's height;
+//! - **travel crosses printed material** at the nozzle's height (stringing), and **travel hits
+//!   printed material** standing above the nozzle (a collision: an error);
 //! - **flow above the profile's maximum** (cross-section × speed);
 //! - **line width** (cross-section ÷ the bead's thickness: its distance to the string it
 //!   rests on, or its height above the bed) outside `min_width_ratio..=max_width_ratio` × the
@@ -37,7 +38,7 @@ mod machine;
 
 pub use machine::MIN_EXTRUDE_C;
 
-use crate::design::model::{Model, Step, Str};
+use crate::design::model::{Model, Step};
 use crate::design::profile::Profile;
 use below::{bed_width_check, support_check, travel_check, Below, RUN_GAP_MM};
 use glam::DVec3;
@@ -110,10 +111,13 @@ pub enum IssueKind {
     ColdExtrusion,
     /// Raw G-code homes the axes after printing started.
     HomesMidPrint,
+    /// A travel drives the nozzle into printed material standing above it (a collision, not
+    /// stringing): an error, `compile` writes nothing.
+    TravelHitsPrint,
 }
 
 /// Number of issue kinds.
-const KINDS: usize = 8;
+const KINDS: usize = 9;
 
 impl IssueKind {
     /// Short name.
@@ -127,7 +131,14 @@ impl IssueKind {
             IssueKind::LineWidth => "line-width",
             IssueKind::ColdExtrusion => "cold-extrusion",
             IssueKind::HomesMidPrint => "homes-mid-print",
+            IssueKind::TravelHitsPrint => "travel-hits-print",
         }
+    }
+
+    /// True for issues that make the G-code destroy the print or the printer (refused even
+    /// without `--strict`).
+    pub fn is_error(&self) -> bool {
+        matches!(self, IssueKind::TravelHitsPrint)
     }
 }
 
@@ -167,6 +178,11 @@ impl CheckReport {
     /// Count of one kind.
     pub fn count(&self, kind: IssueKind) -> usize {
         self.counts[kind as usize]
+    }
+
+    /// Number of issues that are errors ([`IssueKind::is_error`]).
+    pub fn errors(&self) -> usize {
+        self.counts[IssueKind::TravelHitsPrint as usize]
     }
 
     /// Counts an issue of `kind` and lists it while fewer than `max` of its kind are: the
@@ -245,12 +261,23 @@ impl Printed for Grid {
     }
 }
 
-/// Number of sample points of an extruded string: one every `sample_mm` (at least one, at
-/// most 10,000), the last at its end.
-fn sample_count(s: &Str, o: &CheckOptions) -> usize {
+/// `1 / sample_mm` when that product is exactly the quotient (a power of two, as the default
+/// 0.5 mm): the count is then the same without a division per string.
+fn exact_inverse(v: f64) -> Option<f64> {
+    let inv = 1.0 / v;
+    let power_of_two = v.is_normal() && v.to_bits() & ((1u64 << 52) - 1) == 0;
+    (power_of_two && inv.is_normal()).then_some(inv)
+}
+
+/// Number of sample points of an extruded string `len_mm` long: one every `sample_mm` (at
+/// least one, at most 10,000), the last at its end. `inv`: [`exact_inverse`] of `sample_mm`.
+fn sample_count(len_mm: f64, o: &CheckOptions, inv: Option<f64>) -> usize {
     // ceil(x) without the libm call (x86-64 without SSE4.1 has no rounding instruction):
     // the same count for every x, NaN and infinities included.
-    let x = s.len_mm() / o.sample_mm;
+    let x = match inv {
+        Some(inv) => len_mm * inv,
+        None => len_mm / o.sample_mm,
+    };
     let t = x as usize;
     let n = if (t as f64) < x {
         t.saturating_add(1)
@@ -293,6 +320,7 @@ pub(crate) fn check_with<P: Printed>(
     let mut min_z = f64::INFINITY;
     let mut lower = |z: f64| min_z = if min_z < z { min_z } else { z }; // as `BBox::add`
     let mut last_end: Option<DVec3> = None;
+    let inv_sample = exact_inverse(o.sample_mm);
     for step in &model.steps {
         match step {
             Step::String(s) => {
@@ -309,12 +337,12 @@ pub(crate) fn check_with<P: Printed>(
                         path_mm += RUN_GAP_MM;
                         along_mm.push(path_mm);
                     }
-                    let n = sample_count(s, o);
+                    let len = s.len_mm();
+                    let n = sample_count(len, o, inv_sample);
                     let first = points.len();
                     points.extend(
                         (1..=n).map(|k| s.start.lerp(s.end, k as f64 / n as f64).to_array()),
                     );
-                    let len = s.len_mm();
                     along_mm.extend((1..=n).map(|k| path_mm + len * k as f64 / n as f64));
                     path_mm += len;
                     from_xy.push([s.start.x, s.start.y]);

@@ -24,7 +24,9 @@ mod trajectory;
 
 pub use planner::{PlanMove, Planner, OVERLAP, WINDOW};
 pub use segment::Segment;
-pub use trajectory::{plan_gcode, plan_gcode_with, plan_marks, LayerMark, PlanTotals, Trajectory};
+pub use trajectory::{
+    plan_gcode, plan_gcode_with, plan_marks, prelude_marks, LayerMark, PlanTotals, Trajectory,
+};
 
 use crate::design::profile::Profile;
 
@@ -67,6 +69,62 @@ impl MotionLimits {
             accel_retract_mm_s2: l.accel_retract_mm_s2,
             junction_deviation_mm: l.junction_deviation_mm,
         }
+    }
+}
+
+/// How far a layer's first extruding move may climb and still start at the layer's height,
+/// mm: a helix turn's first string climbs a fraction of its pitch; a move that climbs more
+/// comes onto the layer from below (a time-based file's sample chord out of the rise).
+pub const LAYER_CLIMB_MM: f64 = 0.05;
+
+/// The height a layer prints at, from its first extruding move (start and end Z): where it
+/// starts, or where it ends when it comes onto the layer — down from above (a time-based
+/// sample chord out of a lift's descent) or climbing more than [`LAYER_CLIMB_MM`].
+pub fn layer_height_of(start_z_mm: f64, end_z_mm: f64) -> f64 {
+    if end_z_mm < start_z_mm - 1e-6 || end_z_mm - start_z_mm > LAYER_CLIMB_MM {
+        end_z_mm
+    } else {
+        start_z_mm
+    }
+}
+
+/// The height each layer prints at ([`layer_height_of`] its first extruding move) — never a
+/// travel's lift, whatever Z a marker or the first move after it names. The one notion of a
+/// layer's height for `stats`, the 3D page, `timebased` and the cure check (the design's own
+/// `;Z:` is written the same way). Layer index as [`Segment::layer`] (0 before the first mark).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PrintHeights {
+    z_mm: Vec<Option<f64>>,
+}
+
+impl PrintHeights {
+    /// Heights of every layer of `segments`.
+    pub fn of(segments: &[Segment]) -> PrintHeights {
+        let mut h = PrintHeights::default();
+        for s in segments {
+            h.note(s);
+        }
+        h
+    }
+
+    /// Notes one segment (in job order).
+    pub fn note(&mut self, s: &Segment) {
+        if s.kind != MoveKind::Print {
+            return;
+        }
+        let l = s.layer as usize;
+        if self.z_mm.len() <= l {
+            self.z_mm.resize(l + 1, None);
+        }
+        if self.z_mm[l].is_none() {
+            // To 0.1 µm: the reader's f32 noise (0.4000000059604645) is not a height.
+            self.z_mm[l] = Some((layer_height_of(s.start[2], s.end[2]) * 1e4).round() / 1e4);
+        }
+    }
+
+    /// The height layer index `layer` prints at; `None` when nothing in it prints.
+    pub fn get(&self, layer: u32) -> Option<f64> {
+        self.z_mm.get(layer as usize).copied().flatten()
     }
 }
 

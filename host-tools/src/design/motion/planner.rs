@@ -2,7 +2,7 @@
 //! over a window of blocks replanned in chunks, and the trapezoid of each block.
 
 use super::{MotionLimits, MoveKind, Segment};
-use crate::job::read::Pos4;
+use crate::gcode::read::Pos4;
 use std::collections::VecDeque;
 
 /// Blocks planned together.

@@ -2,7 +2,7 @@
 //! the head is at any moment of it.
 
 use super::MoveKind;
-use crate::job::read::Pos4;
+use crate::gcode::read::Pos4;
 
 /// One planned move: where, when, and its trapezoidal speed profile. Distances are along the
 /// move's path length (XYZ length, or |ΔE| for extruder-only moves).

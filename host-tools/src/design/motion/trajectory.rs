@@ -2,7 +2,7 @@
 //! time-parameterised trajectory that can be queried and sampled.
 
 use super::{MotionLimits, PlanMove, Planner, Segment};
-use crate::job::read::{default_reader, Event, GcodeReader, LayerSource, Pos4, ReadError};
+use crate::gcode::read::{default_reader, Event, GcodeReader, LayerSource, Pos4, ReadError};
 
 /// Drives a planner from G-code: reads `input` with the default reader and calls `out` with
 /// every segment, `layer` with every layer start (the firmware's layer number, height if known,
@@ -18,7 +18,7 @@ pub fn plan_gcode(
 
 /// [`plan_gcode`] with a given reader (e.g. one that skips rejected lines).
 pub fn plan_gcode_with(
-    reader: &mut crate::job::read::FirmwareReader,
+    reader: &mut crate::gcode::read::FirmwareReader,
     input: &[u8],
     limits: MotionLimits,
     out: &mut dyn FnMut(Segment),
@@ -44,9 +44,27 @@ pub struct LayerMark {
     pub line: u32,
 }
 
+/// How many of `marks` are a prelude: height-rule marks before the firmware's count starts
+/// again at 1 — at the first explicit marker, or (the height rule's own restart) right after
+/// a single layer left downwards. A count that starts again after a job's end (a file of
+/// several jobs: the last layer was not 1) is a new job, not a prelude.
+pub fn prelude_marks(marks: &[LayerMark]) -> usize {
+    let mut prelude = 0;
+    for k in 1..marks.len() {
+        let (before, m) = (&marks[k - 1], &marks[k]);
+        if before.source != LayerSource::ZRise {
+            break;
+        }
+        if m.number == 1 && (m.source != LayerSource::ZRise || before.number == 1) {
+            prelude = k;
+        }
+    }
+    prelude
+}
+
 /// [`plan_gcode_with`] with every layer mark in full.
 pub fn plan_marks(
-    reader: &mut crate::job::read::FirmwareReader,
+    reader: &mut crate::gcode::read::FirmwareReader,
     input: &[u8],
     limits: MotionLimits,
     out: &mut dyn FnMut(Segment),

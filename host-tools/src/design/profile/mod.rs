@@ -48,6 +48,37 @@ pub struct Retraction {
     pub min_travel_mm: f64,
 }
 
+/// The error text for a design's speed `v_mm_s` above the printer's `limit_mm_s` (`axis`:
+/// "axis" or "extruder"): speeds are mm/s everywhere, and a value above the limit is almost
+/// always one in FullControl's mm/min, so the conversion is named. Huge values are written
+/// in exponent form (a `1e308` would otherwise be 309 digits).
+pub fn speed_beyond_limit(what: &str, v_mm_s: f64, axis: &str, limit_mm_s: f64) -> String {
+    let num = |x: f64, decimals: usize| {
+        if x.abs() < 1e9 {
+            format!("{x:.decimals$}")
+        } else {
+            format!("{x:.3e}")
+        }
+    };
+    let v = format!("{v_mm_s}");
+    let v = if v.len() < 12 { v } else { num(v_mm_s, 1) };
+    format!(
+        "{what} {v} mm/s is beyond the printer's {limit_mm_s} mm/s {axis} limit (speeds here are \
+         mm/s; FullControl's are mm/min: {v} mm/min = {} mm/s)",
+        num(v_mm_s / 60.0, 1)
+    )
+}
+
+impl Profile {
+    /// The fastest retraction a design may ask for, mm/s: the extruder's limit, or the
+    /// profile's own retraction speed where that is higher (vendor profiles retract above the
+    /// firmware's E limit, which then clamps: the Ender 3's 60 mm/s against 50). A design's
+    /// value above it is refused as a likely mm/min number.
+    pub fn max_retract_mm_s(&self) -> f64 {
+        self.limits.max_feed_e_mm_s.max(self.retraction.speed_mm_s)
+    }
+}
+
 /// Motion limits (Marlin's M203/M201/M204/M205 J), used by the time estimate and checks.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

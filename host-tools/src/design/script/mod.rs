@@ -175,6 +175,9 @@ impl ScriptRunner {
             // found", a call stack), never its generated closure names.
             at(without_closure_names(&msg), innermost_position(&e))
         })?;
+        // The script's variables hold what the result may share (a final `t` is a copy of
+        // the turtle, sharing its model): dropped first, the model is taken without a copy.
+        drop(scope);
         let model = if result.is::<Model>() {
             result.cast::<Model>()
         } else if result.is::<Turtle>() {
@@ -235,7 +238,7 @@ impl ScriptRunner {
         model_ops::register_model_ops(&mut e, shared, self.profile.clone());
         parts::register_parts(&mut e);
         points::register_points(&mut e);
-        pen::register_pen(&mut e);
+        pen::register_pen(&mut e, std::rc::Rc::new(self.profile.clone()));
         model::register_model_geometry(&mut e);
         aliases::register_kanada(&mut e);
         let dir = dir.to_path_buf();

@@ -5,7 +5,7 @@
 use super::args::{arr3, err, num, Opts, Res};
 use super::points::{flag, path_of, pt};
 use crate::design::pen::AreaModel;
-use crate::design::profile::{Primer, Retraction};
+use crate::design::profile::{Primer, Profile, Retraction};
 use crate::design::turtle::{Turtle, TurtleError};
 use glam::DVec3;
 use rhai::{Array, Dynamic, Engine, Map};
@@ -27,9 +27,11 @@ fn register_move(
     });
 }
 
-pub(super) fn register_pen(e: &mut Engine) {
-    e.register_fn("turtle", |p: Dynamic| -> Res<Turtle> {
-        Ok(Turtle::at(pt(&p, "start")?, 0.2, 20.0))
+/// `profile`: the printer whose speed limits hold (speeds above them are refused as likely
+/// mm/min values).
+pub(super) fn register_pen(e: &mut Engine, profile: std::rc::Rc<Profile>) {
+    e.register_fn("turtle", move |p: Dynamic| -> Res<Turtle> {
+        Ok(Turtle::at(pt(&p, "start")?, 0.2, 20.0).with_speed_limit(&profile))
     });
     register_move(e, "extrude_to", Turtle::extrude_to);
     register_move(e, "travel_to", Turtle::travel_to);

@@ -3,7 +3,7 @@
 //! moves and reflections of paths). A point is an array `[x, y, z]`; a path is an array of
 //! points, so Rhai's own array functions (`+`, `reverse`, `map`, `extract`...) work on paths.
 
-use super::args::{arr3, count, err, num, vec3_of, Opts, Res};
+use super::args::{arr3, count, err, num, vec3_named, vec3_of, Opts, Res};
 use crate::design::points::{self, PointsError};
 use crate::design::transform::{self, Transform};
 use glam::DVec3;
@@ -16,7 +16,7 @@ pub(super) fn pt(d: &Dynamic, what: &str) -> Res<DVec3> {
 pub(super) fn path_of(a: &Array, what: &str) -> Res<Vec<DVec3>> {
     a.iter()
         .enumerate()
-        .map(|(i, d)| pt(d, &format!("{what}: point {i}")))
+        .map(|(i, d)| vec3_named(d, || format!("{what}: point {i}")))
         .collect()
 }
 

@@ -63,19 +63,23 @@ fn init_options(o: &Map) -> Res<InitOptions> {
 
 pub(super) fn register_turtle(e: &mut Engine, profile: Profile) {
     e.register_type_with_name::<Turtle>("Turtle");
+    // Shared by the constructors (each closure owns a handle).
+    let profile = std::rc::Rc::new(profile);
+    let p = profile.clone();
     e.register_fn("init", move |o: Map| -> Res<Turtle> {
-        Turtle::init_with(&init_options(&o)?, &profile).map_err(err)
+        Turtle::init_with(&init_options(&o)?, &p).map_err(err)
     });
+    let limits = profile.clone();
     e.register_fn(
         "init",
-        |fd: Dynamic,
-         head: Dynamic,
-         bed: Dynamic,
-         c: Dynamic,
-         x: Dynamic,
-         y: Dynamic,
-         z: Dynamic|
-         -> Res<Turtle> {
+        move |fd: Dynamic,
+              head: Dynamic,
+              bed: Dynamic,
+              c: Dynamic,
+              x: Dynamic,
+              y: Dynamic,
+              z: Dynamic|
+              -> Res<Turtle> {
             Turtle::init(
                 num(&fd, "filament diameter")?,
                 num(&head, "head temperature")?,
@@ -85,17 +89,19 @@ pub(super) fn register_turtle(e: &mut Engine, profile: Profile) {
                 num(&y, "y0")?,
                 num(&z, "z0")?,
             )
+            .map(|t| t.with_speed_limit(&limits))
             .map_err(err)
         },
     );
     e.register_fn(
         "turtle",
-        |x: Dynamic, y: Dynamic, z: Dynamic| -> Res<Turtle> {
+        move |x: Dynamic, y: Dynamic, z: Dynamic| -> Res<Turtle> {
             Ok(Turtle::at(
                 DVec3::new(num(&x, "x")?, num(&y, "y")?, num(&z, "z")?),
                 0.2,
                 20.0,
-            ))
+            )
+            .with_speed_limit(&profile))
         },
     );
     e.register_fn("forward", |t: &mut Turtle, r: Dynamic| -> Res<()> {

@@ -89,6 +89,14 @@ impl<'a> Emission<'a> {
     }
 }
 
+impl<'a> Emission<'a> {
+    /// The model's steps not given out yet (after the step just given out, when no merged
+    /// run is pending).
+    pub(super) fn rest(&self) -> &'a [Step] {
+        self.steps.as_slice()
+    }
+}
+
 impl<'a> Iterator for Emission<'a> {
     type Item = Item<'a>;
 

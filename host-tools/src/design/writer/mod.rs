@@ -29,7 +29,7 @@ mod validate;
 
 pub use emission::thin;
 pub use numbers::{push_fixed, round_i64};
-pub use validate::validate;
+pub use validate::{speeds, validate};
 
 use emission::{Emission, Item};
 use moves::{quant, write_state};
@@ -40,6 +40,13 @@ use numbers::push_u64;
 use crate::design::model::Str;
 #[cfg(test)]
 use numbers::push_scaled;
+
+/// Comment written after the printer's start code, before the design (not in `bare` output):
+/// tools that take the design out of a job (`timebased`, `cure-check`) start here, so what the
+/// design prints before its first layer mark (a prime line, a floor ring) is the design's.
+pub const DESIGN_BEGIN: &str = ";DESIGN_BEGIN";
+/// Comment written after the design, before the printer's end code (not in `bare` output).
+pub const DESIGN_END: &str = ";DESIGN_END";
 
 /// Options of one write.
 #[derive(Clone, Debug, Default)]
@@ -115,6 +122,8 @@ struct State {
     /// Speed of travels without their own, mm/s (the profile's until a design's
     /// `StateChange::TravelSpeed`).
     travel_speed_mm_s: f64,
+    /// Bead model declared so far (the 3D page's default until the design declares one).
+    bead: crate::gcode::bead::AreaModel,
 }
 
 impl<'p> GcodeWriter<'p> {
@@ -146,8 +155,9 @@ impl<'p> GcodeWriter<'p> {
     /// Writes the model into a byte buffer (the fast path the benchmarks measure).
     pub fn write_into(&self, model: &Model, buf: &mut Vec<u8>) -> Result<WriteSummary, WriteError> {
         validate(model)?;
-        let steps = &model.steps;
         let p = self.profile;
+        speeds(model, p)?;
+        let steps = &model.steps;
         let dec = p.decimals;
         let scale = 10f64.powi(dec as i32);
         let mut sum = WriteSummary::default();
@@ -159,6 +169,7 @@ impl<'p> GcodeWriter<'p> {
         // first move feed the start code instead of being written twice, the primer chosen
         // there decides the start code's purge, and a fan set there replaces the profile's.
         let lead = lead_in(steps);
+        let layer_z = print_heights(steps);
         let hotend_c = lead.hotend_c.unwrap_or(p.hotend_c);
         let bed_c = lead.bed_c.unwrap_or(p.bed_c);
         if let Some(h) = &self.opts.header {
@@ -198,6 +209,8 @@ impl<'p> GcodeWriter<'p> {
             if p.fan > 0.0 && p.fan_off_layers == 0 && !fan_set {
                 push_fan(buf, p.fan);
             }
+            buf.extend_from_slice(DESIGN_BEGIN.as_bytes());
+            buf.push(b'\n');
         }
         let body_start = buf.len();
         if progress {
@@ -219,11 +232,12 @@ impl<'p> GcodeWriter<'p> {
             retracted: false,
             retraction: p.retraction,
             travel_speed_mm_s: p.travel_speed_mm_s,
+            bead: crate::gcode::bead::AreaModel::Rectangle,
         };
         // Thinning merges strings on the fly (no second copy of the model).
         let mut emission = Emission::new(steps, model.emission.thin_min_len_mm);
         let mut motion_seen = false;
-        for item in emission.by_ref() {
+        while let Some(item) = emission.next() {
             let step = match item {
                 Item::Str(s, len) => {
                     motion_seen = true;
@@ -246,7 +260,10 @@ impl<'p> GcodeWriter<'p> {
                     motion_seen = true;
                     let to_i = quant(*to, scale);
                     if st.pos.iter().zip(to_i).any(|(a, b)| *a != Some(b)) {
-                        self.travel(buf, &mut st, *to, *speed_mm_s, scale, &mut sum);
+                        // A lift (up, across, down) is one travel for the retraction: it
+                        // retracts before it rises, not after.
+                        let then_mm = travel_run_mm(*to, emission.rest());
+                        self.travel(buf, &mut st, *to, *speed_mm_s, then_mm, scale, &mut sum);
                     }
                 }
                 Step::Comment(c) => {
@@ -262,7 +279,11 @@ impl<'p> GcodeWriter<'p> {
                     match p.markers {
                         Markers::Prusa => {
                             buf.extend_from_slice(b";LAYER_CHANGE\n;Z:");
-                            push_fixed(buf, *z_mm, dec);
+                            push_fixed(
+                                buf,
+                                layer_z.get(sum.markers).copied().unwrap_or(*z_mm),
+                                dec,
+                            );
                             buf.extend_from_slice(b"\n;HEIGHT:");
                             push_fixed(buf, *height_mm, dec);
                             buf.push(b'\n');
@@ -330,6 +351,8 @@ impl<'p> GcodeWriter<'p> {
             progress_at.push(buf.len());
         }
         if !self.opts.bare {
+            buf.extend_from_slice(DESIGN_END.as_bytes());
+            buf.push(b'\n');
             buf.extend_from_slice(p.fill(&p.gcode.end, &tv).as_bytes());
             if !buf.ends_with(b"\n") {
                 buf.push(b'\n');
@@ -346,6 +369,33 @@ impl<'p> GcodeWriter<'p> {
         sum.bytes = buf.len() - start_len;
         Ok(sum)
     }
+}
+
+/// The height each marker's layer prints at, in marker order: where the first string after
+/// it (before the next marker) starts — a turtle's `mark_layer` records the pen's Z, which is
+/// still the layer below until the next string climbs (the `;Z:` of `fc_speed_lattice` was one
+/// layer behind) — else the marker's own Z. (A design's string starts on its layer: a helical
+/// arc's whole turn is one string; the G-code reader's rule for moves that come onto a layer,
+/// `motion::layer_height_of`, gives the same height for the G-code written here.)
+fn print_heights(steps: &[Step]) -> Vec<f64> {
+    let mut out = Vec::new();
+    let mut open = false;
+    for s in steps {
+        match s {
+            Step::Marker { z_mm, .. } => {
+                out.push(*z_mm);
+                open = true;
+            }
+            Step::String(st) if open => {
+                if let Some(z) = out.last_mut() {
+                    *z = st.start.z;
+                }
+                open = false;
+            }
+            _ => {}
+        }
+    }
+    out
 }
 
 /// What a design sets before its first move: the start code's temperatures and primer, and
@@ -414,6 +464,23 @@ impl GcodeWriter<'_> {
         }
         fx.fan
     }
+}
+
+/// Length of the travels that follow a travel ending at `from` directly (state changes and
+/// comments between them do not break the run), mm.
+fn travel_run_mm(from: DVec3, rest: &[Step]) -> f64 {
+    let (mut at, mut len) = (from, 0.0);
+    for s in rest {
+        match s {
+            Step::Travel { to, .. } => {
+                len += at.distance(*to);
+                at = *to;
+            }
+            Step::State(_) | Step::Comment(_) | Step::Type(_) => {}
+            Step::String(_) | Step::Marker { .. } => break,
+        }
+    }
+    len
 }
 
 /// `M106 S<duty × 255>`: the part fan on at the profile's duty.

@@ -21,7 +21,7 @@ impl<'p> GcodeWriter<'p> {
     ) {
         let start_i = quant(s.start, scale);
         if st.pos.iter().zip(start_i).any(|(a, b)| *a != Some(b)) {
-            self.travel(buf, st, s.start, None, scale, sum);
+            self.travel(buf, st, s.start, None, 0.0, scale, sum);
         }
         let len = self.string(buf, st, s, len, scale);
         sum.strings += 1;
@@ -64,16 +64,23 @@ impl<'p> GcodeWriter<'p> {
         push_scaled(buf, v, self.profile.decimals);
     }
 
+    /// A travel to `to`; `then_mm`: the length of the travels that follow it directly (a
+    /// lift's across and down), which count for the retraction.
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn travel(
         &self,
         buf: &mut Vec<u8>,
         st: &mut State,
         to: DVec3,
         speed: Option<f64>,
+        then_mm: f64,
         scale: f64,
         sum: &mut WriteSummary,
     ) {
-        let dist = st.pos_f.map(|f| f.distance(to)).unwrap_or(f64::INFINITY);
+        let dist = st
+            .pos_f
+            .map(|f| f.distance(to) + then_mm)
+            .unwrap_or(f64::INFINITY);
         let retract = st.retraction.length_mm > 0.0
             && st.pos_f.is_some()
             && st.e_total > 0.0
@@ -183,6 +190,14 @@ pub(super) fn write_state(buf: &mut Vec<u8>, st: &mut State, sc: &StateChange, d
         }
         StateChange::Pause { now } => {
             buf.extend_from_slice(if *now { b"M601 S1" } else { b"M601" });
+        }
+        StateChange::Bead(m) => {
+            if st.bead == *m {
+                return;
+            }
+            st.bead = *m;
+            buf.push(b';');
+            buf.extend_from_slice(m.comment().as_bytes());
         }
         // Applied by the caller.
         StateChange::Retraction(_) | StateChange::TravelSpeed(_) | StateChange::Primer(_) => return,

@@ -3,6 +3,39 @@
 
 use super::WriteError;
 use crate::design::model::{Model, StateChange, Step};
+use crate::design::profile::{speed_beyond_limit, Profile};
+
+/// Rejects speeds above the printer's limits (strings, travels and travel speeds of parts,
+/// `map_strings`, `scale_speed` as much as the turtle's against the X/Y axis limit; a design's
+/// retraction speed against [`Profile::max_retract_mm_s`]): speeds are mm/s everywhere, and a value above
+/// the limit is almost always one in mm/min.
+pub fn speeds(model: &Model, profile: &Profile) -> Result<(), WriteError> {
+    let xy = profile.limits.max_feed_xy_mm_s;
+    for (index, s) in model.steps.iter().enumerate() {
+        let (what, v, axis, max_mm_s) = match s {
+            Step::String(s) => ("string speed", s.speed_mm_s, "axis", xy),
+            Step::Travel {
+                speed_mm_s: Some(v),
+                ..
+            } => ("travel speed", *v, "axis", xy),
+            Step::State(StateChange::TravelSpeed(v)) => ("travel speed", *v, "axis", xy),
+            Step::State(StateChange::Retraction(r)) => (
+                "retraction speed",
+                r.speed_mm_s,
+                "extruder",
+                profile.max_retract_mm_s(),
+            ),
+            _ => continue,
+        };
+        if v > max_mm_s {
+            return Err(WriteError::BadStep {
+                index,
+                msg: speed_beyond_limit(what, v, axis, max_mm_s),
+            });
+        }
+    }
+    Ok(())
+}
 
 /// Rejects values that cannot become G-code (non-finite points, non-positive speeds, negative
 /// cross-sections or filament diameters).
@@ -92,7 +125,7 @@ pub fn validate(model: &Model) -> Result<(), WriteError> {
                     );
                 }
             }
-            Step::State(StateChange::Pause { .. }) => {}
+            Step::State(StateChange::Pause { .. } | StateChange::Bead(_)) => {}
             Step::Comment(_) | Step::Type(_) => {}
         }
     }

@@ -12,7 +12,7 @@
 //! the first `:`, trimmed. Anything else (`;ANNOTATIONS`, `;ANNOTATION X1 oops: t`, an axis
 //! twice, a number that is not finite) is not an annotation.
 
-use crate::job::preview_moves::push_num;
+use crate::gcode::number::push_num;
 
 /// The keyword after the `;`.
 const KEY: &[u8] = b"annotation";
