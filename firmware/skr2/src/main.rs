@@ -265,7 +265,12 @@ mod image {
             &spawner,
             motion_task(
                 printer,
-                Devices { store, card },
+                Devices {
+                    store,
+                    card,
+                    out_tick: 0,
+                    pending_since: None,
+                },
                 producer,
                 pins.pause_button,
                 pins.status_led,

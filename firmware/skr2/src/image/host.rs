@@ -133,14 +133,15 @@ pub(super) fn take_sessions(p: &mut Printer) {
     }
 }
 
-/// Pushes each port's pending host-link output to its pipe (USB, TFT UART), as far as the
+/// Pushes each port's pending host-link output to its pipe; returns whether any was pushed (USB, TFT UART), as far as the
 /// pipe has room; the executive keeps the rest in that port's output ring.
 ///
 /// `Pipe::try_write` writes only up to the end of the pipe's ring buffer (its contiguous free
 /// part), so a chunk that straddles the wrap takes two writes; taking one and dropping the
 /// rest lost the middle of lines (seen on the emulated board: a notice cut after 12 bytes).
-pub(super) fn flush_output(p: &mut Printer) {
+pub(super) fn flush_output(p: &mut Printer) -> bool {
     let mut buf = [0u8; 128];
+    let mut wrote = false;
     for (port, pipe) in [(PortId::Usb, &USB_OUT), (PortId::Tft, &TFT_OUT)] {
         loop {
             let room = pipe.free_capacity().min(buf.len());
@@ -148,6 +149,7 @@ pub(super) fn flush_output(p: &mut Printer) {
             if n == 0 {
                 break;
             }
+            wrote = true;
             let mut chunk = buf.get(..n).unwrap_or(&[]);
             while !chunk.is_empty() {
                 match pipe.try_write(chunk) {
@@ -161,6 +163,12 @@ pub(super) fn flush_output(p: &mut Printer) {
             }
         }
     }
+    wrote
+}
+
+/// Answers still on their way to a port task.
+pub(super) fn output_waiting() -> bool {
+    !USB_OUT.is_empty() || !TFT_OUT.is_empty()
 }
 
 #[embassy_executor::task]

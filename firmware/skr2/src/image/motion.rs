@@ -12,7 +12,7 @@ use heapless::spsc::Producer;
 
 use super::drivers::{service_drivers, Drivers};
 use super::heater::serve_heaters;
-use super::host::{flush_output, take_input, take_sessions, Carry};
+use super::host::{flush_output, output_waiting, take_input, take_sessions, Carry};
 use super::{beat, printer_now_ns, printer_now_us, LOOP_MOTION};
 use crate::board::clock;
 use crate::board::drivers::homing_watch::EventFlags;
@@ -179,25 +179,50 @@ fn messages_in(p: &mut Printer, carry: &mut [Carry; 2]) {
     serve_heaters(p);
 }
 
+/// How long the host link must have been quiet before a flash operation, ms: a sector erase
+/// stalls the core for up to 2 s (code runs from flash), so what the executive just said
+/// (`//action:paused` before the record it keeps) reaches the host first — the TFT UART's
+/// 512-byte transmit buffer empties in 44 ms at 115200 Bd.
+const HOST_TOLD_MS: u32 = 50;
+/// Longest a pending store operation waits for that quiet, ms (a host that keeps the link
+/// busy does not hold a record back).
+const STORE_WAIT_MAX_MS: u32 = 1_000;
+
 /// The executive's devices besides motion, served by the motion task in turn.
 pub(super) struct Devices {
     /// The settings store (none if its area was misconfigured).
     pub(super) store: Option<Store>,
     /// The micro-SD card.
     pub(super) card: Card<SdioCard>,
+    /// The last tick that had host output on its way.
+    pub(super) out_tick: u32,
+    /// Since when a store operation is pending.
+    pub(super) pending_since: Option<u32>,
 }
 
 impl Devices {
-    /// The store every [`flash::POLL_MS`] and the card every [`sd::POLL_MS`] ticks.
-    fn serve(&mut self, p: &mut Printer, tick: u32) {
+    /// The card every [`sd::POLL_MS`] ticks; the store every [`flash::POLL_MS`] once the host
+    /// has been told what the executive said ([`HOST_TOLD_MS`], at most [`STORE_WAIT_MAX_MS`]).
+    fn serve(&mut self, p: &mut Printer, tick: u32, wrote: bool) {
         if tick.is_multiple_of(sd::POLL_MS) {
             serve_card(p, &mut self.card, printer_now_us());
         }
-        if let Some(store) = self
-            .store
-            .as_mut()
-            .filter(|_| tick.is_multiple_of(flash::POLL_MS))
-        {
+        if wrote || output_waiting() {
+            self.out_tick = tick;
+        }
+        self.pending_since = match (p.store_request_pending(), self.pending_since) {
+            (false, _) => None,
+            (true, None) => Some(tick),
+            (true, since) => since,
+        };
+        let told = tick.wrapping_sub(self.out_tick) >= HOST_TOLD_MS;
+        let overdue = self
+            .pending_since
+            .is_some_and(|t| tick.wrapping_sub(t) >= STORE_WAIT_MAX_MS);
+        if !tick.is_multiple_of(flash::POLL_MS) || !(told || overdue) {
+            return;
+        }
+        if let Some(store) = self.store.as_mut() {
             serve_store(p, store);
         }
     }
@@ -230,6 +255,7 @@ pub(super) async fn motion_task(
             board_stats(p, &mut reported);
         }
         let now_us = printer_now_us();
+        let wrote;
         {
             let state = p.state();
             let paused = matches!(state, State::Paused | State::Pausing);
@@ -307,9 +333,9 @@ pub(super) async fn motion_task(
                     p.board_notice(&t);
                 }
             }
-            flush_output(p);
+            wrote = flush_output(p);
         }
-        devices.serve(p, blink);
+        devices.serve(p, blink, wrote);
         // The drivers' UART lines block the executor: only while nothing moves or is queued.
         let quiet = p.state() == State::Idle
             && p.next_step_ns().is_none()
