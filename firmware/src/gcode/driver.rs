@@ -2,7 +2,7 @@
 //! command): M569 chopper mode, M350 microsteps, M122 driver report. The executive's handlers
 //! are in `printer/drivers.rs`; the registers behind them in [`crate::drivers::tmc2209`].
 
-use super::emit::opt;
+use super::format::opt;
 use super::{err, AxisFlags, AxisWords, ParseError, ParseErrorKind, Words};
 use core::fmt::{self, Write};
 

@@ -5,44 +5,12 @@
 //! in range (property-tested). Canonical spelling: upper-case letters, one space between words,
 //! codes without leading zeros.
 
-use super::{AxisFlags, AxisWords, Command, Line};
+use super::{Command, Line};
 use core::fmt::{self, Write};
 
-/// Write ` L<v>` if the value is present.
-pub(super) fn opt<W: Write>(w: &mut W, letter: char, v: Option<f32>) -> fmt::Result {
-    match v {
-        Some(v) => write!(w, " {letter}{v}"),
-        None => Ok(()),
-    }
-}
 
-/// Write ` L<v>` for an integer value if present.
-pub(super) fn opt_int<W: Write, T: fmt::Display>(
-    w: &mut W,
-    letter: char,
-    v: Option<T>,
-) -> fmt::Result {
-    match v {
-        Some(v) => write!(w, " {letter}{v}"),
-        None => Ok(()),
-    }
-}
 
-pub(super) fn axes<W: Write>(w: &mut W, a: &AxisWords) -> fmt::Result {
-    for (letter, v) in ['X', 'Y', 'Z', 'E'].into_iter().zip(a.0) {
-        opt(w, letter, v)?;
-    }
-    Ok(())
-}
 
-pub(super) fn flags<W: Write>(w: &mut W, f: &AxisFlags) -> fmt::Result {
-    for (letter, on) in ['X', 'Y', 'Z', 'E'].into_iter().zip(f.0) {
-        if on {
-            write!(w, " {letter}")?;
-        }
-    }
-    Ok(())
-}
 
 impl fmt::Display for Command {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -66,14 +34,6 @@ pub fn write_command<W: Write>(w: &mut W, c: &Command) -> fmt::Result {
     }
 }
 
-pub(super) fn text<W: Write>(w: &mut W, code: &str, t: &str) -> fmt::Result {
-    w.write_str(code)?;
-    if !t.is_empty() {
-        w.write_char(' ')?;
-        w.write_str(t)?;
-    }
-    Ok(())
-}
 
 impl fmt::Display for Line<'_> {
     /// The command, then ` ;comment` if there is one (non-UTF-8 comment bytes are written as

@@ -2,7 +2,7 @@
 //! autotune, cold-extrusion protection. Parse and write side by side; the executive's side is
 //! the heat part (`printer/heat.rs`).
 
-use super::emit::{opt, opt_int};
+use super::format::{opt, opt_int};
 use super::{ParseError, ParseErrorKind, Words};
 use core::fmt::{self, Write};
 

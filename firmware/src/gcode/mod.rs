@@ -46,6 +46,7 @@ mod command;
 mod decode;
 // Command → G-code text.
 mod emit;
+mod format;
 // Parse errors and their messages.
 mod error;
 // Blanks and `( … )` comments (below `parse` and `words`).

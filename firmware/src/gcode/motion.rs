@@ -3,7 +3,7 @@
 //! work. Parse and write side by side; the executive's side is `printer/run.rs`'s motion
 //! dispatch and the intake's interpreter (`printer/intake/interpret.rs`).
 
-use super::emit::{axes, flags, opt};
+use super::format::{axes, flags, opt};
 use super::{AxisFlags, AxisWords, ParseError, ParseErrorKind, Words};
 use core::fmt::{self, Write};
 

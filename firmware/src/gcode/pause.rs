@@ -4,7 +4,7 @@
 //! with or without `S1`), and the link (`link/realtime.rs`) and the executive (the pause
 //! part, `printer/pause/`) take it as parsed.
 
-use super::emit::{axes, opt, opt_int};
+use super::format::{axes, opt, opt_int};
 use super::{AxisWords, ParseError, ParseErrorKind, Words};
 use crate::motion::PauseMode;
 use core::fmt::{self, Write};

@@ -1,7 +1,7 @@
 //! The report M-codes hosts expect of a Marlin-class firmware: their parameters as parsed, and
 //! their G-code text. The executive's handlers are in `printer/report.rs`.
 
-use super::emit::{opt, opt_int, text};
+use super::format::{opt, opt_int, text};
 use super::{ParseError, ParseErrorKind, Text, Words};
 use core::fmt::{self, Write};
 

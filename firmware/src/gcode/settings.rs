@@ -2,7 +2,7 @@
 //! The executive's handlers are in `printer/settings.rs`; ranges and units in
 //! [`crate::storage`] and `docs/settings.md`.
 
-use super::emit::opt;
+use super::format::opt;
 use super::{err, AxisWords, ParseError, ParseErrorKind, Words};
 use core::fmt::{self, Write};
 
