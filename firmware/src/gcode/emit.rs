@@ -8,10 +8,6 @@
 use super::{Command, Line};
 use core::fmt::{self, Write};
 
-
-
-
-
 impl fmt::Display for Command {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write_command(f, self)
@@ -33,7 +29,6 @@ pub fn write_command<W: Write>(w: &mut W, c: &Command) -> fmt::Result {
         Command::Unknown(t) => w.write_str(t),
     }
 }
-
 
 impl fmt::Display for Line<'_> {
     /// The command, then ` ;comment` if there is one (non-UTF-8 comment bytes are written as

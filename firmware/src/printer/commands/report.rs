@@ -12,7 +12,7 @@ impl Printer {
         match c {
             ReportCommand::Position => {
                 let r = PositionReport {
-                    logical_mm: self.intake.machine().logical_mm(),
+                    logical_mm: self.reported_position_mm(),
                     steps: self.motion.position(),
                 };
                 self.host.respond(Response::Position(r));
@@ -44,5 +44,33 @@ impl Printer {
                 self.host.report_command(c, self.now_us, view);
             }
         }
+    }
+
+    /// M114's logical position: while the job runs, the commanded position (Marlin's
+    /// `current_position`); while a pause holds it (stopping, parked, returning), where the
+    /// head is — the job's commanded position is then where its held lines lead, not where
+    /// the nozzle stands (Marlin reports the parked position during M600/M125 too). X/Y/Z
+    /// through the job's offsets (G92, M206); E as the job counts it.
+    fn reported_position_mm(&self) -> [f64; crate::motion::AXES] {
+        let m = self.intake.machine();
+        let logical = m.logical_mm();
+        if self.pause.running() {
+            return logical;
+        }
+        let (machine, head) = (m.machine_mm(), self.motion.position());
+        let cfg = self.settings.cfg();
+        let mut out = logical;
+        for ax in [
+            crate::motion::Axis::X,
+            crate::motion::Axis::Y,
+            crate::motion::Axis::Z,
+        ] {
+            let i = ax.index();
+            let spm = f64::from(cfg.axis(ax).steps_per_mm);
+            if spm > 0.0 {
+                out[i] = f64::from(head[i]) / spm - (machine[i] - logical[i]);
+            }
+        }
+        out
     }
 }
