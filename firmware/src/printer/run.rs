@@ -102,9 +102,7 @@ impl Printer {
                     if !self.motion.idle() {
                         break;
                     }
-                    if self.intake.sync_reached() {
-                        self.host.ok();
-                    }
+                    self.pay_sync_ok();
                 }
                 Command::PauseHere => {
                     if self.motion.has_pending() {
