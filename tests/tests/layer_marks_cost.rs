@@ -4,8 +4,10 @@
 //!
 //! "Without the markers": the same G-code with its marker lines removed. The firmware then
 //! finds the layers from the heights itself (a header chooses no marker family: see
-//! `firmware::layer`), one mark per spiral turn it recognises — fewer marks than the file's
-//! markers give. The marks the markers add must cost no time.
+//! `firmware::layer`), one mark per spiral turn it recognises — on these helices as many as
+//! the markers give. So this compares a job whose marks come from its markers with one whose
+//! marks the firmware derives; the planner's own timing (no standstill at a mark unless a
+//! pause needs it) is checked by the planner's tests (`firmware/tests/planner*.rs`).
 
 use sim::exec::PrinterFactory;
 use sim::run::{self, Mode, Policy, Scenario};
@@ -39,9 +41,10 @@ fn helical_examples_print_as_fast_with_their_turn_markers() {
         let (t_with, n_with) = print_time(&with);
         let (t_without, n_without) = print_time(&without);
         assert!(n_with >= 10, "{name}: {n_with} marks crossed");
-        // The markers add marks (the comparison below is about them).
+        // The firmware's own spiral turns are the helix's turns: never more marks than the
+        // markers give.
         assert!(
-            n_with >= n_without + 10,
+            n_without <= n_with,
             "{name}: {n_with} marks with the markers, {n_without} without"
         );
         let rel = (t_with - t_without).abs() / t_without;
