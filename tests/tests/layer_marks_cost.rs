@@ -7,7 +7,7 @@
 //! `firmware::layer`), one mark per spiral turn it recognises — on these helices as many as
 //! the markers give. So this compares a job whose marks come from its markers with one whose
 //! marks the firmware derives; the planner's own timing (no standstill at a mark unless a
-//! pause needs it) is checked by the planner's tests (`firmware/tests/planner*.rs`).
+//! pause needs it) is checked by the planner's tests (`firmware/tests/lookahead.rs`, `segmentation_cost.rs`).
 
 use sim::exec::PrinterFactory;
 use sim::run::{self, Mode, Policy, Scenario};
