@@ -237,13 +237,11 @@ fn paths_in(text: &str) -> Vec<Vec<String>> {
 
 /// The paths a `use` tree starting at token `i` names, each with its `as` alias; and the index
 /// after its `;`.
-fn use_tree(toks: &[String], i: usize) -> (Vec<(Vec<String>, Option<String>)>, usize) {
-    fn walk(
-        toks: &[String],
-        mut i: usize,
-        prefix: &[String],
-        out: &mut Vec<(Vec<String>, Option<String>)>,
-    ) -> usize {
+/// A path a `use` names, with its `as` alias.
+type Named = (Vec<String>, Option<String>);
+
+fn use_tree(toks: &[String], i: usize) -> (Vec<Named>, usize) {
+    fn walk(toks: &[String], mut i: usize, prefix: &[String], out: &mut Vec<Named>) -> usize {
         let mut path = prefix.to_vec();
         while i < toks.len() {
             match toks[i].as_str() {
@@ -384,11 +382,10 @@ fn strip_comments_and_strings(text: &str) -> String {
             out.extend_from_slice(b"\"\"");
         } else if c == b'\'' {
             // A char literal ('a', '\n', '\u{..}') or a lifetime ('a): skip only literals.
-            let lit = match (b.get(i + 1), b.get(i + 2)) {
-                (Some(b'\\'), _) => true,
-                (Some(_), Some(b'\'')) => true,
-                _ => false,
-            };
+            let lit = matches!(
+                (b.get(i + 1), b.get(i + 2)),
+                (Some(b'\\'), _) | (Some(_), Some(b'\''))
+            );
             if lit {
                 i += 1;
                 while i < b.len() && b[i] != b'\'' {
