@@ -15,6 +15,18 @@ pub enum Heater {
     Bed,
 }
 
+impl Heater {
+    /// The M-code that sets this heater's target: M104/M140, or with `wait` M109/M190.
+    pub fn target_code(self, wait: bool) -> &'static str {
+        match (self, wait) {
+            (Heater::Hotend, false) => "M104",
+            (Heater::Hotend, true) => "M109",
+            (Heater::Bed, false) => "M140",
+            (Heater::Bed, true) => "M190",
+        }
+    }
+}
+
 /// A heat command (M104/M109/M140/M190, M105, M106/M107, M301/M304, M303, M302).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum HeatCommand {
@@ -165,12 +177,7 @@ pub(super) fn write<W: Write>(w: &mut W, c: &HeatCommand) -> fmt::Result {
             r,
             tool,
         } => {
-            let code = match (heater, wait) {
-                (Heater::Hotend, false) => "M104",
-                (Heater::Hotend, true) => "M109",
-                (Heater::Bed, false) => "M140",
-                (Heater::Bed, true) => "M190",
-            };
+            let code = heater.target_code(*wait);
             w.write_str(code)?;
             opt(w, 'S', *s)?;
             opt(w, 'R', *r)?;

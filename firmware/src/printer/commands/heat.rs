@@ -1,7 +1,7 @@
 //! The heat family's executive side: targets and waits, the temperature report, the fan,
 //! PID gains, autotune and M302, carried out by the heat part (`printer/heat.rs`).
 
-use crate::gcode::{HeatCommand, Heater};
+use crate::gcode::HeatCommand;
 use crate::printer::heat::heater_id;
 use crate::printer::{Command, Printer};
 
@@ -16,12 +16,7 @@ impl Printer {
                 r,
                 tool,
             } => {
-                let code = match (heater, wait) {
-                    (Heater::Hotend, false) => "M104",
-                    (Heater::Hotend, true) => "M109",
-                    (Heater::Bed, false) => "M140",
-                    (Heater::Bed, true) => "M190",
-                };
+                let code = heater.target_code(*wait);
                 // Marlin's `get_target_extruder_from_command`: an extruder that is not there is
                 // refused, never applied to the one that is (FlashPrint's `M104 S0 T1` for a
                 // second hotend switched the only one off; issue 31/32).
