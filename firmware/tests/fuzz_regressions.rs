@@ -230,3 +230,27 @@ fn executive_issue31_dictionary_on_both_ports() {
         run_executive(&data);
     }
 }
+
+/// Issue 31's cancel and parked programs (the dictionary of byte 0's bit 4): a cancel followed
+/// by a host's tail (the heaters and the fan must be off when the cancel ends: before, the
+/// nozzle stayed at 200 °C), and parked printers polled with M400/M105 (both answered within
+/// 10 s: before, the M400 answered `busy: paused for user` for ever), with an unnumbered host,
+/// a numbered one and under the `fifo` policy.
+#[test]
+fn executive_issue31_cancel_tail_and_parked_polls() {
+    for name in [
+        "issue31-cancel-tail",
+        "issue31-parked-polls",
+        "issue31-parked-numbered-fifo",
+        "issue31-parked-numbered-manual",
+    ] {
+        let data = std::fs::read(
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("fuzz/seeds/executive")
+                .join(name),
+        )
+        .expect("the committed seed");
+        eprintln!("{name}");
+        run_executive(&data);
+    }
+}

@@ -80,6 +80,44 @@ pub const DICT_31: [&str; 32] = [
     "N3 M108*9",
 ];
 
+/// The dictionary of byte 0's bit 4 (issue 31, over bit 3): a cancel followed by a host's
+/// tail (cool-down, motors off, reports, moves and heat-ups of the cancelled job, numbered and
+/// not), M400/M105 polling and jogs while parked.
+pub const DICT_TAIL: [&str; 32] = [
+    "M104 S200",
+    "M140 S60",
+    "M106 S255",
+    "G1 X100 Y100 F6000",
+    "G1 X10 Y200 E2 F3000",
+    "M524",
+    "M601 S1",
+    "M601",
+    "M602",
+    "M104 S0",
+    "M140 S0",
+    "M104 T0 S0",
+    "M106 S0",
+    "M107",
+    "M84",
+    "M18 X Y",
+    "M105",
+    "M114",
+    "M400",
+    "M27",
+    "M119",
+    "M155 S1",
+    "M117 cancelled",
+    "G28 X",
+    "G1 X0 Y220 F6000",
+    "M109 S200",
+    "G91",
+    "G1 Z1 F600",
+    "G90",
+    "N1 G1 X100 Y100 F6000*72",
+    "N2 M400*37",
+    "M110 N0",
+];
+
 /// The policies the `executive` target runs, by the low 2 bits of its first byte: ours, the
 /// conventional-firmware model `sim --policy fifo` runs (16 moves queued, the pause at the
 /// tail), ours with every line while paused a manual command (`PausedLines::Manual`), ours
@@ -104,7 +142,8 @@ pub fn policy_of(k: u8) -> Policy {
 
 /// The `executive` target. Byte 0 chooses the policy ([`POLICIES`], low 2 bits), whether single
 /// control bytes are requests on the TFT port too (bit 2; by default only on USB) and the
-/// dictionary (bit 3: [`DICT_31`], else [`DICT`]); the other bits are free. The rest is a little program, each byte an op (top 3 bits) and an argument
+/// dictionary (bit 4: [`DICT_TAIL`], and then, parked at the end, an `M400` and an `M105` are
+/// answered in bounded time; else bit 3: [`DICT_31`]; else [`DICT`]); the other bits are free. The rest is a little program, each byte an op (top 3 bits) and an argument
 /// (low 5 bits): raw bytes to the USB (0, 1) or TFT (2) port, a dictionary line to the USB (3)
 /// or TFT (4) port, time passing (5, 6), a button request (7, argument 0–23) or a sensor fault
 /// (7, argument 24–31: bit 0 the bed, bits 1–2 NaN, +∞, −∞, detached; it lasts to the end).
@@ -116,7 +155,13 @@ pub fn run_executive(data: &[u8]) {
     let mut h = Harness::with_policy(policy_of(config));
     let tft_controls = config & 4 != 0;
     h.p.set_control_bytes(PortId::Tft, tft_controls);
-    let dict = if config & 8 != 0 { &DICT_31 } else { &DICT };
+    let dict = if config & 16 != 0 {
+        &DICT_TAIL
+    } else if config & 8 != 0 {
+        &DICT_31
+    } else {
+        &DICT
+    };
     // Control bytes written to the TFT port (each dropped as noise unless they are requests).
     let mut tft_control_bytes = 0u32;
     let mut i = 0;
@@ -171,6 +216,9 @@ pub fn run_executive(data: &[u8]) {
                 h.request(r);
             }
         }
+    }
+    if config & 16 != 0 {
+        h.answers_while_parked();
     }
     h.finish();
     // Control bytes on the TFT port act only where they were chosen: otherwise each one taken

@@ -37,6 +37,9 @@ pub const SPEED_WINDOW: usize = 8;
 pub const TICK_US: u64 = 1000;
 /// Tick while nothing moves (dwells, heater waits), µs.
 pub const IDLE_TICK_US: u64 = 1_000_000;
+/// How long a parked printer may take to answer an `M400` and an `M105` (every byte taken
+/// before them): the parked intake's pace is at most 3 s a line (docs/frontend.md).
+pub const PARKED_ANSWER_US: u64 = 10_000_000;
 /// Longest dwell the parser allows is P1e7 ms (2.8 h): the final drain may take this long.
 pub const DRAIN_LIMIT_US: u64 = 4 * 3600 * 1_000_000;
 
@@ -74,6 +77,10 @@ pub struct Harness {
     pub executed: Vec<StepPos>,
     /// Pause states reached.
     pub paused: u32,
+    /// The last state recorded.
+    last_state: State,
+    /// A `//action:cancel` was written since the last state record.
+    cancel_announced: bool,
     /// Hot end and bed sensors.
     pub sensors: [Sensor; 2],
 }
@@ -97,6 +104,8 @@ impl Harness {
             pos: [0; 4],
             executed: Vec::new(),
             paused: 0,
+            last_state: State::Idle,
+            cancel_announced: false,
             sensors: [Sensor::Perfect; 2],
         }
     }
@@ -148,6 +157,20 @@ impl Harness {
             let Some(ev) = self.p.next_step() else { break };
             self.check_step(ev.t_ns, ev.axis_mask, ev.dir_mask, ev.kind);
         }
+        for port in PortId::ALL {
+            let mut s = String::new();
+            self.p.write_output_on(port, &mut s).unwrap();
+            self.cancel_announced |= s.contains("//action:cancel");
+            let o = &mut self.out[port.index()];
+            o.push_str(&s);
+            // Keep the tail only (memory stays flat over long runs).
+            if o.len() > 8192 {
+                let cut = o.len() - 4096;
+                let cut = (cut..o.len()).find(|&i| o.is_char_boundary(i)).unwrap_or(0);
+                o.drain(..cut);
+            }
+        }
+        // After the output: a cancel's announcement is seen with its state record.
         while let Some(r) = self.p.pop_record() {
             match r {
                 Record::Executed {
@@ -157,23 +180,29 @@ impl Harness {
                     pos,
                     ..
                 } if seg + 1 == segs => self.executed.push(pos),
-                Record::State {
-                    state: State::Paused,
-                    ..
-                } => self.paused += 1,
+                Record::State { state, .. } => {
+                    if state == State::Paused {
+                        self.paused += 1;
+                    }
+                    let from_a_stop = matches!(
+                        self.last_state,
+                        State::Pausing | State::Paused | State::Resuming
+                    );
+                    if state == State::Cancelled && from_a_stop && self.cancel_announced {
+                        // Issue 31: a cancel leaves nothing hot. Straight from its stop to
+                        // Cancelled, no line was taken after the cancel's end (one taken
+                        // then, such as a console's M104, may heat again; a withdrawn
+                        // pause in a cancelled tail goes this way too, hence the
+                        // announcement).
+                        let t = self.p.thermal();
+                        let targets = [HeaterId::Hotend, HeaterId::Bed].map(|id| t.target_c(id));
+                        assert_eq!(targets, [0.0; 2], "heaters on after a cancel");
+                        assert_eq!(self.p.fan_pwm(), 0, "fan on after a cancel");
+                    }
+                    self.last_state = state;
+                    self.cancel_announced = false;
+                }
                 _ => {}
-            }
-        }
-        for port in PortId::ALL {
-            let mut s = String::new();
-            self.p.write_output_on(port, &mut s).unwrap();
-            let o = &mut self.out[port.index()];
-            o.push_str(&s);
-            // Keep the tail only (memory stays flat over long runs).
-            if o.len() > 8192 {
-                let cut = o.len() - 4096;
-                let cut = (cut..o.len()).find(|&i| o.is_char_boundary(i)).unwrap_or(0);
-                o.drain(..cut);
             }
         }
         self.now_us += dt_us;
@@ -266,6 +295,45 @@ impl Harness {
             self.request(Realtime::Resume);
         }
         self.p.status().state
+    }
+
+    /// Issue 31: parked, a host's `M400` and `M105` (unnumbered: a console's; manual lines for
+    /// a host that numbers its job) get their answers within [`PARKED_ANSWER_US`], plus 3 s
+    /// for each of up to 8 lines still waiting before them; before, an M400 answered `busy:
+    /// paused for user` for ever.
+    pub fn answers_while_parked(&mut self) {
+        if !self.run_to_rest(DRAIN_LIMIT_US) || self.p.status().state != State::Paused {
+            return;
+        }
+        // Lines still waiting (flow control) are read first, each within the parked intake's
+        // pace; behind many of them the RAM fallback without a card may end the intake
+        // (docs/frontend.md): not judged here.
+        let waiting = self.pending[0].iter().filter(|&&b| b == b'\n').count() as u64;
+        if waiting > 8 || !self.pending[1].is_empty() {
+            return;
+        }
+        let limit_us = PARKED_ANSWER_US + waiting * 3_000_000;
+        // Only the answers from here on are looked at. The M105 is read only after the
+        // M400's `ok` (an owed M400 holds the next line), so its `ok T:` answers both.
+        self.out[0].clear();
+        self.write(PortId::Usb, b"\nM400\nM105\n");
+        let start = self.now_us;
+        let mut answered = false;
+        while self.now_us - start < limit_us {
+            self.tick(TICK_US);
+            if self.out[0].contains("ok T:") {
+                answered = true;
+                break;
+            }
+            if self.p.status().state != State::Paused {
+                return;
+            }
+        }
+        assert!(
+            answered,
+            "parked: M400/M105 not answered within {limit_us} µs: {:?}",
+            self.out[0]
+        );
     }
 
     /// The end of a run: a final `M400` on the USB port, every pause resumed, and the checks

@@ -4,7 +4,7 @@
 //! without room (reports), or held until there is room (with `busy:` keep-alives while a pause
 //! holds the queue) — and the commands it carries go to the part that owns them.
 
-use super::intake::{Interpreted, LineOutcome, Route};
+use super::intake::{Interpreted, LineOutcome, Route, TailLine};
 use super::Printer;
 use crate::gcode::{self, PauseSchedule};
 use crate::gcode::{HeatCommand, MotionCommand, PauseCommand};
@@ -102,10 +102,10 @@ impl Printer {
             // job line.
             let reset = line.take_reset();
             self.intake.note_reset(reset);
-            if self
+            let tail = self
                 .intake
-                .discard_after_cancel(&line, reset, self.now_us, &mut self.host)
-            {
+                .after_cancel(&line, reset, self.now_us, &mut self.host);
+            if tail == TailLine::Discard {
                 self.host.ok();
                 continue;
             }
@@ -216,6 +216,10 @@ impl Printer {
             LineOutcome::ManualMove(m) => {
                 self.motion.push_service(m);
                 self.host.ok();
+            }
+            LineOutcome::Execute(gcode::Command::Motion(MotionCommand::WaitMoves)) if manual => {
+                // A console M400 while parked waits for the manual moves, not the held job.
+                self.intake.owe_manual_sync();
             }
             LineOutcome::Execute(cmd) => {
                 if !self.execute(&cmd) {

@@ -309,8 +309,14 @@ impl Printer {
         self.update_pause();
         self.feed_planner();
         if self.intake.sync_owed() {
-            // An M400 waits for the motion to end (maybe through a pause) with its `ok` owed.
-            self.keep_alive();
+            // An M400 waits for the motion to end with its `ok` owed; while parked, for the
+            // machine's rest only (`intake/sync.rs`).
+            let (parked, busy) = (self.pause.parked(), self.motion.service_busy());
+            if self.intake.pay_sync_at_rest(parked, busy) {
+                self.host.ok();
+            } else {
+                self.keep_alive();
+            }
         }
         let state = self.state();
         let heat = &self.heat;

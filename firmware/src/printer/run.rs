@@ -102,7 +102,9 @@ impl Printer {
                     if !self.motion.idle() {
                         break;
                     }
-                    self.pay_sync_ok();
+                    if self.intake.sync_reached() {
+                        self.host.ok();
+                    }
                 }
                 Command::PauseHere => {
                     if self.motion.has_pending() {

@@ -178,6 +178,20 @@ impl Printer {
         self.route(ev);
     }
 
+    /// A cancel switches both heaters and the fan off, as Marlin's abort does
+    /// (`thermalManager.disable_all_heaters()`, `zero_fan_speeds()`): nothing is left hot when
+    /// the job is gone. A host line taken after the cancel may heat again; the cancelled
+    /// job's tail may not (`intake/cancel.rs`).
+    fn cool_down_after_cancel(&mut self) {
+        use crate::thermal::HeaterId;
+        for id in [HeaterId::Hotend, HeaterId::Bed] {
+            // Setting 0 °C is never refused (it is below every limit).
+            let _ = self.heat.set_target(id, 0.0);
+        }
+        self.heat.set_fan(Some(0.0));
+        self.heat.thermal_mut().cancel_autotune();
+    }
+
     /// What the pause asked of the other parts, in order.
     #[inline]
     pub(super) fn route(&mut self, events: Events) {
@@ -192,6 +206,7 @@ impl Printer {
             match ev {
                 PauseEvent::JobDropped(d) => {
                     let (cmds, spilled) = self.intake.drop_job();
+                    self.cool_down_after_cancel();
                     super::intake::Intake::say_spill_dropped(spilled, &mut self.host);
                     self.pay_sync_ok();
                     self.host.action(HostAction::Cancel);

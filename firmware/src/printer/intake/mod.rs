@@ -6,12 +6,14 @@
 //! being cut, the host-line rules' state and the spill (docs/frontend.md, "Host rules").
 //!
 //! Files: this one (the queue, room, routes, numbering), `cancel` (the cancelled stream's
-//! tail), `interpret` (a line into commands), `spill` (the parked intake's card file).
+//! tail), `interpret` (a line into commands), `sync` (M400's owed `ok`), `spill` (the parked intake's card file).
 
 mod cancel;
 mod interpret;
 pub(super) mod spill;
+mod sync;
 
+pub(super) use cancel::TailLine;
 pub(super) use interpret::{Interpreted, LineOutcome};
 
 use super::pause::Pause;
@@ -81,8 +83,9 @@ pub(super) struct Intake {
     last_line_no: Option<u32>,
     /// The job was cancelled: the rest of the host's stream is discarded until it starts anew.
     after_cancel: Option<cancel::AfterCancel>,
-    /// An M400 waits for the motion to end: its `ok` is owed, and no further line is taken.
-    sync_ok_owed: bool,
+    /// An M400 waits for the motion to end: its `ok` is owed, and no further line is taken
+    /// (`sync.rs`).
+    sync: sync::SyncOk,
     /// The port of the last job line taken (whose host streams the job).
     job_port: Option<PortId>,
     /// The host reset its line numbers (`M110`): a job starts at its next job line taken.
@@ -121,7 +124,7 @@ impl Intake {
             addr_of_mut!((*slot).host_numbers).write(false);
             addr_of_mut!((*slot).last_line_no).write(None);
             addr_of_mut!((*slot).after_cancel).write(None);
-            addr_of_mut!((*slot).sync_ok_owed).write(false);
+            addr_of_mut!((*slot).sync).write(sync::SyncOk::NONE);
             addr_of_mut!((*slot).job_port).write(None);
             addr_of_mut!((*slot).job_start_due).write(false);
             addr_of_mut!((*slot).orphaned).write(false);
@@ -147,7 +150,7 @@ impl Intake {
             host_numbers: _,
             last_line_no: _,
             after_cancel: _,
-            sync_ok_owed: _,
+            sync: _,
             job_port: _,
             job_start_due: _,
             orphaned: _,
@@ -423,23 +426,6 @@ impl Intake {
         self.orphaned |= orphan;
     }
 
-    // ---- M400 ----
-
-    /// An M400 waits for the motion to end with its `ok` owed.
-    pub(super) fn sync_owed(&self) -> bool {
-        self.sync_ok_owed
-    }
-
-    /// M400 queued its wait: its `ok` is owed.
-    pub(super) fn owe_sync(&mut self) {
-        self.sync_ok_owed = true;
-    }
-
-    /// The M400's wait is over (or dropped): whether an `ok` is to be paid.
-    pub(super) fn pay_sync(&mut self) -> bool {
-        core::mem::take(&mut self.sync_ok_owed)
-    }
-
     // ---- arcs ----
 
     /// An arc is being cut (its line's `ok` waits).
@@ -477,12 +463,6 @@ impl Intake {
         (cmds, spilled)
     }
 
-    /// The cancel completed: the host's silence is measured from here (lines that waited
-    /// during the cancel's park are not a fresh start).
-    pub(super) fn cancel_done(&mut self, now_us: u64) {
-        self.last_activity_us = now_us;
-    }
-
     /// M410: the arc goes and the job is no longer orphaned (it was dropped).
     pub(super) fn quick_stop(&mut self) {
         self.orphaned = false;
@@ -493,7 +473,7 @@ impl Intake {
     pub(super) fn halt(&mut self) {
         self.arc = None;
         self.cmds.clear();
-        self.sync_ok_owed = false;
+        self.sync = sync::SyncOk::NONE;
     }
 
     /// A homing in progress was aborted: its G28 leaves the queue's front.
