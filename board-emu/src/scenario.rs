@@ -83,6 +83,14 @@ pub fn run(o: &Options) -> Result<Report> {
             host.send_lines(["M400"]);
             continue;
         }
+        // A job's M400 answered while parked is paid at rest (the host could not send the
+        // resume otherwise: firmware/src/printer/intake/sync.rs); after the resume one more
+        // waits for the held job's moves to end.
+        if r.resumed && !r.synced_after_resume {
+            r.synced_after_resume = true;
+            host.send_lines(["M400"]);
+            continue;
+        }
         host.send_lines(["M115"]);
         // Wait for the reply line (its `ok` may never come), then settle.
         let limit = emu.now() + cyc_from_ms(2_000);
@@ -247,6 +255,8 @@ pub struct Reaction {
     pub parked: Option<Cyc>,
     /// M24 sent.
     pub resumed: bool,
+    /// The M400 after the resume sent.
+    pub synced_after_resume: bool,
     /// The job's lines were queued.
     pub job_started: bool,
     /// `ok`s before the job's lines.

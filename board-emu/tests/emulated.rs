@@ -183,7 +183,12 @@ fn a_layer_pause_stops_where_sim_run_stops() {
     let at = r.pause_point_net_steps.expect("parked");
     assert!(stops.contains(&at), "{at:?} not in {stops:?}");
     // Resumed and finished: the whole job's steps, as without the pause.
-    assert_eq!(net_steps(&r), expected_net_steps(THREE_LAYERS, o.start_mm));
+    assert_eq!(
+        net_steps(&r),
+        expected_net_steps(THREE_LAYERS, o.start_mm),
+        "after the resume: {:?}",
+        r.lines
+    );
 }
 
 #[test]
