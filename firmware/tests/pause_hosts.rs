@@ -895,3 +895,53 @@ fn a_console_jog_arriving_after_the_resume_never_runs_inside_the_job() {
     let top = (0.2 * 6.0 + cfg.pause.lift_z_mm) * cfg.axes[2].steps_per_mm;
     assert!(o.max_z as f32 <= top + 1.0, "max Z {} steps", o.max_z);
 }
+
+/// Issue 27: two jobs on one connection (printcore resets its line numbers between them); the
+/// second is paused past the nozzle timeout while printcore streams, after the first job's end
+/// code turned the heaters off: nothing of either job is lost and the second prints hot.
+#[test]
+fn a_second_job_on_one_connection_paused_past_the_timeout_loses_nothing() {
+    let job = heated_job(3, 30);
+    let two = |pause: bool| {
+        let (mut second, mut asked, mut resume_asked) = (false, false, false);
+        let (mut timeout_set, mut second_from) = (false, None);
+        drive_with(
+            Host::new(Kind::Printcore, job.clone()),
+            1_200_000_000,
+            true,
+            |h, now, _| {
+                if !second && h.done() {
+                    h.start_job(job.clone());
+                    second = true;
+                    second_from = Some(now);
+                }
+                if !pause {
+                    return;
+                }
+                let Some(t2) = second_from else { return };
+                if !timeout_set {
+                    h.pri.push_back("M760 T10".into());
+                    timeout_set = true;
+                }
+                if !asked && h.next >= 60 && now > t2 {
+                    h.pri.push_back("M601".into());
+                    asked = true;
+                }
+                if !resume_asked
+                    && h.paused_at_us
+                        .is_some_and(|t| t > t2 && now >= t + 90_000_000)
+                {
+                    h.pri.push_back("M602".into());
+                    resume_asked = true;
+                }
+            },
+        )
+    };
+    let base = two(false).executed;
+    let o = two(true);
+    assert!(
+        o.host.out.contains("nozzle heater off"),
+        "the timeout never fired"
+    );
+    assert_held_job_whole_and_hot(&o, &base);
+}
