@@ -238,7 +238,7 @@ fn drive_with(
     let mut stop_z = 0;
     let mut now = 0u64;
     while now < limit_us {
-        if heated && now % 100_000 == 0 {
+        if heated && now.is_multiple_of(100_000) {
             hotend.step(&mut p, HeaterId::Hotend, now);
             bed.step(&mut p, HeaterId::Bed, now);
         }

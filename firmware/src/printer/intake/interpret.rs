@@ -79,15 +79,17 @@ impl Intake {
             host.note_ignored(parsed.ignored);
         }
         // Console lines run in the console copy of the modal state (the job's is untouched):
-        // the parked one, or, while the job runs, one taken from the job's now. The feed and
-        // flow overrides act on the job's, as Marlin's M220/M221 do.
+        // the parked one, or, while the job runs, one taken from the job's now — except the
+        // feed and flow overrides while the job runs, which act on the job's, as Marlin's
+        // M220/M221 do.
         let overrides = matches!(
             parsed.command,
             Some(gcode::Command::FeedOverride(Some(_)) | gcode::Command::FlowOverride(Some(_)))
         );
         let job_machine = self.interp.machine;
-        let machine = match (manual && !(overrides && !parked), &mut self.manual) {
-            (true, console) => console.get_or_insert(job_machine),
+        let console = manual && (parked || !overrides);
+        let machine = match (console, &mut self.manual) {
+            (true, copy) => copy.get_or_insert(job_machine),
             (false, _) => &mut self.interp.machine,
         };
         let saved = *machine;
