@@ -776,7 +776,8 @@ fn assert_held_job_whole_and_hot(o: &Outcome, base: &[(u32, u32)]) {
 /// arrival; the resume heats the nozzle again and waits; nothing is lost.
 #[test]
 fn a_pause_outlasting_the_nozzle_timeout_loses_nothing() {
-    let job = heated_job(5, 30);
+    // Long enough that printcore still streams when the return starts (a line in flight).
+    let job = heated_job(12, 30);
     let base = drive_with(
         Host::new(Kind::Printcore, job.clone()),
         900_000_000,
@@ -785,11 +786,14 @@ fn a_pause_outlasting_the_nozzle_timeout_loses_nothing() {
     )
     .executed;
     let (mut asked, mut resume_asked) = (false, false);
+    // A console M105 sent when the return starts (the re-heat ahead of it): when, and when
+    // answered; when the held job was released.
+    let (mut m105_at, mut m105_ok_at, mut resumed_at) = (None, None, None);
     let o = drive_with(
         Host::new(Kind::Printcore, job.clone()),
         900_000_000,
         true,
-        |h, now, _| {
+        |h, now, lines| {
             if h.printing_since_us.is_some_and(|t| now == t + 1000) {
                 h.pri.push_back("M760 T10".into());
             }
@@ -801,6 +805,19 @@ fn a_pause_outlasting_the_nozzle_timeout_loses_nothing() {
                 h.pri.push_back("M602".into());
                 resume_asked = true;
             }
+            if m105_at.is_none() && lines.iter().any(|l| l == "//action:resume") {
+                h.pri.push_back("M105".into());
+                m105_at = Some(now);
+            }
+            if m105_at.is_some()
+                && m105_ok_at.is_none()
+                && lines.iter().any(|l| l.starts_with("ok T:"))
+            {
+                m105_ok_at = Some(now);
+            }
+            if resumed_at.is_none() && lines.iter().any(|l| l == "//action:resumed") {
+                resumed_at = Some(now);
+            }
         },
     );
     assert!(
@@ -808,6 +825,21 @@ fn a_pause_outlasting_the_nozzle_timeout_loses_nothing() {
         "the timeout never fired"
     );
     assert_held_job_whole_and_hot(&o, &base);
+    // The console during the re-heat: answered within the parked intake's pace (no card here:
+    // ≤ 3 s), while the re-heat itself took longer.
+    let (Some(sent), Some(answered), Some(released)) = (m105_at, m105_ok_at, resumed_at) else {
+        panic!("M105 at {m105_at:?}, answered {m105_ok_at:?}, released {resumed_at:?}");
+    };
+    assert!(
+        released - sent > 10_000_000,
+        "no re-heat to wait for: {} µs",
+        released - sent
+    );
+    assert!(
+        answered - sent <= 3_100_000,
+        "M105 answered {} µs after it was sent during the re-heat",
+        answered - sent
+    );
 }
 
 /// Issue 27: a pause requested in the last but one layer holds the last layer and the end
