@@ -51,7 +51,11 @@ pub use thermistor::{Curve, SensorFault, Thermistor, ThermistorTable};
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct IdleState {
     since_us: Option<u64>,
-    saved_target_c: Option<f32>,
+    /// The timeout has lowered the nozzle's target.
+    lowered: bool,
+    /// Both heaters' targets when the pause parked (the job's): what the resume heats to,
+    /// whatever was set while parked.
+    job_c: Option<[f32; HEATERS]>,
 }
 
 /// Both heaters, their protection, the automatic hot-end fan and the pause idle timeout.
@@ -78,7 +82,8 @@ impl Thermal {
             idle_cfg: cfg.idle,
             idle: IdleState {
                 since_us: None,
-                saved_target_c: None,
+                lowered: false,
+                job_c: None,
             },
         }
     }
@@ -110,10 +115,6 @@ impl Thermal {
             tune.abort(AutotuneError::Cancelled);
         }
         heater.set_target(target_c);
-        if id == HeaterId::Hotend {
-            // A new nozzle target during a pause supersedes the idle bookkeeping.
-            self.idle.saved_target_c = None;
-        }
         Ok(())
     }
 
@@ -206,7 +207,8 @@ impl Thermal {
             h.set_target(0.0);
             h.duty = 0.0;
         }
-        self.idle.saved_target_c = None;
+        self.idle.lowered = false;
+        self.idle.job_c = None;
     }
 
     /// The latched fault, if any.
@@ -323,8 +325,15 @@ impl Thermal {
         }
     }
 
-    /// The executive entered a pause (parked): starts the idle timer if configured.
+    /// The executive entered a pause (parked): the job's targets are kept for the resume and
+    /// the idle timer starts if configured.
     pub fn pause_idle_start(&mut self, now_us: u64) {
+        if self.idle.job_c.is_none() {
+            self.idle.job_c = Some([
+                self.heater(HeaterId::Hotend).target_c,
+                self.heater(HeaterId::Bed).target_c,
+            ]);
+        }
         if self.idle_cfg.is_some() && self.idle.since_us.is_none() {
             self.idle.since_us = Some(now_us);
         }
@@ -346,41 +355,49 @@ impl Thermal {
     pub fn pause_idle_forget(&mut self) {
         self.idle = IdleState {
             since_us: None,
-            saved_target_c: None,
+            lowered: false,
+            job_c: None,
         };
     }
 
     /// True while the idle timeout holds the nozzle at its lowered target.
     pub fn idle_lowered(&self) -> bool {
-        self.idle.saved_target_c.is_some()
+        self.idle.lowered
     }
 
-    /// The pause ends (resume): stops the idle timer and, if the nozzle had been lowered,
-    /// restores its target and returns it; the executive must then wait for
-    /// [`Thermal::reached`] on the hot end before extruding.
+    /// The pause ends (resume): stops the idle timer and sets both heaters back to the job's
+    /// targets of the park (a console `M104` while parked, or the timeout, changed them for
+    /// the pause only). Returns the nozzle's target when a target changed: the executive must
+    /// then wait for [`Thermal::reached`] on both heaters before the head moves.
     pub fn pause_idle_end(&mut self) -> Option<f32> {
         self.idle.since_us = None;
-        let saved = self.idle.saved_target_c.take()?;
+        self.idle.lowered = false;
+        let job = self.idle.job_c.take()?;
         if self.fault.is_some() {
             return None;
         }
-        self.heater_mut(HeaterId::Hotend).set_target(saved);
-        Some(saved)
+        let mut changed = false;
+        for (h, c) in self.heaters.iter_mut().zip(job) {
+            if h.target_c != c {
+                h.set_target(c);
+                changed = true;
+            }
+        }
+        changed.then_some(job[HeaterId::Hotend.index()])
     }
 
     fn idle_tick(&mut self, now_us: u64) {
         let (Some(cfg), Some(since)) = (self.idle_cfg, self.idle.since_us) else {
             return;
         };
-        if self.idle.saved_target_c.is_some() {
+        if self.idle.lowered {
             return;
         }
         if now_us.saturating_sub(since) >= cfg.timeout_s as u64 * 1_000_000 {
             let h = self.heater_mut(HeaterId::Hotend);
-            let old = h.target_c;
-            if old > cfg.nozzle_c {
+            if h.target_c > cfg.nozzle_c {
                 h.set_target(cfg.nozzle_c);
-                self.idle.saved_target_c = Some(old);
+                self.idle.lowered = true;
             }
         }
     }

@@ -81,10 +81,14 @@ fn cold_extrusion_is_refused_until_m302_p1() {
         r.out
     );
     assert!(!r.out.contains("Error"), "{}", r.out);
-    assert!(r.trace.is_empty());
-    // State unchanged: the logical E is still 0, X too.
-    assert!(r.out.contains("X:0.00 Y:0.00 Z:0.00 E:0.00"), "{}", r.out);
-    // Travel without E is fine cold; M302 P1 allows E.
+    // Judged when the moves reach the planner, as Marlin: the E part is dropped, the rest
+    // runs (X to 10 mm), and the next move feeds only its own filament (Marlin's
+    // `position.e = target.e`): the logical E is where the lines put it, the E motor has not
+    // moved.
+    assert!(r.trace.iter().all(|(_, pos)| pos[3] == 0), "E moved cold");
+    assert_eq!(r.end, [800, 0, 0, 0]);
+    assert!(r.out.contains("X:10.00 Y:0.00 Z:0.00 E:1.00"), "{}", r.out);
+    // Travel without E is fine cold; M302 P1 allows E: E1 → E5 feeds 4 mm.
     let r = drive(
         &mut p,
         &["G1 X10", "M302 P1", "G1 E5", "M302"],
@@ -92,7 +96,7 @@ fn cold_extrusion_is_refused_until_m302_p1() {
         20_000_000,
     );
     assert!(!r.out.contains("prevented"), "{}", r.out);
-    assert_eq!(r.end, [800, 0, 0, 465]);
+    assert_eq!(r.end, [800, 0, 0, 372]);
     assert!(
         r.out
             .contains("echo:Cold extrudes are enabled (min temp 170C)"),
@@ -102,7 +106,7 @@ fn cold_extrusion_is_refused_until_m302_p1() {
     // M302 S0 P0: protection on again with a minimum of 0 °C: 25 °C is warm enough.
     let r = drive(&mut p, &["M302 P0 S0", "G1 E6"], |_| 25.0, 20_000_000);
     assert!(!r.out.contains("prevented"), "{}", r.out);
-    assert_eq!(r.end[3], 558);
+    assert_eq!(r.end[3], 465);
 }
 
 /// M104 then an extruding move at once: the move is taken (the hotend heats) and waits in the

@@ -311,6 +311,8 @@ fn manual_moves_while_paused_do_not_disturb_the_job() {
             ..Policy::FIRMWARE
         },
     );
+    // No heater model: the job extrudes cold (as M302 P1; the guard judges at the planner).
+    p.extrusion_guard_mut().allow_cold = true;
     let _ = run(&mut p, &cmds3(), &[req(1_000_000, NOW)], 8_000_000);
     assert_eq!(p.status().state, State::Paused);
     let held = p.status().paused_at.unwrap();

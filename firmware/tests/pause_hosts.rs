@@ -58,6 +58,8 @@ struct Host {
     /// Raw bytes to write at once, outside the line protocol (control bytes).
     raw: Vec<u8>,
     cancelled_at_us: Option<u64>,
+    /// When the first job block ran.
+    printing_since_us: Option<u64>,
 }
 
 impl Host {
@@ -77,6 +79,7 @@ impl Host {
             last_ok_us: 0,
             raw: Vec::new(),
             cancelled_at_us: None,
+            printing_since_us: None,
         }
     }
 
@@ -173,17 +176,61 @@ struct Outcome {
     max_z: i32,
     /// Z where the head stopped for the (last) pause, steps.
     stop_z: i32,
+    /// The nozzle's temperature at each extruding job block after the resume, °C (heated
+    /// runs).
+    extruding_c_after_resume: Vec<f32>,
 }
 
 /// Run `host` against a printer: `on_tick(host, now, output lines)` queues terminal lines.
-fn drive(
+fn drive(host: Host, limit_us: u64, on_tick: impl FnMut(&mut Host, u64, &[String])) -> Outcome {
+    drive_with(host, limit_us, false, on_tick)
+}
+
+/// A heater's first-order plant, sampled every 100 ms: `gain_c_s` °C/s at full duty, losing
+/// `loss_per_s` of its rise above 25 °C per second (an Ender-3's hotend heats at about
+/// 2.5 °C/s near 200 °C and, off, falls below 170 °C within half a minute).
+struct Plant {
+    c: f32,
+    duty: f32,
+    gain_c_s: f32,
+    loss_per_s: f32,
+}
+
+impl Plant {
+    fn step(&mut self, p: &mut Printer, id: firmware::thermal::HeaterId, now: u64) {
+        self.c += (self.duty * self.gain_c_s - (self.c - 25.0) * self.loss_per_s) * 0.1;
+        self.duty = p.thermal_sample(id, self.c, now);
+    }
+}
+
+/// [`drive`]; `heated`: the heaters are modelled ([`Plant`]) and the cold-extrusion guard is
+/// on, and the outcome notes the nozzle's temperature at each extruding job block after the
+/// first `//action:resumed`.
+fn drive_with(
     mut host: Host,
     limit_us: u64,
+    heated: bool,
     mut on_tick: impl FnMut(&mut Host, u64, &[String]),
 ) -> Outcome {
+    use firmware::thermal::HeaterId;
     let mut p = Printer::new(MachineConfig::ENDER3);
     // No heater model: the jobs extrude cold (as M302 P1).
-    p.extrusion_guard_mut().allow_cold = true;
+    p.extrusion_guard_mut().allow_cold = !heated;
+    let mut hotend = Plant {
+        c: 25.0,
+        duty: 0.0,
+        gain_c_s: 4.0,
+        loss_per_s: 0.01,
+    };
+    let mut bed = Plant {
+        c: 25.0,
+        duty: 0.0,
+        gain_c_s: 1.0,
+        loss_per_s: 0.01,
+    };
+    let mut resumed = false;
+    let mut last_e = 0i32;
+    let mut extruding_c_after_resume = Vec::new();
     let mut executed = Vec::new();
     let mut after_cancel = Vec::new();
     let mut stops = 0;
@@ -191,6 +238,10 @@ fn drive(
     let mut stop_z = 0;
     let mut now = 0u64;
     while now < limit_us {
+        if heated && now.is_multiple_of(100_000) {
+            hotend.step(&mut p, HeaterId::Hotend, now);
+            bed.step(&mut p, HeaterId::Bed, now);
+        }
         host.send(&mut p, now);
         p.poll(now);
         let until_ns = (now + 1000) * 1000;
@@ -211,6 +262,13 @@ fn drive(
                     ..
                 } => {
                     executed.push((seq, seg));
+                    if host.printing_since_us.is_none() {
+                        host.printing_since_us = Some(now);
+                    }
+                    if resumed && pos[3] > last_e {
+                        extruding_c_after_resume.push(hotend.c);
+                    }
+                    last_e = pos[3];
                     if host.cancelled_at_us.is_some() {
                         after_cancel.push((seq, seg, pos));
                     }
@@ -223,6 +281,7 @@ fn drive(
             }
         }
         let lines = host.read(&mut p, now);
+        resumed |= lines.iter().any(|l| l == "//action:resumed");
         on_tick(&mut host, now, &lines);
         now += 1000;
         if host.done() && p.status().state == State::Idle && p.next_step_ns().is_none() {
@@ -237,6 +296,7 @@ fn drive(
         end_state: p.status().state,
         max_z,
         stop_z,
+        extruding_c_after_resume,
     }
 }
 
@@ -669,4 +729,251 @@ fn a_very_late_resume_from_a_streaming_host_goes_by_the_control_byte() {
     assert!(o.host.done());
     assert_eq!(o.executed, base, "every segment once, in order");
     let _ = firmware::printer::PARKED_EXTRA;
+}
+
+/// [`job`] with its heat-up (bed 60 °C, nozzle 200 °C, both waited for) and an end code that
+/// turns the heaters and the fan off, as a slicer writes it.
+fn heated_job(layers: u32, moves: u32) -> Vec<String> {
+    let mut v: Vec<String> = [
+        "M140 S60",
+        "M104 S200",
+        "M190 S60",
+        "M109 S200",
+        "M106 S255",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    v.extend(job(layers, moves));
+    v.extend(["M104 S0", "M140 S0", "M107"].iter().map(|s| s.to_string()));
+    v
+}
+
+/// The held job ran as if never paused (every segment once, in order, as the unpaused run),
+/// no line was refused, and the nozzle was at the job's 200 °C (− 5) for every extrusion after
+/// the resume.
+fn assert_held_job_whole_and_hot(o: &Outcome, base: &[(u32, u32)]) {
+    let out = &o.host.out;
+    let tail: String = out.lines().rev().take(16).collect::<Vec<_>>().join("\n");
+    assert!(out.contains("//action:resumed"), "{tail}");
+    assert!(!out.contains("refused"), "a job line was refused:\n{out}");
+    assert_one_stop_and_the_whole_job(o, base, &tail);
+    let first = o.extruding_c_after_resume.first().copied();
+    assert!(
+        first.is_some_and(|c| c >= 195.0),
+        "first extrusion after the resume at {first:?} °C"
+    );
+    let min = o
+        .extruding_c_after_resume
+        .iter()
+        .copied()
+        .fold(f32::MAX, f32::min);
+    assert!(min >= 195.0, "an extrusion after the resume at {min} °C");
+}
+
+/// Issue 27: printcore streams on through a pause that outlasts the nozzle timeout (M760 T10):
+/// the nozzle goes cold while job lines keep arriving. They are held, not judged cold at
+/// arrival; the resume heats the nozzle again and waits; nothing is lost.
+#[test]
+fn a_pause_outlasting_the_nozzle_timeout_loses_nothing() {
+    // Long enough that printcore still streams when the return starts (a line in flight).
+    let job = heated_job(12, 30);
+    let base = drive_with(
+        Host::new(Kind::Printcore, job.clone()),
+        900_000_000,
+        true,
+        |_, _, _| {},
+    )
+    .executed;
+    let (mut asked, mut resume_asked) = (false, false);
+    // A console M105 sent when the return starts (the re-heat ahead of it): when, and when
+    // answered; when the held job was released.
+    let (mut m105_at, mut m105_ok_at, mut resumed_at) = (None, None, None);
+    let o = drive_with(
+        Host::new(Kind::Printcore, job.clone()),
+        900_000_000,
+        true,
+        |h, now, lines| {
+            if h.printing_since_us.is_some_and(|t| now == t + 1000) {
+                h.pri.push_back("M760 T10".into());
+            }
+            if !asked && h.printing_since_us.is_some_and(|t| now >= t + 3_000_000) {
+                h.pri.push_back("M601".into());
+                asked = true;
+            }
+            if !resume_asked && h.paused_at_us.is_some_and(|t| now >= t + 120_000_000) {
+                h.pri.push_back("M602".into());
+                resume_asked = true;
+            }
+            if m105_at.is_none() && lines.iter().any(|l| l == "//action:resume") {
+                h.pri.push_back("M105".into());
+                m105_at = Some(now);
+            }
+            if m105_at.is_some()
+                && m105_ok_at.is_none()
+                && lines.iter().any(|l| l.starts_with("ok T:"))
+            {
+                m105_ok_at = Some(now);
+            }
+            if resumed_at.is_none() && lines.iter().any(|l| l == "//action:resumed") {
+                resumed_at = Some(now);
+            }
+        },
+    );
+    assert!(
+        o.host.out.contains("nozzle heater off"),
+        "the timeout never fired"
+    );
+    assert_held_job_whole_and_hot(&o, &base);
+    // The console during the re-heat: answered within the parked intake's pace (no card here:
+    // ≤ 3 s), while the re-heat itself took longer.
+    let (Some(sent), Some(answered), Some(released)) = (m105_at, m105_ok_at, resumed_at) else {
+        panic!("M105 at {m105_at:?}, answered {m105_ok_at:?}, released {resumed_at:?}");
+    };
+    assert!(
+        released - sent > 10_000_000,
+        "no re-heat to wait for: {} µs",
+        released - sent
+    );
+    assert!(
+        answered - sent <= 3_100_000,
+        "M105 answered {} µs after it was sent during the re-heat",
+        answered - sent
+    );
+}
+
+/// Issue 27: a pause requested in the last but one layer holds the last layer and the end
+/// code (printcore streams them into the parked printer): the end code's `M104 S0` runs after
+/// the held layer, never during the pause, and the held layer prints hot.
+#[test]
+fn a_pause_before_the_last_layer_holds_the_end_code() {
+    let job = heated_job(4, 30);
+    let base = drive_with(
+        Host::new(Kind::Printcore, job.clone()),
+        900_000_000,
+        true,
+        |_, _, _| {},
+    )
+    .executed;
+    let (mut asked, mut resume_asked) = (false, false);
+    let mut target_while_parked = Vec::new();
+    let o = drive_with(
+        Host::new(Kind::Printcore, job.clone()),
+        900_000_000,
+        true,
+        |h, now, _| {
+            // The sender is a queue's length ahead of the head: the pause stops before the
+            // last layer or the one before it, and the rest comes into the parked printer.
+            if !asked && h.next >= h.job.len() - 40 {
+                h.pri.push_back("M601".into());
+                asked = true;
+            }
+            if let Some(t) = h.paused_at_us {
+                if h.next >= h.job.len() && !resume_asked {
+                    target_while_parked.push(now);
+                }
+                if !resume_asked && h.next >= h.job.len() && now >= t + 30_000_000 {
+                    h.pri.push_back("M602".into());
+                    resume_asked = true;
+                }
+            }
+        },
+    );
+    assert!(
+        !target_while_parked.is_empty(),
+        "the end code was not sent while parked"
+    );
+    assert_held_job_whole_and_hot(&o, &base);
+}
+
+/// Issue 27: a console jog (`send_now`: `G91`, `G1 Z1`, `G90`) that reaches the printer only
+/// after the resume — it waited in printcore's queue behind a job line, as without a card —
+/// never runs inside the job: the move is refused with an `echo:`, the `G91` never touches the
+/// job's modal state, and the job runs as the unpaused one, no higher.
+#[test]
+fn a_console_jog_arriving_after_the_resume_never_runs_inside_the_job() {
+    let job = job(6, 30);
+    let base = baseline(&job);
+    let (mut asked, mut resume_asked, mut jogged) = (false, false, false);
+    let o = drive(
+        Host::new(Kind::Printcore, job.clone()),
+        600_000_000,
+        |h, now, lines| {
+            if !asked && now >= 3_000_000 {
+                h.pri.push_back("M601".into());
+                asked = true;
+            }
+            if !resume_asked && h.paused_at_us.is_some_and(|t| now >= t + 5_000_000) {
+                h.pri.push_back("M602".into());
+                resume_asked = true;
+            }
+            if !jogged && lines.iter().any(|l| l == "//action:resumed") {
+                for l in ["G91", "G1 Z1 F600", "G90"] {
+                    h.pri.push_back(l.into());
+                }
+                jogged = true;
+            }
+        },
+    );
+    let out = &o.host.out;
+    let tail: String = out.lines().rev().take(16).collect::<Vec<_>>().join("\n");
+    assert!(jogged, "never resumed:\n{tail}");
+    assert!(
+        out.contains("echo:refused: console move while printing"),
+        "{out}"
+    );
+    assert_one_stop_and_the_whole_job(&o, &base, &tail);
+    let cfg = MachineConfig::ENDER3;
+    let top = (0.2 * 6.0 + cfg.pause.lift_z_mm) * cfg.axes[2].steps_per_mm;
+    assert!(o.max_z as f32 <= top + 1.0, "max Z {} steps", o.max_z);
+}
+
+/// Issue 27: two jobs on one connection (printcore resets its line numbers between them); the
+/// second is paused past the nozzle timeout while printcore streams, after the first job's end
+/// code turned the heaters off: nothing of either job is lost and the second prints hot.
+#[test]
+fn a_second_job_on_one_connection_paused_past_the_timeout_loses_nothing() {
+    let job = heated_job(3, 30);
+    let two = |pause: bool| {
+        let (mut second, mut asked, mut resume_asked) = (false, false, false);
+        let (mut timeout_set, mut second_from) = (false, None);
+        drive_with(
+            Host::new(Kind::Printcore, job.clone()),
+            1_200_000_000,
+            true,
+            |h, now, _| {
+                if !second && h.done() {
+                    h.start_job(job.clone());
+                    second = true;
+                    second_from = Some(now);
+                }
+                if !pause {
+                    return;
+                }
+                let Some(t2) = second_from else { return };
+                if !timeout_set {
+                    h.pri.push_back("M760 T10".into());
+                    timeout_set = true;
+                }
+                if !asked && h.next >= 60 && now > t2 {
+                    h.pri.push_back("M601".into());
+                    asked = true;
+                }
+                if !resume_asked
+                    && h.paused_at_us
+                        .is_some_and(|t| t > t2 && now >= t + 90_000_000)
+                {
+                    h.pri.push_back("M602".into());
+                    resume_asked = true;
+                }
+            },
+        )
+    };
+    let base = two(false).executed;
+    let o = two(true);
+    assert!(
+        o.host.out.contains("nozzle heater off"),
+        "the timeout never fired"
+    );
+    assert_held_job_whole_and_hot(&o, &base);
 }

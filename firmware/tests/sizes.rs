@@ -19,4 +19,8 @@ fn ram_budget() {
     // 31 KB before the parked intake's 96 command slots (host.rs `PARKED_EXTRA`, 28 B each);
     // + 240 B for the emergency scan of both ports (link/scan.rs, issue 31).
     assert!(printer <= 37 * 1024);
+    // A queued command is a move's size: the job's settings (`JobSetting`, issue 27) fit in it.
+    let command = std::mem::size_of::<firmware::printer::Command>();
+    println!("Command {command} B");
+    assert!(command <= 28);
 }

@@ -58,6 +58,8 @@ pub struct PrinterExec {
     pub keep_executed: bool,
     /// Endstops (None: no switches; G28 then moves to the minimum).
     pub endstops: Option<SimEndstops>,
+    /// Job moves whose E part the firmware dropped (`Record::ColdRefused`), by sequence number.
+    pub cold_refused: Vec<u32>,
 }
 
 impl PrinterExec {
@@ -70,6 +72,7 @@ impl PrinterExec {
             executed: Vec::new(),
             keep_executed: false,
             endstops: None,
+            cold_refused: Vec::new(),
         }
     }
 
@@ -116,6 +119,12 @@ impl PrinterExec {
                     }
                 }
                 Record::Executed { .. } => {}
+                Record::ColdRefused { seq, .. } => {
+                    self.cold_refused.push(seq);
+                    if self.keep_notes {
+                        self.notes.push(r);
+                    }
+                }
                 _ => {
                     if self.keep_notes {
                         self.notes.push(r);
@@ -174,6 +183,10 @@ impl Executive for PrinterExec {
 
     fn next_seq(&self) -> Option<u32> {
         Some(self.printer.machine().next_seq())
+    }
+
+    fn cold_refused(&self) -> usize {
+        self.cold_refused.len()
     }
 
     fn thermal(&mut self, bed: bool, measured_c: f32, now_us: u64) -> f32 {

@@ -194,8 +194,14 @@ pub fn compute<E: Executive>(
     rep.executed_in_order = c.in_order;
     rep.lost_segments = c.lost_segments;
     rep.duplicated_segments = c.duplicated_segments;
-    rep.lost_moves = c.lost_moves;
+    // A move whose extrusion the firmware dropped ran its X/Y/Z (the comparison sees it): it
+    // is lost all the same, and the run is not clean.
+    let cold = a.fw.cold_refused();
+    rep.lost_moves = c.lost_moves + cold;
     rep.duplicated_moves = c.duplicated_moves;
+    if cold > 0 {
+        rep.finished = false;
+    }
 
     let complete = |line: usize, pos: &StepPos| view.b_line_ends.get(line).is_none_or(|e| e == pos);
     // The layers of the job as the printer received it, from the independent reference model

@@ -104,4 +104,10 @@ pub trait Executive {
     /// Feed a temperature sample (°C) for heater `bed` (false = hotend); returns the heater
     /// duty 0..=1 the firmware asks for. Executives without thermal control return 0.
     fn thermal(&mut self, bed: bool, measured_c: f32, now_us: u64) -> f32;
+    /// Job moves whose extrusion was dropped when they reached the planner (a nozzle too
+    /// cold), from the execution record: each is a lost move, whatever the step comparison
+    /// says of its X/Y/Z.
+    fn cold_refused(&self) -> usize {
+        0
+    }
 }

@@ -53,6 +53,9 @@ pub struct MoveLog<'a> {
     pub cancel_marks: &'a [usize],
     /// The step generator still had steps to run when the session ended.
     pub moving_at_end: bool,
+    /// Job moves whose extrusion the firmware dropped (cold nozzle at the planner), by
+    /// sequence number: lost, though their X/Y/Z ran.
+    pub cold_refused: &'a [u32],
 }
 
 /// Lost / duplicated / cancelled accounting of a [`MoveLog`].
@@ -109,6 +112,8 @@ impl MoveLog<'_> {
                 c.lost.1 += missing;
             }
         }
+        let cold: std::collections::BTreeSet<u32> = self.cold_refused.iter().copied().collect();
+        c.lost.0 += cold.len();
         c
     }
 }
@@ -261,6 +266,20 @@ mod tests {
     }
 
     #[test]
+    fn a_move_whose_extrusion_was_dropped_is_lost() {
+        // Every segment ran (X/Y/Z), but the firmware dropped move 2's E part, twice noted.
+        let ex = [(1, 0, 1), (2, 0, 1), (3, 0, 1)];
+        let c = MoveLog {
+            executed: &ex,
+            cancel_marks: &[],
+            moving_at_end: false,
+            cold_refused: &[2, 2],
+        }
+        .counts();
+        assert_eq!(c.lost, (1, 0));
+    }
+
+    #[test]
     fn cancelled_and_running_moves_are_not_lost() {
         // Move 1 complete, move 2 cut by a cancel (mark after its 1st segment), move 3 running.
         let ex = [(1, 0, 1), (2, 0, 3), (3, 0, 2)];
@@ -268,6 +287,7 @@ mod tests {
             executed: &ex,
             cancel_marks: &[2],
             moving_at_end: true,
+            cold_refused: &[],
         }
         .counts();
         assert_eq!(c.moves, 3);
@@ -279,6 +299,7 @@ mod tests {
             executed: &ex,
             cancel_marks: &[],
             moving_at_end: false,
+            cold_refused: &[],
         }
         .counts();
         assert_eq!(c.lost, (2, 3));
@@ -289,6 +310,7 @@ mod tests {
             executed: &ex,
             cancel_marks: &[],
             moving_at_end: false,
+            cold_refused: &[],
         }
         .counts();
         assert_eq!(c.duplicated, (1, 1));

@@ -398,6 +398,14 @@ impl Planner {
         Ok(true)
     }
 
+    /// The last move's E part was not planned (a cold nozzle): the planned position takes
+    /// `e_steps` as if it had been, so the next move feeds only its own filament (Marlin's
+    /// `position.e = target.e` in `Planner::_populate_block`). The steppers' E count keeps
+    /// what really moved.
+    pub fn skip_e(&mut self, e_steps: i32) {
+        self.end_pos[crate::motion::Axis::E.index()] = e_steps;
+    }
+
     /// Queue a layer mark before the next block. Becomes the barrier if one is waiting for
     /// the next mark (returns `Ok(true)` then). A mark right after another one, with no block
     /// between them (a layer without motion), stands at the same place: it replaces the

@@ -61,9 +61,12 @@ impl ExtrusionGuard {
     /// its target `target_c`? Cold with a target at or above the minimum is heating: allowed
     /// here, the queue holds the move until the hotend is hot (the heat part's `waits_for_heat`).
     pub fn check(&self, de_mm: f32, hotend_c: f32, target_c: f32) -> Result<(), Refusal> {
-        if de_mm == 0.0 {
-            return Ok(());
-        }
+        self.check_length(de_mm)?;
+        self.check_cold(de_mm, hotend_c, target_c)
+    }
+
+    /// The length half of [`ExtrusionGuard::check`]: one move feeds at most `max_length_mm`.
+    pub fn check_length(&self, de_mm: f32) -> Result<(), Refusal> {
         if libm::fabsf(de_mm)
             .partial_cmp(&self.max_length_mm)
             .is_none_or(|o| o.is_gt())
@@ -72,6 +75,14 @@ impl ExtrusionGuard {
                 e_mm: de_mm,
                 max_mm: self.max_length_mm,
             });
+        }
+        Ok(())
+    }
+
+    /// The temperature half of [`ExtrusionGuard::check`].
+    pub fn check_cold(&self, de_mm: f32, hotend_c: f32, target_c: f32) -> Result<(), Refusal> {
+        if de_mm == 0.0 {
+            return Ok(());
         }
         if self.too_cold(hotend_c) && self.too_cold(target_c) {
             return Err(Refusal::ColdExtrusion {

@@ -153,10 +153,18 @@ impl Heat {
         }
     }
 
-    /// May a move feed `de_mm` of filament now ([`ExtrusionGuard::check`])?
-    pub(super) fn check_extrusion(&self, de_mm: f32) -> Result<(), Refusal> {
+    /// May one move feed `de_mm` of filament at all ([`ExtrusionGuard::check_length`])?
+    /// Judged when the line comes: it does not depend on the state the move runs in.
+    pub(super) fn check_length(&self, de_mm: f32) -> Result<(), Refusal> {
+        self.guard.check_length(de_mm)
+    }
+
+    /// May a move feed `de_mm` of filament now ([`ExtrusionGuard::check_cold`])? Judged when
+    /// the move enters the planner (Marlin: `Planner::_populate_block`), in the state it runs
+    /// in.
+    pub(super) fn check_cold(&self, de_mm: f32) -> Result<(), Refusal> {
         let target = self.thermal.target_c(HeaterId::Hotend);
-        self.guard.check(de_mm, self.hotend_c(), target)
+        self.guard.check_cold(de_mm, self.hotend_c(), target)
     }
 
     /// A move of E waits before the planner while the hotend heats towards the minimum (taken

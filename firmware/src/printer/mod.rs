@@ -75,7 +75,8 @@ pub use records::RECORD_CAPACITY;
 pub use sd::{SD_CHUNK, SD_LINES_PER_SERVICE};
 pub use store::ERASE_AHEAD_IDLE_US;
 pub use types::{
-    Command, PausedLines, Policy, Record, Schedule, State, Status, StepperRequest, LINE_LEN,
+    Command, JobSetting, PausedLines, Policy, Record, Schedule, State, Status, StepperRequest,
+    LINE_LEN,
 };
 
 use crate::config::MachineConfig;

@@ -34,20 +34,26 @@ impl Printer {
         }
         self.motion.refill();
         while let Some(cmd) = self.intake.front().copied() {
+            if !self.pause.queue_runs(&self.motion) {
+                // A pause holds the job: what is queued after its stop runs after the resume,
+                // in order, judged then (docs/frontend.md, "The held job").
+                break;
+            }
             let cfg = self.settings.cfg();
             match cmd {
                 Command::Move(req) => {
                     if !self.motion.can_accept() {
                         break;
                     }
-                    let moves_e = req.target[crate::motion::Axis::E.index()]
-                        != self.motion.end_position()[crate::motion::Axis::E.index()];
+                    let e = crate::motion::Axis::E.index();
+                    let from_e = self.motion.end_position()[e];
+                    let moves_e = req.target[e] != from_e;
                     if moves_e && self.heat.waits_for_heat() {
                         // Like a heater wait: the host's next line may wait for its `ok`.
                         self.keep_alive();
                         break;
                     }
-                    self.motion.push_move(cfg, &req, BlockKind::Job);
+                    self.plan_job_move(req, from_e);
                 }
                 Command::Layer(mark) => {
                     if self.motion.has_pending() {
@@ -148,12 +154,79 @@ impl Printer {
                 Command::SchedulePause(s) => {
                     self.pause.schedule_from_job(s, &mut self.host);
                 }
+                Command::Setting(s) => {
+                    if let Some(id) = self.job_setting(s) {
+                        // M109/M190: the wait takes the setting's place at the front.
+                        self.intake.replace_front(Command::WaitHeater(id));
+                        continue;
+                    }
+                }
             }
             self.intake.pop_front();
             self.pause.command_fed();
         }
         if !self.motion.has_pending() {
             self.pause.set_tail_barrier(cx!(self));
+        }
+    }
+
+    /// Plan a job move whose E starts at `from_e` steps. The cold-extrusion guard judges it
+    /// here, in the state it runs in (Marlin `Planner::_populate_block`): too cold (and not
+    /// heating), its E part is dropped with Marlin's message and the rest planned; the
+    /// record says what was not extruded.
+    fn plan_job_move(&mut self, mut req: crate::motion::MoveRequest, from_e: i32) {
+        let cfg = self.settings.cfg();
+        let e = crate::motion::Axis::E.index();
+        let de_steps = req.target[e].wrapping_sub(from_e);
+        let de_mm = de_steps as f32 / cfg.axis(crate::motion::Axis::E).steps_per_mm;
+        let refused = self.heat.check_cold(de_mm).err();
+        let to_e = req.target[e];
+        if let Some(r) = refused {
+            self.host.warn(format_args!("{r}"));
+            req.target[e] = from_e;
+        }
+        self.motion.push_move(cfg, &req, BlockKind::Job);
+        if refused.is_some() {
+            self.motion.skip_e(to_e);
+            let t_us = self.now_us;
+            self.records.push(super::Record::ColdRefused {
+                seq: req.seq,
+                e_steps: de_steps,
+                t_us,
+            });
+        }
+    }
+
+    /// A job's state command at the front of the queue (see [`super::JobSetting`]); returns
+    /// the heater an M109/M190 then waits for.
+    fn job_setting(&mut self, s: super::JobSetting) -> Option<crate::thermal::HeaterId> {
+        use super::JobSetting as S;
+        match s {
+            S::Temperature { heater, wait, s, r } => self.set_temperature(heater, wait, s, r),
+            S::Fan(speed) => {
+                self.heat.set_fan(speed);
+                None
+            }
+            S::Acceleration {
+                print,
+                retract,
+                travel,
+                s,
+            } => {
+                let given = |v: f32| (!v.is_nan()).then_some(v);
+                self.settings.m204(
+                    given(print),
+                    given(retract),
+                    given(travel),
+                    given(s),
+                    &mut self.host,
+                );
+                None
+            }
+            S::ColdExtrusion { min_temp_c, allow } => {
+                self.heat.m302(min_temp_c, allow, &mut self.host);
+                None
+            }
         }
     }
 

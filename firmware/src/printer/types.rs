@@ -65,6 +65,88 @@ pub enum Command {
     /// M1000's last step (after its heater waits and X/Y homing): wait for motion to end,
     /// then return to the kept job's boundary as a resume from a park (see `recovery.rs`).
     Recover,
+    /// A job line's heater, fan, acceleration or cold-extrusion setting: it takes effect in
+    /// job order, when it reaches the front of the queue — never while a pause holds the job
+    /// (an end code's `M104 S0` that arrived while parked runs after the held layer).
+    Setting(JobSetting),
+}
+
+/// A state command of the job (see [`Command::Setting`]): the G-code's own fields, checked
+/// for what does not depend on when it runs (the tool, the fan index) when the line came.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum JobSetting {
+    /// M104/M109/M140/M190 (T0 or no T).
+    Temperature {
+        /// Which heater.
+        heater: crate::gcode::Heater,
+        /// M109/M190: wait for the target after setting it.
+        wait: bool,
+        /// `S`, °C.
+        s: Option<f32>,
+        /// `R`, °C.
+        r: Option<f32>,
+    },
+    /// M106 `S` (None: full) / M107 (`Some(0.0)`), fan 0.
+    Fan(Option<f32>),
+    /// M204 with at least one value; NaN = not given (keeps [`Command`] at a move's size).
+    Acceleration {
+        /// `P`.
+        print: f32,
+        /// `R`.
+        retract: f32,
+        /// `T`.
+        travel: f32,
+        /// `S`.
+        s: f32,
+    },
+    /// M302 with `S` or `P`.
+    ColdExtrusion {
+        /// `S`, °C.
+        min_temp_c: Option<f32>,
+        /// `P`.
+        allow: Option<bool>,
+    },
+}
+
+impl JobSetting {
+    /// The setting a job line's command is, when it is one (`None`: the command acts when its
+    /// line is taken — reports, settings, the pause's own commands, or a refusal to say).
+    pub fn of(cmd: &crate::gcode::Command) -> Option<JobSetting> {
+        use crate::gcode::{Command as G, HeatCommand as H, SettingsCommand as S};
+        Some(match *cmd {
+            G::Heat(H::SetTemperature {
+                heater,
+                wait,
+                s,
+                r,
+                tool: None | Some(0),
+            }) => JobSetting::Temperature { heater, wait, s, r },
+            G::Heat(H::FanOn {
+                speed,
+                fan: None | Some(0),
+            }) => JobSetting::Fan(speed),
+            G::Heat(H::FanOff {
+                fan: None | Some(0),
+            }) => JobSetting::Fan(Some(0.0)),
+            G::Settings(S::Acceleration {
+                print,
+                retract,
+                travel,
+                s,
+            }) if print.is_some() || retract.is_some() || travel.is_some() || s.is_some() => {
+                JobSetting::Acceleration {
+                    print: print.unwrap_or(f32::NAN),
+                    retract: retract.unwrap_or(f32::NAN),
+                    travel: travel.unwrap_or(f32::NAN),
+                    s: s.unwrap_or(f32::NAN),
+                }
+            }
+            G::Heat(H::ColdExtrusion { min_temp_c, allow }) if min_temp_c.is_some() || allow.is_some() => {
+                JobSetting::ColdExtrusion { min_temp_c, allow }
+            }
+            _ => return None,
+        })
+    }
 }
 
 /// A request for the board's stepper drivers (M17/M18/M84), taken with
@@ -218,6 +300,17 @@ pub enum Record {
         v_mm_s: f32,
         /// Acceleration used by the executing block, mm/s².
         accel_mm_s2: f32,
+        /// When, µs.
+        t_us: u64,
+    },
+    /// A job move reached the planner with a nozzle too cold to extrude (and not heating):
+    /// its E part was dropped, the rest of it planned (Marlin's "cold extrusion prevented").
+    /// The move's extrusion is lost.
+    ColdRefused {
+        /// Job sequence number of the move.
+        seq: u32,
+        /// E steps not extruded.
+        e_steps: i32,
         /// When, µs.
         t_us: u64,
     },

@@ -288,6 +288,7 @@ pub(super) fn session_record(
         executed: &fw.executed,
         cancel_marks: seen.cancel_marks,
         moving_at_end,
+        cold_refused: &fw.cold_refused,
     }
     .counts();
     let mut pauses = reports(seen.pauses, rec, fw, sc, t0_us, end_us, &moves);

@@ -1,7 +1,8 @@
 //! The heat family's executive side: targets and waits, the temperature report, the fan,
 //! PID gains, autotune and M302, carried out by the heat part (`printer/heat.rs`).
 
-use crate::gcode::HeatCommand;
+use crate::gcode::{HeatCommand, Heater};
+use crate::thermal::HeaterId;
 use crate::printer::heat::heater_id;
 use crate::printer::{Command, Printer};
 
@@ -26,15 +27,8 @@ impl Printer {
                     ));
                     return false;
                 }
-                let id = heater_id(*heater);
-                let word = if r.is_some() { 'R' } else { 'S' };
-                if let Some(t) = r.or(*s) {
-                    if let Err(e) = self.heat.set_target(id, t) {
-                        self.host.warn(format_args!("{code} {word}{t}: {e}"));
-                        return false;
-                    }
-                }
-                if *wait {
+                // A console line (a job's waits its turn as a `Command::Setting`).
+                if let Some(id) = self.set_temperature(*heater, *wait, *s, *r) {
                     self.intake.push(Command::WaitHeater(id));
                 }
             }
@@ -81,5 +75,27 @@ impl Printer {
             ),
         }
         false
+    }
+
+    /// M104/M109/M140/M190 with T0 (or no T): set the target (a refusal is said); returns the
+    /// heater to wait for (M109/M190). The console's line and the job's queued one
+    /// (`JobSetting::Temperature`, when it reaches the front) both come here.
+    pub(in crate::printer) fn set_temperature(
+        &mut self,
+        heater: Heater,
+        wait: bool,
+        s: Option<f32>,
+        r: Option<f32>,
+    ) -> Option<HeaterId> {
+        let id = heater_id(heater);
+        if let Some(t) = r.or(s) {
+            if let Err(e) = self.heat.set_target(id, t) {
+                let code = heater.target_code(wait);
+                let word = if r.is_some() { 'R' } else { 'S' };
+                self.host.warn(format_args!("{code} {word}{t}: {e}"));
+                return None;
+            }
+        }
+        wait.then_some(id)
     }
 }

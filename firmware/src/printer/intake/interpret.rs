@@ -16,7 +16,7 @@ use crate::printer::heat::Heat;
 use crate::printer::host::Host;
 use crate::printer::motion::service::ServiceMove;
 use crate::printer::pause::Pause;
-use crate::printer::types::Command;
+use crate::printer::types::{Command, JobSetting};
 
 /// What the rest of the executive does with a line (see [`Interpreted`]).
 #[derive(Clone, Debug, PartialEq)]
@@ -60,6 +60,7 @@ impl Intake {
         host: &mut Host,
     ) -> Interpreted {
         let modal_before = self.interp.machine;
+        let parked = matches!(pause, Pause::Parked { .. });
         let mut out = Interpreted {
             outcome: LineOutcome::Refused,
             marks: heapless::Vec::new(),
@@ -78,11 +79,22 @@ impl Intake {
         if parsed.ignored != 0 {
             host.note_ignored(parsed.ignored);
         }
-        // Manual lines run in the manual copy of the modal state (the job's is untouched).
-        let manual_state = if manual { self.manual.as_mut() } else { None };
-        let machine = match manual_state {
-            Some(m) => m,
-            None => &mut self.interp.machine,
+        // Console lines run in the console copy of the modal state (the job's is untouched):
+        // the parked one, or, while the job runs, one taken from the job's now — except the
+        // feed and flow overrides while the job runs, which act on the job's, as Marlin's
+        // M220/M221 do.
+        let overrides = matches!(
+            parsed.command,
+            Some(gcode::Command::Motion(
+                gcode::MotionCommand::FeedOverride(Some(_))
+                    | gcode::MotionCommand::FlowOverride(Some(_))
+            ))
+        );
+        let job_machine = self.interp.machine;
+        let console = manual && (parked || !overrides);
+        let machine = match (console, &mut self.manual) {
+            (true, copy) => copy.get_or_insert(job_machine),
+            (false, _) => &mut self.interp.machine,
         };
         let saved = *machine;
         let action = match &parsed.command {
@@ -97,7 +109,8 @@ impl Intake {
             None => Action::None,
         };
         if let Err(r) = check_extrusion(&action, &saved, machine, cfg, heat) {
-            // Refused (cold or over-long extrusion): as if the line had not come.
+            // Refused (over-long extrusion, whatever the state it would run in): as if the
+            // line had not come. A cold nozzle is judged when the move enters the planner.
             *machine = saved;
             host.warn(format_args!("{r}"));
             host.ok();
@@ -124,6 +137,17 @@ impl Intake {
         }
         out.outcome = match action {
             Action::None => LineOutcome::Done,
+            Action::Move(_) | Action::Arc(_) | Action::Home(_) if manual && !parked => {
+                // A console move while the job runs or is on its way to or from the park
+                // would run inside the job (or fight the park): refused, as Marlin cannot.
+                if let Some(m) = self.manual.as_mut() {
+                    *m = saved;
+                }
+                host.warn(format_args!(
+                    "console move while printing (pause first: M601)"
+                ));
+                LineOutcome::Done
+            }
             Action::Move(m) => {
                 if manual {
                     LineOutcome::ManualMove(ServiceMove {
@@ -170,7 +194,15 @@ impl Intake {
                 LineOutcome::Done
             }
             Action::Executive => match parsed.command {
-                Some(cmd) => LineOutcome::Execute(cmd),
+                // A job's state command waits its turn in the queue (a held job's end code
+                // acts after the held layer, never during the pause); a manual one acts now.
+                Some(cmd) => match JobSetting::of(&cmd).filter(|_| !manual) {
+                    Some(s) => {
+                        let _ = self.cmds.push_back(Command::Setting(s));
+                        LineOutcome::Done
+                    }
+                    None => LineOutcome::Execute(cmd),
+                },
                 None => LineOutcome::Done,
             },
         };
@@ -208,8 +240,8 @@ impl Intake {
     }
 }
 
-/// The extrusion guard on the action a line produced; `before` is the modal state before the
-/// line, `after` after it.
+/// The extrusion guard's length limit on the action a line produced; `before` is the modal
+/// state before the line, `after` after it.
 fn check_extrusion(
     action: &Action,
     before: &MachineState,
@@ -226,5 +258,5 @@ fn check_extrusion(
     };
     let spm = cfg.axis(Axis::E).steps_per_mm;
     let de_mm = (i64::from(to) - i64::from(from)) as f32 / spm;
-    heat.check_extrusion(de_mm)
+    heat.check_length(de_mm)
 }

@@ -221,6 +221,13 @@ impl Intake {
         let _ = self.cmds.pop_front();
     }
 
+    /// The front command becomes `c` (an M109's setting done, its wait follows in its place).
+    pub(super) fn replace_front(&mut self, c: Command) {
+        if let Some(f) = self.cmds.front_mut() {
+            *f = c;
+        }
+    }
+
     /// Queue a command (the caller checked the room).
     pub(super) fn push(&mut self, c: Command) {
         let _ = self.cmds.push_back(c);
@@ -276,8 +283,9 @@ impl Intake {
         self.line_room(pause) && self.spill.pending() == 0
     }
 
-    /// Whether `line`, the job line that waited in the held slot, is due for the paced intake, and where it
-    /// goes: parked (or, after the resume, while what the intake took still runs), and it has
+    /// Whether `line`, the job line that waited in the held slot, is due for the paced intake,
+    /// and where it goes: parked or returning (or, after the resume, while what the intake
+    /// took still runs), and it has
     /// waited the pace ([`PARKED_PACE_US`]; longer as the RAM slots fill when no card can
     /// take the spill). `card`: a card can take spilled lines now.
     pub(super) fn intake_due(
@@ -289,8 +297,10 @@ impl Intake {
     ) -> Option<Route> {
         let backlog = self.parked_excess() > 0 || self.spill.pending() > 0;
         let on = match pause {
-            // A job whose host went away takes no new session's lines behind it.
-            Pause::Parked { .. } => !self.orphaned,
+            // A job whose host went away takes no new session's lines behind it. The return
+            // (and the re-heat it waits for) keeps the pace: a console line queued behind a
+            // job line gets out within it.
+            Pause::Parked { .. } | Pause::Returning { .. } => !self.orphaned,
             Pause::Run => backlog,
             _ => false,
         };
@@ -318,14 +328,33 @@ impl Intake {
         !matches!(pause, Pause::Run) || self.parked_excess() > 0 || self.spill.pending() > 0
     }
 
-    /// Whether a host line taken now is a manual command (while parked, see [`PausedLines`]).
-    pub(super) fn is_manual(&self, line: &ReceivedLine, pause: &Pause) -> bool {
-        matches!(pause, Pause::Parked { .. })
-            && match self.paused_lines {
-                PausedLines::Queue => false,
-                PausedLines::Manual => true,
-                PausedLines::Auto => self.host_numbers && line.number().is_none(),
+    /// Whether a host line taken now from `port` is a console (manual) command rather than a
+    /// job line (see [`PausedLines`]; docs/frontend.md, "What lines mean"): while parked by
+    /// the policy's rule; with [`PausedLines::Auto`] also, while a job runs or is held
+    /// (`in_job`, not a cancelled one), an unnumbered line from the port whose host streams
+    /// the numbered job (printcore's `send_now`), so that a jog that waited in the host's
+    /// queue never runs inside the job.
+    pub(super) fn is_manual(
+        &self,
+        line: &ReceivedLine,
+        port: PortId,
+        pause: &Pause,
+        in_job: bool,
+    ) -> bool {
+        let parked = matches!(pause, Pause::Parked { .. });
+        match self.paused_lines {
+            PausedLines::Queue => false,
+            PausedLines::Manual => parked,
+            PausedLines::Auto => {
+                let job_host = in_job && !self.cancelled() && self.job_port == Some(port);
+                (parked || job_host) && self.host_numbers && line.number().is_none()
             }
+        }
+    }
+
+    /// The port of the line waiting for room.
+    pub(super) fn held_port(&self) -> Option<PortId> {
+        self.held_port
     }
 
     // ---- the line waiting for room ----

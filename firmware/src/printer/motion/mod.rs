@@ -246,6 +246,11 @@ impl Motion {
         let _ = self.planner.push_move(cfg, req, kind);
     }
 
+    /// The last move's E part was dropped: see [`Planner::skip_e`].
+    pub(super) fn skip_e(&mut self, e_steps: i32) {
+        self.planner.skip_e(e_steps);
+    }
+
     /// Queue a layer mark: `Ok(true)` when it became the pause's barrier.
     pub(super) fn push_mark(&mut self, mark: LayerMark) -> Result<bool, ()> {
         self.planner.push_mark(mark).map_err(|_| ())

@@ -138,6 +138,27 @@ impl PauseCtl {
         matches!(self.state, Pause::Run | Pause::Stopping { .. })
     }
 
+    /// The command at the front of the intake's queue may run now: no pause holds the job,
+    /// or it is ahead of the stop (a layer barrier still waiting for its mark, a conventional
+    /// tail stop's countdown). Everything queued behind a stop — moves, settings, waits,
+    /// the end code — runs after the resume, in order, judged in the state it runs in.
+    pub(super) fn queue_runs(&self, motion: &super::motion::Motion) -> bool {
+        match self.state {
+            Pause::Run => true,
+            Pause::Stopping {
+                how: Stop::Barrier { .. },
+                then,
+                ..
+            } => then != AfterStop::Cancel && motion.barrier_waits_for_mark(),
+            Pause::Stopping {
+                how: Stop::Tail { countdown },
+                then,
+                ..
+            } => then != AfterStop::Cancel && countdown.is_some_and(|n| n > 0),
+            _ => false,
+        }
+    }
+
     /// Emergency-stopped.
     pub(super) fn halted(&self) -> bool {
         matches!(self.state, Pause::Halted)

@@ -163,12 +163,13 @@ impl PauseCtl {
         ev
     }
 
-    /// The service lane's next move may start: a return waits for the nozzle the pause's
-    /// timeout cooled (the reheat) before it moves.
+    /// The service lane's next move may start: a return waits for the heaters the pause's
+    /// timeout (or a console line while parked) took off the job's targets (the reheat)
+    /// before it moves.
     pub(in crate::printer) fn service_lane_ready(&mut self, heat: &Heat) -> bool {
         if let Pause::Returning { reheat, .. } = &mut self.state {
             if *reheat {
-                if !heat.reached(HeaterId::Hotend) {
+                if !(heat.reached(HeaterId::Hotend) && heat.reached(HeaterId::Bed)) {
                     return false;
                 }
                 *reheat = false;
@@ -243,8 +244,9 @@ impl PauseCtl {
         });
     }
 
-    /// From parked: queue the return (XY, then Z, then un-retract) and announce it. A nozzle
-    /// the pause's timeout cooled is heated again first (the return waits for it).
+    /// From parked: queue the return (XY, then Z, then un-retract) and announce it. The
+    /// heaters go back to the job's targets of the park; one the pause's timeout or a console
+    /// line changed is heated again first (the return waits for it).
     pub(super) fn start_resume(&mut self, cx: &mut Cx, ev: &mut Events) {
         let Pause::Parked { held } = self.state else {
             return;
