@@ -179,6 +179,8 @@ struct Outcome {
     /// The nozzle's temperature at each extruding job block after the resume, °C (heated
     /// runs).
     extruding_c_after_resume: Vec<f32>,
+    /// When the last job block ended, µs.
+    last_job_block_us: u64,
 }
 
 /// Run `host` against a printer: `on_tick(host, now, output lines)` queues terminal lines.
@@ -232,6 +234,7 @@ fn drive_with(
     let mut last_e = 0i32;
     let mut extruding_c_after_resume = Vec::new();
     let mut executed = Vec::new();
+    let mut last_job_block_us = 0;
     let mut after_cancel = Vec::new();
     let mut stops = 0;
     let mut max_z = i32::MIN;
@@ -262,6 +265,7 @@ fn drive_with(
                     ..
                 } => {
                     executed.push((seq, seg));
+                    last_job_block_us = now;
                     if host.printing_since_us.is_none() {
                         host.printing_since_us = Some(now);
                     }
@@ -297,6 +301,7 @@ fn drive_with(
         max_z,
         stop_z,
         extruding_c_after_resume,
+        last_job_block_us,
     }
 }
 
@@ -976,4 +981,39 @@ fn a_second_job_on_one_connection_paused_past_the_timeout_loses_nothing() {
         "the timeout never fired"
     );
     assert_held_job_whole_and_hot(&o, &base);
+}
+
+/// printcore's end of a job: `send_now("M400")` and `send_now("M118 …")` once the last job
+/// line is sent, unnumbered, while the job's moves still run. The M400 is a console line
+/// (the job's host, unnumbered: the held job's rule), but not parked it waits for every move
+/// queued before it, as Marlin's: the M118 after it is answered only once the job's last
+/// block has run (found by `tests/tests/host_held_job.rs`: answered at once, printcore
+/// disconnected mid-job and the printer paused for the orphaned job).
+#[test]
+fn a_console_m400_while_the_job_runs_waits_for_the_job_s_moves() {
+    let job = job(3, 20);
+    let base = baseline(&job);
+    let mut sent = false;
+    let mut echoed_us = None;
+    let o = drive(
+        Host::new(Kind::Printcore, job),
+        600_000_000,
+        |h, now, lines| {
+            if !sent && h.next >= h.job.len() && !h.in_flight {
+                h.pri.push_back("M400".into());
+                h.pri.push_back("M118 job-end".into());
+                sent = true;
+            }
+            if lines.iter().any(|l| l.contains("job-end")) {
+                echoed_us.get_or_insert(now);
+            }
+        },
+    );
+    assert_eq!(o.executed, base, "every segment once, in order");
+    let echoed_us = echoed_us.expect("the M118 after the M400 was answered");
+    assert!(
+        echoed_us >= o.last_job_block_us,
+        "M400 answered at {echoed_us} µs, the job's last block ended at {} µs",
+        o.last_job_block_us
+    );
 }

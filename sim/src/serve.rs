@@ -171,6 +171,7 @@ pub fn serve_ports(a: ServeArgs, ready: impl FnOnce(&[PathBuf])) -> anyhow::Resu
     let lines = ports.iter().fold((0, 0), |acc, p| {
         (acc.0 + p.sniff.lines, acc.1 + p.sniff.numbered)
     });
+    let refused_numbered = ports.iter().map(|p| p.sniff.refused_numbered).sum();
     let mut record = session_record(
         &mut m.fw,
         &m.rec,
@@ -179,6 +180,7 @@ pub fn serve_ports(a: ServeArgs, ready: impl FnOnce(&[PathBuf])) -> anyhow::Resu
             pauses: &seen.pauses,
             cancel_marks: &seen.cancel_marks,
             lines,
+            refused_numbered,
             first_byte_us: seen.first_byte_us,
             wall_s: start.elapsed().as_secs_f64(),
         },
@@ -191,6 +193,7 @@ pub fn serve_ports(a: ServeArgs, ready: impl FnOnce(&[PathBuf])) -> anyhow::Resu
             numbered_lines_received: p.sniff.numbered,
             parked_host_waits: p.sniff.parked_waits,
             parked_host_wait_max_s: p.sniff.parked_wait_max_us as f64 * 1e-6,
+            refused_numbered_lines: p.sniff.refused_numbered,
         })
         .collect();
     if let Some(p) = &a.record {

@@ -20,8 +20,13 @@ pub struct SessionReport {
     /// Job segments executed (a move cut into pieces counts each piece).
     pub segments_executed: usize,
     /// Moves with a segment that never ran, other than those a cancel dropped and the one
-    /// still running when the session ended.
+    /// still running when the session ended; a move whose extrusion the firmware dropped (a
+    /// cold nozzle); and every job line the firmware refused (`refused_job_lines`).
     pub lost_moves: usize,
+    /// Numbered lines (a host's job lines) the firmware answered with a refusal, read from
+    /// the link's output as the host saw it: each is lost from the job, and the session is
+    /// not `finished`.
+    pub refused_job_lines: u64,
     /// Moves with a segment that ran more than once.
     pub duplicated_moves: usize,
     /// Segments missing (same exclusions as `lost_moves`).

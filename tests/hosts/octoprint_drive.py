@@ -31,6 +31,13 @@ With --sessions (another host on the TFT port, tests/hosts/printcore_tft.py) ins
             disconnect and connect again (a new session: OctoPrint has no job now); terminal
             M602 (refused by the firmware: the held job's host went away) then M524 (cancels
             it, the head stays parked).
+With --held instead (issue 27, the held job):
+  held      print; Pause button (the plugin: the firmware's layer pause) → "Paused"; for
+            --pause-virtual-s seconds of the printer's time (counted by its M155 reports),
+            longer than the nozzle timeout, nothing else; Resume button → "Printing"; an M105
+            from the terminal the moment //action:resumed arrives (the nozzle when the held
+            job's first extrusion runs: the resume re-heats and waits before it moves back);
+            the print runs to its end ("Operational"). The moves are judged by the sim's trace.
 With --stock instead (the plugin disabled, STOCK_SERIAL and STOCK_SCRIPTS set):
   stock_button    print; Pause button → "Paused", M114 (parked?); Resume button → "Printing".
   stock_terminal  terminal M601 → "Paused" (OctoPrint follows //action:paused), M114;
@@ -394,10 +401,18 @@ def stock(o, a, out, job_cmd, terminal, base):
         terminal("M114")()
         sc["m114_paused"] = wait_recv(base, mark, lambda t: t.startswith("X:"), a.wait)
         sc["actions"] = [t for t in recv_since(base, 0) if t.startswith("//action:")]
+        mark = len(serial_lines(base))
         job_cmd("resume")()
         st, ok = o.wait_state(lambda s: s == "Printing", a.wait)
         sc["resumed"] = ok
         sc["state_after_resume"] = st
+        # Back at the job: the resume re-heats a nozzle the pause's timeout turned off and
+        # waits before the head moves; a pause asked for meanwhile is deferred until the
+        # resume completes (not the next scenario's "first boundary after the request").
+        sc["resumed_action"] = (
+            wait_recv(base, mark, lambda t: t.startswith("//action:resumed"), a.wait * 3)
+            is not None
+        )
         out["scenarios"][name] = sc
 
     pause_resume("stock_button", job_cmd("pause"))
@@ -413,6 +428,52 @@ def stock(o, a, out, job_cmd, terminal, base):
     sc["m114_after_cancel"] = m114(o, base, terminal, a.wait)
     sc["cancel_action"] = any(t == "//action:cancel" for t in recv_since(base, mark))
     out["scenarios"]["stock_cancel"] = sc
+
+
+def held(o, a, out, printing_on, job_cmd, terminal, base):
+    """A pause past the nozzle timeout with the plugin, then the job to its end (see the
+    module documentation)."""
+    sc = {}
+    sc["printing_on"] = printing_on(a.wait * 3)
+    job_cmd("pause")()
+    st, ok = o.wait_state(lambda s: s == "Paused", a.wait * 3)
+    sc["paused"] = ok
+    terminal("M155 S%d" % REPORT_S)()
+    mark = len(serial_lines(base))
+    wanted = int(a.pause_virtual_s / REPORT_S)
+    reports = 0
+    deadline = time.monotonic() + a.pause_wall
+    while time.monotonic() < deadline and reports < wanted:
+        log = serial_lines(base)
+        reports = sum(1 for d, t in log[mark:] if d == "Recv" and t.lstrip().startswith("T:"))
+        time.sleep(0.1)
+    sc["pause_virtual_s"] = reports * REPORT_S
+    recv = recv_since(base, 0)
+    sc["nozzle_off_noted"] = any("nozzle heater off" in t for t in recv)
+    terminal("M155 S0")()
+    mark = len(serial_lines(base))
+    job_cmd("resume")()
+    got = wait_recv(base, mark, lambda t: t.startswith("//action:resumed"), a.wait * 6)
+    sc["resumed"] = got is not None
+    mark = len(serial_lines(base))
+    terminal("M105")()
+    t = wait_recv(base, mark, lambda t: t.startswith("ok T:") or t.startswith("T:"), a.wait)
+    parts = (t or "").replace("ok ", "").split()
+    temp = next((w for w in parts if w.startswith("T:")), None)
+    target = parts[parts.index(temp) + 1] if temp and parts.index(temp) + 1 < len(parts) else ""
+    try:
+        sc["nozzle_c_at_resume"] = float(temp[2:]) if temp else None
+        sc["nozzle_target_c_at_resume"] = float(target.lstrip("/")) if target else None
+    except ValueError:
+        sc["nozzle_c_at_resume"] = None
+        sc["nozzle_target_c_at_resume"] = None
+    st, ok = o.wait_state(lambda s: s.startswith("Operational"), a.pause_wall)
+    sc["finished"] = ok
+    sc["state_end"] = st
+    recv = recv_since(base, 0)
+    sc["refused"] = [t for t in recv if "refused" in t]
+    sc["errors"] = [t for t in recv if t.startswith("Error")]
+    out["scenarios"]["held"] = sc
 
 
 def main():
@@ -444,12 +505,17 @@ def main():
         "--console-lines", type=int, default=12, help="--sessions: terminal lines over the pause"
     )
     ap.add_argument("--stock", action="store_true", help="without the plugin (STOCK_* settings)")
+    ap.add_argument(
+        "--held", action="store_true", help="a pause past the nozzle timeout, then to the end"
+    )
     a = ap.parse_args()
 
     t0 = time.monotonic()
     out = {"scenarios": {}}
     base = tempfile.mkdtemp(prefix="octoprint-test-")
-    write_basedir(base, not a.no_emergency, serial_log=a.sessions or a.stock, stock=a.stock)
+    write_basedir(
+        base, not a.no_emergency, serial_log=a.sessions or a.stock or a.held, stock=a.stock
+    )
     port = free_port()
     log = open(os.path.join(base, "serve.log"), "w")
     proc = subprocess.Popen(
@@ -513,7 +579,7 @@ def main():
 
         # heatup: temperatures shown while the firmware waits in M109/M190.
         temps = []
-        end = time.monotonic() + (0 if a.sessions else 60)
+        end = time.monotonic() + (0 if a.sessions or a.held else 60)
         while time.monotonic() < end:
             p = o.get("/api/printer?exclude=sd")
             t = p.get("temperature", {})
@@ -575,6 +641,9 @@ def main():
             out["scenarios"][name] = sc
             return sc
 
+        if a.held:
+            held(o, a, out, printing_on, job_cmd, terminal, base)
+            raise Done()
         if a.sessions:
             two_hosts(o, a, out, printing_on, job_cmd, base)
             start_print()

@@ -7,7 +7,9 @@ for --pause-virtual-s of virtual time (counted by the printer's M155 reports), l
 nozzle timeout; optionally a console jog (send_now G91, G1 Z1, G90) while parked; then
 send_now("M602"), and an M105 sent the moment //action:resumed arrives gives the nozzle's
 temperature when the held job's first extrusion runs (the resume has re-heated and waited
-before it moved back). --pause-line 0: no pause (the reference run). Then the end marker
+before it moved back). --pause-line 0: no pause (the reference run). --jobs N: the job N
+times on the one connection (printcore's startprint again once it has sent the last line),
+the last one paused. Then the end marker
 (M400 + M118). The moves themselves are judged by the sim's move trace (`sim serve --trace`).
 
 Prints one JSON object.
@@ -38,6 +40,9 @@ def main():
     ap.add_argument("--pause-virtual-s", type=float, default=300)
     ap.add_argument("--report-s", type=int, default=10)
     ap.add_argument("--jog", action="store_true")
+    ap.add_argument(
+        "--jobs", type=int, default=1, help="the job this many times on one connection; the last is paused"
+    )
     ap.add_argument("--wait", type=float, default=30.0)
     ap.add_argument("--wall-limit", type=float, default=240.0)
     a = ap.parse_args()
@@ -78,10 +83,16 @@ def main():
         print(json.dumps({"error": "never online"}))
         return 2
     lines = job_lines(a.file, a.layers)
+    deadline = time.monotonic() + a.wall_limit
+    # Earlier jobs on the same connection, unpaused, each to its end.
+    for _ in range(a.jobs - 1):
+        gc = gcoder.LightGCode(lines)
+        p.startprint(gc)
+        while p.printing and time.monotonic() < deadline:
+            time.sleep(0.05)
     gc = gcoder.LightGCode(lines)
     out["job_lines"] = len(gc)
     p.startprint(gc)
-    deadline = time.monotonic() + a.wall_limit
     if a.pause_line != 0:
         at = a.pause_line if a.pause_line > 0 else len(gc) + a.pause_line
         while p.printing and p.queueindex < at:

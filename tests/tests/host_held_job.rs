@@ -18,6 +18,17 @@ const SPEED: &str = "1000";
 const FILE: &str = "tests/fixtures/slicer/prusaslicer.gcode";
 const LAYERS: &str = "3";
 
+/// The move trace `sim serve --trace` wrote to `path` (removed after).
+fn read_trace(path: &std::path::Path) -> Vec<String> {
+    let lines = std::fs::read_to_string(path)
+        .unwrap_or_default()
+        .lines()
+        .map(str::to_string)
+        .collect();
+    let _ = std::fs::remove_file(path);
+    lines
+}
+
 /// One session: `sim serve` (`more` arguments) with printcore's driver (`args`); returns the
 /// driver's JSON, the sim's record and the move trace's lines.
 fn session(
@@ -45,12 +56,7 @@ fn session(
     let t0 = std::time::Instant::now();
     let (ok, out, err) = run_bounded(cmd, Duration::from_secs(300));
     let r = sim.finish();
-    let lines: Vec<String> = std::fs::read_to_string(&trace)
-        .unwrap_or_default()
-        .lines()
-        .map(str::to_string)
-        .collect();
-    let _ = std::fs::remove_file(&trace);
+    let lines = read_trace(&trace);
     assert!(ok, "driver failed: {out}\n{err}");
     let d: serde_json::Value = serde_json::from_str(out.trim()).expect("driver JSON");
     eprintln!(
@@ -61,9 +67,10 @@ fn session(
     (d, r, lines)
 }
 
-/// The unpaused run's move trace (one per test: ≈ 3 s of wall time).
-fn reference() -> Vec<String> {
-    let (d, r, trace) = session("ref", &[], &["--pause-line", "0"]);
+/// The unpaused run's move trace (one per test: ≈ 3 s of wall time); `tag` names its files
+/// (the tests run in parallel in one process).
+fn reference(tag: &str) -> Vec<String> {
+    let (d, r, trace) = session(tag, &[], &["--pause-line", "0"]);
     assert_eq!(d["end"], true, "{d}");
     assert_eq!(r["session"]["finished"], true, "{}", r["session"]);
     assert!(
@@ -122,6 +129,7 @@ fn assert_held_whole(
     assert_eq!(trace, base, "{tag}: the moves in the unpaused run's order");
     let s = &r["session"];
     assert_eq!(s["lost_moves"], 0, "{tag}: {s}");
+    assert_eq!(s["refused_job_lines"], 0, "{tag}: {s}");
     assert_eq!(s["finished"], true, "{tag}: {s}");
     let c = d["nozzle_c_at_resume"].as_f64().unwrap_or(0.0);
     let target = d["nozzle_target_c_at_resume"].as_f64().unwrap_or(0.0);
@@ -138,7 +146,7 @@ fn assert_held_whole(
 /// into the parked printer; one with a console jog while parked.
 #[test]
 fn printcore_held_job_survives_a_pause_past_the_nozzle_timeout() {
-    let base = reference();
+    let base = reference("ref");
     let card = std::env::temp_dir().join(format!("held_sd_{}", std::process::id()));
     std::fs::create_dir_all(&card).expect("card dir");
     std::fs::write(card.join("README.TXT"), b"card for the spill\n").expect("card file");
@@ -163,4 +171,108 @@ fn printcore_held_job_survives_a_pause_past_the_nozzle_timeout() {
         &["--pause-line", "-40", "--pause-virtual-s", "120", "--jog"],
     );
     assert_held_whole("endcode", &base, &d, &r, &t);
+}
+
+/// Two jobs on one connection (printcore's `startprint` again after the first): the second is
+/// paused past the nozzle timeout (the first job's end code set the nozzle to 0 °C; the second's
+/// start code heats it again, and its pause must re-heat to that). Judged against two unpaused
+/// jobs on one connection.
+#[test]
+fn printcore_second_job_on_one_connection_is_held_whole() {
+    let (d, r, base) = session("ref2", &[], &["--pause-line", "0", "--jobs", "2"]);
+    assert_eq!(d["end"], true, "{d}");
+    assert_eq!(r["session"]["finished"], true, "{}", r["session"]);
+    assert!(base.len() > 200, "reference trace of {} moves", base.len());
+    let (d, r, t) = session(
+        "second",
+        &[],
+        &[
+            "--pause-line",
+            "120",
+            "--pause-virtual-s",
+            "150",
+            "--jobs",
+            "2",
+        ],
+    );
+    assert_held_whole("second", &base, &d, &r, &t);
+}
+
+/// The same with the real OctoPrint and the LayerPause plugin (`octoprint_drive.py --held`):
+/// its Pause button (the firmware's layer pause), 300 s of printer time paused (the nozzle
+/// off after 45 s), its Resume button, the print to its end. OctoPrint stops streaming when
+/// it shows Paused, so what is held is what it had sent before: the lines the firmware took
+/// ahead of the boundary. Judged as printcore's runs: the move trace against printcore's
+/// unpaused run of the same lines (OctoPrint strips the comments; the moves are the same),
+/// nothing refused, the record's `lost_moves` 0, the nozzle hot when the held job goes on.
+#[test]
+fn octoprint_with_the_plugin_holds_the_job_through_a_pause_past_the_nozzle_timeout() {
+    let base = reference("ref_octo");
+    let py = host_python("octoprint");
+    let octoprint = py.with_file_name("octoprint");
+    let trace = std::env::temp_dir().join(format!("held_octo_{}.trace", std::process::id()));
+    let _ = std::fs::remove_file(&trace);
+    let sim = Sim::start_with(
+        "held_octo",
+        "100",
+        "300",
+        &["--host-paced", "--trace", trace.to_str().unwrap()],
+    );
+    let mut cmd = Command::new(&py);
+    cmd.args([
+        "tests/hosts/octoprint_drive.py",
+        "--held",
+        "--port",
+        &sim.device,
+        "--file",
+        FILE,
+        "--layers",
+        LAYERS,
+        "--wait",
+        "20",
+        "--pause-virtual-s",
+        "300",
+        "--pause-wall",
+        "120",
+    ])
+    .arg("--octoprint")
+    .arg(octoprint);
+    let (ok, out, err) = run_bounded(cmd, Duration::from_secs(400));
+    let r = sim.finish();
+    let got = read_trace(&trace);
+    let d: serde_json::Value = serde_json::from_str(out.trim())
+        .unwrap_or_else(|e| panic!("OctoPrint driver JSON ({e}): {out}\n{err}"));
+    assert!(ok, "driver failed: {d}");
+    let sc = &d["scenarios"]["held"];
+    eprintln!("octoprint: {sc}\nsession {}", r["session"]);
+    for k in ["paused", "resumed", "finished", "nozzle_off_noted"] {
+        assert_eq!(sc[k], true, "{k}: {sc}");
+    }
+    assert!(
+        sc["pause_virtual_s"].as_f64().unwrap_or(0.0) >= 300.0,
+        "{sc}"
+    );
+    assert_eq!(sc["refused"].as_array().map(Vec::len), Some(0), "{sc}");
+    assert_eq!(sc["errors"].as_array().map(Vec::len), Some(0), "{sc}");
+    let (lost, extra) = diff(&base, &got);
+    eprintln!(
+        "octoprint: {} moves, {lost} lost, {extra} extra against the unpaused run",
+        got.len()
+    );
+    assert_eq!((lost, extra), (0, 0), "octoprint: moves lost/extra");
+    assert_eq!(
+        got, base,
+        "octoprint: the moves in the unpaused run's order"
+    );
+    let s = &r["session"];
+    assert_eq!(s["lost_moves"], 0, "{s}");
+    assert_eq!(s["refused_job_lines"], 0, "{s}");
+    assert_eq!(s["finished"], true, "{s}");
+    let c = sc["nozzle_c_at_resume"].as_f64().unwrap_or(0.0);
+    let target = sc["nozzle_target_c_at_resume"].as_f64().unwrap_or(0.0);
+    assert_eq!(target, 200.0, "the job's target: {sc}");
+    assert!(
+        c >= target - 5.0,
+        "nozzle at {c} °C when the held job went on: {sc}"
+    );
 }

@@ -5,8 +5,10 @@
 //!
 //! Proof by disagreement: the Slic3r vase (no markers at all), comments stripped, with a
 //! `layer` pause requested in the middle of turn 10. The executive is the real firmware, but
-//! one test feeds it a forged marker (`M73 L99`, unnumbered, its `ok` swallowed) between two
-//! moves in the middle of that turn: the firmware's detector then has a boundary there and
+//! one test feeds it a forged marker (`M73 L99`, numbered as a job line — the host's later
+//! lines renumbered after it — its `ok` swallowed; an unnumbered line from a host that numbers
+//! its job would be a console line, whose marker is no job boundary) between two moves in the
+//! middle of that turn: the firmware's detector then has a boundary there and
 //! stops at it — mid-turn by the reference. The sim must say "not at a boundary" for that
 //! run, and "at the first boundary" for the same request without the forgery (where the
 //! firmware stops at the end of the turn). Cost: 4 runs of ≈ 25 s of printing, ≈ 3 s of test
@@ -27,43 +29,64 @@ struct Forged {
     inner: PrinterExec,
     before: Option<String>,
     inject: Vec<u8>,
-    /// The host's bytes taken so far end a line.
-    at_line_start: bool,
     /// Injected and not yet answered: its `ok` is not the host's.
     swallow_ok: bool,
     /// The forged line reached the firmware.
     injected: bool,
+    /// Host bytes taken and rewritten, not yet all taken by the firmware.
+    pending: Vec<u8>,
+}
+
+impl Forged {
+    /// `line` (one host line, `\n` included) as the firmware gets it: numbered lines after
+    /// the forgery one higher, the forgery itself numbered where its line was.
+    fn rewrite(&mut self, line: &[u8]) -> Vec<u8> {
+        let text = String::from_utf8_lossy(line);
+        let text = text.trim_end();
+        let numbered = text
+            .strip_prefix('N')
+            .and_then(|rest| rest.split_once(' '))
+            .and_then(|(n, rest)| Some((n.parse::<i64>().ok()?, rest.rsplit_once('*')?.0)));
+        let Some((n, body)) = numbered else {
+            return line.to_vec();
+        };
+        let with = |n: i64, body: &str| {
+            let pre = format!("N{n} {body}");
+            format!("{pre}*{}\n", firmware::link::checksum(pre.as_bytes()))
+        };
+        let due = self
+            .before
+            .as_ref()
+            .is_some_and(|t| body.contains(t.as_str()));
+        if due {
+            self.before = None;
+            self.swallow_ok = true;
+            self.injected = true;
+            let inject = String::from_utf8_lossy(&self.inject).trim().to_string();
+            return [with(n, &inject), with(n + 1, body)].concat().into_bytes();
+        }
+        with(n + i64::from(self.injected), body).into_bytes()
+    }
 }
 
 impl Executive for Forged {
     fn receive(&mut self, bytes: &[u8], now_us: u64) -> usize {
-        if let Some(target) = &self.before {
-            let line_end = bytes
-                .iter()
-                .position(|&b| b == b'\n')
-                .unwrap_or(bytes.len());
-            let first = String::from_utf8_lossy(&bytes[..line_end]);
-            if self.at_line_start && first.contains(target.as_str()) {
-                let k = self.inner.receive(&self.inject, now_us);
-                self.inject.drain(..k);
-                if !self.inject.is_empty() {
-                    return 0;
-                }
-                self.before = None;
-                self.swallow_ok = true;
-                self.injected = true;
+        // What was rewritten goes first; the host waits meanwhile.
+        if !self.pending.is_empty() {
+            let k = self.inner.receive(&self.pending, now_us);
+            self.pending.drain(..k);
+            if !self.pending.is_empty() {
+                return 0;
             }
         }
-        // Offer one line at a time, so that every line start is seen.
-        let line_end = bytes
-            .iter()
-            .position(|&b| b == b'\n')
-            .map_or(bytes.len(), |i| i + 1);
-        let n = self.inner.receive(&bytes[..line_end], now_us);
-        if n > 0 {
-            self.at_line_start = bytes[n - 1] == b'\n';
-        }
-        n
+        // One host line at a time, rewritten whole.
+        let Some(end) = bytes.iter().position(|&b| b == b'\n') else {
+            return 0;
+        };
+        self.pending = self.rewrite(&bytes[..=end]);
+        let k = self.inner.receive(&self.pending, now_us);
+        self.pending.drain(..k);
+        end + 1
     }
     fn request(&mut self, req: Realtime, now_us: u64) {
         self.inner.request(req, now_us);
@@ -127,9 +150,9 @@ impl Factory for ForgedFactory {
             },
             before: self.before.clone(),
             inject: b"M73 L99\n".to_vec(),
-            at_line_start: true,
             swallow_ok: false,
             injected: false,
+            pending: Vec::new(),
         }
     }
 }

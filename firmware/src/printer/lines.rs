@@ -185,8 +185,8 @@ impl Printer {
         }
     }
 
-    /// Interpret a host or card line and carry out what it asks; `manual`: a manual command
-    /// while parked.
+    /// Interpret a host or card line and carry out what it asks; `manual`: a console command
+    /// (while parked, or the job's host's unnumbered line while its job runs).
     pub(super) fn handle_line(&mut self, line: &ReceivedLine, manual: bool) {
         let Interpreted {
             outcome,
@@ -221,8 +221,13 @@ impl Printer {
                 self.motion.push_service(m);
                 self.host.ok();
             }
-            LineOutcome::Execute(gcode::Command::Motion(MotionCommand::WaitMoves)) if manual => {
+            LineOutcome::Execute(gcode::Command::Motion(MotionCommand::WaitMoves))
+                if manual && self.pause.parked() =>
+            {
                 // A console M400 while parked waits for the manual moves, not the held job.
+                // While the job runs a console M400 (printcore's `send_now`, manual since the
+                // held job tells console lines from the job's) waits for every move queued
+                // before it, as Marlin's: its `ok` says the job's moves have ended.
                 self.intake.owe_manual_sync();
             }
             LineOutcome::Execute(cmd) => {

@@ -141,7 +141,9 @@ impl JobSetting {
                     s: s.unwrap_or(f32::NAN),
                 }
             }
-            G::Heat(H::ColdExtrusion { min_temp_c, allow }) if min_temp_c.is_some() || allow.is_some() => {
+            G::Heat(H::ColdExtrusion { min_temp_c, allow })
+                if min_temp_c.is_some() || allow.is_some() =>
+            {
                 JobSetting::ColdExtrusion { min_temp_c, allow }
             }
             _ => return None,

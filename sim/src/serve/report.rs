@@ -44,6 +44,9 @@ pub struct PortReport {
     /// it so in virtual time) bounds the console line's delivery. The time a host with
     /// nothing to send stays quiet is not a wait.
     pub parked_host_wait_max_s: f64,
+    /// Numbered lines (job lines) answered with a refusal — `echo:refused: …`, `echo:Line too
+    /// long …`, or an `Error:` not followed by `Resend:` — as the host read them.
+    pub refused_numbered_lines: u64,
 }
 
 pub(super) fn reports(
@@ -267,6 +270,9 @@ pub(super) struct Seen<'a> {
     pub(super) cancel_marks: &'a [usize],
     /// Lines and numbered lines received, over every port.
     pub(super) lines: (u64, u64),
+    /// Numbered lines the firmware refused, over every port (see
+    /// [`PortReport::refused_numbered_lines`]).
+    pub(super) refused_numbered: u64,
     /// Virtual time of the first host byte.
     pub(super) first_byte_us: Option<u64>,
     /// Real seconds the session ran.
@@ -312,7 +318,8 @@ pub(super) fn session_record(
             numbered_lines_received: seen.lines.1,
             moves_executed: moves.moves,
             segments_executed: moves.segments,
-            lost_moves: moves.lost.0,
+            lost_moves: moves.lost.0 + seen.refused_numbered as usize,
+            refused_job_lines: seen.refused_numbered,
             duplicated_moves: moves.duplicated.0,
             lost_segments: moves.lost.1,
             duplicated_segments: moves.duplicated.1,
@@ -323,6 +330,7 @@ pub(super) fn session_record(
                 && !cancelled_last
                 && !moves.running_at_end
                 && moves.lost.0 == 0
+                && seen.refused_numbered == 0
                 && moves.moves > 0,
             layers_extruded: layers.last().map_or(0, |l| l.1 + 1),
             pauses: pauses.len(),

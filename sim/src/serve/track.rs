@@ -50,7 +50,14 @@ pub(super) struct Sniffer {
     /// device (virtual µs) and whether the printer was parked when it was taken. A host
     /// answered line by line (printcore, OctoPrint) has one or a few in flight; at most
     /// [`UNANSWERED_CAP`] are kept (lines a firmware never answers, M112, cannot make it grow).
-    unanswered: std::collections::VecDeque<(u64, bool)>,
+    unanswered: std::collections::VecDeque<Taken>,
+    /// The answer being read (the output since the last `ok`) refused its line, and whether
+    /// it asked for the line again (`Resend:`: not lost, the host sends it again).
+    answer: Answer,
+    /// Numbered lines (a host's job lines) the firmware refused — `echo:refused: …`,
+    /// `echo:Line too long …` or an `Error:` without a `Resend:` — read from what the host
+    /// was told, not from the firmware's bookkeeping: each is lost from the job.
+    pub(super) refused_numbered: u64,
     /// The longest virtual time from a line taken while parked to the `ok` that answers it
     /// (see [`super::report::PortReport`]), and how many such waits were seen.
     pub(super) parked_wait_max_us: u64,
@@ -59,6 +66,39 @@ pub(super) struct Sniffer {
 
 /// See [`Sniffer::unanswered`].
 const UNANSWERED_CAP: usize = 64;
+
+/// A line taken and not yet answered.
+#[derive(Clone, Copy, Debug)]
+struct Taken {
+    /// Read from the device at, virtual µs.
+    read_us: u64,
+    /// The printer was parked when it was taken.
+    parked: bool,
+    /// It carried a line number (a job line of printcore's or OctoPrint's stream).
+    numbered: bool,
+}
+
+/// What the answer read so far says of its line.
+#[derive(Clone, Copy, Debug, Default)]
+struct Answer {
+    refused: bool,
+    resend: bool,
+}
+
+impl Answer {
+    /// Note one line of the firmware's output.
+    fn note(&mut self, line: &str) {
+        let l = line.trim_start();
+        if l.starts_with("Resend:") || l.starts_with("rs ") {
+            self.resend = true;
+        } else if l.starts_with("echo:refused")
+            || l.starts_with("echo:Line too long")
+            || l.starts_with("Error:")
+        {
+            self.refused = true;
+        }
+    }
+}
 
 impl Sniffer {
     /// A sniffer for a port where single control bytes are requests, or not.
@@ -98,7 +138,11 @@ impl Sniffer {
                 if self.unanswered.len() == UNANSWERED_CAP {
                     self.unanswered.pop_front();
                 }
-                self.unanswered.push_back((self.line_read_us, parked));
+                self.unanswered.push_back(Taken {
+                    read_us: self.line_read_us,
+                    parked,
+                    numbered,
+                });
                 let body = match body.strip_prefix('N') {
                     Some(rest) => rest.split_once(' ').map_or("", |x| x.1),
                     None => body,
@@ -122,15 +166,26 @@ impl Sniffer {
 }
 
 impl Sniffer {
-    /// `oks` answers went out to this port's host at `now_us`: they answer the oldest lines
-    /// waiting for one (the firmware answers a port's lines in order).
-    pub(super) fn answered(&mut self, oks: usize, now_us: u64) {
-        for _ in 0..oks {
-            let Some((t, parked)) = self.unanswered.pop_front() else {
-                return;
+    /// The firmware's output `out` went to this port's host at `now_us`: each `ok` answers
+    /// the oldest line waiting for one (the firmware answers a port's lines in order), and
+    /// what came before it says whether that line was refused.
+    pub(super) fn answered(&mut self, out: &str, now_us: u64) {
+        for line in out.lines() {
+            if !line.starts_with("ok") {
+                self.answer.note(line);
+                continue;
+            }
+            let answer = std::mem::take(&mut self.answer);
+            let Some(t) = self.unanswered.pop_front() else {
+                continue;
             };
-            if parked {
-                self.parked_wait_max_us = self.parked_wait_max_us.max(now_us.saturating_sub(t));
+            if t.numbered && answer.refused && !answer.resend {
+                self.refused_numbered += 1;
+            }
+            if t.parked {
+                self.parked_wait_max_us = self
+                    .parked_wait_max_us
+                    .max(now_us.saturating_sub(t.read_us));
                 self.parked_waits += 1;
             }
         }
@@ -140,6 +195,7 @@ impl Sniffer {
     pub(super) fn new_session(&mut self) {
         self.buf.clear();
         self.unanswered.clear();
+        self.answer = Answer::default();
     }
 }
 
@@ -263,5 +319,40 @@ pub(super) fn track(
         {
             p.resumed = Some((r.t_start_us, r.start));
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Sniffer;
+
+    fn take(s: &mut Sniffer, line: &str) {
+        let mut reqs = Vec::new();
+        s.feed(format!("{line}\n").as_bytes(), &mut reqs, 0, false);
+    }
+
+    #[test]
+    fn a_refused_job_line_is_counted_and_a_resent_or_console_one_is_not() {
+        let mut s = Sniffer::default();
+        // A job line refused: lost.
+        take(&mut s, "N10 G1 X1e39*1");
+        s.answered("echo:refused: X out of range\n", 1);
+        s.answered("ok\n", 2);
+        assert_eq!(s.refused_numbered, 1);
+        // A checksum error asks for the line again: not lost.
+        take(&mut s, "N11 G1 X2*0");
+        s.answered(
+            "Error:checksum mismatch, Last Line: 10\nResend: 11\nok\n",
+            3,
+        );
+        // Accepted, with an unrelated temperature report before its ok.
+        take(&mut s, "N11 G1 X2*99");
+        s.answered(" T:200.0 /200.0 B:60.0 /60.0\nok\n", 4);
+        // A console line refused (unnumbered): the job lost nothing.
+        take(&mut s, "M602");
+        s.answered("echo:refused: nothing to resume\nok\n", 5);
+        assert_eq!(s.refused_numbered, 1);
+        // Each line answered once, in order: nothing left waiting.
+        assert!(s.unanswered.is_empty());
     }
 }

@@ -183,8 +183,7 @@ impl PtyPort {
         let mut out = String::new();
         fw.take_output_on(self.id, &mut out);
         // When the firmware answered (not when the host read it).
-        let oks = out.lines().filter(|l| l.starts_with("ok")).count();
-        self.sniff.answered(oks, now_us);
+        self.sniff.answered(&out, now_us);
         let answers = out.lines().any(|l| {
             let l = l.trim_start();
             !l.starts_with("T:") && !l.starts_with("busy:")

@@ -2,9 +2,9 @@
 //! PID gains, autotune and M302, carried out by the heat part (`printer/heat.rs`).
 
 use crate::gcode::{HeatCommand, Heater};
-use crate::thermal::HeaterId;
 use crate::printer::heat::heater_id;
 use crate::printer::{Command, Printer};
+use crate::thermal::HeaterId;
 
 impl Printer {
     /// Returns true when the `ok` was already sent (M105's report is its own `ok`).
