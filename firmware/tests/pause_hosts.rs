@@ -987,11 +987,15 @@ fn a_second_job_on_one_connection_paused_past_the_timeout_loses_nothing() {
 /// line is sent, unnumbered, while the job's moves still run. The M400 is a console line
 /// (the job's host, unnumbered: the held job's rule), but not parked it waits for every move
 /// queued before it, as Marlin's: the M118 after it is answered only once the job's last
-/// block has run (found by `tests/tests/host_held_job.rs`: answered at once, printcore
-/// disconnected mid-job and the printer paused for the orphaned job).
+/// block has run (found by `tests/tests/host_long_pause.rs`: answered when the head stood
+/// still between the spilled lines, printcore disconnected mid-job and the printer paused
+/// for the orphaned job).
 #[test]
 fn a_console_m400_while_the_job_runs_waits_for_the_job_s_moves() {
-    let job = job(3, 20);
+    // A dwell near the end: the head stands still while moves are still queued behind it (as
+    // when the planner runs dry while spilled lines are read back from the card).
+    let mut job = job(3, 20);
+    job.extend(["G4 P1000", "G1 X20 Y20 E0.5 F2400", "G1 X30 Y30 E0.5"].map(String::from));
     let base = baseline(&job);
     let mut sent = false;
     let mut echoed_us = None;
