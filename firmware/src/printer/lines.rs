@@ -70,10 +70,9 @@ impl Printer {
             let from_held = self.intake.has_held_line();
             if let Some(held) = self.intake.held_line() {
                 // Known to need room: wait for it without parsing again.
-                let in_job = self.in_job();
                 let port = self.intake.held_port().unwrap_or(self.host.reply_port());
                 let pause = self.pause.state();
-                let fits = if self.intake.is_manual(held, port, pause, in_job) {
+                let fits = if self.intake.is_manual(held, port, pause, || self.in_job()) {
                     !self.motion.service_full()
                 } else {
                     self.intake.job_line_fits(pause)
@@ -111,10 +110,9 @@ impl Printer {
                 self.host.ok();
                 continue;
             }
-            let in_job = self.in_job();
             let port = self.host.reply_port();
             let pause = self.pause.state();
-            let manual = self.intake.is_manual(&line, port, pause, in_job);
+            let manual = self.intake.is_manual(&line, port, pause, || self.in_job());
             let route = if manual {
                 (!self.motion.service_full()).then_some(Route::Queue)
             } else if self.intake.job_line_fits(pause) {

@@ -333,21 +333,25 @@ impl Intake {
     /// the policy's rule; with [`PausedLines::Auto`] also, while a job runs or is held
     /// (`in_job`, not a cancelled one), an unnumbered line from the port whose host streams
     /// the numbered job (printcore's `send_now`), so that a jog that waited in the host's
-    /// queue never runs inside the job.
+    /// queue never runs inside the job. `in_job` is asked last, only for an unnumbered line
+    /// of the job's port while not parked (it looks at the whole executive, and a line waiting
+    /// for room is asked about at every poll).
     pub(super) fn is_manual(
         &self,
         line: &ReceivedLine,
         port: PortId,
         pause: &Pause,
-        in_job: bool,
+        in_job: impl FnOnce() -> bool,
     ) -> bool {
         let parked = matches!(pause, Pause::Parked { .. });
         match self.paused_lines {
             PausedLines::Queue => false,
             PausedLines::Manual => parked,
             PausedLines::Auto => {
-                let job_host = in_job && !self.cancelled() && self.job_port == Some(port);
-                (parked || job_host) && self.host_numbers && line.number().is_none()
+                if !self.host_numbers || line.number().is_some() {
+                    return false;
+                }
+                parked || (self.job_port == Some(port) && !self.cancelled() && in_job())
             }
         }
     }
