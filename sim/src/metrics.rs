@@ -94,8 +94,14 @@ pub struct PauseReport {
     pub pause_point_steps: Option<StepPos>,
     /// Largest per-axis difference between the pause point and the resume start, steps.
     pub resume_position_error_steps: Option<i64>,
-    /// Job moves (lines) with a segment never executed.
+    /// Job moves (lines) with a segment never executed, a move whose extrusion the firmware
+    /// dropped (a cold nozzle at the planner), and — `sim run` — every job line the printer
+    /// refused (`refused_job_lines`).
     pub lost_moves: usize,
+    /// `sim run`: job lines the printer answered with `echo:refused: …` (the host's own
+    /// count, from the answers it read): each is lost from the job (issue 27). `sim run` also
+    /// fails for them unless `--allow-refused`, and lists them under `refused_lines`.
+    pub refused_job_lines: usize,
     /// Job moves (lines) with a segment executed more than once.
     pub duplicated_moves: usize,
     /// Segments never executed.

@@ -469,6 +469,9 @@ impl<'s, E: Executive> Run<'s, E> {
         } else {
             metrics::compute(sc, &self.info, &self.a, &self.a, &self.facts, &view)
         };
+        // A refused job line is a lost move (issue 27): read from the answers the host got.
+        report.refused_job_lines = usize::try_from(self.a.host.refused.count).unwrap_or(usize::MAX);
+        report.lost_moves = report.lost_moves.saturating_add(report.refused_job_lines);
         if sc.measure_segmentation_cost && sc.policy == Policy::Firmware {
             let mut knobs = sc.knobs();
             knobs.segment_len_mm = None;
