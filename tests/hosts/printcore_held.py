@@ -17,16 +17,13 @@ Prints one JSON object.
 
 import argparse
 import json
-import os
 import re
-import sys
-import threading
 import time
 
 from printrun import gcoder
-from printrun.printcore import printcore
 
 from joblines import job_lines
+from printcore_session import Session, run
 
 _TEMP = re.compile(r"T:\s*(-?\d+\.?\d*)\s*/\s*(-?\d+\.?\d*)")
 
@@ -47,38 +44,9 @@ def main():
     ap.add_argument("--wall-limit", type=float, default=240.0)
     a = ap.parse_args()
     t0 = time.monotonic()
-    received = []
-    cond = threading.Condition()
-    reports = [0]
-
-    def on_recv(line):
-        with cond:
-            received.append(line.strip())
-            if line.strip().startswith("T:"):
-                reports[0] += 1
-            cond.notify_all()
-
-    def wait_for(pred, secs, start):
-        end = time.monotonic() + secs
-        with cond:
-            i = start
-            while True:
-                while i < len(received):
-                    if pred(received[i]):
-                        return received[i]
-                    i += 1
-                left = end - time.monotonic()
-                if left <= 0:
-                    return None
-                cond.wait(left)
-
+    s = Session(a.port)
+    p, received, wait_for = s.p, s.received, s.wait_for
     out = {}
-    p = printcore()
-    p.recvcb = on_recv
-    p.connect(a.port, 115200)
-    end = time.monotonic() + 20
-    while not p.online and time.monotonic() < end:
-        time.sleep(0.05)
     if not p.online:
         print(json.dumps({"error": "never online"}))
         return 2
@@ -101,17 +69,17 @@ def main():
         mark = len(received)
         p.send_now("M601")
         out["paused"] = wait_for(lambda l: l.startswith("//action:paused"), a.wait, mark) is not None
-        mark = reports[0]
+        mark = s.reports
         p.send_now("M155 S%d" % a.report_s)
         wanted = int(a.pause_virtual_s / a.report_s)
         jogged = False
-        while time.monotonic() < deadline and reports[0] - mark < wanted:
-            if a.jog and not jogged and reports[0] - mark >= wanted // 2:
+        while time.monotonic() < deadline and s.reports - mark < wanted:
+            if a.jog and not jogged and s.reports - mark >= wanted // 2:
                 for l in ("G91", "G1 Z1 F600", "G90"):
                     p.send_now(l)
                 jogged = True
             time.sleep(0.01)
-        out["pause_virtual_s"] = (reports[0] - mark) * a.report_s
+        out["pause_virtual_s"] = (s.reports - mark) * a.report_s
         out["streamed_while_parked_to_line"] = p.queueindex
         out["nozzle_off_noted"] = any("nozzle heater off" in l for l in received)
         p.send_now("M155 S0")
@@ -140,10 +108,4 @@ def main():
 
 
 if __name__ == "__main__":
-    try:
-        code = main()
-    except Exception as e:  # report, never hang
-        print(json.dumps({"error": repr(e)}))
-        code = 3
-    sys.stdout.flush()
-    os._exit(code)
+    run(main)

@@ -12,16 +12,13 @@ Prints one JSON object: per console line its wall delivery time, and the rest.
 
 import argparse
 import json
-import os
 import random
-import sys
-import threading
 import time
 
 from printrun import gcoder
-from printrun.printcore import printcore
 
 from joblines import job_lines
+from printcore_session import Session, run
 
 
 def main():
@@ -41,39 +38,9 @@ def main():
     a = ap.parse_args()
     rnd = random.Random(a.seed)
     t0 = time.monotonic()
-    received = []
-    cond = threading.Condition()
-
-    reports = [0]
-
-    def on_recv(line):
-        with cond:
-            received.append(line.strip())
-            if line.strip().startswith("T:"):
-                reports[0] += 1
-            cond.notify_all()
-
-    def wait_for(pred, secs, start):
-        end = time.monotonic() + secs
-        with cond:
-            i = start
-            while True:
-                while i < len(received):
-                    if pred(received[i]):
-                        return received[i]
-                    i += 1
-                left = end - time.monotonic()
-                if left <= 0:
-                    return None
-                cond.wait(left)
-
+    s = Session(a.port)
+    p, received, wait_for = s.p, s.received, s.wait_for
     out = {}
-    p = printcore()
-    p.recvcb = on_recv
-    p.connect(a.port, 115200)
-    end = time.monotonic() + 20
-    while not p.online and time.monotonic() < end:
-        time.sleep(0.05)
     if not p.online:
         print(json.dumps({"error": "never online"}))
         return 2
@@ -90,14 +57,14 @@ def main():
     # --report-s virtual seconds): with `sim serve --host-paced` virtual time is not a fixed
     # multiple of real time.
     reports_wanted = int(a.pause_virtual_s / a.report_s)
-    mark = reports[0]
+    mark = s.reports
     p.send_now("M155 S%d" % a.report_s)
     moments = sorted(rnd.sample(range(2, reports_wanted - 1), a.console_lines))
     kinds = [("M105", lambda l: l.startswith("ok T:")), ("M114", lambda l: l.startswith("X:"))]
     console = []
 
     def reports_since(start):
-        return reports[0] - start
+        return s.reports - start
 
     k = 0
     deadline = time.monotonic() + a.wall_limit
@@ -152,10 +119,4 @@ def main():
 
 
 if __name__ == "__main__":
-    try:
-        code = main()
-    except Exception as e:  # report, never hang
-        print(json.dumps({"error": repr(e)}))
-        code = 3
-    sys.stdout.flush()
-    os._exit(code)
+    run(main)

@@ -10,12 +10,9 @@ Prints one JSON object with what it saw.
 
 import argparse
 import json
-import os
-import sys
-import threading
 import time
 
-from printrun.printcore import printcore
+from printcore_session import Session, run
 
 
 def main():
@@ -23,35 +20,9 @@ def main():
     ap.add_argument("--port", required=True)
     ap.add_argument("--wait", type=float, default=120.0)
     a = ap.parse_args()
-    received = []
-    cond = threading.Condition()
-
-    def on_recv(line):
-        with cond:
-            received.append(line.strip())
-            cond.notify_all()
-
-    def wait_for(pred, secs, start):
-        end = time.monotonic() + secs
-        with cond:
-            i = start
-            while True:
-                while i < len(received):
-                    if pred(received[i]):
-                        return received[i]
-                    i += 1
-                left = end - time.monotonic()
-                if left <= 0:
-                    return None
-                cond.wait(left)
-
+    s = Session(a.port, poll_s=0.02)
+    p, received, wait_for = s.p, s.received, s.wait_for
     out = {}
-    p = printcore()
-    p.recvcb = on_recv
-    p.connect(a.port, 115200)
-    end = time.monotonic() + 20
-    while not p.online and time.monotonic() < end:
-        time.sleep(0.02)
     out["online"] = p.online
     online_mark = len(received)
     mark = len(received)
@@ -96,10 +67,4 @@ def main():
 
 
 if __name__ == "__main__":
-    try:
-        code = main()
-    except Exception as e:  # report, never hang
-        print(json.dumps({"error": repr(e)}))
-        code = 3
-    sys.stdout.flush()
-    os._exit(code)
+    run(main)

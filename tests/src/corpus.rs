@@ -2,7 +2,7 @@
 //! schedules on a job, each judged by the independent reference ([`crate::judge`], built on
 //! `layerref`) and by the sim's own verdict (`sim::run::layer_verdict`).
 
-use crate::judge::{judge_request, judge_schedule, Job};
+use crate::judge::{judge_request, judge_schedule, Job, Outcome};
 use sim::exec::PrinterFactory;
 use sim::run::{self, PauseWhen};
 
@@ -60,26 +60,9 @@ pub fn check_job(
         // lost or duplicated is the property tests' business).
         sc.max_time_us = t_req + job.after_request_us;
         let tag = format!("{name} {comments:?} request at {at:.3} s");
-        let o = match run::run(&PrinterFactory, &sc, &job.lines) {
-            Ok(o) => o,
-            Err(e) => {
-                failures.push(format!("{tag}: run failed: {e:#}"));
-                continue;
-            }
-        };
-        let mut ok = true;
-        if let Err(e) = judge_request(&o, t_req, job) {
-            failures.push(format!("{tag}: {e}"));
-            ok = false;
-        }
-        if let Some(why) = run::layer_verdict(&sc, &o) {
-            failures.push(format!(
-                "{tag}: the sim's verdict: {why} ({} lines refused, first {:?})",
-                o.refused.count,
-                o.refused.first.first().map(|r| &r.reply)
-            ));
-            ok = false;
-        }
+        let ok = judged(job, &sc, &tag, &mut failures, |o| {
+            judge_request(o, t_req, job)
+        });
         right += usize::from(ok);
     }
     let numbered: Vec<u32> = job
@@ -97,27 +80,40 @@ pub fn check_job(
         sc.pause = Some(PauseWhen::AtLayer(n));
         sc.resume_after_us = Some(200_000);
         let tag = format!("{name} {comments:?} M761 L{n}");
-        let o = match run::run(&PrinterFactory, &sc, &job.lines) {
-            Ok(o) => o,
-            Err(e) => {
-                failures.push(format!("{tag}: run failed: {e:#}"));
-                continue;
-            }
-        };
-        let mut ok = true;
-        if let Err(e) = judge_schedule(&o, n, job) {
-            failures.push(format!("{tag}: {e}"));
-            ok = false;
-        }
-        if let Some(why) = run::layer_verdict(&sc, &o) {
-            failures.push(format!(
-                "{tag}: the sim's verdict: {why} ({} lines refused, first {:?})",
-                o.refused.count,
-                o.refused.first.first().map(|r| &r.reply)
-            ));
-            ok = false;
-        }
+        let ok = judged(job, &sc, &tag, &mut failures, |o| judge_schedule(o, n, job));
         right += usize::from(ok);
     }
     (right, requests + schedules, failures)
+}
+
+/// One run of `job` under `sc`, judged by `judge` (the independent reference) and by the sim's
+/// own verdict; what fails goes to `failures`, named `tag`. Whether both held.
+fn judged(
+    job: &Job,
+    sc: &run::Scenario,
+    tag: &str,
+    failures: &mut Vec<String>,
+    judge: impl FnOnce(&Outcome) -> Result<(), String>,
+) -> bool {
+    let o = match run::run(&PrinterFactory, sc, &job.lines) {
+        Ok(o) => o,
+        Err(e) => {
+            failures.push(format!("{tag}: run failed: {e:#}"));
+            return false;
+        }
+    };
+    let mut ok = true;
+    if let Err(e) = judge(&o) {
+        failures.push(format!("{tag}: {e}"));
+        ok = false;
+    }
+    if let Some(why) = run::layer_verdict(sc, &o) {
+        failures.push(format!(
+            "{tag}: the sim's verdict: {why} ({} lines refused, first {:?})",
+            o.refused.count,
+            o.refused.first.first().map(|r| &r.reply)
+        ));
+        ok = false;
+    }
+    ok
 }
