@@ -408,17 +408,13 @@ impl Printer {
         if self.motion.abort_homing() {
             self.homing_aborted();
         }
-        // A quick stop during a cancel's park ends the cancel there: the host's silence is
-        // measured from now, as when the park completes (the lines that waited during the
-        // park are the cancelled job's tail, not a new job: found by the fuzzer, an
-        // `M109 S200` of the tail heated the nozzle again after the cancel).
-        let cancelling = self.pause.state().cancelling();
         let d = self.motion.quick_stop();
-        self.pause.quick_stop();
+        // A quick stop during a cancel's park ends the cancel there, by the cancel's own end
+        // (the lines that waited during the park are the cancelled job's tail, not a new job:
+        // found by the fuzzer, an `M109 S200` of the tail heated the nozzle again).
+        let ev = self.pause.quick_stop(cx!(self));
         self.intake.quick_stop();
-        if cancelling {
-            self.intake.cancel_done(self.now_us);
-        }
+        self.route(ev);
         let pos = self.motion.position();
         self.intake.machine_at(&pos, self.settings.cfg());
         self.host.say(format_args!(

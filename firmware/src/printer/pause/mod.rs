@@ -397,8 +397,16 @@ impl PauseCtl {
         self.state = Pause::Halted;
     }
 
-    /// M410: the motion was dropped; no pause is left.
-    pub(super) fn quick_stop(&mut self) {
-        self.state = Pause::Run;
+    /// M410: the motion was dropped; no pause is left. A cancel that was stopping or parking
+    /// ends there, as when its park completes ([`PauseEvent::CancelDone`]: its tail's silence
+    /// restarts, the idle timeout's bookkeeping and the kept record are forgotten).
+    pub(super) fn quick_stop(&mut self, cx: &mut Cx) -> Events {
+        let mut ev = Events::default();
+        if self.state.cancelling() {
+            self.finish_cancel(cx, &mut ev);
+        } else {
+            self.state = Pause::Run;
+        }
+        ev
     }
 }
