@@ -754,6 +754,17 @@ fn heated_job(layers: u32, moves: u32) -> Vec<String> {
     v
 }
 
+/// [`baseline`] with the heaters modelled (`heated_job`s: the heat-up takes its time).
+fn heated_baseline(job: &[String]) -> Vec<(u32, u32)> {
+    drive_with(
+        Host::new(Kind::Printcore, job.to_vec()),
+        900_000_000,
+        true,
+        |_, _, _| {},
+    )
+    .executed
+}
+
 /// The held job ran as if never paused (every segment once, in order, as the unpaused run),
 /// no line was refused, and the nozzle was at the job's 200 °C (− 5) for every extrusion after
 /// the resume.
@@ -783,13 +794,7 @@ fn assert_held_job_whole_and_hot(o: &Outcome, base: &[(u32, u32)]) {
 fn a_pause_outlasting_the_nozzle_timeout_loses_nothing() {
     // Long enough that printcore still streams when the return starts (a line in flight).
     let job = heated_job(12, 30);
-    let base = drive_with(
-        Host::new(Kind::Printcore, job.clone()),
-        900_000_000,
-        true,
-        |_, _, _| {},
-    )
-    .executed;
+    let base = heated_baseline(&job);
     let (mut asked, mut resume_asked) = (false, false);
     // A console M105 sent when the return starts (the re-heat ahead of it): when, and when
     // answered; when the held job was released.
@@ -853,13 +858,7 @@ fn a_pause_outlasting_the_nozzle_timeout_loses_nothing() {
 #[test]
 fn a_pause_before_the_last_layer_holds_the_end_code() {
     let job = heated_job(4, 30);
-    let base = drive_with(
-        Host::new(Kind::Printcore, job.clone()),
-        900_000_000,
-        true,
-        |_, _, _| {},
-    )
-    .executed;
+    let base = heated_baseline(&job);
     let (mut asked, mut resume_asked) = (false, false);
     let mut target_while_parked = Vec::new();
     let o = drive_with(
