@@ -63,6 +63,7 @@ import requests
 import yaml
 
 from joblines import job_lines
+from replies import nozzle_c
 
 API_KEY = "LAYERPAUSETESTKEY0123456789ABCDEF"
 
@@ -458,17 +459,10 @@ def held(o, a, out, printing_on, job_cmd, terminal, base):
     mark = len(serial_lines(base))
     terminal("M105")()
     t = wait_recv(base, mark, lambda t: t.startswith("ok T:") or t.startswith("T:"), a.wait)
-    parts = (t or "").replace("ok ", "").split()
-    temp = next((w for w in parts if w.startswith("T:")), None)
-    target = parts[parts.index(temp) + 1] if temp and parts.index(temp) + 1 < len(parts) else ""
-    try:
-        sc["nozzle_c_at_resume"] = float(temp[2:]) if temp else None
-        sc["nozzle_target_c_at_resume"] = float(target.lstrip("/")) if target else None
-    except ValueError:
-        sc["nozzle_c_at_resume"] = None
-        sc["nozzle_target_c_at_resume"] = None
+    sc["nozzle_c_at_resume"], sc["nozzle_target_c_at_resume"] = nozzle_c(t)
+    # The print ran to its end (as printcore's drivers' end marker says for theirs).
     st, ok = o.wait_state(lambda s: s.startswith("Operational"), a.pause_wall)
-    sc["finished"] = ok
+    sc["end"] = ok
     sc["state_end"] = st
     recv = recv_since(base, 0)
     sc["refused"] = [t for t in recv if "refused" in t]

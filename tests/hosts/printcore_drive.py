@@ -27,8 +27,6 @@ Needs only printcore (Printrun from PyPI, no GUI dependencies) and pyserial.
 
 import argparse
 import json
-import os
-import sys
 import threading
 import time
 
@@ -36,6 +34,7 @@ from printrun import gcoder
 from printrun.printcore import printcore
 
 from joblines import job_lines
+from printcore_session import run
 
 
 def main():
@@ -243,11 +242,4 @@ def main():
 
 
 if __name__ == "__main__":
-    # printcore's reader and sender threads are not daemons: end the process whatever they do.
-    try:
-        code = main()
-    except Exception as e:  # report, never hang
-        print(json.dumps({"error": repr(e)}))
-        code = 3
-    sys.stdout.flush()
-    os._exit(code)
+    run(main)

@@ -17,16 +17,13 @@ Prints one JSON object.
 
 import argparse
 import json
-import re
 import time
 
 from printrun import gcoder
 
 from joblines import job_lines
 from printcore_session import Session, run
-
-_TEMP = re.compile(r"T:\s*(-?\d+\.?\d*)\s*/\s*(-?\d+\.?\d*)")
-
+from replies import nozzle_c
 
 def main():
     ap = argparse.ArgumentParser()
@@ -87,18 +84,11 @@ def main():
         p.send_now("M602")
         got = wait_for(lambda l: l.startswith("//action:resumed"), a.wait * 4, mark)
         out["resumed"] = got is not None
-        mark = len(received)
-        p.send_now("M105")
-        t = wait_for(lambda l: l.startswith("ok T:") or l.startswith("T:"), a.wait, mark)
-        m = _TEMP.search(t or "")
-        out["nozzle_c_at_resume"] = float(m.group(1)) if m else None
-        out["nozzle_target_c_at_resume"] = float(m.group(2)) if m else None
+        t = s.ask("M105", lambda l: l.startswith("ok T:") or l.startswith("T:"), a.wait)
+        out["nozzle_c_at_resume"], out["nozzle_target_c_at_resume"] = nozzle_c(t)
     while p.printing and time.monotonic() < deadline:
         time.sleep(0.05)
-    mark = len(received)
-    p.send_now("M400")
-    p.send_now("M118 held-job-end")
-    out["end"] = wait_for(lambda l: "held-job-end" in l and not l.startswith("M118"), 300, mark) is not None
+    out["end"] = s.end_marker("held-job-end", 300)
     out["refused"] = [l for l in received if "refused" in l]
     out["errors"] = [l for l in received if l.startswith("Error")]
     out["wall_s"] = round(time.monotonic() - t0, 1)

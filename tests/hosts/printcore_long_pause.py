@@ -106,10 +106,7 @@ def main():
     # lines ran before the end marker is asked for.
     if any("kept on the SD card" in l for l in received):
         out["spill_ran"] = wait_for(lambda l: "kept on the SD card have run" in l, 600, 0) is not None
-    mark = len(received)
-    p.send_now("M400")
-    p.send_now("M118 long-pause-end")
-    out["end"] = wait_for(lambda l: "long-pause-end" in l and not l.startswith("M118"), 600, mark) is not None
+    out["end"] = s.end_marker("long-pause-end", 600)
     out["spill_notes"] = [l for l in received if "SD card" in l]
     out["errors"] = [l for l in received if l.startswith("Error")]
     out["wall_s"] = round(time.monotonic() - t0, 1)

@@ -10,54 +10,12 @@ Prints one JSON object with what the second host saw.
 
 import argparse
 import json
-import os
-import sys
-import threading
 import time
 
 from printrun import gcoder
-from printrun.printcore import printcore
 
 from joblines import job_lines
-
-
-class Host:
-    def __init__(self, port):
-        self.received = []
-        self.cond = threading.Condition()
-        self.p = printcore()
-        self.p.recvcb = self.on_recv
-        self.p.connect(port, 115200)
-
-    def on_recv(self, line):
-        with self.cond:
-            self.received.append(line.strip())
-            self.cond.notify_all()
-
-    def online(self, secs):
-        end = time.monotonic() + secs
-        while not self.p.online and time.monotonic() < end:
-            time.sleep(0.02)
-        return self.p.online
-
-    def wait_for(self, pred, secs, start=0):
-        end = time.monotonic() + secs
-        with self.cond:
-            i = start
-            while True:
-                while i < len(self.received):
-                    if pred(self.received[i]):
-                        return self.received[i]
-                    i += 1
-                left = end - time.monotonic()
-                if left <= 0:
-                    return None
-                self.cond.wait(left)
-
-    def ask(self, cmd, pred, secs):
-        mark = len(self.received)
-        self.p.send_now(cmd)
-        return self.wait_for(pred, secs, mark)
+from printcore_session import Session, run
 
 
 def main():
@@ -69,8 +27,8 @@ def main():
     ap.add_argument("--wait", type=float, default=20.0)
     a = ap.parse_args()
     out = {}
-    first = Host(a.port)
-    if not first.online(20):
+    first = Session(a.port, poll_s=0.02)
+    if not first.p.online:
         print(json.dumps({"error": "first host never online"}))
         return 2
     job = job_lines(a.file, a.layers)
@@ -81,8 +39,8 @@ def main():
     first.p.disconnect()
     time.sleep(0.5)
 
-    second = Host(a.port)
-    out["second_online"] = second.online(20)
+    second = Session(a.port, poll_s=0.02)
+    out["second_online"] = second.p.online
     # What a host coming to a paused printer sees first (before its own lines' answers).
     told = second.wait_for(lambda l: "paused: job held" in l, a.wait)
     out["told"] = told
@@ -98,8 +56,7 @@ def main():
     while second.p.printing and time.monotonic() < end:
         time.sleep(0.05)
     out["second_job_sent"] = not second.p.printing
-    second.p.send_now("M400")
-    out["end"] = second.ask("M118 reconnect-end", lambda l: "reconnect-end" in l and not l.startswith("M118"), 300) is not None
+    out["end"] = second.end_marker("reconnect-end", 300)
     out["errors"] = [l for l in second.received if l.startswith("Error")]
     out["second_first_lines"] = second.received[:6]
     # Leave once the printer has run everything (a host leaving while moves are queued
@@ -111,10 +68,4 @@ def main():
 
 
 if __name__ == "__main__":
-    try:
-        code = main()
-    except Exception as e:  # report, never hang
-        print(json.dumps({"error": repr(e)}))
-        code = 3
-    sys.stdout.flush()
-    os._exit(code)
+    run(main)

@@ -55,6 +55,19 @@ class Session:
                 self._cond.wait(left)
 
 
+    def ask(self, cmd, pred, secs):
+        """Send `cmd` now (`send_now`) and wait for the first line after it matching `pred`."""
+        mark = self.mark()
+        self.p.send_now(cmd)
+        return self.wait_for(pred, secs, mark)
+
+    def end_marker(self, tag, secs):
+        """M400, then `M118 <tag>`: whether the echo came (everything before it has run)."""
+        self.p.send_now("M400")
+        got = self.ask("M118 " + tag, lambda l: tag in l and not l.startswith("M118"), secs)
+        return got is not None
+
+
 def run(main):
     """Run `main` (returning an exit status) and end the process: a failure is reported as
     one JSON object, never a hang."""

@@ -25,9 +25,7 @@ def main():
     out = {}
     out["online"] = p.online
     online_mark = len(received)
-    mark = len(received)
-    p.send_now("M118 tft-asks")
-    out["reply_here"] = wait_for(lambda l: "tft-asks" in l, 20, mark)
+    out["reply_here"] = s.ask("M118 tft-asks", lambda l: "tft-asks" in l, 20)
     # Until the job OctoPrint streams prints its third layer (M27: the firmware's layer).
     def at_layer_2(l):
         w = l.split()
@@ -36,24 +34,18 @@ def main():
     end = time.monotonic() + a.wait
     out["printing_seen"] = False
     while time.monotonic() < end:
-        mark = len(received)
-        p.send_now("M27")
-        l = wait_for(at_layer_2, 2, mark)
+        l = s.ask("M27", at_layer_2, 2)
         if l is not None:
             out["printing_seen"] = l
             break
         time.sleep(0.5)
-    mark = len(received)
-    p.send_now("M601")
-    out["paused_by_me"] = wait_for(lambda l: l == "//action:paused", a.wait, mark) is not None
+    out["paused_by_me"] = s.ask("M601", lambda l: l == "//action:paused", a.wait) is not None
     mark = len(received)
     out["resumed_by_other"] = wait_for(lambda l: l == "//action:resumed", a.wait, mark) is not None
     mark = len(received)
     out["paused_by_other"] = wait_for(lambda l: l == "//action:paused", a.wait, mark) is not None
     time.sleep(1)
-    mark = len(received)
-    p.send_now("M602")
-    out["resumed_by_me"] = wait_for(lambda l: l == "//action:resumed", a.wait, mark) is not None
+    out["resumed_by_me"] = s.ask("M602", lambda l: l == "//action:resumed", a.wait) is not None
     mark = len(received)
     out["cancel_seen"] = wait_for(lambda l: l == "//action:cancel", a.wait, mark) is not None
     after = received[online_mark:]
